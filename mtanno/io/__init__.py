@@ -1,0 +1,100 @@
+"""Mocap readers: ASF/AMC and BVH files → world joint positions (algorithms.md §1).
+
+:func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
+forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap, find_map
+from mtanno.io.skeleton import Channels, Motion, Rig, forward_kinematics
+
+__all__ = ["MOCAP_SUFFIXES", "read_channels", "read_motion", "canonical_positions",
+           "find_asf", "Motion", "Rig", "Channels", "CANONICAL_JOINTS"]
+
+#: File suffixes (lower case) that hold motions.
+MOCAP_SUFFIXES = (".amc", ".bvh")
+
+
+def find_asf(amc_path: str | os.PathLike) -> Path:
+    """The ASF skeleton belonging to an AMC file when none is given.
+
+    Looks in the AMC's folder, then each ancestor folder in turn, and takes the first folder
+    that has ASF files: the ASF whose stem begins the AMC's stem (``HDM_bd.asf`` for
+    ``HDM_bd_squat1Reps_001_120.amc``, ``02.asf`` for ``02_05.amc``; the longest such
+    stem wins), else the only ASF there. Raises :class:`MtannoError` when none or several fit.
+    """
+    amc = Path(amc_path)
+    stem = amc.stem
+    for folder in [amc.parent, *amc.resolve().parent.parents]:
+        asfs = sorted(p for p in folder.glob("*") if p.suffix.lower() == ".asf" and p.is_file())
+        if not asfs:
+            continue
+        prefixed = [p for p in asfs if stem.startswith(p.stem)]
+        if prefixed:
+            best = max(len(p.stem) for p in prefixed)
+            winners = [p for p in prefixed if len(p.stem) == best]
+            if len(winners) == 1:
+                return winners[0]
+        if len(asfs) == 1:
+            return asfs[0]
+        raise MtannoError(f"several ASF files in {folder} and none is named like the AMC "
+                          f"({', '.join(p.name for p in asfs[:5])}); pass --asf FILE",
+                          path=str(amc_path))
+    raise MtannoError("no ASF skeleton found in the AMC's folder or above it; pass --asf FILE",
+                      path=str(amc_path))
+
+
+def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
+                  ) -> tuple[Rig, Channels]:
+    """Parse a motion file into its rig and per-frame channels (no kinematics yet)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".amc":
+        from mtanno.io.asf import read_asf
+        from mtanno.io.amc import read_amc
+        asf_path = Path(asf) if asf is not None else find_asf(path)
+        skel = read_asf(asf_path)
+        return skel.rig, read_amc(path, skel)
+    if suffix == ".bvh":
+        from mtanno.io.bvh import read_bvh
+        return read_bvh(path)
+    raise MtannoError(f"unknown motion file type '{path.suffix}' (expected .amc or .bvh)",
+                      path=str(path))
+
+
+def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
+                skeleton: str | os.PathLike | None = None) -> Motion:
+    """Read a motion file and compute world positions of every node.
+
+    Parameters
+    ----------
+    path:
+        An ``.amc`` or ``.bvh`` file.
+    asf:
+        The ASF skeleton of an AMC file; by default found with :func:`find_asf`.
+    skeleton:
+        A skeleton map (file or name) to use instead of the automatically detected one.
+    """
+    rig, ch = read_channels(path, asf=asf)
+    smap = find_map(rig, skeleton)
+    positions, heading = forward_kinematics(
+        rig, ch.angles, ch.trans, ch.has_trans,
+        heading_node=smap.heading_index(rig), heading_axis=smap.heading_axis)
+    return Motion(rig=rig, positions=positions, heading=heading, fps=ch.fps, source=str(path),
+                  smap=smap)
+
+
+def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
+                        joints: tuple[str, ...] = CANONICAL_JOINTS) -> np.ndarray:
+    """(frames × len(joints) × 3) positions of the canonical joints, in ``joints`` order."""
+    smap = smap if smap is not None else motion.smap
+    if smap is None:
+        smap = find_map(motion.rig)
+    return motion.positions[:, smap.indices(motion.rig, joints), :]

@@ -1,0 +1,169 @@
+"""Skeleton maps: which node of a rig is which canonical joint.
+
+Spec: ``algorithms.md`` §1 (canonical joints) and ``features.md`` §1.5. A skeleton map is a
+TOML file (see ``configs/skeletons/*.toml`` and ``docs/formats.md``)::
+
+    name = "cmu-asf"
+    description = "..."
+    format = "asf"                      # which reader's rigs it applies to
+    detect = ["lfemur", "rhumerus"]     # the map fits a rig that has all these nodes
+    heading = { node = "root", axis = [1.0, 0.0, 0.0] }   # F40: root-local axis
+
+    [joints]
+    root = "root"
+    lhip = "lhipjoint"
+    ...
+
+Maps are searched in the directories of ``$MTANNO_SKELETON_PATH`` (``os.pathsep``
+separated), then ``~/.config/mtanno/skeletons``, then the project's ``configs/skeletons``,
+so a user adds a rig by dropping a file there, or passes one with ``--skeleton``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.io.skeleton import Rig
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+#: The canonical joints features use, in this order (algorithms.md §1).
+CANONICAL_JOINTS: tuple[str, ...] = (
+    "root", "lhip", "rhip", "lknee", "rknee", "lankle", "rankle", "ltoes", "rtoes", "belly",
+    "chest", "neck", "head", "headtop", "lshoulder", "rshoulder", "lelbow", "relbow", "lwrist",
+    "rwrist", "lfingers", "rfingers",
+)
+
+_BUILTIN_DIR = Path(__file__).resolve().parents[2] / "configs" / "skeletons"
+
+
+@dataclass(frozen=True)
+class SkeletonMap:
+    """A parsed skeleton map (see module docstring)."""
+
+    name: str
+    format: str
+    joints: dict[str, str]
+    detect: tuple[str, ...]
+    heading_node: str
+    heading_axis: tuple[float, float, float]
+    path: str
+    description: str = ""
+
+    def fits(self, rig: Rig) -> bool:
+        """True if the map is for this file format and the rig has every detect node."""
+        names = set(rig.names)
+        return self.format == rig.kind and all(n in names for n in self.detect)
+
+    def coverage(self, rig: Rig) -> dict[str, str | None]:
+        """Canonical joint → rig node name, or None where the map or the rig lacks it."""
+        names = set(rig.names)
+        return {j: (self.joints[j] if self.joints.get(j) in names else None)
+                for j in CANONICAL_JOINTS}
+
+    def indices(self, rig: Rig, joints: tuple[str, ...] = CANONICAL_JOINTS) -> np.ndarray:
+        """Rig node index of each canonical joint in ``joints``.
+
+        Raises :class:`MtannoError` naming the first joint the map does not give or the rig
+        does not have.
+        """
+        out = np.empty(len(joints), dtype=np.int64)
+        for k, j in enumerate(joints):
+            node = self.joints.get(j)
+            if node is None:
+                raise MtannoError(f"skeleton map '{self.name}' ({self.path}) has no entry for "
+                                  f"joint '{j}', which the features need", path=rig.source)
+            if node not in rig.names:
+                raise MtannoError(f"skeleton map '{self.name}' maps joint '{j}' to '{node}', "
+                                  f"which the rig does not have", path=rig.source)
+            out[k] = rig.names.index(node)
+        return out
+
+    def heading_index(self, rig: Rig) -> int:
+        if self.heading_node not in rig.names:
+            raise MtannoError(f"skeleton map '{self.name}' takes the heading from node "
+                              f"'{self.heading_node}', which the rig does not have",
+                              path=rig.source)
+        return rig.names.index(self.heading_node)
+
+
+def load_map(path: str | os.PathLike) -> SkeletonMap:
+    """Read one skeleton map file, checking its fields."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise MtannoError("skeleton map file not found", path=str(path)) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise MtannoError(f"not a valid TOML skeleton map: {exc}", path=str(path)) from None
+    try:
+        joints = data["joints"]
+        fmt = data["format"]
+        name = data.get("name", path.stem)
+    except KeyError as exc:
+        raise MtannoError(f"skeleton map lacks the key {exc}", path=str(path)) from None
+    if not isinstance(joints, dict) or not all(isinstance(v, str) for v in joints.values()):
+        raise MtannoError("[joints] must map canonical joint names to node names",
+                          path=str(path))
+    unknown = sorted(set(joints) - set(CANONICAL_JOINTS))
+    if unknown:
+        raise MtannoError(f"unknown canonical joint(s) {', '.join(unknown)}; known: "
+                          f"{', '.join(CANONICAL_JOINTS)}", path=str(path))
+    heading = data.get("heading", {})
+    axis = tuple(float(v) for v in heading.get("axis", (1.0, 0.0, 0.0)))
+    if len(axis) != 3:
+        raise MtannoError("heading.axis must have three numbers", path=str(path))
+    return SkeletonMap(
+        name=str(name), format=str(fmt), joints=dict(joints),
+        detect=tuple(data.get("detect", tuple(joints.values()))),
+        heading_node=str(heading.get("node", joints.get("root", ""))),
+        heading_axis=axis,  # type: ignore[arg-type]
+        path=str(path), description=str(data.get("description", "")))
+
+
+def search_dirs() -> list[Path]:
+    """Directories searched for skeleton maps, first match wins."""
+    dirs = [Path(p) for p in os.environ.get("MTANNO_SKELETON_PATH", "").split(os.pathsep) if p]
+    dirs.append(Path.home() / ".config" / "mtanno" / "skeletons")
+    dirs.append(_BUILTIN_DIR)
+    return dirs
+
+
+def available_maps() -> list[SkeletonMap]:
+    """All maps on the search path (a name found earlier hides later ones)."""
+    seen: dict[str, SkeletonMap] = {}
+    for d in search_dirs():
+        if not d.is_dir():
+            continue
+        for f in sorted(d.glob("*.toml")):
+            m = load_map(f)
+            seen.setdefault(m.name, m)
+    return list(seen.values())
+
+
+def find_map(rig: Rig, override: str | os.PathLike | None = None) -> SkeletonMap:
+    """The skeleton map for ``rig``: ``override`` (a file or a map name) or the first fit."""
+    if override is not None:
+        p = Path(override)
+        if p.suffix == ".toml" or p.exists():
+            return load_map(p)
+        for m in available_maps():
+            if m.name == str(override):
+                return m
+        raise MtannoError(f"no skeleton map named '{override}' (known: "
+                          f"{', '.join(m.name for m in available_maps())})")
+    for m in available_maps():
+        if m.fits(rig):
+            return m
+    raise MtannoError(f"no skeleton map fits this {rig.kind.upper()} rig (nodes: "
+                      f"{', '.join(rig.names[:8])}, ...); add one to configs/skeletons/ or "
+                      f"pass --skeleton MAP.toml", path=rig.source)

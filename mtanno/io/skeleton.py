@@ -1,0 +1,252 @@
+"""Rig description and forward kinematics shared by the ASF/AMC and BVH readers.
+
+Spec: ``algorithms.md`` §1 and ``features.md`` §1.3–1.4. Both file formats are reduced to
+one model: a tree of nodes, each with a local rotation
+
+    L_j = pre_j · R_{a0}(θ0) · R_{a1}(θ1) · R_{a2}(θ2) · post_j
+
+(three elementary rotations in the order they are multiplied, taken from the file's channel
+or dof order) and a local translation (the node's constant offset, or per-frame translation
+channels when the node has them, which replace the offset as in BVH). Global rotations
+compose from the root: ``G_j = G_parent · L_j``.
+
+Positions follow the file format's convention:
+
+* ASF ("end point" rigs): a node is a bone and its position is the bone's *distal end*,
+  ``P_j = P_parent + G_j · offset_j`` (the bone's own rotation acts on its own offset).
+* BVH ("joint origin" rigs): ``P_j = P_parent + G_parent · offset_j``.
+
+Units: lengths as given by the reader (centimetres for ASF, file units for BVH), angles in
+radians, Y up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numba
+import numpy as np
+
+#: Axis codes used in :attr:`Rig.axes`.
+AXIS_CODES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass
+class Rig:
+    """The static part of a skeleton: node tree, offsets and rotation layout.
+
+    Attributes
+    ----------
+    kind:
+        ``"asf"`` or ``"bvh"``.
+    names:
+        Node names; index 0 is the root. Every parent comes before its children.
+    parents:
+        Parent index per node, -1 for the root.
+    offsets:
+        (nodes × 3) constant local translation per node.
+    axes:
+        (nodes × 3) axis code (0 = x, 1 = y, 2 = z) of the three elementary rotations, in the
+        order they are multiplied.
+    pre, post:
+        (nodes × 3 × 3) fixed matrices around the elementary rotations (ASF bone axis
+        conjugation ``C … C⁻¹``; identity for BVH).
+    end_point:
+        True when node positions are bone end points (ASF), False for joint origins (BVH).
+    source:
+        The file the rig was read from (for messages).
+    """
+
+    kind: str
+    names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    axes: np.ndarray
+    pre: np.ndarray
+    post: np.ndarray
+    end_point: bool
+    source: str = ""
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """Index of node ``name`` (exact match)."""
+        return self.names.index(name)
+
+
+@dataclass
+class Motion:
+    """Joint trajectories of one mocap document, in world coordinates (Y up).
+
+    Attributes
+    ----------
+    rig:
+        The skeleton the positions belong to.
+    positions:
+        (frames × nodes × 3) float64 world positions at the native frame rate.
+    heading:
+        (frames × 3) world direction of the skeleton map's heading axis on its root node
+        (``G_root · axis``), used by the root-turning feature F40.
+    fps:
+        Native frame rate in frames per second, as read from the file.
+    source:
+        Path of the motion file.
+    smap:
+        The :class:`~mtanno.io.rigs.SkeletonMap` used to find canonical joints.
+    """
+
+    rig: Rig
+    positions: np.ndarray
+    heading: np.ndarray
+    fps: float
+    source: str
+    smap: Any = None
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.positions.shape[0])
+
+
+def euler_matrix(axis: int, angle: float) -> np.ndarray:
+    """Right-handed rotation by ``angle`` radians about axis 0/1/2 (column vectors)."""
+    c, s = np.cos(angle), np.sin(angle)
+    m = np.eye(3)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    m[i, i] = c
+    m[j, j] = c
+    m[i, j] = -s
+    m[j, i] = s
+    return m
+
+
+@numba.njit(cache=True, inline="always")
+def _rotate_into(out, axis, angle):
+    """Right-multiply the 3×3 matrix ``out`` in place by R_axis(angle)."""
+    c = np.cos(angle)
+    s = np.sin(angle)
+    i = (axis + 1) % 3
+    j = (axis + 2) % 3
+    for r in range(3):
+        a = out[r, i]
+        b = out[r, j]
+        out[r, i] = a * c + b * s
+        out[r, j] = -a * s + b * c
+
+
+@numba.njit(cache=True)
+def _fk_kernel(angles, trans, has_trans, parents, offsets, axes, pre, post, end_point,
+               heading_node, heading_axis, positions, heading):
+    """Forward kinematics for every frame; memory per frame is one (nodes × 3 × 3) scratch."""
+    n_frames, n_nodes = angles.shape[0], angles.shape[1]
+    g = np.empty((n_nodes, 3, 3))
+    loc = np.empty((3, 3))
+    t = np.empty(3)
+    for f in range(n_frames):
+        for j in range(n_nodes):
+            for r in range(3):
+                for c in range(3):
+                    loc[r, c] = pre[j, r, c]
+            for k in range(3):
+                _rotate_into(loc, axes[j, k], angles[f, j, k])
+            # loc = loc · post
+            for r in range(3):
+                a0 = loc[r, 0]
+                a1 = loc[r, 1]
+                a2 = loc[r, 2]
+                for c in range(3):
+                    loc[r, c] = a0 * post[j, 0, c] + a1 * post[j, 1, c] + a2 * post[j, 2, c]
+            if has_trans[j]:
+                for k in range(3):
+                    t[k] = trans[f, j, k]
+            else:
+                for k in range(3):
+                    t[k] = offsets[j, k]
+            p = parents[j]
+            if p < 0:
+                for r in range(3):
+                    for c in range(3):
+                        g[j, r, c] = loc[r, c]
+                    positions[f, j, r] = t[r]
+            else:
+                for r in range(3):
+                    for c in range(3):
+                        g[j, r, c] = g[p, r, 0] * loc[0, c] + g[p, r, 1] * loc[1, c] + g[p, r, 2] * loc[2, c]
+                q = j if end_point else p
+                for r in range(3):
+                    positions[f, j, r] = positions[f, p, r] + (
+                        g[q, r, 0] * t[0] + g[q, r, 1] * t[1] + g[q, r, 2] * t[2])
+        for r in range(3):
+            heading[f, r] = (g[heading_node, r, 0] * heading_axis[0]
+                             + g[heading_node, r, 1] * heading_axis[1]
+                             + g[heading_node, r, 2] * heading_axis[2])
+
+
+def forward_kinematics(rig: Rig, angles: np.ndarray, trans: np.ndarray, has_trans: np.ndarray,
+                       *, heading_node: int = 0,
+                       heading_axis: tuple[float, float, float] = (1.0, 0.0, 0.0),
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """World positions of every node and the heading vector for every frame.
+
+    Parameters
+    ----------
+    rig:
+        Static skeleton.
+    angles:
+        (frames × nodes × 3) rotation angles in radians, in the multiplication order of
+        ``rig.axes``.
+    trans:
+        (frames × nodes × 3) translation channel values; only read where ``has_trans``.
+    has_trans:
+        (nodes,) bool: the node's translation comes from ``trans`` instead of its offset.
+    heading_node, heading_axis:
+        ``heading[f] = G_heading_node(f) · heading_axis`` (features.md F40).
+
+    Returns
+    -------
+    positions, heading:
+        (frames × nodes × 3) and (frames × 3) float64.
+    """
+    n_frames = angles.shape[0]
+    positions = np.empty((n_frames, rig.n_nodes, 3))
+    heading = np.empty((n_frames, 3))
+    _fk_kernel(np.ascontiguousarray(angles, dtype=np.float64),
+               np.ascontiguousarray(trans, dtype=np.float64),
+               np.ascontiguousarray(has_trans, dtype=np.bool_),
+               np.ascontiguousarray(rig.parents, dtype=np.int64),
+               np.ascontiguousarray(rig.offsets, dtype=np.float64),
+               np.ascontiguousarray(rig.axes, dtype=np.int64),
+               np.ascontiguousarray(rig.pre, dtype=np.float64),
+               np.ascontiguousarray(rig.post, dtype=np.float64),
+               bool(rig.end_point), int(heading_node),
+               np.asarray(heading_axis, dtype=np.float64), positions, heading)
+    return positions, heading
+
+
+@dataclass
+class Channels:
+    """Per-frame channel values of one motion file, laid out for :func:`forward_kinematics`.
+
+    Attributes
+    ----------
+    angles:
+        (frames × nodes × 3) radians, in the multiplication order of ``Rig.axes``.
+    trans:
+        (frames × nodes × 3) translation channel values (same length unit as the rig).
+    has_trans:
+        (nodes,) bool: which nodes take their translation from ``trans``.
+    fps:
+        Native frame rate read from the file (frames per second).
+    """
+
+    angles: np.ndarray
+    trans: np.ndarray
+    has_trans: np.ndarray
+    fps: float
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.angles.shape[0])
