@@ -1,0 +1,157 @@
+"""Command line: a thin Click layer over the Python API.
+
+Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error.
+Errors a user can fix are printed as one line ``mtanno: path:line: what is wrong``.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from pathlib import Path
+
+import click
+
+from mtanno import __version__
+from mtanno.errors import MtannoError
+
+
+def _user_errors(code: int):
+    """Turn MtannoError into a one-line message and exit ``code`` (no traceback)."""
+
+    def deco(fn):
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            try:
+                return fn(*args, **kwargs)
+            except MtannoError as exc:
+                click.echo(f"mtanno: {exc}", err=True)
+                sys.exit(code)
+
+        return wrapper
+
+    return deco
+
+
+def _show_progress(quiet: bool) -> bool:
+    return not quiet and sys.stderr.isatty()
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="mtanno")
+def main() -> None:
+    """mtanno: find, retrieve and annotate human motions in mocap archives.
+
+    The stages pass files: `mtanno features` turns ASF/AMC and BVH files into Parquet
+    feature files (40 boolean relational features per frame at 30 Hz), which later stages
+    read. Run `mtanno COMMAND --help` for each command.
+    """
+
+
+@main.command("features")
+@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
+@click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
+              help="Output directory; outputs mirror the input tree.")
+@click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
+              help="Number of worker processes.")
+@click.option("--skeleton", "skeleton", default=None, metavar="MAP",
+              help="Skeleton map (TOML file or map name) instead of the detected one.")
+@click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="ASF skeleton for every AMC input (default: found beside or above it).")
+@click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@_user_errors(2)
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, quiet):
+    """Compute the 40 relational features of mocap files (ASF/AMC, BVH).
+
+    INPUT is a motion file (.amc, .bvh), a directory (searched recursively) or `-` to read
+    file names from standard input, one per line. A file FILE.amc gives OUTDIR/FILE.parquet;
+    a file found in directory DIR gives OUTDIR/<its path below DIR>.parquet. The document
+    is named by the file's stem everywhere.
+
+    An AMC file's ASF is taken from --asf, else from its folder or the nearest folder above
+    it: the ASF whose name begins the AMC's name (HDM_bd.asf for HDM_bd_squat1Reps_001_120.amc,
+    02.asf for 02_05.amc), else the only ASF there.
+
+    Outputs newer than their input are skipped unless --force. Files that fail are reported
+    as `path:line: what is wrong` and the others are still written. Exit code: 0 all
+    written or up to date, 1 some files failed, 2 usage error.
+
+    Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
+    """
+    from tqdm import tqdm
+
+    from mtanno.features.extract import plan_batch, run_batch
+
+    items: list[str] = []
+    for item in inputs:
+        if item == "-":
+            items.extend(line.strip() for line in sys.stdin if line.strip())
+        else:
+            items.append(item)
+    jobs_list = plan_batch(items, outdir, asf=asf)
+    if not jobs_list:
+        raise MtannoError("no .amc or .bvh files found in the inputs")
+    bar = tqdm(total=len(jobs_list), unit="file", disable=not _show_progress(quiet),
+               desc="features")
+
+    def progress(outcome):
+        bar.update(1)
+        if outcome.status == "failed":
+            bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
+
+    summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
+                        progress=progress)
+    bar.close()
+    if not quiet:
+        click.echo(f"features: {summary.line()} -> {outdir}", err=True)
+    sys.exit(1 if summary.failed else 0)
+
+
+@main.command("info")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="ASF skeleton of an AMC file (default: found beside or above it).")
+@click.option("--skeleton", default=None, metavar="MAP",
+              help="Skeleton map (TOML file or name) instead of the detected one.")
+@_user_errors(1)
+def info_cmd(file, asf, skeleton):
+    """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
+    or a feature file (.parquet: its metadata)."""
+    path = Path(file)
+    if path.suffix.lower() == ".parquet":
+        from mtanno.store import read_features
+
+        ff = read_features(path)
+        m = ff.meta
+        click.echo(f"feature file   {path}")
+        click.echo(f"document       {ff.document}")
+        click.echo(f"source         {m.get('source')} (sha256 {str(m.get('source_sha256'))[:12]}…)")
+        click.echo(f"feature set    {m.get('feature_set')} v{m.get('feature_set_version')}, "
+                   f"{len(ff.names)} features")
+        click.echo(f"frames         {ff.X.shape[1]} at {m.get('analysis_fps')} Hz "
+                   f"({m.get('native_frames')} native at {m.get('native_fps')} Hz)")
+        click.echo(f"skeleton map   {m.get('skeleton_map')}")
+        click.echo(f"mtanno         {m.get('mtanno_version')}")
+        return
+    from mtanno.io import read_motion
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    motion = read_motion(path, asf=asf, skeleton=skeleton)
+    rig = motion.rig
+    cov = motion.smap.coverage(rig)
+    missing = [j for j in CANONICAL_JOINTS if cov[j] is None]
+    click.echo(f"file           {path}")
+    click.echo(f"rig            {rig.kind.upper()} ({rig.source}), {rig.n_nodes} nodes")
+    click.echo(f"frame rate     {motion.fps:g} Hz")
+    click.echo(f"frames         {motion.n_frames}")
+    click.echo(f"duration       {motion.n_frames / motion.fps:.2f} s")
+    click.echo(f"skeleton map   {motion.smap.name} ({motion.smap.path})")
+    click.echo(f"map coverage   {len(CANONICAL_JOINTS) - len(missing)}/{len(CANONICAL_JOINTS)}"
+               + (f" (missing: {', '.join(missing)})" if missing else ""))
+    for j in CANONICAL_JOINTS:
+        click.echo(f"  {j:<10} <- {cov[j] or 'MISSING'}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

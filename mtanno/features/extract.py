@@ -1,0 +1,208 @@
+"""Feature extraction for files and batches: mocap file → Parquet feature file.
+
+This is the Python API behind ``mtanno features``: :func:`extract_file` does one document,
+:func:`plan_batch` maps inputs (files, directories, lists) to output paths that mirror the
+input tree, and :func:`run_batch` runs a plan in one or more processes, continuing past
+files that fail.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mtanno import __version__
+from mtanno.errors import MtannoError
+from mtanno.features import (
+    ANALYSIS_FPS,
+    FEATURE_NAMES,
+    FEATURE_SET,
+    FEATURE_SET_VERSION,
+    FEATURES,
+    GROUPS,
+    compute_features,
+)
+from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
+from mtanno.io.skeleton import Motion
+from mtanno.store import sha256_file, write_features
+
+
+def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """(40 × analysis frames) uint8 features and the 1-based native frame of each column."""
+    X, keep = compute_features(canonical_positions(motion), motion.heading, motion.fps,
+                               target_fps=target_fps)
+    return X, keep + 1
+
+
+def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *,
+                 asf: str | os.PathLike | None = None,
+                 skeleton: str | os.PathLike | None = None) -> tuple[np.ndarray, dict]:
+    """Compute the features of one motion file; write them to ``dst`` if given.
+
+    Returns the (40 × frames) matrix and the metadata stored with it.
+    """
+    src = Path(src)
+    if src.suffix.lower() == ".amc" and asf is None:
+        asf = find_asf(src)
+    motion = read_motion(src, asf=asf, skeleton=skeleton)
+    X, native = features_from_motion(motion)
+    meta = {
+        "document": src.stem,
+        "source": str(src),
+        "source_sha256": sha256_file(src),
+        "skeleton_file": None if asf is None else str(asf),
+        "skeleton_file_sha256": None if asf is None else sha256_file(asf),
+        "rig": motion.rig.kind,
+        "native_fps": motion.fps,
+        "native_frames": motion.n_frames,
+        "analysis_fps": ANALYSIS_FPS,
+        "analysis_frames": int(X.shape[1]),
+        "frame_mapping": "native_frame = floor(k * native_fps / analysis_fps + 1/2) + 1 "
+                         "for analysis frame k = 0, 1, ... (column native_frame)",
+        "skeleton_map": motion.smap.name,
+        "skeleton_map_file": motion.smap.path,
+        "feature_set": FEATURE_SET,
+        "feature_set_version": FEATURE_SET_VERSION,
+        "feature_ids": [f.id for f in FEATURES],
+        "groups": {g: [FEATURE_NAMES[i] for i in rows] for g, rows in GROUPS.items()},
+        "mtanno_version": __version__,
+    }
+    if dst is not None:
+        write_features(dst, X, FEATURE_NAMES, native, meta)
+    return X, meta
+
+
+@dataclass
+class Job:
+    """One document of a batch: motion file, output file, optional ASF."""
+
+    src: Path
+    dst: Path
+    asf: Path | None = None
+
+
+@dataclass
+class Outcome:
+    job: Job
+    status: str  # "written", "skipped" or "failed"
+    message: str = ""
+    frames: int = 0
+
+
+@dataclass
+class Summary:
+    """Counts and failures of a batch run."""
+
+    outcomes: list[Outcome] = field(default_factory=list)
+
+    def count(self, status: str) -> int:
+        return sum(o.status == status for o in self.outcomes)
+
+    @property
+    def failed(self) -> list[Outcome]:
+        return [o for o in self.outcomes if o.status == "failed"]
+
+    def line(self) -> str:
+        frames = sum(o.frames for o in self.outcomes if o.status == "written")
+        return (f"{self.count('written')} written ({frames} frames at 30 Hz), "
+                f"{self.count('skipped')} up to date, {self.count('failed')} failed")
+
+
+def _is_motion(p: Path) -> bool:
+    return p.suffix.lower() in MOCAP_SUFFIXES
+
+
+def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
+               asf: str | os.PathLike | None = None) -> list[Job]:
+    """Map inputs to output paths under ``outdir``.
+
+    A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
+    ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
+    Raises :class:`MtannoError` for a missing input or two inputs with the same output.
+    """
+    outdir = Path(outdir)
+    jobs: list[Job] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.rglob("*") if q.is_file() and _is_motion(q))
+            for q in found:
+                rel = q.relative_to(p).with_suffix(".parquet")
+                jobs.append(Job(q, outdir / rel))
+        elif p.is_file():
+            jobs.append(Job(p, outdir / (p.stem + ".parquet")))
+        else:
+            raise MtannoError("no such file or directory", path=str(p))
+    seen: dict[Path, Path] = {}
+    for j in jobs:
+        if j.dst in seen and seen[j.dst] != j.src:
+            raise MtannoError(f"two inputs would write {j.dst}: {seen[j.dst]} and {j.src}")
+        seen[j.dst] = j.src
+        if asf is not None and j.src.suffix.lower() == ".amc":
+            j.asf = Path(asf)
+    unique = {j.dst: j for j in jobs}
+    return list(unique.values())
+
+
+def _up_to_date(job: Job) -> bool:
+    if not job.dst.exists():
+        return False
+    newest = job.src.stat().st_mtime
+    if job.asf is not None and job.asf.exists():
+        newest = max(newest, job.asf.stat().st_mtime)
+    return job.dst.stat().st_mtime > newest
+
+
+def _run_one(job: Job, skeleton: str | None) -> Outcome:
+    try:
+        X, _ = extract_file(job.src, job.dst, asf=job.asf, skeleton=skeleton)
+        return Outcome(job, "written", frames=int(X.shape[1]))
+    except MtannoError as exc:
+        return Outcome(job, "failed", str(exc))
+    except Exception as exc:  # a bug, reported per file so the batch goes on
+        return Outcome(job, "failed", f"{job.src}: internal error: {type(exc).__name__}: {exc}")
+
+
+def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
+              skeleton: str | None = None,
+              progress: Callable[[Outcome], None] | None = None) -> Summary:
+    """Extract features for every job; failures are recorded, the batch goes on.
+
+    ``n_jobs`` > 1 runs documents in that many processes. Outputs newer than their inputs
+    are skipped unless ``force``. ``progress`` is called once per finished job.
+    """
+    summary = Summary()
+    todo = []
+    for j in jobs:
+        if not force and _up_to_date(j):
+            o = Outcome(j, "skipped")
+            summary.outcomes.append(o)
+            if progress:
+                progress(o)
+        else:
+            todo.append(j)
+    if n_jobs <= 1 or len(todo) <= 1:
+        results: Iterable[Outcome] = (_run_one(j, skeleton) for j in todo)
+        for o in results:
+            summary.outcomes.append(o)
+            if progress:
+                progress(o)
+        return summary
+    ctx = None
+    if sys.platform != "win32":
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("fork")
+    with ProcessPoolExecutor(max_workers=n_jobs, mp_context=ctx) as pool:
+        for o in pool.map(_run_one, todo, [skeleton] * len(todo), chunksize=4):
+            summary.outcomes.append(o)
+            if progress:
+                progress(o)
+    return summary
