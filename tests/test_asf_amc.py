@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import synth
 from naive import fk_naive
 
+from mtanno import synthetic as synth
 from mtanno.errors import MtannoError
 from mtanno.io import find_asf, read_channels, read_motion
 from mtanno.io.asf import read_asf

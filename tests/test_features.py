@@ -7,7 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from naive import hysteresis_naive, reduce_naive, velocity_naive
+from naive_features import features_numpy, velocity
 
+from mtanno import synthetic
 from mtanno.errors import MtannoError
 from mtanno.features import (
     FEATURE_NAMES,
@@ -21,7 +23,8 @@ from mtanno.features import (
     mirror_permutation,
 )
 from mtanno.features.hysteresis import _hysteresis_kernel
-from mtanno.features.measures import velocity, window_samples
+from mtanno.features.measures import window_samples
+from mtanno.io import canonical_positions, read_motion
 
 bits = st.lists(st.booleans(), min_size=0, max_size=60)
 
@@ -123,3 +126,39 @@ def test_compute_features_rejects_bad_shapes():
         compute_features_native(np.zeros((5, 3, 3)), np.zeros((5, 3)), 120.0)
     with pytest.raises(MtannoError, match="no frames"):
         compute_features_native(np.zeros((0, 22, 3)), np.zeros((0, 3)), 120.0)
+
+
+def _synthetic_motion(tmp_path, n=300, seed=0):
+    return read_motion(synthetic.write_pair(tmp_path, n_frames=n, seed=seed))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_kernel_equals_numpy_measures_bit_for_bit(tmp_path, seed):
+    m = _synthetic_motion(tmp_path, 300, seed)
+    J = canonical_positions(m)
+    got = compute_features_native(J, m.heading, m.fps)
+    assert np.array_equal(got, features_numpy(J, m.heading, m.fps))
+    assert 0.05 < got.mean() < 0.95  # the synthetic motion switches features on and off
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 29])
+def test_kernel_short_clips(tmp_path, n):
+    # clips shorter than the velocity windows (12 and 30 samples) mirror-pad (features.md §8)
+    m = _synthetic_motion(tmp_path, n)
+    J = canonical_positions(m)
+    assert np.array_equal(compute_features_native(J, m.heading, m.fps),
+                          features_numpy(J, m.heading, m.fps))
+
+
+def test_kernel_other_frame_rate(tmp_path):
+    m = _synthetic_motion(tmp_path, 200)
+    J = canonical_positions(m)[::4]
+    H = m.heading[::4]
+    assert np.array_equal(compute_features_native(J, H, 30.0), features_numpy(J, H, 30.0))
+
+
+def test_compute_features_rejects_nan():
+    J = np.zeros((4, 22, 3))
+    J[2, 3, 1] = np.nan
+    with pytest.raises(MtannoError, match="NaN"):
+        compute_features_native(J, np.zeros((4, 3)), 120.0)

@@ -7,13 +7,12 @@ the native frame rate (velocities and hysteresis included) and reduces the resul
 
 from __future__ import annotations
 
-import operator
-
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.features import _kernel as _k
 from mtanno.features.hysteresis import ANALYSIS_FPS, analysis_frames, hysteresis
-from mtanno.features.measures import MEASURES, body_units, heading_rate
+from mtanno.features.measures import body_units, window_samples
 from mtanno.features.table import (
     FEATURE_NAMES,
     FEATURE_SET,
@@ -33,14 +32,60 @@ __all__ = [
     "compute_features_native", "feature_index", "hysteresis", "mirror_permutation",
 ]
 
-_OPS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le}
+#: Measure kind → kernel code (mtanno.features._kernel).
+MEASURE_CODES = {
+    "plane": _k.PLANE, "plane_diff": _k.PLANE_DIFF, "nplane": _k.NPLANE,
+    "nplane_abs": _k.NPLANE_ABS, "move_plane": _k.MOVE_PLANE, "move_dir": _k.MOVE_DIR,
+    "move_diff": _k.MOVE_DIFF, "crossover": _k.CROSSOVER, "angle": _k.ANGLE,
+    "angle_up": _k.ANGLE_UP, "fast": _k.FAST, "raised": _k.RAISED, "extent_y": _k.EXTENT_Y,
+    "extent_xz": _k.EXTENT_XZ, "heading_rate": _k.HEADING_RATE,
+}
 
 
-def _test(values: np.ndarray, spec: tuple, unit: float) -> np.ndarray:
-    with np.errstate(invalid="ignore"):
-        if spec[0] == "in":
-            return (values >= spec[1] * unit) & (values <= spec[2] * unit)
-        return _OPS[spec[0]](values, spec[1] * unit)
+class _Compiled:
+    """A feature table as the kernel's arrays: measure code, joint indices (−1 padded),
+    velocity window, and both tests as interval bounds ``lo (<|≤) value (<|≤) hi``."""
+
+    def __init__(self, features: tuple[Feature, ...]):
+        self.features = features
+        n = len(features)
+        self.kinds = np.array([MEASURE_CODES[f.measure] for f in features], dtype=np.int64)
+        width = max(1, max(len(f.joints) for f in features))
+        self.joints = np.full((n, width), -1, dtype=np.int64)
+        for r, f in enumerate(features):
+            self.joints[r, :len(f.joints)] = [CANONICAL_JOINTS.index(j) for j in f.joints]
+
+    def windows(self, fps: float) -> np.ndarray:
+        return np.array([window_samples(f.window_ms, fps) for f in self.features],
+                        dtype=np.int64)
+
+    def bounds(self, units: dict[str, float], which: str):
+        """((rows × 2) bounds, (rows × 2) inclusive flags) of the on or off test."""
+        n = len(self.features)
+        b = np.empty((n, 2))
+        b[:, 0], b[:, 1] = -np.inf, np.inf
+        inc = np.ones((n, 2), dtype=np.bool_)
+        for r, f in enumerate(self.features):
+            spec = f.on if which == "on" else f.off
+            u = 1.0 if f.unit is None else units[f.unit]
+            op = spec[0]
+            if op == "in":
+                b[r] = spec[1] * u, spec[2] * u
+            elif op in (">", ">="):
+                b[r, 0], inc[r, 0] = spec[1] * u, op == ">="
+            else:
+                b[r, 1], inc[r, 1] = spec[1] * u, op == "<="
+        return b, inc
+
+
+_COMPILED: dict[int, _Compiled] = {}
+
+
+def _compiled(features: tuple[Feature, ...]) -> _Compiled:
+    key = id(features)
+    if key not in _COMPILED:
+        _COMPILED[key] = _Compiled(features)
+    return _COMPILED[key]
 
 
 def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float, *,
@@ -56,35 +101,29 @@ def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float,
         (frames × 3) heading vector of the root (see :class:`~mtanno.io.skeleton.Motion`).
     fps:
         Native frame rate in frames per second.
+    features:
+        The feature table to evaluate (default: the 40 annotation features).
     """
-    joints = np.asarray(joints, dtype=np.float64)
+    joints = np.ascontiguousarray(joints, dtype=np.float64)
+    heading = np.ascontiguousarray(heading, dtype=np.float64)
     if joints.ndim != 3 or joints.shape[1:] != (len(CANONICAL_JOINTS), 3):
         raise MtannoError(f"joints must be (frames × {len(CANONICAL_JOINTS)} × 3), "
                           f"got {joints.shape}")
     n = joints.shape[0]
     if n == 0:
         raise MtannoError("motion has no frames")
-    P = {name: joints[:, k, :] for k, name in enumerate(CANONICAL_JOINTS)}
-    units = body_units(P)
-    on = np.empty((len(features), n), dtype=np.bool_)
-    off = np.empty((len(features), n), dtype=np.bool_)
-    cache: dict[tuple, object] = {}
-    for r, f in enumerate(features):
-        key = (f.measure, f.joints, f.window_ms)
-        if key not in cache:
-            if f.measure == "heading_rate":
-                cache[key] = heading_rate(np.asarray(heading, dtype=np.float64), fps)
-            else:
-                cache[key] = MEASURES[f.measure](P, f.joints, fps, f.window_ms)
-        values = cache[key]
-        u = 1.0 if f.unit is None else units[f.unit]
-        if isinstance(values, list):  # every value must pass (F25/F26)
-            on[r] = np.logical_and.reduce([_test(v, f.on, u) for v in values])
-            off[r] = np.logical_and.reduce([_test(v, f.off, u) for v in values])
-        else:
-            on[r] = _test(values, f.on, u)
-            off[r] = _test(values, f.off, u)
-    return hysteresis(on, off)
+    if heading.shape != (n, 3):
+        raise MtannoError(f"heading must be (frames × 3), got {heading.shape}")
+    if not (np.isfinite(joints).all() and np.isfinite(heading).all()):
+        raise MtannoError("joint positions contain NaN or infinite values")
+    plan = _compiled(features)
+    units = body_units(joints)
+    on_b, on_inc = plan.bounds(units, "on")
+    off_b, off_inc = plan.bounds(units, "off")
+    out = np.empty((len(features), n), dtype=np.uint8)
+    _k.features_kernel(joints, heading, float(fps), plan.kinds, plan.joints,
+                       plan.windows(fps), on_b, on_inc, off_b, off_inc, out)
+    return out
 
 
 def compute_features(joints: np.ndarray, heading: np.ndarray, fps: float, *,

@@ -57,8 +57,8 @@ def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = No
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".amc":
-        from mtanno.io.asf import read_asf
         from mtanno.io.amc import read_amc
+        from mtanno.io.asf import read_asf
         asf_path = Path(asf) if asf is not None else find_asf(path)
         skel = read_asf(asf_path)
         return skel.rig, read_amc(path, skel)

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.io import _numparse as _np
 from mtanno.io.asf import AsfSkeleton
 from mtanno.io.skeleton import AXIS_CODES, Channels
 
@@ -75,55 +76,138 @@ def read_amc(path: str | os.PathLike, skel: AsfSkeleton) -> Channels:
         line = raw[: raw.index(b"\x00")].count(b"\n") + 1
         raise MtannoError("binary data (NUL byte) in a text file", path=spath, line=line)
     body_at, header_lines, fps = _header(raw, spath)
-    layout, values = _fast_parse(raw[body_at:], skel)
-    if layout is None:
+    ch = _fast_parse(raw[body_at:], skel, fps)
+    if ch is None:
         layout, values = _slow_parse(raw.decode("latin-1").splitlines(), header_lines, skel,
                                      spath)
-    return _to_channels(layout, values, skel, fps)
+        ch = _to_channels(layout, values, skel, fps)
+    return ch
 
 
-def _fast_parse(body: bytes, skel: AsfSkeleton):
-    """Tokenise at once; (layout, values) or (None, None) when anything is irregular."""
-    tokens = body.split()
+def _first_layout(body: bytes, skel: AsfSkeleton):
+    """(first frame number, [(bone, value count)]) from the first frame, or None."""
+    head = body[:8192]
+    tokens = head.split()
+    if len(head) == len(body) or len(tokens) < 2:
+        tokens = body.split()
     if not tokens or not _is_int(tokens[0]):
-        return None, None
+        return None
     layout: list[tuple[str, int]] = []
     i = 1
     while i < len(tokens) and not _is_int(tokens[i]):
         name = tokens[i].decode("latin-1")
         n = _dof_count(skel, name)
         if n is None:
-            return None, None
+            return None
         layout.append((name, n))
         i += 1 + n
-    width = i
-    if not layout or len(tokens) % width:
-        return None, None
+    if not layout or i > len(tokens):
+        return None
+    return int(tokens[0]), layout
+
+
+def _destinations(layout, skel: AsfSkeleton):
+    """Per value column: (kind 0 angle / 1 root translation / 2 ignored, node, slot,
+    scale, add) — where :func:`_to_channels` and the parse kernel put each value.
+    Cached on the skeleton per layout (a batch has one layout per ASF)."""
+    key = tuple(layout)
+    cache = skel.__dict__.setdefault("_dest_cache", {})
+    if key not in cache:
+        cache[key] = _destinations_uncached(layout, skel)
+    return cache[key]
+
+
+def _destinations_uncached(layout, skel: AsfSkeleton):
+    rig = skel.rig
+    kind, node, slot, scale, add = [], [], [], [], []
+    for name, _ in layout:
+        j = rig.index(name)
+        dof = [t.lower() for t in skel.root_order] if name == "root" else skel.dofs[name]
+        for d in dof:
+            if d[0] == "r":
+                kind.append(0)
+                slot.append(list(rig.axes[j]).index(AXIS_CODES[d[1]]))
+                scale.append(skel.angle_scale)
+                add.append(0.0)
+            elif d[0] == "t" and name == "root":
+                kind.append(1)
+                slot.append(AXIS_CODES[d[1]])
+                scale.append(skel.length_scale)
+                add.append(float(rig.offsets[0, AXIS_CODES[d[1]]]))
+            else:
+                kind.append(2)
+                slot.append(0)
+                scale.append(0.0)
+                add.append(0.0)
+            node.append(j)
+    return (np.array(kind, dtype=np.int64), np.array(node, dtype=np.int64),
+            np.array(slot, dtype=np.int64), np.array(scale), np.array(add))
+
+
+def _empty_channels(n_frames: int, skel: AsfSkeleton, fps: float, *,
+                    fill_offset: bool = True) -> Channels:
+    rig = skel.rig
+    trans = np.zeros((n_frames, rig.n_nodes, 3))
+    if fill_offset:
+        trans[:, 0, :] = rig.offsets[0]
+    has_trans = np.zeros(rig.n_nodes, dtype=bool)
+    has_trans[0] = True
+    return Channels(angles=np.zeros((n_frames, rig.n_nodes, 3)), trans=trans,
+                    has_trans=has_trans, fps=fps)
+
+
+def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
+    """Parse every frame in a numba kernel; None if anything is irregular."""
+    first = _first_layout(body, skel)
+    if first is None:
+        return None
+    first_no, layout = first
+    names = b"".join(name.encode("latin-1") for name, _ in layout)
+    offs = np.cumsum([0] + [len(name.encode("latin-1")) for name, _ in layout])
+    counts = np.array([n for _, n in layout], dtype=np.int64)
+    # Upper bound on the frame count: every frame has at least two bytes per token.
+    # np.zeros maps pages lazily, so the untouched rest of the bound costs no memory.
+    tokens_per_frame = 1 + sum(1 + n for _, n in layout)
+    max_frames = len(body) // (2 * tokens_per_frame) + 2
+    ch = _empty_channels(max_frames, skel, fps, fill_offset=False)
+    dest = _destinations(layout, skel)
+    buf = np.frombuffer(body, dtype=np.uint8)
+    frames, status, _ = _np.parse_amc_body(buf, first_no, np.frombuffer(names, np.uint8),
+                                           offs.astype(np.int64), counts,
+                                           *dest, ch.angles, ch.trans, _np._POW10)
+    if status == _np.INEXACT:
+        layout_values = _tokenised_parse(body, layout)
+        return None if layout_values is None else _to_channels(*layout_values, skel, fps)
+    if status != _np.OK or frames == 0:
+        return None
+    ch.angles = ch.angles[:frames]
+    ch.trans = ch.trans[:frames]
+    missing = sorted({0, 1, 2} - set(dest[2][dest[0] == 1].tolist()))
+    ch.trans[:, 0, missing] = skel.rig.offsets[0, missing]
+    return ch
+
+
+def _tokenised_parse(body: bytes, layout):
+    """Exact but slower path for numbers outside the kernel's exact range."""
+    tokens = body.split()
+    width = 1 + sum(1 + n for _, n in layout)
+    if len(tokens) % width:
+        return None
     table = np.array(tokens, dtype=object).reshape(-1, width)
-    name_cols = []
-    c = 1
-    for _, n in layout:
-        name_cols.append(c)
-        c += 1 + n
-    first = table[0]
-    for col in name_cols:
-        if not (table[:, col] == first[col]).all():
-            return None, None
-    try:
-        frame_no = table[:, 0].astype(np.bytes_).astype(np.int64)
-    except ValueError:
-        return None, None
-    if not np.array_equal(frame_no, np.arange(frame_no[0], frame_no[0] + len(frame_no))):
-        return None, None
     value_cols = np.ones(width, dtype=bool)
     value_cols[0] = False
-    value_cols[name_cols] = False
+    c = 1
+    for name, n in layout:
+        if not (table[:, c] == name.encode("latin-1")).all():
+            return None
+        value_cols[c] = False
+        c += 1 + n
     try:
         values = table[:, value_cols].astype(np.bytes_).astype(np.float64)
     except ValueError:
-        return None, None
+        return None
     if not np.isfinite(values).all():
-        return None, None
+        return None
     return layout, values
 
 
@@ -200,22 +284,11 @@ def _slow_parse(lines: list[str], header_lines: int, skel: AsfSkeleton, path: st
 
 
 def _to_channels(layout, values: np.ndarray, skel: AsfSkeleton, fps: float) -> Channels:
-    rig = skel.rig
-    n_frames = values.shape[0]
-    angles = np.zeros((n_frames, rig.n_nodes, 3))
-    trans = np.zeros((n_frames, rig.n_nodes, 3))
-    has_trans = np.zeros(rig.n_nodes, dtype=bool)
-    has_trans[0] = True
-    trans[:, 0, :] = rig.offsets[0]
-    col = 0
-    for name, n in layout:
-        node = rig.index(name)
-        dof = [t.lower() for t in skel.root_order] if name == "root" else skel.dofs[name]
-        for d in dof:
-            if d[0] == "r":
-                slot = int(np.flatnonzero(rig.axes[node] == AXIS_CODES[d[1]])[0])
-                angles[:, node, slot] = values[:, col] * skel.angle_scale
-            elif d[0] == "t" and name == "root":
-                trans[:, 0, AXIS_CODES[d[1]]] += values[:, col] * skel.length_scale
-            col += 1
-    return Channels(angles=angles, trans=trans, has_trans=has_trans, fps=fps)
+    """Scatter value columns into per-node angle slots (radians) and the root translation."""
+    kind, node, slot, scale, add = _destinations(layout, skel)
+    ch = _empty_channels(values.shape[0], skel, fps)
+    a = kind == 0
+    ch.angles[:, node[a], slot[a]] = values[:, a] * scale[a]
+    t = kind == 1
+    ch.trans[:, node[t], slot[t]] = add[t] + values[:, t] * scale[t]
+    return ch

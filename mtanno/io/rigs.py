@@ -138,16 +138,27 @@ def search_dirs() -> list[Path]:
     return dirs
 
 
+_MAP_CACHE: dict[tuple, list[SkeletonMap]] = {}
+
+
 def available_maps() -> list[SkeletonMap]:
-    """All maps on the search path (a name found earlier hides later ones)."""
-    seen: dict[str, SkeletonMap] = {}
+    """All maps on the search path (a name found earlier hides later ones).
+
+    Parsed maps are cached per (file, modification time), so a batch reads each map once.
+    """
+    files = []
     for d in search_dirs():
-        if not d.is_dir():
-            continue
-        for f in sorted(d.glob("*.toml")):
+        if d.is_dir():
+            files.extend(sorted(d.glob("*.toml")))
+    key = tuple((str(f), f.stat().st_mtime_ns) for f in files)
+    if key not in _MAP_CACHE:
+        seen: dict[str, SkeletonMap] = {}
+        for f in files:
             m = load_map(f)
             seen.setdefault(m.name, m)
-    return list(seen.values())
+        _MAP_CACHE.clear()
+        _MAP_CACHE[key] = list(seen.values())
+    return _MAP_CACHE[key]
 
 
 def find_map(rig: Rig, override: str | os.PathLike | None = None) -> SkeletonMap:

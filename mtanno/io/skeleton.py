@@ -140,25 +140,36 @@ def _rotate_into(out, axis, angle):
 @numba.njit(cache=True)
 def _fk_kernel(angles, trans, has_trans, parents, offsets, axes, pre, post, end_point,
                heading_node, heading_axis, positions, heading):
-    """Forward kinematics for every frame; memory per frame is one (nodes × 3 × 3) scratch."""
+    """Forward kinematics for every frame; memory per frame is one (nodes × 3 × 3) scratch.
+
+    Identity ``pre``/``post`` matrices and zero angles are skipped (most ASF bones have no
+    axis rotation, and bones without dofs have no angles)."""
     n_frames, n_nodes = angles.shape[0], angles.shape[1]
     g = np.empty((n_nodes, 3, 3))
     loc = np.empty((3, 3))
     t = np.empty(3)
+    eye = np.eye(3)
+    pre_id = np.empty(n_nodes, dtype=np.bool_)
+    post_id = np.empty(n_nodes, dtype=np.bool_)
+    for j in range(n_nodes):
+        pre_id[j] = (pre[j] == eye).all()
+        post_id[j] = (post[j] == eye).all()
     for f in range(n_frames):
         for j in range(n_nodes):
             for r in range(3):
                 for c in range(3):
                     loc[r, c] = pre[j, r, c]
             for k in range(3):
-                _rotate_into(loc, axes[j, k], angles[f, j, k])
-            # loc = loc · post
-            for r in range(3):
-                a0 = loc[r, 0]
-                a1 = loc[r, 1]
-                a2 = loc[r, 2]
-                for c in range(3):
-                    loc[r, c] = a0 * post[j, 0, c] + a1 * post[j, 1, c] + a2 * post[j, 2, c]
+                a = angles[f, j, k]
+                if a != 0.0:
+                    _rotate_into(loc, axes[j, k], a)
+            if not post_id[j]:
+                for r in range(3):
+                    a0 = loc[r, 0]
+                    a1 = loc[r, 1]
+                    a2 = loc[r, 2]
+                    for c in range(3):
+                        loc[r, c] = a0 * post[j, 0, c] + a1 * post[j, 1, c] + a2 * post[j, 2, c]
             if has_trans[j]:
                 for k in range(3):
                     t[k] = trans[f, j, k]

@@ -1,4 +1,12 @@
-"""Small synthetic ASF/AMC files for tests that must run without ../shared/data."""
+"""Synthetic ASF/AMC data made by mtanno itself.
+
+Used by the tests that must run without ``../shared/data`` and by ``make demo`` on a machine
+without the real data. The skeleton is a hand-written HDM05-like rig (28 bones, the CMU/HDM05
+bone names so the ``cmu-asf`` skeleton map applies); motions are smooth sums of sines, not
+real human movement.
+
+Run ``python -m mtanno.synthetic OUTDIR [N]`` to write N documents with their ASF.
+"""
 
 from __future__ import annotations
 
@@ -101,3 +109,19 @@ def write_pair(folder, stem: str = "synth_walk", n_frames: int = 40, seed: int =
     amc = folder / f"{stem}.amc"
     amc.write_text(amc_text(n_frames, seed))
     return amc
+
+
+def write_demo_set(folder, n_docs: int = 4, n_frames: int = 600):
+    """Write ``folder/synth.asf`` and ``n_docs`` AMC documents; return their paths."""
+    from pathlib import Path
+
+    folder = Path(folder)
+    return [write_pair(folder, stem=f"synth_{k:03d}", n_frames=n_frames, seed=k)
+            for k in range(1, n_docs + 1)]
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+
+    paths = write_demo_set(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 4)
+    print(f"wrote {len(paths)} synthetic AMC documents to {sys.argv[1]}")

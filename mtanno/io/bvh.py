@@ -1,0 +1,491 @@
+"""BVH reader: hierarchy → :class:`~mtanno.io.skeleton.Rig`, motion → :class:`Channels`.
+
+Spec: ``algorithms.md`` §1 (BVH: any rig, per-joint channel count and Euler order taken from
+the ``CHANNELS`` line, ``Frame Time`` read, never assumed) and ``features.md`` §0 (BVH rigs
+map to canonical joints through a skeleton map). Conventions (the usual reading of BVH,
+and pybvh's; ``scripts/pybvh_peer.py`` checks the two agree):
+
+* Nodes are the ``ROOT``/``JOINT`` blocks in file order; every ``End Site`` becomes a node
+  named ``<parent joint name>_End`` with its file offset and no channels.
+* Positions are joint origins (``Rig.end_point = False``):
+  ``P_j = P_parent + G_parent · t_j`` and ``G_j = G_parent · L_j``.
+* ``L_j = R_c1(a1) · R_c2(a2) · R_c3(a3)`` with the rotation channels in the order the
+  ``CHANNELS`` line lists them (``Zrotation Xrotation Yrotation`` → Z·X·Y); degrees in the
+  file, radians in :class:`Channels`. Missing rotation channels are zero rotations.
+* Position channels *replace* the offset: ``t_j = (Xposition, Yposition, Zposition)`` of the
+  frame (a missing component keeps the offset's value). The Bandai Namco files declare
+  6 channels on every joint and store the offset in the position channels of every joint
+  below ``Hips``, which confirms this reading (adding them would double every bone).
+* Lengths are in the file's unit (centimetres for the Bandai and CMU conversions); Y is up.
+
+The MOTION block is parsed in one pass: a compiled scan counts the values on every line
+(wrong row lengths are reported by line), then NumPy's C text parser converts all numbers
+at once (8–9 million numbers per second end to end on the Bandai files); a slow
+token-by-token scan runs only to locate a bad value. Every problem with the file raises
+:class:`~mtanno.errors.MtannoError` with the file and the 1-based line.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from dataclasses import dataclass, field
+from decimal import Decimal, InvalidOperation
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.io.skeleton import AXIS_CODES, Channels, Rig
+
+__all__ = ["read_bvh", "frame_rate_from_frame_time"]
+
+# Control bytes that never occur in a text file (tab, LF, VT, FF and CR are allowed).
+_BINARY = re.compile(rb"[\x00-\x08\x0e-\x1f]")
+_TEXT_BYTES = bytes(b for b in range(256) if not (b < 9 or 14 <= b < 32))
+_MOTION = re.compile(rb"(?m)^[ \t]*MOTION[ \t\r]*$")
+_FRAMES = re.compile(r"^\s*Frames:\s*(\S+)\s*$")
+_FRAME_TIME = re.compile(r"^\s*Frame\s+Time:\s*(\S+)\s*$")
+_NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+
+
+@dataclass
+class _Node:
+    name: str
+    parent: int
+    offset: tuple[float, float, float]
+    line: int
+    end_site: bool = False
+    # (column kind, axis) per channel in file order; kind "pos" or "rot"
+    channels: list[tuple[str, int]] = field(default_factory=list)
+
+
+class _Tokens:
+    """Whitespace tokens of the hierarchy with their 1-based line numbers."""
+
+    def __init__(self, lines: list[str], path: str):
+        self.path = path
+        self.items: list[tuple[str, int]] = []
+        for k, line in enumerate(lines, start=1):
+            for tok in line.split():
+                if len(tok) > 1 and ("{" in tok or "}" in tok):
+                    # "{" / "}" glued to a word ("Hips{") are separate tokens
+                    self.items.extend((part, k) for part in re.split(r"([{}])", tok) if part)
+                else:
+                    self.items.append((tok, k))
+        self.pos = 0
+        self.last_line = max(len(lines), 1)
+
+    def peek(self) -> tuple[str, int] | None:
+        return self.items[self.pos] if self.pos < len(self.items) else None
+
+    def next(self, what: str) -> tuple[str, int]:
+        if self.pos >= len(self.items):
+            raise MtannoError(f"the hierarchy ends where {what} was expected", path=self.path,
+                              line=self.last_line)
+        item = self.items[self.pos]
+        self.pos += 1
+        return item
+
+    def rest_of_line(self, line: int) -> list[str]:
+        """Tokens remaining on ``line`` (consumed), stopping before a brace."""
+        out = []
+        while self.pos < len(self.items) and self.items[self.pos][1] == line \
+                and self.items[self.pos][0] not in "{}":
+            out.append(self.items[self.pos][0])
+            self.pos += 1
+        return out
+
+    def number(self, what: str) -> float:
+        tok, line = self.next(what)
+        try:
+            value = float(tok)
+        except ValueError:
+            raise MtannoError(f"expected {what}, found '{_clip(tok)}'", path=self.path,
+                              line=line) from None
+        if not np.isfinite(value):
+            raise MtannoError(f"{what} is not a finite number ('{tok}')", path=self.path,
+                              line=line)
+        return value
+
+    def expect(self, word: str) -> int:
+        tok, line = self.next(f"'{word}'")
+        if tok != word:
+            raise MtannoError(f"expected '{word}', found '{_clip(tok)}'", path=self.path, line=line)
+        return line
+
+
+def _parse_channel(tok: str) -> tuple[str, int] | None:
+    """``Xposition`` → ("pos", 0), ``Zrotation`` → ("rot", 2); None if not a channel."""
+    low = tok.lower()
+    if len(low) < 2 or low[0] not in AXIS_CODES:
+        return None
+    if low[1:] == "position":
+        return "pos", AXIS_CODES[low[0]]
+    if low[1:] == "rotation":
+        return "rot", AXIS_CODES[low[0]]
+    return None
+
+
+def _parse_hierarchy(lines: list[str], path: str) -> list[_Node]:
+    """Parse the HIERARCHY section (everything before the MOTION line) into nodes."""
+    toks = _Tokens(lines, path)
+    first = toks.peek()
+    if first is None:
+        raise MtannoError("no HIERARCHY section (the file is empty before MOTION)", path=path,
+                          line=1)
+    if first[0] != "HIERARCHY":
+        raise MtannoError(f"not a BVH file: expected 'HIERARCHY', found '{first[0]}'",
+                          path=path, line=first[1])
+    toks.next("HIERARCHY")
+    nodes: list[_Node] = []
+    names: dict[str, int] = {}
+    # Stack of (node index, line of its opening brace) for the open ROOT/JOINT blocks.
+    stack: list[tuple[int, int]] = []
+
+    def add(name: str, parent: int, line: int) -> int:
+        if name in names:
+            raise MtannoError(f"joint name '{name}' is used twice (first on line "
+                              f"{nodes[names[name]].line})", path=path, line=line)
+        names[name] = len(nodes)
+        nodes.append(_Node(name=name, parent=parent, offset=(0.0, 0.0, 0.0), line=line))
+        return len(nodes) - 1
+
+    while True:
+        item = toks.peek()
+        if item is None:
+            if stack:
+                node = nodes[stack[-1][0]]
+                raise MtannoError(f"unbalanced braces: the block of '{node.name}' (line "
+                                  f"{node.line}) is never closed", path=path,
+                                  line=toks.last_line)
+            if not nodes:
+                raise MtannoError("the hierarchy has no ROOT", path=path, line=toks.last_line)
+            return nodes
+        tok, line = toks.next("a keyword")
+        if tok in ("ROOT", "JOINT"):
+            if tok == "ROOT" and (stack or nodes):
+                raise MtannoError("a second ROOT: only one skeleton per file is supported"
+                                  if not stack else "ROOT inside another joint's block",
+                                  path=path, line=line)
+            if tok == "JOINT" and not stack:
+                raise MtannoError("JOINT outside any ROOT block (unbalanced braces?)",
+                                  path=path, line=line)
+            name = " ".join(toks.rest_of_line(line))
+            if not name:
+                raise MtannoError(f"{tok} without a name", path=path, line=line)
+            j = add(name, stack[-1][0] if stack else -1, line)
+            stack.append((j, toks.expect("{")))
+            _parse_joint_body(toks, nodes[j], path)
+        elif tok == "End":
+            site = toks.rest_of_line(line)
+            if site != ["Site"]:
+                raise MtannoError(f"expected 'End Site', found 'End {' '.join(site)}'",
+                                  path=path, line=line)
+            if not stack:
+                raise MtannoError("End Site outside any joint block", path=path, line=line)
+            parent = stack[-1][0]
+            base = f"{nodes[parent].name}_End"
+            name, k = base, 2
+            while name in names:  # several end sites under one joint: _End, _End2, ...
+                name, k = f"{base}{k}", k + 1
+            e = add(name, parent, line)
+            nodes[e].end_site = True
+            toks.expect("{")
+            tok2, line2 = toks.next("OFFSET")
+            if tok2 != "OFFSET":
+                raise MtannoError(f"expected OFFSET in End Site, found '{tok2}'", path=path,
+                                  line=line2)
+            nodes[e].offset = tuple(toks.number("an OFFSET value") for _ in range(3))
+            toks.expect("}")
+        elif tok == "}":
+            if not stack:
+                raise MtannoError("unbalanced braces: '}' without a matching '{'", path=path,
+                                  line=line)
+            stack.pop()
+        else:
+            raise MtannoError(f"unexpected '{_clip(tok)}' in the hierarchy", path=path, line=line)
+
+
+def _parse_joint_body(toks: _Tokens, node: _Node, path: str) -> None:
+    """Read the OFFSET and CHANNELS lines at the start of a ROOT/JOINT block."""
+    seen_offset = False
+    while True:
+        item = toks.peek()
+        if item is None or item[0] not in ("OFFSET", "CHANNELS"):
+            break
+        tok, line = toks.next("OFFSET or CHANNELS")
+        if tok == "OFFSET":
+            node.offset = tuple(toks.number("an OFFSET value") for _ in range(3))
+            seen_offset = True
+        else:
+            count_tok, count_line = toks.next("the channel count")
+            try:
+                count = int(count_tok)
+            except ValueError:
+                raise MtannoError(f"CHANNELS count '{count_tok}' is not an integer",
+                                  path=path, line=count_line) from None
+            if not 0 <= count <= 6:
+                raise MtannoError(f"CHANNELS count {count} is not between 0 and 6", path=path,
+                                  line=count_line)
+            names = toks.rest_of_line(line)
+            if len(names) != count:
+                raise MtannoError(f"CHANNELS declares {count} channels but lists "
+                                  f"{len(names)}", path=path, line=line)
+            chans = []
+            for c in names:
+                parsed = _parse_channel(c)
+                if parsed is None:
+                    raise MtannoError(f"unknown channel '{c}' (expected Xposition … "
+                                      f"Zrotation)", path=path, line=line)
+                if parsed in chans:
+                    raise MtannoError(f"channel '{c}' listed twice", path=path, line=line)
+                chans.append(parsed)
+            node.channels = chans
+    if not seen_offset:
+        raise MtannoError(f"joint '{node.name}' has no OFFSET", path=path, line=node.line)
+
+
+@numba.njit(cache=True)
+def _tokens_per_line(buf):
+    """Number of whitespace-separated tokens on every line of ``buf`` (uint8 array)."""
+    n_lines = 1
+    for b in buf:
+        if b == 10:
+            n_lines += 1
+    counts = np.zeros(n_lines, dtype=np.int64)
+    line = 0
+    in_tok = False
+    for b in buf:
+        if b == 10:
+            line += 1
+            in_tok = False
+        elif b == 32 or b == 9 or b == 13 or b == 11 or b == 12:
+            in_tok = False
+        elif not in_tok:
+            counts[line] += 1
+            in_tok = True
+    return counts
+
+
+def frame_rate_from_frame_time(text: str) -> float:
+    """Frames per second from a ``Frame Time`` token (seconds per frame).
+
+    ``1/Frame Time``, snapped to a clean rate R — a whole number of frames per second, or an
+    NTSC rate N·1000/1001 (23.976…, 29.97…, 59.94…) — when the file's value is ``1/R``
+    rounded to the digits printed (within half a unit of the last digit) and within 1e-4
+    relative of it: ``0.0333333`` → 30.0, ``0.016667`` → 60.0, ``0.008333`` → 120.0,
+    ``0.0333667`` → 30000/1001; ``0.0123`` stays 81.30… Raises ValueError for a value that
+    is not a positive finite number.
+    """
+    ft = float(text)
+    if not np.isfinite(ft) or ft <= 0:
+        raise ValueError(text)
+    try:
+        exponent = Decimal(text).as_tuple().exponent
+        half_ulp = 0.5 * 10.0 ** int(exponent)  # half a unit in the last printed digit
+    except (InvalidOperation, TypeError, ValueError):
+        half_ulp = 0.0
+    tol = min(max(half_ulp * (1 + 1e-9), 1e-9 * ft), 1e-4 * ft)
+    fps = 1.0 / ft
+    for clean in (float(round(fps)), round(fps * 1.001) / 1.001):
+        if clean > 0 and abs(1.0 / clean - ft) <= tol:
+            return clean
+    return fps
+
+
+def _clip(text: str, n: int = 40) -> str:
+    """``text`` stripped and cut to ``n`` characters for an error message."""
+    text = text.strip()
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _line_of(data: bytes, pos: int) -> int:
+    return data.count(b"\n", 0, pos) + 1
+
+
+def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
+    """Read a BVH file into its rig and per-frame channels (algorithms.md §1).
+
+    Parameters
+    ----------
+    path:
+        The ``.bvh`` file (ASCII, UTF-8 or Latin-1; LF, CRLF or CR line ends).
+
+    Returns
+    -------
+    rig, channels:
+        ``rig.kind == "bvh"``, joint-origin positions, identity ``pre``/``post``; lengths
+        in the file's unit. ``channels.angles`` in radians (file: degrees) in the order
+        of each joint's rotation channels, ``channels.trans`` the position channel values
+        (the offset where a joint has no such channel), ``channels.fps`` = 1/``Frame Time``
+        in frames per second (see :func:`frame_rate_from_frame_time`).
+
+    Raises
+    ------
+    MtannoError
+        ``path:line: message`` for any malformed input.
+    """
+    spath = str(path)
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise MtannoError("file not found", path=spath) from None
+    except OSError as exc:
+        raise MtannoError(f"cannot read the file: {exc.strerror or exc}", path=spath) from None
+    data = data.removeprefix(b"\xef\xbb\xbf").rstrip(b"\x1a")  # UTF-8 BOM, DOS end mark
+    if not data.strip():
+        raise MtannoError("the file is empty", path=spath, line=1)
+    # fast test (bytes.translate deletes every text byte), regex only to locate the culprit
+    bad = _BINARY.search(data) if data.translate(None, _TEXT_BYTES) else None
+    if bad is not None:
+        raise MtannoError(f"not a text file (byte 0x{bad.group()[0]:02x}): binary or "
+                          f"corrupt", path=spath, line=_line_of(data, bad.start()))
+    if b"\n" not in data and b"\r" in data:  # classic Mac line ends
+        data = data.replace(b"\r", b"\n")
+
+    m = _MOTION.search(data)
+    header = data[: m.start()] if m is not None else data
+    try:
+        text = header.decode("utf-8")
+    except UnicodeDecodeError:
+        text = header.decode("latin-1")
+    nodes = _parse_hierarchy(text.split("\n"), spath)
+    if m is None:
+        raise MtannoError("no MOTION section after the hierarchy", path=spath,
+                          line=text.rstrip().count("\n") + 1)
+
+    # --- MOTION header: "Frames:" and "Frame Time:" lines ------------------------------
+    motion_line = _line_of(data, m.start())
+    nl = data.find(b"\n", m.end())
+    pos = len(data) if nl < 0 else nl + 1  # start of the line after MOTION
+    line_no = motion_line
+    fields: list[tuple[str, int]] = []
+    while len(fields) < 2:
+        if pos >= len(data):
+            raise MtannoError("the MOTION section ends before its 'Frames:' and "
+                              "'Frame Time:' lines", path=spath, line=line_no)
+        nl = data.find(b"\n", pos)
+        nl = len(data) if nl < 0 else nl
+        line_no += 1
+        raw = data[pos:nl].decode("latin-1")
+        pos = nl + 1
+        if raw.strip():
+            fields.append((raw, line_no))
+    (frames_raw, frames_line), (ft_raw, ft_line) = fields
+    fm = _FRAMES.match(frames_raw)
+    if fm is None:
+        raise MtannoError(f"expected 'Frames: <count>' after MOTION, found "
+                          f"'{_clip(frames_raw)}'", path=spath, line=frames_line)
+    try:
+        n_frames = int(fm.group(1))
+        if n_frames < 0:
+            raise ValueError
+    except ValueError:
+        raise MtannoError(f"frame count '{fm.group(1)}' is not a whole number ≥ 0", path=spath,
+                          line=frames_line) from None
+    tm = _FRAME_TIME.match(ft_raw)
+    if tm is None:
+        raise MtannoError(f"expected 'Frame Time: <seconds>' after Frames, found "
+                          f"'{_clip(ft_raw)}'", path=spath, line=ft_line)
+    try:
+        fps = frame_rate_from_frame_time(tm.group(1))
+    except ValueError:
+        raise MtannoError(f"Frame Time '{tm.group(1)}' is not a positive number of seconds",
+                          path=spath, line=ft_line) from None
+
+    # --- channel layout ------------------------------------------------------------------
+    n_nodes = len(nodes)
+    offsets = np.array([n.offset for n in nodes], dtype=np.float64).reshape(n_nodes, 3)
+    axes = np.tile(np.arange(3, dtype=np.int64), (n_nodes, 1))
+    has_trans = np.zeros(n_nodes, dtype=np.bool_)
+    rot_col, rot_node, rot_slot = [], [], []
+    pos_col, pos_node, pos_comp = [], [], []
+    col = 0
+    for j, node in enumerate(nodes):
+        rots = [a for kind, a in node.channels if kind == "rot"]
+        # unused axes fill the remaining slots with zero angles
+        axes[j] = rots + [a for a in range(3) if a not in rots]
+        slot = 0
+        for kind, a in node.channels:
+            if kind == "rot":
+                rot_col.append(col)
+                rot_node.append(j)
+                rot_slot.append(slot)
+                slot += 1
+            else:
+                pos_col.append(col)
+                pos_node.append(j)
+                pos_comp.append(a)
+                has_trans[j] = True
+            col += 1
+    n_channels = col
+
+    # --- MOTION data: fast path ----------------------------------------------------------
+    block = data[pos:] if pos < len(data) else b""
+    first_data_line = ft_line + 1
+    counts = _tokens_per_line(np.frombuffer(block, dtype=np.uint8))
+    rows = np.flatnonzero(counts)  # line index (within block) of every non-blank line
+    wrong = np.flatnonzero(counts[rows] != n_channels)
+    if wrong.size:
+        k = rows[wrong[0]]
+        got = int(counts[k])
+        which = "few" if got < n_channels else "many"
+        raise MtannoError(f"too {which} values: motion frame {wrong[0] + 1} has {got} but the "
+                          f"hierarchy declares {n_channels} channels", path=spath,
+                          line=first_data_line + int(k))
+    if rows.size != n_frames:
+        raise MtannoError(f"'Frames: {n_frames}' but the file has {rows.size} rows of motion "
+                          f"data", path=spath, line=frames_line)
+    values = np.zeros((n_frames, n_channels))
+    if values.size:
+        try:  # NumPy's C text parser: correctly rounded, rejects '1,5', '1_0', '0x10'
+            values = np.loadtxt(io.BytesIO(block), dtype=np.float64, ndmin=2, comments=None,
+                                encoding="latin-1").reshape(n_frames, n_channels)
+        except ValueError as exc:
+            _locate_bad_value(block, rows, n_channels, first_data_line, spath, str(exc))
+        if not np.isfinite(values).all():
+            _locate_bad_value(block, rows, n_channels, first_data_line, spath, "")
+
+    angles = np.zeros((n_frames, n_nodes, 3), dtype=np.float64)
+    angles[:, rot_node, rot_slot] = np.deg2rad(values[:, rot_col])
+    trans = np.empty((n_frames, n_nodes, 3), dtype=np.float64)
+    trans[:] = offsets  # components without a channel keep the offset's value
+    trans[:, pos_node, pos_comp] = values[:, pos_col]
+
+    rig = Rig(
+        kind="bvh",
+        names=[n.name for n in nodes],
+        parents=np.array([n.parent for n in nodes], dtype=np.int64),
+        offsets=offsets,
+        axes=axes,
+        pre=np.tile(np.eye(3), (n_nodes, 1, 1)),
+        post=np.tile(np.eye(3), (n_nodes, 1, 1)),
+        end_point=False,
+        source=spath,
+        meta={
+            "channels": {n.name: ["XYZ"[a] + ("position" if k == "pos" else "rotation")
+                                  for k, a in n.channels] for n in nodes if n.channels},
+            "end_sites": [n.name for n in nodes if n.end_site],
+            "frame_time": float(tm.group(1)),
+            "n_channels": n_channels,
+        },
+    )
+    return rig, Channels(angles=angles, trans=trans, has_trans=has_trans, fps=fps)
+
+
+def _locate_bad_value(block: bytes, rows: np.ndarray, n_channels: int, first_data_line: int,
+                      path: str, detail: str) -> None:
+    """Slow path: raise for the first token of the MOTION data that is not a finite number."""
+    tokens = block.split()
+    for k, tok in enumerate(tokens):
+        if _NUMBER.fullmatch(tok) and np.isfinite(float(tok)):
+            continue
+        frame, channel = divmod(k, n_channels)
+        raise MtannoError(f"value '{_clip(tok.decode('latin-1'))}' (frame {frame + 1}, channel "
+                          f"{channel + 1}) is not a finite number", path=path,
+                          line=first_data_line + int(rows[frame]))
+    raise MtannoError(f"unreadable motion data: {detail}", path=path,  # pragma: no cover
+                      line=first_data_line + int(rows[0]))

@@ -1,0 +1,147 @@
+"""The command line: batch behaviour, outputs, exit codes and messages."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mtanno import synthetic as synth
+from mtanno.cli import main
+from mtanno.store import read_features
+
+
+@pytest.fixture
+def tree(tmp_path):
+    """in/synth.asf, in/a/walk1.amc, in/a/walk2.amc, in/b/bad.amc (truncated)."""
+    root = tmp_path / "in"
+    root.mkdir()
+    (root / "synth.asf").write_text(synth.asf_text())
+    for sub, stem, seed in (("a", "walk1", 1), ("a", "walk2", 2), ("b", "jump", 3)):
+        (root / sub).mkdir(exist_ok=True)
+        (root / sub / f"{stem}.amc").write_text(synth.amc_text(24, seed))
+    lines = synth.amc_text(10, 4).splitlines()
+    (root / "b" / "bad.amc").write_text("\n".join(lines[:-5]) + "\n")
+    return root
+
+
+def run(args, input=None):
+    return CliRunner().invoke(main, args, input=input, catch_exceptions=False)
+
+
+def test_features_batch_continues_past_bad_file(tree, tmp_path):
+    out = tmp_path / "out"
+    r = run(["features", str(tree), "-o", str(out)])
+    assert r.exit_code == 1
+    assert f"{tree / 'b' / 'bad.amc'}:" in r.output
+    assert "frame 10 ends without values" in r.output
+    assert "3 written" in r.output and "1 failed" in r.output
+    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert written == ["a/walk1.parquet", "a/walk2.parquet", "b/jump.parquet"]
+    ff = read_features(out / "a" / "walk1.parquet")
+    assert ff.X.shape == (40, 6) and ff.document == "walk1"
+    assert ff.native_frames.tolist() == [1, 5, 9, 13, 17, 21]
+    assert ff.meta["native_fps"] == 120.0 and ff.meta["skeleton_map"] == "cmu-asf"
+    assert ff.meta["source_sha256"] and ff.meta["feature_set"] == "mr06-ak40"
+
+
+def test_features_file_args_stdin_and_skip(tree, tmp_path):
+    out = tmp_path / "out"
+    f1 = tree / "a" / "walk1.amc"
+    r = run(["features", str(f1), "-o", str(out), "-q"])
+    assert r.exit_code == 0 and r.output == ""
+    assert (out / "walk1.parquet").exists()
+    # up to date → skipped; --force rewrites
+    r = run(["features", str(f1), "-o", str(out)])
+    assert "0 written" in r.output and "1 up to date" in r.output
+    r = run(["features", str(f1), "-o", str(out), "--force"])
+    assert "1 written" in r.output
+    # a newer input is recomputed
+    t = time.time() + 5
+    os.utime(f1, (t, t))
+    r = run(["features", str(f1), "-o", str(out)])
+    assert "1 written" in r.output
+    # file names on stdin
+    r = run(["features", "-", "-o", str(out)], input=f"{tree / 'a' / 'walk2.amc'}\n")
+    assert r.exit_code == 0 and (out / "walk2.parquet").exists()
+
+
+def test_features_jobs_gives_same_output(tree, tmp_path):
+    r1 = run(["features", str(tree / "a"), "-o", str(tmp_path / "o1"), "-j", "1"])
+    r2 = run(["features", str(tree / "a"), "-o", str(tmp_path / "o2"), "-j", "2"])
+    assert r1.exit_code == r2.exit_code == 0
+    for stem in ("walk1", "walk2"):
+        a = read_features(tmp_path / "o1" / f"{stem}.parquet").X
+        b = read_features(tmp_path / "o2" / f"{stem}.parquet").X
+        assert np.array_equal(a, b)
+
+
+def test_failed_file_leaves_no_output(tree, tmp_path):
+    out = tmp_path / "out"
+    run(["features", str(tree / "b"), "-o", str(out)])
+    assert not (out / "bad.parquet").exists()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_explicit_asf_and_missing_asf(tmp_path):
+    d = tmp_path / "lonely"
+    d.mkdir()
+    amc = d / "x.amc"
+    amc.write_text(synth.amc_text(8))
+    r = run(["features", str(amc), "-o", str(tmp_path / "o")])
+    assert r.exit_code == 1 and "no ASF skeleton found" in r.output and str(amc) in r.output
+    asf = tmp_path / "skel.asf"
+    asf.write_text(synth.asf_text())
+    r = run(["features", str(amc), "--asf", str(asf), "-o", str(tmp_path / "o")])
+    assert r.exit_code == 0
+
+
+def test_usage_errors_exit_2(tmp_path):
+    r = run(["features", str(tmp_path / "missing"), "-o", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "no such file or directory" in r.output
+    r = run(["features", str(tmp_path), "-o", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "no .amc or .bvh files" in r.output
+    r = run(["features", str(tmp_path)])
+    assert r.exit_code == 2
+    r = run(["features", str(tmp_path), "-o", str(tmp_path / "o"), "--jobs", "0"])
+    assert r.exit_code == 2
+
+
+def test_unknown_skeleton_map_is_reported_per_file(tree, tmp_path):
+    r = run(["features", str(tree / "a"), "-o", str(tmp_path / "o"), "--skeleton", "nomap"])
+    assert r.exit_code == 1 and "no skeleton map named 'nomap'" in r.output
+
+
+def test_skeleton_map_missing_joint(tree, tmp_path):
+    from mtanno.io.rigs import _BUILTIN_DIR
+
+    src = (_BUILTIN_DIR / "cmu-asf.toml").read_text()
+    m = tmp_path / "partial.toml"
+    m.write_text(src.replace('name = "cmu-asf"', 'name = "partial"').replace('lknee = "lfemur"\n', ""))
+    r = run(["features", str(tree / "a" / "walk1.amc"), "-o", str(tmp_path / "o"),
+             "--skeleton", str(m)])
+    assert r.exit_code == 1
+    assert "has no entry for joint 'lknee'" in r.output
+
+
+def test_info_motion_and_feature_file(tree, tmp_path):
+    r = run(["info", str(tree / "a" / "walk1.amc")])
+    assert r.exit_code == 0
+    assert "frame rate     120 Hz" in r.output and "frames         24" in r.output
+    assert "map coverage   22/22" in r.output and "duration       0.20 s" in r.output
+    run(["features", str(tree / "a" / "walk1.amc"), "-o", str(tmp_path / "o")])
+    r = run(["info", str(tmp_path / "o" / "walk1.parquet")])
+    assert r.exit_code == 0 and "mr06-ak40" in r.output
+    r = run(["info", str(tree / "b" / "bad.amc")])
+    assert r.exit_code == 1 and r.output.startswith("mtanno: ") and "Traceback" not in r.output
+
+
+def test_help_texts():
+    r = run(["--help"])
+    assert "features" in r.output and "info" in r.output
+    r = run(["features", "--help"])
+    text = " ".join(r.output.split())
+    assert "--jobs" in text and "--asf" in text and "Exit code: 0 all written" in text

@@ -1,0 +1,63 @@
+"""Feature files: round trip, metadata, atomic writes and bad files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from mtanno.errors import MtannoError
+from mtanno.features import FEATURE_NAMES
+from mtanno.store import atomic_path, read_feature_matrix, read_features, write_features
+
+
+def test_round_trip(tmp_path):
+    X = (np.random.default_rng(0).random((40, 17)) < 0.5).astype(np.uint8)
+    p = tmp_path / "d" / "doc.parquet"
+    write_features(p, X, FEATURE_NAMES, np.arange(1, 69, 4), {"native_fps": 120.0,
+                                                               "analysis_fps": 30.0})
+    ff = read_features(p)
+    assert np.array_equal(ff.X, X) and ff.X.dtype == np.uint8
+    assert ff.names == list(FEATURE_NAMES)
+    assert ff.native_frames.tolist() == list(range(1, 69, 4))
+    assert ff.meta["schema"] == "mtanno.features/1" and ff.fps == 30.0
+    assert ff.document == "doc"
+    assert np.array_equal(read_feature_matrix(p), X)
+    cols = pq.read_schema(p).names
+    assert cols[0] == "native_frame" and cols[1:] == list(FEATURE_NAMES)
+
+
+def test_atomic_write_leaves_nothing_on_error(tmp_path):
+    target = tmp_path / "x.parquet"
+    with pytest.raises(RuntimeError), atomic_path(target) as tmp:
+        tmp.write_bytes(b"half")
+        raise RuntimeError("crash")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_rejects_wrong_shape(tmp_path):
+    with pytest.raises(MtannoError, match="40 × frames"):
+        write_features(tmp_path / "x.parquet", np.zeros((3, 4)), FEATURE_NAMES, np.arange(4), {})
+
+
+def test_read_bad_files(tmp_path):
+    with pytest.raises(MtannoError, match="feature file not found"):
+        read_features(tmp_path / "missing.parquet")
+    junk = tmp_path / "junk.parquet"
+    junk.write_bytes(b"not parquet at all")
+    with pytest.raises(MtannoError, match="not a readable Parquet") as e:
+        read_features(junk)
+    assert str(e.value).startswith(str(junk))
+    plain = tmp_path / "plain.parquet"
+    pq.write_table(pa.table({"a": [1, 2]}), plain)
+    with pytest.raises(MtannoError, match="no mtanno metadata"):
+        read_features(plain)
+    other = tmp_path / "other.parquet"
+    t = pa.table({"native_frame": [1]}).replace_schema_metadata(
+        {b"mtanno": json.dumps({"schema": "something/9"})})
+    pq.write_table(t, other)
+    with pytest.raises(MtannoError, match="unsupported feature file schema"):
+        read_features(other)
