@@ -126,7 +126,7 @@ def pybvh_compatible(path: str | os.PathLike, out: str | os.PathLike,
     data = data[:, keep]
     with open(out, "w", encoding="latin-1") as f:
         f.write("\n".join(lines[: ft_line + 1]) + "\n")
-        np.savetxt(f, data, fmt="%.17g")
+        np.savetxt(f, data, fmt="%.10g")
     return sorted(set(not_comparable))
 
 

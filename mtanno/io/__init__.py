@@ -51,6 +51,25 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
                       path=str(amc_path))
 
 
+_ASF_CACHE: dict[tuple, object] = {}
+
+
+def _cached_asf(path: Path):
+    """read_asf, remembered per (path, size, mtime): a batch parses each skeleton once."""
+    from mtanno.io.asf import read_asf
+
+    try:
+        st = path.stat()
+        key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    except OSError:
+        return read_asf(path)  # raises the "file not found" error
+    if key not in _ASF_CACHE:
+        if len(_ASF_CACHE) > 64:
+            _ASF_CACHE.clear()
+        _ASF_CACHE[key] = read_asf(path)
+    return _ASF_CACHE[key]
+
+
 def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
                   ) -> tuple[Rig, Channels]:
     """Parse a motion file into its rig and per-frame channels (no kinematics yet)."""
@@ -58,9 +77,9 @@ def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = No
     suffix = path.suffix.lower()
     if suffix == ".amc":
         from mtanno.io.amc import read_amc
-        from mtanno.io.asf import read_asf
+
         asf_path = Path(asf) if asf is not None else find_asf(path)
-        skel = read_asf(asf_path)
+        skel = _cached_asf(asf_path)
         return skel.rig, read_amc(path, skel)
     if suffix == ".bvh":
         from mtanno.io.bvh import read_bvh

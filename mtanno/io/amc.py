@@ -156,25 +156,38 @@ def _empty_channels(n_frames: int, skel: AsfSkeleton, fps: float, *,
                     has_trans=has_trans, fps=fps)
 
 
+def _program(layout) -> tuple[np.ndarray, np.ndarray]:
+    """Token program of one AMC frame: frame number, then per bone its name and values."""
+    kind, arg = [_np.FRAME_NO], [0]
+    col = 0
+    for b, (_, n) in enumerate(layout):
+        kind.append(_np.NAME)
+        arg.append(b)
+        for _ in range(n):
+            kind.append(_np.VALUE)
+            arg.append(col)
+            col += 1
+    return np.array(kind, dtype=np.int64), np.array(arg, dtype=np.int64)
+
+
 def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
     """Parse every frame in a numba kernel; None if anything is irregular."""
     first = _first_layout(body, skel)
     if first is None:
         return None
     first_no, layout = first
-    names = b"".join(name.encode("latin-1") for name, _ in layout)
-    offs = np.cumsum([0] + [len(name.encode("latin-1")) for name, _ in layout])
-    counts = np.array([n for _, n in layout], dtype=np.int64)
+    encoded = [name.encode("latin-1") for name, _ in layout]
+    offs = np.cumsum([0] + [len(e) for e in encoded]).astype(np.int64)
     # Upper bound on the frame count: every frame has at least two bytes per token.
     # np.zeros maps pages lazily, so the untouched rest of the bound costs no memory.
     tokens_per_frame = 1 + sum(1 + n for _, n in layout)
     max_frames = len(body) // (2 * tokens_per_frame) + 2
     ch = _empty_channels(max_frames, skel, fps, fill_offset=False)
     dest = _destinations(layout, skel)
-    buf = np.frombuffer(body, dtype=np.uint8)
-    frames, status, _ = _np.parse_amc_body(buf, first_no, np.frombuffer(names, np.uint8),
-                                           offs.astype(np.int64), counts,
-                                           *dest, ch.angles, ch.trans, _np._POW10)
+    frames, status, _ = _np.parse_frames(
+        np.frombuffer(body, dtype=np.uint8), *_program(layout), first_no,
+        np.frombuffer(b"".join(encoded), np.uint8), offs, *dest, ch.angles, ch.trans,
+        _np.POW10)
     if status == _np.INEXACT:
         layout_values = _tokenised_parse(body, layout)
         return None if layout_values is None else _to_channels(*layout_values, skel, fps)
@@ -182,7 +195,7 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
         return None
     ch.angles = ch.angles[:frames]
     ch.trans = ch.trans[:frames]
-    missing = sorted({0, 1, 2} - set(dest[2][dest[0] == 1].tolist()))
+    missing = sorted({0, 1, 2} - set(dest[2][dest[0] == _np.TO_TRANS].tolist()))
     ch.trans[:, 0, missing] = skel.rig.offsets[0, missing]
     return ch
 

@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.io import _numparse
 from mtanno.io.skeleton import AXIS_CODES, Channels, Rig
 
 __all__ = ["read_bvh", "frame_rate_from_frame_time"]
@@ -248,14 +249,30 @@ def _parse_joint_body(toks: _Tokens, node: _Node, path: str) -> None:
         raise MtannoError(f"joint '{node.name}' has no OFFSET", path=path, line=node.line)
 
 
-@numba.njit(cache=True)
+_HIERARCHY_CACHE: dict[bytes, list] = {}
+
+
+def _cached_hierarchy(header: bytes, text: str, path: str) -> list:
+    """_parse_hierarchy, remembered per header text: the clips of one dataset share a rig,
+    so a batch parses it once. Errors are never cached (they name the file)."""
+    nodes = _HIERARCHY_CACHE.get(header)
+    if nodes is None:
+        nodes = _parse_hierarchy(text.split("\n"), path)
+        if len(_HIERARCHY_CACHE) > 64:
+            _HIERARCHY_CACHE.clear()
+        _HIERARCHY_CACHE[header] = nodes
+    return nodes
+
+
 def _tokens_per_line(buf):
     """Number of whitespace-separated tokens on every line of ``buf`` (uint8 array)."""
-    n_lines = 1
-    for b in buf:
-        if b == 10:
-            n_lines += 1
-    counts = np.zeros(n_lines, dtype=np.int64)
+    counts = np.zeros(int(np.count_nonzero(buf == 10)) + 1, dtype=np.int64)
+    _count_tokens(buf, counts)
+    return counts
+
+
+@numba.njit(cache=True)
+def _count_tokens(buf, counts):
     line = 0
     in_tok = False
     for b in buf:
@@ -267,7 +284,6 @@ def _tokens_per_line(buf):
         elif not in_tok:
             counts[line] += 1
             in_tok = True
-    return counts
 
 
 def frame_rate_from_frame_time(text: str) -> float:
@@ -352,7 +368,7 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
         text = header.decode("utf-8")
     except UnicodeDecodeError:
         text = header.decode("latin-1")
-    nodes = _parse_hierarchy(text.split("\n"), spath)
+    nodes = _cached_hierarchy(header, text, spath)
     if m is None:
         raise MtannoError("no MOTION section after the hierarchy", path=spath,
                           line=text.rstrip().count("\n") + 1)
@@ -439,21 +455,38 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
     if rows.size != n_frames:
         raise MtannoError(f"'Frames: {n_frames}' but the file has {rows.size} rows of motion "
                           f"data", path=spath, line=frames_line)
-    values = np.zeros((n_frames, n_channels))
-    if values.size:
-        try:  # NumPy's C text parser: correctly rounded, rejects '1,5', '1_0', '0x10'
-            values = np.loadtxt(io.BytesIO(block), dtype=np.float64, ndmin=2, comments=None,
-                                encoding="latin-1").reshape(n_frames, n_channels)
-        except ValueError as exc:
-            _locate_bad_value(block, rows, n_channels, first_data_line, spath, str(exc))
-        if not np.isfinite(values).all():
-            _locate_bad_value(block, rows, n_channels, first_data_line, spath, "")
-
     angles = np.zeros((n_frames, n_nodes, 3), dtype=np.float64)
-    angles[:, rot_node, rot_slot] = np.deg2rad(values[:, rot_col])
     trans = np.empty((n_frames, n_nodes, 3), dtype=np.float64)
     trans[:] = offsets  # components without a channel keep the offset's value
-    trans[:, pos_node, pos_comp] = values[:, pos_col]
+    if n_frames and n_channels:
+        # numba kernel, bit-identical to float() (Clinger's exact fast path); numbers
+        # outside that path go through NumPy's correctly rounded C text parser
+        dst_kind = np.full(n_channels, _numparse.TO_ANGLES, dtype=np.int64)
+        dst_kind[pos_col] = _numparse.TO_TRANS
+        dst_node = np.zeros(n_channels, dtype=np.int64)
+        dst_slot = np.zeros(n_channels, dtype=np.int64)
+        dst_node[rot_col], dst_slot[rot_col] = rot_node, rot_slot
+        dst_node[pos_col], dst_slot[pos_col] = pos_node, pos_comp
+        dst_scale = np.full(n_channels, np.pi / 180.0)  # = np.deg2rad
+        dst_scale[pos_col] = 1.0
+        _, status, _ = _numparse.parse_frames(
+            np.frombuffer(block, dtype=np.uint8), np.full(n_channels, _numparse.VALUE),
+            np.arange(n_channels), 0, np.zeros(0, np.uint8), np.zeros(1, np.int64),
+            dst_kind, dst_node, dst_slot, dst_scale, np.zeros(n_channels), angles, trans,
+            _numparse.POW10)
+        if status != _numparse.OK:
+            values = None
+            if status == _numparse.INEXACT:
+                try:
+                    values = np.loadtxt(io.BytesIO(block), dtype=np.float64, ndmin=2,
+                                        comments=None, encoding="latin-1"
+                                        ).reshape(n_frames, n_channels)
+                except ValueError as exc:
+                    _locate_bad_value(block, rows, n_channels, first_data_line, spath, str(exc))
+            if values is None or not np.isfinite(values).all():
+                _locate_bad_value(block, rows, n_channels, first_data_line, spath, "")
+            angles[:, rot_node, rot_slot] = np.deg2rad(values[:, rot_col])
+            trans[:, pos_node, pos_comp] = values[:, pos_col]
 
     rig = Rig(
         kind="bvh",
