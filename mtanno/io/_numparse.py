@@ -39,11 +39,12 @@ _EXACT = 2**53
 
 @numba.njit(cache=True)
 def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, dst_node,
-                 dst_slot, dst_scale, dst_add, angles, trans, pow10):
+                 dst_slot, dst_scale, dst_add, angles, trans, pow10, rows):
     """Read frames of tokens laid out by the program into ``angles`` / ``trans``.
 
-    Returns ``(frames read, status, byte position of the problem)``; reading stops with
-    BAD when a frame would exceed ``angles.shape[0]``.
+    With ``rows`` every frame must be exactly one line (BVH). Returns ``(frames read,
+    status, byte position of the problem)``; reading stops with BAD when a frame would
+    exceed ``angles.shape[0]``.
     """
     n = buf.shape[0]
     plen = prog_kind.shape[0]
@@ -52,12 +53,18 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
     while True:
         for step in range(plen):
             # skip white space
+            newline = False
             while pos < n:
                 c = buf[pos]
-                if c == 32 or c == 10 or c == 13 or c == 9 or c == 11 or c == 12:
+                if c == 32 or c == 13 or c == 9 or c == 11 or c == 12:
+                    pos += 1
+                elif c == 10:
+                    newline = True
                     pos += 1
                 else:
                     break
+            if rows and pos < n and newline != (step == 0 and frame > 0):
+                return frame, BAD, pos
             if pos >= n:
                 if step == 0:
                     return frame, OK, pos

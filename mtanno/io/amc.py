@@ -187,7 +187,7 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
     frames, status, _ = _np.parse_frames(
         np.frombuffer(body, dtype=np.uint8), *_program(layout), first_no,
         np.frombuffer(b"".join(encoded), np.uint8), offs, *dest, ch.angles, ch.trans,
-        _np.POW10)
+        _np.POW10, False)
     if status == _np.INEXACT:
         layout_values = _tokenised_parse(body, layout)
         return None if layout_values is None else _to_channels(*layout_values, skel, fps)

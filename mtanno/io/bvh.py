@@ -18,10 +18,10 @@ and pybvh's; ``scripts/pybvh_peer.py`` checks the two agree):
   below ``Hips``, which confirms this reading (adding them would double every bone).
 * Lengths are in the file's unit (centimetres for the Bandai and CMU conversions); Y is up.
 
-The MOTION block is parsed in one pass: a compiled scan counts the values on every line
-(wrong row lengths are reported by line), then NumPy's C text parser converts all numbers
-at once (8–9 million numbers per second end to end on the Bandai files); a slow
-token-by-token scan runs only to locate a bad value. Every problem with the file raises
+The MOTION block is parsed in one pass by the numba kernel of :mod:`mtanno.io._numparse`
+(one row per line, values straight into the channel arrays); only when it finds something
+irregular does a slower scan count the values on every line, to report the bad line, or
+NumPy's C text parser convert numbers outside the kernel's exact range. Every problem with the file raises
 :class:`~mtanno.errors.MtannoError` with the file and the 1-based line.
 """
 
@@ -442,25 +442,13 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
     # --- MOTION data: fast path ----------------------------------------------------------
     block = data[pos:] if pos < len(data) else b""
     first_data_line = ft_line + 1
-    counts = _tokens_per_line(np.frombuffer(block, dtype=np.uint8))
-    rows = np.flatnonzero(counts)  # line index (within block) of every non-blank line
-    wrong = np.flatnonzero(counts[rows] != n_channels)
-    if wrong.size:
-        k = rows[wrong[0]]
-        got = int(counts[k])
-        which = "few" if got < n_channels else "many"
-        raise MtannoError(f"too {which} values: motion frame {wrong[0] + 1} has {got} but the "
-                          f"hierarchy declares {n_channels} channels", path=spath,
-                          line=first_data_line + int(k))
-    if rows.size != n_frames:
-        raise MtannoError(f"'Frames: {n_frames}' but the file has {rows.size} rows of motion "
-                          f"data", path=spath, line=frames_line)
     angles = np.zeros((n_frames, n_nodes, 3), dtype=np.float64)
     trans = np.empty((n_frames, n_nodes, 3), dtype=np.float64)
     trans[:] = offsets  # components without a channel keep the offset's value
+    status, frames = _numparse.BAD, -1
     if n_frames and n_channels:
-        # numba kernel, bit-identical to float() (Clinger's exact fast path); numbers
-        # outside that path go through NumPy's correctly rounded C text parser
+        # numba kernel: one row per line, bit-identical to float() (Clinger's exact fast
+        # path); numbers outside that path go through NumPy's correctly rounded parser
         dst_kind = np.full(n_channels, _numparse.TO_ANGLES, dtype=np.int64)
         dst_kind[pos_col] = _numparse.TO_TRANS
         dst_node = np.zeros(n_channels, dtype=np.int64)
@@ -469,12 +457,28 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
         dst_node[pos_col], dst_slot[pos_col] = pos_node, pos_comp
         dst_scale = np.full(n_channels, np.pi / 180.0)  # = np.deg2rad
         dst_scale[pos_col] = 1.0
-        _, status, _ = _numparse.parse_frames(
+        frames, status, _ = _numparse.parse_frames(
             np.frombuffer(block, dtype=np.uint8), np.full(n_channels, _numparse.VALUE),
             np.arange(n_channels), 0, np.zeros(0, np.uint8), np.zeros(1, np.int64),
             dst_kind, dst_node, dst_slot, dst_scale, np.zeros(n_channels), angles, trans,
-            _numparse.POW10)
-        if status != _numparse.OK:
+            _numparse.POW10, True)
+    if status != _numparse.OK or frames != n_frames:
+        # slow path: name the line with a wrong value count, a wrong frame count or a bad
+        # value; or convert numbers outside the kernel's exact range
+        counts = _tokens_per_line(np.frombuffer(block, dtype=np.uint8))
+        rows = np.flatnonzero(counts)  # line index (within block) of every non-blank line
+        wrong = np.flatnonzero(counts[rows] != n_channels)
+        if wrong.size:
+            k = rows[wrong[0]]
+            got = int(counts[k])
+            which = "few" if got < n_channels else "many"
+            raise MtannoError(f"too {which} values: motion frame {wrong[0] + 1} has {got} but "
+                              f"the hierarchy declares {n_channels} channels", path=spath,
+                              line=first_data_line + int(k))
+        if rows.size != n_frames:
+            raise MtannoError(f"'Frames: {n_frames}' but the file has {rows.size} rows of "
+                              f"motion data", path=spath, line=frames_line)
+        if n_frames and n_channels:
             values = None
             if status == _numparse.INEXACT:
                 try:
