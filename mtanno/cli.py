@@ -6,35 +6,17 @@ Errors a user can fix are printed as one line ``mtanno: path:line: what is wrong
 
 from __future__ import annotations
 
-import functools
+import importlib
+import pkgutil
 import sys
 from pathlib import Path
 
 import click
 
+import mtanno.commands
 from mtanno import __version__
+from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
-
-
-def _user_errors(code: int):
-    """Turn MtannoError into a one-line message and exit ``code`` (no traceback)."""
-
-    def deco(fn):
-        @functools.wraps(fn)
-        def wrapper(*args, **kwargs):
-            try:
-                return fn(*args, **kwargs)
-            except MtannoError as exc:
-                click.echo(f"mtanno: {exc}", err=True)
-                sys.exit(code)
-
-        return wrapper
-
-    return deco
-
-
-def _show_progress(quiet: bool) -> bool:
-    return not quiet and sys.stderr.isatty()
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -60,7 +42,7 @@ def main() -> None:
               help="ASF skeleton for every AMC input (default: found beside or above it).")
 @click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-@_user_errors(2)
+@user_errors(2)
 def features_cmd(inputs, outdir, jobs, skeleton, asf, force, quiet):
     """Compute the 40 relational features of mocap files (ASF/AMC, BVH).
 
@@ -92,7 +74,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, quiet):
     jobs_list = plan_batch(items, outdir, asf=asf)
     if not jobs_list:
         raise MtannoError("no .amc or .bvh files found in the inputs")
-    bar = tqdm(total=len(jobs_list), unit="file", disable=not _show_progress(quiet),
+    bar = tqdm(total=len(jobs_list), unit="file", disable=not show_progress(quiet),
                desc="features")
 
     def progress(outcome):
@@ -114,7 +96,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, quiet):
               help="ASF skeleton of an AMC file (default: found beside or above it).")
 @click.option("--skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or name) instead of the detected one.")
-@_user_errors(1)
+@user_errors(1)
 def info_cmd(file, asf, skeleton):
     """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
     or a feature file (.parquet: its metadata)."""
@@ -151,6 +133,20 @@ def info_cmd(file, asf, skeleton):
                + (f" (missing: {', '.join(missing)})" if missing else ""))
     for j in CANONICAL_JOINTS:
         click.echo(f"  {j:<10} <- {cov[j] or 'MISSING'}")
+
+
+def _register_command_modules() -> None:
+    """Add the commands of every module in :mod:`mtanno.commands` (each lists its Click
+    commands in ``COMMANDS``), so a pipeline stage brings its own command module."""
+    for info in sorted(pkgutil.iter_modules(mtanno.commands.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"mtanno.commands.{info.name}")
+        for command in getattr(module, "COMMANDS", ()):
+            main.add_command(command)
+
+
+_register_command_modules()
 
 
 if __name__ == "__main__":  # pragma: no cover
