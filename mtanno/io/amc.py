@@ -84,6 +84,45 @@ def read_amc(path: str | os.PathLike, skel: AsfSkeleton) -> Channels:
     return ch
 
 
+def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
+                    ) -> tuple[list[str], list[tuple[str, int]], np.ndarray, float]:
+    """The raw AMC content: (header lines, layout [(bone, value count)], values as written
+    in the file (frames × values, file units and degrees), frame rate). For tools that
+    rewrite AMC files (:mod:`mtanno.compose`); checks the file like :func:`read_amc`."""
+    spath = str(path)
+    read_amc(path, skel)  # validates, with path:line errors
+    raw = Path(path).read_bytes()
+    body_at, header_lines, fps = _header(raw, spath)
+    lines = raw.decode("latin-1").splitlines()
+    first = _first_layout(raw[body_at:], skel)
+    result = None if first is None else _tokenised_parse(raw[body_at:], first[1])
+    if result is None:
+        result = _slow_parse(lines, header_lines, skel, spath)
+    layout, values = result
+    return lines[:header_lines], layout, values, fps
+
+
+def write_amc(path: str | os.PathLike, header: list[str], layout: list[tuple[str, int]],
+              values: np.ndarray) -> None:
+    """Write AMC frames (numbered from 1) with the given header lines, atomically."""
+    from mtanno.store import atomic_path
+
+    names = [name for name, _ in layout]
+    counts = [n for _, n in layout]
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="latin-1", newline="\n") as fh:
+        for line in header:
+            fh.write(line + "\n")
+        for f, row in enumerate(values, 1):
+            fh.write(f"{f}\n")
+            col = 0
+            for name, n in zip(names, counts):
+                fh.write(name)
+                for v in row[col:col + n]:
+                    fh.write(f" {v:.9g}")
+                fh.write("\n")
+                col += n
+
+
 def _first_layout(body: bytes, skel: AsfSkeleton):
     """(first frame number, [(bone, value count)]) from the first frame, or None."""
     head = body[:8192]

@@ -1,0 +1,352 @@
+"""Frame-wise annotation of documents with motion classes (MBS09 §4–5, algorithms.md §7).
+
+For every class template the matching distance Δ_p (algorithms.md §3.4) is computed over
+the document, optionally only inside candidate windows (from a keyframe stage), turned into
+the *modified distance* Δ̄_p that spreads each match's cost over the frames it covers, and
+the label of a frame is the class with the smallest Δ̄ there. Maximal runs of one label are
+then extended while Δ̄ keeps falling towards them, which gives the output segments (they may
+overlap segments of other labels).
+
+Frames are 0-based inside this module and 1-based inclusive in the tables it writes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from mtanno.errors import MtannoError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+#: Annotation threshold τ of MBS09 (used for every class without its own τ).
+DEFAULT_TAU = 0.13
+#: Quantization δ of the templates for annotation (MBS09).
+DEFAULT_DELTA = 0.05
+
+
+@dataclass
+class ClassConfig:
+    """Per-class thresholds and superclasses (a TOML file, see ``docs/annotation.md``).
+
+    ``tau`` maps class (or superclass) names to τ; ``superclasses`` maps a superclass
+    name to the classes it joins (its Δ̄ is the frame-wise minimum over them).
+    """
+
+    default_tau: float = DEFAULT_TAU
+    tau: dict[str, float] = field(default_factory=dict)
+    superclasses: dict[str, list[str]] = field(default_factory=dict)
+
+    def tau_for(self, name: str) -> float:
+        return self.tau.get(name, self.default_tau)
+
+
+def load_class_config(path: str | os.PathLike) -> ClassConfig:
+    """Read a class configuration::
+
+        [tau]
+        default = 0.13
+        lieDownFloor = 0.06
+
+        [superclasses]
+        kick = ["kickLFront1Reps", "kickRFront1Reps"]
+    """
+    spath = str(path)
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise MtannoError("class configuration not found", path=spath) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise MtannoError(f"not a valid TOML class configuration: {exc}", path=spath) from None
+    cfg = ClassConfig()
+    taus = dict(data.get("tau", {}))
+    try:
+        cfg.default_tau = float(taus.pop("default", DEFAULT_TAU))
+        cfg.tau = {str(k): float(v) for k, v in taus.items()}
+    except (TypeError, ValueError):
+        raise MtannoError("[tau] values must be numbers", path=spath) from None
+    sup = data.get("superclasses", {})
+    if not isinstance(sup, dict) or not all(isinstance(v, list) and v for v in sup.values()):
+        raise MtannoError("[superclasses] must map names to non-empty lists of classes",
+                          path=spath)
+    cfg.superclasses = {str(k): [str(c) for c in v] for k, v in sup.items()}
+    unknown = sorted(set(data) - {"tau", "superclasses"})
+    if unknown:
+        raise MtannoError(f"unknown section(s) {', '.join(unknown)} (known: tau, superclasses)",
+                          path=spath)
+    return cfg
+
+
+@numba.njit(cache=True)
+def _fill_from_minima(delta, start, order, tau, max_hits, dbar):
+    """Reference Δ̄: take Δ's minima in increasing order while ≤ τ; each fills the still-empty
+    frames of its span [start, end] with its cost and blocks ends inside that span."""
+    blocked = np.zeros(delta.shape[0], dtype=np.bool_)
+    hits = 0
+    for i in range(order.shape[0]):
+        end = order[i]
+        d = delta[end]
+        if not d <= tau:
+            break
+        if blocked[end]:
+            continue
+        s = start[end]
+        for k in range(s, end + 1):
+            blocked[k] = True
+            if dbar[k] == np.inf:
+                dbar[k] = d
+        hits += 1
+        if hits >= max_hits:
+            break
+    return hits
+
+
+def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
+                   variant: str = "reference", max_hits: int | None = None) -> np.ndarray:
+    """Δ̄ from a distance curve Δ and start frames (algorithms.md §7 step 2; MBS09 §4).
+
+    ``variant="reference"`` (default, what the reference implementation does): repeatedly
+    take the smallest remaining Δ(ℓ) ≤ τ (ties: earliest frame), fill the frames of
+    [a_ℓ, ℓ] that are still ∞ with Δ(ℓ), and exclude that range from further picks;
+    ``max_hits`` caps the picks (the reference used 2000). ``variant="paper"`` (MBS09 as
+    written): for every local minimum ℓ of Δ below τ, Δ̄(k) = min(Δ̄(k), Δ(ℓ)) on [a_ℓ, ℓ].
+    Frames are 0-based; Δ = ∞ where no match ends.
+    """
+    delta = np.ascontiguousarray(delta, dtype=np.float64)
+    start = np.ascontiguousarray(start, dtype=np.int64)
+    if delta.shape != start.shape or delta.ndim != 1:
+        raise MtannoError("delta and start must be 1-D arrays of the same length")
+    dbar = np.full(delta.shape[0], np.inf)
+    if variant == "reference":
+        finite = np.flatnonzero(delta <= tau)
+        order = finite[np.argsort(delta[finite], kind="stable")]
+        cap = np.iinfo(np.int64).max if max_hits is None else int(max_hits)
+        _fill_from_minima(delta, start, order, float(tau), cap, dbar)
+        return dbar
+    if variant == "paper":
+        d = np.where(np.isfinite(delta), delta, np.inf)
+        left = np.concatenate(([np.inf], d[:-1]))
+        right = np.concatenate((d[1:], [np.inf]))
+        minima = np.flatnonzero((d <= tau) & (d < left) & (d <= right))
+        for end in minima:
+            s = start[end]
+            np.minimum(dbar[s:end + 1], d[end], out=dbar[s:end + 1])
+        return dbar
+    raise MtannoError(f"unknown Δ̄ variant '{variant}' (reference or paper)")
+
+
+@numba.njit(cache=True)
+def _extend(dbar, s, t):
+    """Walk outward from [s, t] while Δ̄ does not rise (algorithms.md §7 step 4)."""
+    n = dbar.shape[0]
+    r = s
+    while r > 0 and dbar[r - 1] <= dbar[r]:
+        r -= 1
+    u = t
+    while u + 1 < n and dbar[u + 1] <= dbar[u]:
+        u += 1
+    return r, u
+
+
+@dataclass(frozen=True)
+class Annotation:
+    """One output segment: 0-based inclusive frames at 30 Hz."""
+
+    doc: str
+    start: int
+    end: int
+    label: str
+    cost: float
+
+
+def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(label index per frame, −1 where every Δ̄ is ∞; Δ_min per frame). Ties → smallest
+    class index (algorithms.md §7 step 3)."""
+    dmin = dbars.min(axis=0)
+    labels = np.argmin(dbars, axis=0).astype(np.int64)
+    labels[~np.isfinite(dmin)] = -1
+    return labels, dmin
+
+
+def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
+                         extend: bool = True) -> list[Annotation]:
+    """Maximal runs of one label, extended (optional) and merged per label (§7 step 4)."""
+    labels, _ = label_frames(dbars)
+    n = labels.shape[0]
+    runs: dict[int, list[list[int]]] = {}
+    if n:
+        change = np.flatnonzero(np.diff(labels)) + 1
+        bounds = np.concatenate(([0], change, [n]))
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            p = int(labels[a])
+            if p < 0:
+                continue
+            s, t = int(a), int(b) - 1
+            if extend:
+                s, t = _extend(dbars[p], s, t)
+            runs.setdefault(p, []).append([s, t])
+    out = []
+    for p, segs in runs.items():
+        segs.sort()
+        merged = [segs[0]]
+        for s, t in segs[1:]:
+            if s <= merged[-1][1]:  # overlapping: merge
+                merged[-1][1] = max(merged[-1][1], t)
+            else:
+                merged.append([s, t])
+        for s, t in merged:
+            out.append(Annotation(doc, s, t, names[p], float(dbars[p, s:t + 1].min())))
+    out.sort(key=lambda a: (a.start, a.end, a.label))
+    return out
+
+
+@dataclass
+class ClassModel:
+    """A class as the annotator needs it: name, quantized template values and weights."""
+
+    name: str
+    values: np.ndarray
+    weights: np.ndarray
+
+
+def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
+                 windows: dict[str, list[tuple[int, int]]] | None = None,
+                 match_variant: str = "reference") -> list[tuple[np.ndarray, np.ndarray]]:
+    """Δ_p and start frames of every class over one document (X: features × frames).
+
+    ``windows`` (from a keyframe stage) restricts a class to candidate windows
+    [first, last] (0-based inclusive): Δ_p is computed inside each window and is ∞
+    elsewhere (MBS09 §5). Classes without an entry are matched everywhere.
+    """
+    from mtanno.templates.match import match_template
+
+    L = X.shape[1]
+    out = []
+    for c in classes:
+        if windows is not None and c.name in windows:
+            delta = np.full(L, np.inf)
+            start = np.full(L, -1, dtype=np.int64)
+            for a, b in windows[c.name]:
+                a, b = max(0, int(a)), min(L - 1, int(b))
+                if b < a:
+                    continue
+                d, s = match_template(c.values, c.weights, X[:, a:b + 1], variant=match_variant)
+                better = d < delta[a:b + 1]
+                delta[a:b + 1][better] = d[better]
+                start[a:b + 1][better] = s[better] + a
+        else:
+            delta, start = match_template(c.values, c.weights, X, variant=match_variant)
+        out.append((np.asarray(delta, dtype=np.float64), np.asarray(start, dtype=np.int64)))
+    return out
+
+
+def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
+                      config: ClassConfig | None = None,
+                      windows: dict[str, list[tuple[int, int]]] | None = None,
+                      dbar_variant: str = "reference", match_variant: str = "reference",
+                      max_hits: int | None = None, extend: bool = True,
+                      ) -> tuple[list[Annotation], list[str], np.ndarray]:
+    """Annotate one document (MBS09 §4–5): returns (segments, label names, Δ̄ matrix).
+
+    Labels are the classes, or the superclasses of ``config`` joining them (classes not in
+    a superclass keep their name); Δ̄ of a label is the frame-wise minimum of its classes'.
+    """
+    config = config or ClassConfig()
+    if not classes:
+        raise MtannoError("no class templates to annotate with")
+    names = [c.name for c in classes]
+    member_of = {m: s for s, ms in config.superclasses.items() for m in ms}
+    labels: list[str] = []
+    for n in names:
+        lab = member_of.get(n, n)
+        if lab not in labels:
+            labels.append(lab)
+    L = X.shape[1]
+    dbars = np.full((len(labels), L), np.inf)
+    for c, (delta, start) in zip(classes, class_deltas(X, classes, windows=windows,
+                                                       match_variant=match_variant)):
+        lab = member_of.get(c.name, c.name)
+        tau = config.tau.get(c.name, config.tau_for(lab))
+        d = modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits)
+        k = labels.index(lab)
+        np.minimum(dbars[k], d, out=dbars[k])
+    return segments_from_labels(doc, labels, dbars, extend=extend), labels, dbars
+
+
+def write_annotations(path: str | os.PathLike, rows: Sequence[Annotation],
+                      native: dict[str, np.ndarray] | None = None) -> None:
+    """Write an annotation table (CSV or Parquet by suffix), atomically.
+
+    Columns: doc, start, end (1-based inclusive 30 Hz frames), label, cost, and
+    start_native, end_native (1-based native frames) when ``native`` maps each document to
+    its feature file's native_frame column.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    from mtanno.store import atomic_path
+
+    cols: dict[str, list] = {"doc": [], "start": [], "end": [], "label": [], "cost": []}
+    if native is not None:
+        cols["start_native"], cols["end_native"] = [], []
+    for r in rows:
+        cols["doc"].append(r.doc)
+        cols["start"].append(r.start + 1)
+        cols["end"].append(r.end + 1)
+        cols["label"].append(r.label)
+        cols["cost"].append(r.cost if math.isfinite(r.cost) else None)
+        if native is not None:
+            nf = native[r.doc]
+            cols["start_native"].append(int(nf[r.start]))
+            cols["end_native"].append(int(nf[r.end]))
+    table = pa.table({k: pa.array(v, type=pa.float64() if k == "cost" else None)
+                      for k, v in cols.items()}) if rows else pa.table(
+        {k: pa.array([], type=pa.float64() if k == "cost" else (
+            pa.string() if k in ("doc", "label") else pa.int64())) for k in cols})
+    suffix = Path(path).suffix.lower()
+    with atomic_path(path) as tmp:
+        if suffix == ".parquet":
+            pq.write_table(table, tmp)
+        elif suffix == ".csv":
+            pacsv.write_csv(table, tmp)
+        else:
+            raise MtannoError(f"annotation output must end in .csv or .parquet, not "
+                              f"'{suffix}'", path=str(path))
+
+
+def read_annotations(path: str | os.PathLike) -> list[Annotation]:
+    """Read an annotation table written by :func:`write_annotations` (frames → 0-based)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    spath = str(path)
+    try:
+        if Path(path).suffix.lower() == ".parquet":
+            table = pq.read_table(path)
+        else:
+            table = pacsv.read_csv(path)
+    except FileNotFoundError:
+        raise MtannoError("annotation file not found", path=spath) from None
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise MtannoError(f"not a readable annotation table ({exc})", path=spath) from None
+    need = {"doc", "start", "end", "label"}
+    if not need <= set(table.column_names):
+        raise MtannoError(f"annotation table needs the columns {', '.join(sorted(need))}",
+                          path=spath)
+    d = table.to_pydict()
+    costs = d.get("cost", [None] * table.num_rows)
+    return [Annotation(str(doc), int(s) - 1, int(e) - 1, str(lab),
+                       float("inf") if c is None else float(c))
+            for doc, s, e, lab, c in zip(d["doc"], d["start"], d["end"], d["label"], costs)]

@@ -1,0 +1,197 @@
+"""Compose long evaluation documents from labelled clips, with an exact ground truth.
+
+A composed document is a seeded random sequence of clips of one actor (one ASF skeleton),
+written as one AMC file that ``mtanno features`` reads. At every seam the next clip's root
+is re-anchored: turned about the vertical axis so that its heading at its first frame equals
+the previous clip's heading at its last frame, and moved on the floor so that its root
+starts where the previous clip's root ended. The root height is kept. Optional pauses
+repeat the last pose for a number of native frames and are left unlabelled.
+
+The ground truth lists every clip as a segment of 30 Hz frames: exactly the analysis frames
+(features.md §6) whose native frame belongs to the clip.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import random
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.features.hysteresis import analysis_frames
+from mtanno.io.amc import read_amc_values, write_amc
+from mtanno.io.asf import AsfSkeleton, read_asf
+from mtanno.io.skeleton import euler_matrix
+from mtanno.store import atomic_path
+from mtanno.truth import Segment, write_truth
+
+
+@dataclass(frozen=True)
+class Clip:
+    """A labelled clip: AMC path, class label, actor."""
+
+    path: Path
+    label: str
+    actor: str
+
+
+def read_manifest(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
+                  actor: str | None = None, split: str | None = None) -> list[Clip]:
+    """Clips of a manifest CSV with columns ``file,class[,actor,split]`` (file relative to
+    ``root``, by default the manifest's folder), filtered by actor and split."""
+    spath = str(path)
+    root = Path(root) if root is not None else Path(path).parent
+    try:
+        rows = list(csv.DictReader(Path(path).read_text(encoding="utf-8-sig").splitlines()))
+    except FileNotFoundError:
+        raise MtannoError("manifest not found", path=spath) from None
+    if not rows or not {"file", "class"} <= set(rows[0]):
+        raise MtannoError("manifest needs the columns file and class", path=spath, line=1)
+    out = []
+    for row in rows:
+        if actor is not None and row.get("actor") != actor:
+            continue
+        if split is not None and row.get("split") != split:
+            continue
+        out.append(Clip(root / row["file"], row["class"], row.get("actor", "")))
+    if not out:
+        raise MtannoError(f"no clips in the manifest for actor={actor} split={split}",
+                          path=spath)
+    return out
+
+
+def _root_columns(skel: AsfSkeleton, layout) -> dict[str, int]:
+    col = 0
+    for name, n in layout:
+        if name == "root":
+            return {tok.upper(): col + i for i, tok in enumerate(skel.root_order)}
+        col += n
+    raise MtannoError("AMC has no root line")
+
+
+def _root_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
+    return euler_matrix(2, rz) @ euler_matrix(1, ry) @ euler_matrix(0, rx)
+
+
+def _zyx_angles(m: np.ndarray) -> tuple[float, float, float]:
+    """(rx, ry, rz) with m = Rz(rz)·Ry(ry)·Rx(rx)."""
+    ry = -math.asin(max(-1.0, min(1.0, m[2, 0])))
+    rx = math.atan2(m[2, 1], m[2, 2])
+    rz = math.atan2(m[1, 0], m[0, 0])
+    return rx, ry, rz
+
+
+def _yaw(m: np.ndarray) -> float:
+    """Heading angle about Y of the root's local X axis (the axis F40 measures)."""
+    h = m @ np.array([1.0, 0.0, 0.0])
+    return math.atan2(-h[2], h[0])
+
+
+def reanchor(values: np.ndarray, cols: dict[str, int], *, angle_scale: float,
+             anchor_xz: tuple[float, float] | None, anchor_yaw: float | None) -> np.ndarray:
+    """Turn and move a clip's root so its first frame has the given floor position and
+    heading (file units and degrees in, out). With ``anchor_xz`` None the clip is kept."""
+    out = values.copy()
+    if anchor_xz is None:
+        return out
+    tx, ty, tz = (values[:, cols[k]] for k in ("TX", "TY", "TZ"))
+    rx, ry, rz = (values[:, cols[k]] * angle_scale for k in ("RX", "RY", "RZ"))
+    first = _root_matrix(rx[0], ry[0], rz[0])
+    phi = anchor_yaw - _yaw(first)
+    turn = euler_matrix(1, phi)
+    c, s = math.cos(phi), math.sin(phi)
+    dx, dz = tx - tx[0], tz - tz[0]
+    out[:, cols["TX"]] = anchor_xz[0] + c * dx + s * dz
+    out[:, cols["TZ"]] = anchor_xz[1] - s * dx + c * dz
+    out[:, cols["TY"]] = ty
+    for f in range(values.shape[0]):
+        a = _zyx_angles(turn @ _root_matrix(rx[f], ry[f], rz[f]))
+        out[f, cols["RX"]], out[f, cols["RY"]], out[f, cols["RZ"]] = (v / angle_scale for v in a)
+    return out
+
+
+def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: int = 10,
+                      clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
+                      asf: str | os.PathLike | None = None, prefix: str | None = None,
+                      ) -> tuple[list[Path], list[Segment]]:
+    """Write ``n_docs`` composed AMC documents, their ASF and ``truth.csv`` into ``out_dir``.
+
+    Each document takes ``clips_per_doc`` clips (default: all) in a random order drawn from
+    ``random.Random(seed)``, so the same seed gives the same documents. ``pause`` native
+    frames of stillness separate the clips. Returns the document paths and the truth.
+    """
+    if not clips:
+        raise MtannoError("no clips to compose")
+    from mtanno.io import find_asf
+
+    asf_path = Path(asf) if asf is not None else find_asf(clips[0].path)
+    skel = read_asf(asf_path)
+    if list(skel.rig.axes[0]) != [2, 1, 0] or skel.rig.pre[0].tolist() != np.eye(3).tolist():
+        raise MtannoError("compose needs an ASF root with axis XYZ and zero orientation",
+                          path=str(asf_path))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(asf_path, out_dir / asf_path.name)
+    prefix = prefix or asf_path.stem
+    rng = random.Random(seed)
+    loaded = {}
+    for c in clips:
+        header, layout, values, fps = read_amc_values(c.path, skel)
+        loaded[c.path] = (header, layout, values, fps)
+    k = len(clips) if clips_per_doc is None else min(clips_per_doc, len(clips))
+    docs, truth, plan = [], [], []
+    for d in range(1, n_docs + 1):
+        order = rng.sample(range(len(clips)), k)
+        name = f"{prefix}_doc{d:02d}"
+        parts = []
+        layout0 = loaded[clips[order[0]].path][1]
+        cols = _root_columns(skel, layout0)
+        fps0 = loaded[clips[order[0]].path][3]
+        anchor_xz = anchor_yaw = None
+        offset = 0
+        spans = []  # (first, last native frame 0-based, label)
+        for i in order:
+            header, layout, values, fps = loaded[clips[i].path]
+            if layout != layout0 or fps != fps0:
+                raise MtannoError("clips of one document must share bone layout and frame "
+                                  "rate", path=str(clips[i].path))
+            v = reanchor(values, cols, angle_scale=skel.angle_scale, anchor_xz=anchor_xz,
+                         anchor_yaw=anchor_yaw)
+            parts.append(v)
+            spans.append((offset, offset + len(v) - 1, clips[i].label))
+            offset += len(v)
+            last = v[-1]
+            anchor_xz = (last[cols["TX"]], last[cols["TZ"]])
+            anchor_yaw = _yaw(_root_matrix(*(last[cols[k]] * skel.angle_scale
+                                             for k in ("RX", "RY", "RZ"))))
+            if pause > 0:
+                parts.append(np.repeat(last[None, :], pause, axis=0))
+                offset += pause
+        # exact 30 Hz truth: the analysis frames whose native frame lies in the clip
+        kept = analysis_frames(offset, fps0)
+        for first, last, label in spans:
+            a = int(np.searchsorted(kept, first, side="left"))
+            b = int(np.searchsorted(kept, last, side="right")) - 1
+            if b >= a:
+                truth.append(Segment(name, a + 1, b + 1, label))
+        path = out_dir / f"{name}.amc"
+        header = [f"# composed by mtanno compose (seed {seed}, document {d})",
+                  f"#!OML:ASF {asf_path.name}", ":FULLY-SPECIFIED",
+                  ":DEGREES" if skel.angle_scale != 1.0 else ":RADIANS"]
+        if fps0 != 120.0:
+            header.append(f":SAMPLES-PER-SECOND {fps0:g}")
+        write_amc(path, header, layout0, np.concatenate(parts))
+        docs.append(path)
+        plan.append({"document": name, "clips": [str(clips[i].path) for i in order]})
+    write_truth(out_dir / "truth.csv", truth)
+    with atomic_path(out_dir / "compose.json") as tmp:
+        tmp.write_text(json.dumps({"seed": seed, "pause": pause, "asf": str(asf_path),
+                                   "documents": plan}, indent=1))
+    return docs, truth

@@ -1,0 +1,210 @@
+"""Evaluation of annotations and retrieval against ground truth (MBS09 §7; MR06 §5.4–5.5).
+
+All frames are 1-based inclusive at 30 Hz in the tables (:class:`mtanno.truth.Segment`,
+:class:`mtanno.annotate.Annotation` uses 0-based frames and is converted on entry).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mtanno.truth import Segment
+
+#: τ grid of the retrieval table (algorithms.md §8, MR06 Table 2).
+TAU_GRID = (0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1)
+
+
+@dataclass
+class PRF:
+    """Precision, recall and F-measure with the counts they come from."""
+
+    tp_p: int = 0  # numerator of P
+    n_p: int = 0   # denominator of P
+    tp_r: int = 0  # numerator of R
+    n_r: int = 0   # denominator of R
+
+    @property
+    def P(self) -> float:
+        return self.tp_p / self.n_p if self.n_p else 0.0
+
+    @property
+    def R(self) -> float:
+        return self.tp_r / self.n_r if self.n_r else 0.0
+
+    @property
+    def F(self) -> float:
+        p, r = self.P, self.R
+        return 2 * p * r / (p + r) if p + r else 0.0
+
+    def as_dict(self) -> dict[str, float]:
+        return {"P": self.P, "R": self.R, "F": self.F}
+
+
+def _frame_sets(segments: Iterable[Segment]) -> dict[tuple[str, str], np.ndarray]:
+    """(doc, label) → sorted unique frames covered (a frame may carry several labels)."""
+    acc: dict[tuple[str, str], list[np.ndarray]] = {}
+    for s in segments:
+        acc.setdefault((s.doc, s.label), []).append(np.arange(s.start, s.end + 1))
+    return {k: np.unique(np.concatenate(v)) for k, v in acc.items()}
+
+
+def frame_level(truth: Sequence[Segment], output: Sequence[Segment]) -> tuple[PRF, dict[str, PRF]]:
+    """P1/R1/F1 over all documents together and per class (MBS09 §7).
+
+    M = {(frame, label)} of the truth, A = of the output; P1 = |M∩A|/|A|, R1 = |M∩A|/|M|.
+    """
+    M = _frame_sets(truth)
+    A = _frame_sets(output)
+    total = PRF()
+    per: dict[str, PRF] = {}
+    for key in set(M) | set(A):
+        m = M.get(key, np.zeros(0, np.int64))
+        a = A.get(key, np.zeros(0, np.int64))
+        inter = np.intersect1d(m, a, assume_unique=True).size
+        c = per.setdefault(key[1], PRF())
+        for x in (c, total):
+            x.tp_p += inter
+            x.tp_r += inter
+            x.n_p += a.size
+            x.n_r += m.size
+    return total, per
+
+
+def _overlaps(a: Segment, b: Segment) -> bool:
+    return a.doc == b.doc and a.start <= b.end and b.start <= a.end
+
+
+def segment_level(truth: Sequence[Segment], output: Sequence[Segment]) -> tuple[PRF, dict[str, PRF]]:
+    """P2/R2/F2: an output segment is correct if it overlaps a truth segment of its label; a
+    truth segment is found if an output segment of its label overlaps it (MBS09 §7)."""
+    by_key: dict[tuple[str, str], list[Segment]] = {}
+    for s in truth:
+        by_key.setdefault((s.doc, s.label), []).append(s)
+    out_by_key: dict[tuple[str, str], list[Segment]] = {}
+    for s in output:
+        out_by_key.setdefault((s.doc, s.label), []).append(s)
+    total = PRF()
+    per: dict[str, PRF] = {}
+    for s in output:
+        ok = any(_overlaps(s, t) for t in by_key.get((s.doc, s.label), ()))
+        for x in (per.setdefault(s.label, PRF()), total):
+            x.n_p += 1
+            x.tp_p += ok
+    for t in truth:
+        found = any(_overlaps(s, t) for s in out_by_key.get((t.doc, t.label), ()))
+        for x in (per.setdefault(t.label, PRF()), total):
+            x.n_r += 1
+            x.tp_r += found
+    return total, per
+
+
+@dataclass
+class Report:
+    """Frame- and segment-level results, overall and per class."""
+
+    frame: PRF
+    segment: PRF
+    per_class_frame: dict[str, PRF] = field(default_factory=dict)
+    per_class_segment: dict[str, PRF] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
+        return {
+            "frame": self.frame.as_dict(),
+            "segment": self.segment.as_dict(),
+            "per_class": {c: {"frame": self.per_class_frame.get(c, PRF()).as_dict(),
+                              "segment": self.per_class_segment.get(c, PRF()).as_dict()}
+                          for c in classes},
+        }
+
+    def table(self) -> str:
+        """A readable table: one row per class and the overall row."""
+        lines = [f"{'class':<32} {'P1':>6} {'R1':>6} {'F1':>6}   {'P2':>6} {'R2':>6} {'F2':>6}"]
+        classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
+        for c in classes:
+            f = self.per_class_frame.get(c, PRF())
+            s = self.per_class_segment.get(c, PRF())
+            lines.append(f"{c:<32} {f.P:6.3f} {f.R:6.3f} {f.F:6.3f}   {s.P:6.3f} {s.R:6.3f} "
+                         f"{s.F:6.3f}")
+        f, s = self.frame, self.segment
+        lines.append(f"{'overall':<32} {f.P:6.3f} {f.R:6.3f} {f.F:6.3f}   {s.P:6.3f} {s.R:6.3f} "
+                     f"{s.F:6.3f}")
+        return "\n".join(lines)
+
+
+def evaluate_annotations(truth: Sequence[Segment], output: Sequence[Segment],
+                         *, documents: Iterable[str] | None = None) -> Report:
+    """Frame- and segment-level evaluation; ``documents`` restricts both tables to those."""
+    if documents is not None:
+        docs = set(documents)
+        truth = [s for s in truth if s.doc in docs]
+        output = [s for s in output if s.doc in docs]
+    f, fc = frame_level(truth, output)
+    s, sc = segment_level(truth, output)
+    return Report(f, s, fc, sc)
+
+
+@dataclass
+class RetrievalRow:
+    """One class at one τ (MR06 Table 2): hits, relevant hits, occurrences, P, R."""
+
+    label: str
+    tau: float
+    hits: int
+    relevant: int
+    occurrences: int
+
+    @property
+    def P(self) -> float:
+        return self.relevant / self.hits if self.hits else 0.0
+
+    @property
+    def R(self) -> float:
+        return self.relevant / self.occurrences if self.occurrences else 0.0
+
+
+def retrieval_rows(label: str, hits: Sequence[Segment], costs: Sequence[float],
+                   truth: Sequence[Segment], *, taus: Sequence[float] = TAU_GRID,
+                   ) -> list[RetrievalRow]:
+    """|H_τ|, |H_τ⁺| per τ for one class (algorithms.md §8).
+
+    ``hits`` are one retrieval run at the largest τ, ranked by cost; since hits are taken
+    greedily by increasing cost, the hits with cost ≤ τ are exactly the run at τ. |H_τ⁺|
+    counts the truth occurrences of the class that some hit with cost ≤ τ overlaps (each
+    occurrence once).
+    """
+    occ = [t for t in truth if t.label == label]
+    rows = []
+    for tau in taus:
+        sel = [h for h, c in zip(hits, costs) if c <= tau + 1e-12]
+        found = sum(any(_overlaps(h, t) for h in sel) for t in occ)
+        rows.append(RetrievalRow(label, tau, len(sel), found, len(occ)))
+    return rows
+
+
+def top_k_recall(hits: Sequence[Segment], truth: Sequence[Segment], label: str,
+                 k: int) -> float:
+    """Share of the class's occurrences overlapped by one of the ``k`` best hits."""
+    occ = [t for t in truth if t.label == label]
+    if not occ:
+        return 0.0
+    top = list(hits)[:k]
+    return sum(any(_overlaps(h, t) for h in top) for t in occ) / len(occ)
+
+
+def separation_quotient(delta_median: float, hits: Sequence[Segment], costs: Sequence[float],
+                        truth: Sequence[Segment], label: str, *, top: int = 10) -> float:
+    """s = median(Δ) / median(cost of the correct hits among the ``top`` best) (MR06 Table 4).
+
+    Large values mean the correct hits stand out from the distance curve; ∞ when the best
+    correct hit has cost 0, NaN when no correct hit is among the top.
+    """
+    occ = [t for t in truth if t.label == label]
+    good = [c for h, c in list(zip(hits, costs))[:top] if any(_overlaps(h, t) for t in occ)]
+    if not good:
+        return float("nan")
+    m = float(np.median(good))
+    return float("inf") if m == 0 else float(delta_median) / m

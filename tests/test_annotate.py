@@ -1,0 +1,137 @@
+"""Annotation (algorithms.md §7) on hand-made Δ curves: Δ̄, labels, ties, extension."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mtanno.annotate import (
+    Annotation,
+    ClassConfig,
+    label_frames,
+    load_class_config,
+    modified_delta,
+    read_annotations,
+    segments_from_labels,
+    write_annotations,
+)
+from mtanno.errors import MtannoError
+
+INF = np.inf
+
+
+def naive_dbar(delta, start, tau, max_hits=None):
+    """Literal reading of §7 step 2 (reference variant)."""
+    d = [x if np.isfinite(x) else INF for x in delta]
+    dbar = [INF] * len(d)
+    blocked = [False] * len(d)
+    hits = 0
+    while True:
+        cand = [(d[i], i) for i in range(len(d)) if not blocked[i] and d[i] <= tau]
+        if not cand or (max_hits is not None and hits >= max_hits):
+            break
+        v, end = min(cand)  # ties: earliest frame
+        for k in range(start[end], end + 1):
+            if dbar[k] == INF:
+                dbar[k] = v
+            blocked[k] = True
+        hits += 1
+    return np.array(dbar)
+
+
+def test_reference_dbar_hand_made():
+    delta = np.array([INF, INF, 0.10, 0.05, 0.08, 0.20, 0.04, 0.12])
+    start = np.array([-1, -1, 0, 1, 2, 3, 5, 6])
+    got = modified_delta(delta, start, tau=0.13)
+    # picks: 0.04 at 6 (span 5..6), 0.05 at 3 (span 1..3), 0.10 at 2 blocked, 0.08 at 4
+    # (span 2..4: fills 4), 0.12 at 7 (span 6..7: fills 7)
+    assert got.tolist() == [INF, 0.05, 0.05, 0.05, 0.08, 0.04, 0.04, 0.12]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_reference_dbar_matches_naive(seed):
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 60))
+    delta = rng.random(n) * 0.2
+    delta[rng.random(n) < 0.2] = INF
+    delta[rng.random(n) < 0.2] = 0.05  # ties
+    start = np.array([max(0, i - int(rng.integers(0, 8))) for i in range(n)])
+    cap = None if seed % 3 else 3
+    assert np.array_equal(modified_delta(delta, start, tau=0.13, max_hits=cap),
+                          naive_dbar(delta, start, 0.13, cap))
+
+
+def test_paper_dbar_local_minima():
+    delta = np.array([0.3, 0.1, 0.2, 0.05, 0.06, 0.3])
+    start = np.array([0, 0, 1, 1, 3, 4])
+    got = modified_delta(delta, start, tau=0.13, variant="paper")
+    # local minima below τ: 1 (0.1, span 0..1) and 3 (0.05, span 1..3)
+    assert got.tolist() == [0.1, 0.05, 0.05, 0.05, INF, INF]
+    with pytest.raises(MtannoError, match="unknown Δ̄ variant"):
+        modified_delta(delta, start, variant="nope")
+
+
+def test_labels_ties_go_to_smallest_index():
+    dbars = np.array([[0.1, 0.2, INF, 0.05], [0.1, 0.1, INF, 0.06]])
+    labels, dmin = label_frames(dbars)
+    assert labels.tolist() == [0, 1, -1, 0]
+    assert dmin[2] == INF
+
+
+def test_segment_extension_and_merge():
+    # class a wins frames 3..4; b wins 0..2 and 5..7
+    a = np.array([0.12, 0.11, 0.10, 0.02, 0.03, 0.03, 0.09, INF])
+    b = np.array([0.05, 0.05, 0.06, 0.07, 0.07, 0.01, 0.01, 0.01])
+    segs = segments_from_labels("d", ["a", "b"], np.vstack([a, b]))
+    # MBS09 §4: extend left while Δ̄ is increasing-or-constant on [r, s], right while it is
+    # decreasing-or-constant on [t, u]: a's 3..4 → 3..5 (0.03 = 0.03), not left (0.10 > 0.02)
+    assert {(s.label, s.start, s.end) for s in segs} == {("a", 3, 5), ("b", 0, 2), ("b", 5, 7)}
+    unext = segments_from_labels("d", ["a", "b"], np.vstack([a, b]), extend=False)
+    assert {(s.label, s.start, s.end) for s in unext} == {("b", 0, 2), ("a", 3, 4), ("b", 5, 7)}
+
+
+def test_extension_merges_overlapping_runs_of_one_label():
+    a = np.array([0.05, 0.04, 0.05, 0.06, 0.05, 0.04, 0.05])
+    b = np.array([0.09, 0.09, 0.09, 0.01, 0.09, 0.09, 0.09])
+    segs = segments_from_labels("d", ["a", "b"], np.vstack([a, b]))
+    a_segs = [(s.start, s.end) for s in segs if s.label == "a"]
+    # runs 0..2 and 4..6 extend into 0..3? (0.05 → 0.06 rises: no) — stay disjoint
+    assert a_segs == [(0, 2), (4, 6)]
+    a2 = np.array([0.05, 0.04, 0.03, 0.02, 0.03, 0.04, 0.05])
+    segs = segments_from_labels("d", ["a", "b"], np.vstack([a2, b]))
+    assert [(s.start, s.end) for s in segs if s.label == "a"] == [(0, 6)]
+
+
+def test_class_config(tmp_path):
+    p = tmp_path / "c.toml"
+    p.write_text('[tau]\ndefault = 0.1\nsit = 0.06\n[superclasses]\nkick = ["kl", "kr"]\n')
+    cfg = load_class_config(p)
+    assert cfg.tau_for("sit") == 0.06 and cfg.tau_for("x") == 0.1
+    assert cfg.superclasses == {"kick": ["kl", "kr"]}
+    p.write_text("[tau]\ndefault = 'x'\n")
+    with pytest.raises(MtannoError, match="must be numbers"):
+        load_class_config(p)
+    p.write_text("[superclasses]\nkick = []\n")
+    with pytest.raises(MtannoError, match="non-empty lists"):
+        load_class_config(p)
+    p.write_text("[taus]\n")
+    with pytest.raises(MtannoError, match="unknown section"):
+        load_class_config(p)
+    with pytest.raises(MtannoError, match="not found"):
+        load_class_config(tmp_path / "missing.toml")
+    assert ClassConfig().tau_for("any") == 0.13
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_annotation_table_round_trip(tmp_path, suffix):
+    rows = [Annotation("doc1", 0, 9, "squat", 0.02), Annotation("doc1", 5, 20, "kick", 0.1)]
+    p = tmp_path / f"a{suffix}"
+    write_annotations(p, rows, native={"doc1": np.arange(1, 100, 4)})
+    assert read_annotations(p) == rows
+    import pyarrow.parquet as pq
+
+    if suffix == ".parquet":
+        t = pq.read_table(p).to_pydict()
+        assert t["start"] == [1, 6] and t["start_native"] == [1, 21] and t["end_native"] == [37, 81]
+    with pytest.raises(MtannoError, match=".csv or .parquet"):
+        write_annotations(tmp_path / "a.txt", rows)
