@@ -141,7 +141,7 @@ def annotate_cmd(features, mt_dir, outputs, config_path, tau, delta, variant, ma
     if jobs > 1 and len(paths) > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = [pool.submit(_annotate_one, w) for w in work]
-            for p, fut in zip(paths, futures):
+            for fut in futures:
                 try:
                     collect(fut.result())
                 except MtannoError as exc:
