@@ -2,13 +2,17 @@
 
 Used by the tests that must run without ``../shared/data`` and by ``make demo`` on a machine
 without the real data. The skeleton is a hand-written HDM05-like rig (28 bones, the CMU/HDM05
-bone names so the ``cmu-asf`` skeleton map applies); motions are smooth sums of sines, not
-real human movement.
+bone names so the ``cmu-asf`` skeleton map applies). :func:`amc_text` makes smooth random
+motion (sums of sines) for kernel tests.
 
-Run ``python -m mtanno.synthetic OUTDIR [N]`` to write N documents with their ASF.
+:func:`write_class_set` writes a small labelled clip set of procedurally animated classes
+(squat, kick, jumping jack, wave, walk) for several synthetic actors, laid out like the
+HDM05 clips with a ``clips.csv`` manifest: ``python -m mtanno.synthetic OUTDIR``.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -45,14 +49,14 @@ BONES = [
 ]
 
 
-def asf_text(length_unit: float = 0.45) -> str:
+def asf_text(length_unit: float = 0.45, scale: float = 1.0) -> str:
     out = [":version 1.10", ":name synth", ":units", "  mass 1.0", f"  length {length_unit}",
            "  angle deg", ":documentation", "  synthetic test skeleton", ":root",
            "   order TX TY TZ RX RY RZ", "   axis XYZ", "   position 0 0 0",
            "   orientation 0 0 0", ":bonedata"]
     for i, (name, _, d, length, ax, dof) in enumerate(BONES, 1):
         out += ["  begin", f"     id {i}", f"     name {name}",
-                f"     direction {d[0]} {d[1]} {d[2]}", f"     length {length}",
+                f"     direction {d[0]} {d[1]} {d[2]}", f"     length {length * scale:.6g}",
                 f"     axis {ax[0]} {ax[1]} {ax[2]}  XYZ"]
         if dof:
             out.append(f"    dof {dof}")
@@ -111,6 +115,141 @@ def write_pair(folder, stem: str = "synth_walk", n_frames: int = 40, seed: int =
     return amc
 
 
+# --- procedurally animated motion classes -------------------------------------------------
+
+#: Standing pose (degrees, ASF dof order): legs vertical, arms hanging.
+NEUTRAL: dict[str, list[float]] = {
+    "root": [0.0, 17.2, 0.0, 0.0, 0.0, 0.0],
+    "lfemur": [0.0, 0.0, -15.0], "rfemur": [0.0, 0.0, 15.0],
+    "ltibia": [5.0], "rtibia": [5.0], "lfoot": [-10.0, 0.0], "rfoot": [-10.0, 0.0],
+    "ltoes": [0.0], "rtoes": [0.0],
+    "lowerback": [5.0, 0.0, 0.0], "upperback": [0.0, 0.0, 0.0], "thorax": [0.0, 0.0, 0.0],
+    "lowerneck": [0.0, 0.0, 0.0], "upperneck": [0.0, 0.0, 0.0], "head": [0.0, 0.0, 0.0],
+    "lclavicle": [0.0, 0.0], "rclavicle": [0.0, 0.0],
+    "lhumerus": [-60.0, -60.0, 135.0], "rhumerus": [-60.0, 60.0, -135.0],
+    "lradius": [20.0], "rradius": [20.0], "lwrist": [0.0], "rwrist": [0.0],
+    "lhand": [0.0, 0.0], "rhand": [0.0, 0.0], "lfingers": [0.0], "rfingers": [0.0],
+}
+#: Upper arm raised above the head, to the side (found by search on this rig).
+ARM_UP = {"lhumerus": (60.0, 60.0, -15.0), "rhumerus": (60.0, -60.0, 15.0)}
+
+
+def _bump(u: np.ndarray) -> np.ndarray:
+    return np.sin(np.pi * np.clip(u, 0.0, 1.0)) ** 2
+
+
+def _towards(bone: str, target, b: np.ndarray):
+    """Deltas moving ``bone`` from the neutral pose to ``target`` by the blend ``b``."""
+    diff = [t - n for t, n in zip(target, NEUTRAL[bone])]
+    return list(range(len(diff))), tuple(d * b for d in diff)
+
+
+def _squat(u, a):
+    b = _bump(u)
+    return {"lfemur": ([0], -70 * a * b), "rfemur": ([0], -70 * a * b),
+            "ltibia": ([0], 110 * a * b), "rtibia": ([0], 110 * a * b),
+            "lowerback": ([0], 25 * a * b), "root": ([1], -5.0 * a * b)}
+
+
+def _kick(u, a):
+    b = _bump(u)
+    ext = _bump(np.clip((u - 0.3) / 0.4, 0, 1))
+    return {"lfemur": ([0], -85 * a * b), "ltibia": ([0], 90 * a * b - 80 * a * ext),
+            "lowerback": ([0], -10 * a * b)}
+
+
+def _jack(u, a):
+    b = _bump(u) * a
+    hop = 1.5 * a * np.abs(np.sin(2 * np.pi * u))
+    return {"lhumerus": _towards("lhumerus", ARM_UP["lhumerus"], b),
+            "rhumerus": _towards("rhumerus", ARM_UP["rhumerus"], b),
+            "lfemur": ([2], 20 * b), "rfemur": ([2], -20 * b), "root": ([1], hop)}
+
+
+def _wave(u, a):
+    b = _bump(u) * a
+    return {"rhumerus": _towards("rhumerus", ARM_UP["rhumerus"], b),
+            "rradius": ([0], 70 * b * (0.6 + 0.4 * np.sin(6 * np.pi * u)))}
+
+
+def _walk(u, a):
+    s = np.sin(2 * np.pi * u)
+    return {"lfemur": ([0], -30 * a * s), "rfemur": ([0], 30 * a * s),
+            "ltibia": ([0], 40 * a * np.clip(-s, 0, None)),
+            "rtibia": ([0], 40 * a * np.clip(s, 0, None)),
+            "lradius": ([0], 15 * a * s), "rradius": ([0], -15 * a * s),
+            "root": ([2], 14.0 * a * u)}
+
+
+#: Class name → (animation, mean duration in seconds).
+CLASSES = {"squat": (_squat, 1.6), "kickLFront": (_kick, 1.2), "jumpingJack": (_jack, 1.4),
+           "waveRHand": (_wave, 2.0), "walk2Steps": (_walk, 1.3)}
+
+
+def class_clip(label: str, *, rng: np.random.Generator, fps: float = 120.0,
+               lead: float = 0.25) -> list[list[tuple[str, list[float]]]]:
+    """One take of a class: neutral lead-in, the movement with random amplitude (±15 %)
+    and duration (±20 %), neutral lead-out; AMC frames as (bone, values) lists."""
+    anim, dur = CLASSES[label]
+    dur *= rng.uniform(0.8, 1.2)
+    amp = rng.uniform(0.85, 1.15)
+    n_lead = int(lead * fps * rng.uniform(0.5, 1.5))
+    n = int(dur * fps)
+    u = np.concatenate([np.zeros(n_lead), np.linspace(0, 1, n), np.ones(n_lead)])
+    offsets = anim(u, amp)
+    frames = []
+    for k in range(u.size):
+        row = []
+        for name in ["root"] + [b[0] for b in BONES if b[5]]:
+            vals = list(NEUTRAL[name])
+            if name in offsets:
+                idx, delta = offsets[name]
+                deltas = delta if isinstance(delta, tuple) else (delta,)
+                for i, d in zip(idx, deltas):
+                    vals[i] += float(d[k])
+            row.append((name, vals))
+        frames.append(row)
+    return frames
+
+
+def _amc_from_frames(frames, asf_name: str) -> str:
+    out = [f"#!OML:ASF {asf_name}", ":FULLY-SPECIFIED", ":DEGREES"]
+    for k, row in enumerate(frames, 1):
+        out.append(str(k))
+        for name, vals in row:
+            out.append(name + " " + " ".join(f"{v:.6f}" for v in vals))
+    return "\n".join(out) + "\n"
+
+
+def write_class_set(folder, *, actors: tuple[str, ...] = ("a", "b", "c", "d"),
+                    takes: int = 4, seed: int = 0) -> Path:
+    """A labelled clip set like HDM05's: ``SYN_<actor>.asf`` (bone lengths ×0.9–1.1),
+    ``<class>/SYN_<actor>_<class>_<take>.amc`` and ``clips.csv`` (file, actor, class, take,
+    split; the last actor is the dev split). Returns the manifest path."""
+    import csv
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i, actor in enumerate(actors):
+        asf = f"SYN_{actor}.asf"
+        (folder / asf).write_text(asf_text(scale=float(rng.uniform(0.9, 1.1))))
+        for label in CLASSES:
+            (folder / label).mkdir(exist_ok=True)
+            for take in range(1, takes + 1):
+                rel = f"{label}/SYN_{actor}_{label}_{take:03d}.amc"
+                (folder / rel).write_text(_amc_from_frames(class_clip(label, rng=rng), asf))
+                rows.append([rel, actor, label, f"{take:03d}",
+                             "dev" if i == len(actors) - 1 else "train"])
+    manifest = folder / "clips.csv"
+    with open(manifest, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["file", "actor", "class", "take", "split"])
+        w.writerows(rows)
+    return manifest
+
+
 def write_demo_set(folder, n_docs: int = 4, n_frames: int = 600):
     """Write ``folder/synth.asf`` and ``n_docs`` AMC documents; return their paths."""
     from pathlib import Path
@@ -123,5 +262,5 @@ def write_demo_set(folder, n_docs: int = 4, n_frames: int = 600):
 if __name__ == "__main__":  # pragma: no cover
     import sys
 
-    paths = write_demo_set(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 4)
-    print(f"wrote {len(paths)} synthetic AMC documents to {sys.argv[1]}")
+    manifest = write_class_set(sys.argv[1])
+    print(f"wrote a synthetic labelled clip set ({len(CLASSES)} classes) -> {manifest}")
