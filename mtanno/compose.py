@@ -120,12 +120,13 @@ def reanchor(values: np.ndarray, cols: dict[str, int], *, angle_scale: float,
 def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: int = 10,
                       clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
                       asf: str | os.PathLike | None = None, prefix: str | None = None,
-                      ) -> tuple[list[Path], list[Segment]]:
+                      shuffle: bool = True) -> tuple[list[Path], list[Segment]]:
     """Write ``n_docs`` composed AMC documents, their ASF and ``truth.csv`` into ``out_dir``.
 
     Each document takes ``clips_per_doc`` clips (default: all) in a random order drawn from
     ``random.Random(seed)``, so the same seed gives the same documents. ``pause`` native
-    frames of stillness separate the clips. Returns the document paths and the truth.
+    frames of stillness separate the clips. ``shuffle=False`` keeps the clips in the given
+    order (the first ``clips_per_doc`` of them). Returns the document paths and the truth.
     """
     if not clips:
         raise MtannoError("no clips to compose")
@@ -148,7 +149,7 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     k = len(clips) if clips_per_doc is None else min(clips_per_doc, len(clips))
     docs, truth, plan = [], [], []
     for d in range(1, n_docs + 1):
-        order = rng.sample(range(len(clips)), k)
+        order = rng.sample(range(len(clips)), k) if shuffle else list(range(k))
         name = f"{prefix}_doc{d:02d}"
         parts = []
         layout0 = loaded[clips[order[0]].path][1]

@@ -88,3 +88,25 @@ def test_manifest_and_errors(tmp_path):
         read_manifest(tmp_path / "bad.csv")
     with pytest.raises(MtannoError, match="no clips to compose"):
         compose_documents([], tmp_path / "o")
+
+
+def test_in_order(clips, tmp_path):
+    _, truth = compose_documents(clips, tmp_path / "o", n_docs=1, shuffle=False)
+    assert [s.label for s in truth] == [c.label for c in clips]
+
+
+def test_compose_command(clips, tmp_path):
+    from click.testing import CliRunner
+
+    from mtanno.cli import main
+
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("file,class,actor\n" + "".join(
+        f"{c.path.relative_to(tmp_path)},{c.label},s\n" for c in clips))
+    r = CliRunner().invoke(main, ["compose", str(manifest), "-o", str(tmp_path / "docs"),
+                                  "--docs", "2", "--seed", "4", "--pause", "3"])
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "docs").iterdir()) == [
+        "compose.json", "synth.asf", "synth_doc01.amc", "synth_doc02.amc", "truth.csv"]
+    r = CliRunner().invoke(main, ["features", str(tmp_path / "docs"), "-o", str(tmp_path / "f")])
+    assert r.exit_code == 0, r.output

@@ -215,8 +215,12 @@ def evaluate_cmd(annotations, truth_path, json_path, all_docs, docs):
               help="Native frames of stillness between clips (unlabelled).")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
               help="ASF skeleton of the clips [default: found beside them].")
+@click.option("--in-order", is_flag=True,
+              help="Keep the manifest order instead of shuffling (e.g. one document of all "
+                   "clips, for retrieval tables).")
 @user_errors(2)
-def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, seed, pause, asf):
+def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, seed, pause, asf,
+                in_order):
     """Build long evaluation documents from labelled clips, with their exact ground truth.
 
     MANIFEST is a CSV with columns file,class[,actor,split] (e.g. the HDM05 clips.csv).
@@ -228,7 +232,7 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
 
     clips = read_manifest(manifest, root=root, actor=actor, split=split)
     docs, truth = compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
-                                    seed=seed, pause=pause, asf=asf)
+                                    seed=seed, pause=pause, asf=asf, shuffle=not in_order)
     click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> {out_dir}",
                err=True)
 
