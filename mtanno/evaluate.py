@@ -172,17 +172,34 @@ def retrieval_rows(label: str, hits: Sequence[Segment], costs: Sequence[float],
     """|H_τ|, |H_τ⁺| per τ for one class (algorithms.md §8).
 
     ``hits`` are one retrieval run at the largest τ, ranked by cost; since hits are taken
-    greedily by increasing cost, the hits with cost ≤ τ are exactly the run at τ. |H_τ⁺|
-    counts the truth occurrences of the class that some hit with cost ≤ τ overlaps (each
-    occurrence once).
+    greedily by increasing cost, the hits with cost ≤ τ are exactly the run at τ. A hit is
+    relevant if it overlaps a truth occurrence of the class, each occurrence counted once:
+    |H_τ⁺| is the size of a largest one-to-one pairing of hits with occurrences they
+    overlap, so |H_τ⁺| ≤ min(|H_τ|, occurrences).
     """
     occ = [t for t in truth if t.label == label]
     rows = []
     for tau in taus:
         sel = [h for h, c in zip(hits, costs) if c <= tau + 1e-12]
-        found = sum(any(_overlaps(h, t) for h in sel) for t in occ)
-        rows.append(RetrievalRow(label, tau, len(sel), found, len(occ)))
+        rows.append(RetrievalRow(label, tau, len(sel), _max_pairing(sel, occ), len(occ)))
     return rows
+
+
+def _max_pairing(hits: Sequence[Segment], occ: Sequence[Segment]) -> int:
+    """Largest one-to-one pairing of hits with overlapping occurrences (augmenting paths)."""
+    adj = [[k for k, t in enumerate(occ) if _overlaps(h, t)] for h in hits]
+    owner = [-1] * len(occ)
+
+    def augment(i: int, seen: list[bool]) -> bool:
+        for k in adj[i]:
+            if not seen[k]:
+                seen[k] = True
+                if owner[k] < 0 or augment(owner[k], seen):
+                    owner[k] = i
+                    return True
+        return False
+
+    return sum(augment(i, [False] * len(occ)) for i in range(len(hits)) if adj[i])
 
 
 def top_k_recall(hits: Sequence[Segment], truth: Sequence[Segment], label: str,
@@ -208,3 +225,68 @@ def separation_quotient(delta_median: float, hits: Sequence[Segment], costs: Seq
         return float("nan")
     m = float(np.median(good))
     return float("inf") if m == 0 else float(delta_median) / m
+
+
+@dataclass
+class ClassRetrieval:
+    """The retrieval evaluation of one class over a set of documents (MR06 Tables 2, 4)."""
+
+    label: str
+    rows: list[RetrievalRow]
+    top_recall: dict[int, float]
+    separation: float
+    delta_median: float
+    truncated: bool
+
+    def as_dict(self) -> dict:
+        return {"class": self.label, "delta_median": self.delta_median,
+                "separation_quotient": self.separation, "cap_reached": self.truncated,
+                "top_recall": {str(k): v for k, v in self.top_recall.items()},
+                "taus": [{"tau": r.tau, "hits": r.hits, "relevant": r.relevant,
+                          "occurrences": r.occurrences, "P": r.P, "R": r.R} for r in self.rows]}
+
+
+def retrieval_evaluation(label: str, values: np.ndarray, weights: np.ndarray,
+                         documents: Sequence[tuple[str, np.ndarray]], truth: Sequence[Segment],
+                         *, taus: Sequence[float] = TAU_GRID, max_hits: int = 2000,
+                         variant: str = "reference") -> ClassRetrieval:
+    """Retrieve one class (quantized template) in every document and score the hits.
+
+    One retrieval run per document at the largest τ (hit rules of algorithms.md §3.5), hits
+    of all documents ranked together by cost. Reports |H_τ|, |H_τ⁺|, P, R per τ, the
+    top-5/10/20 recall and the separation quotient with the median of all finite Δ.
+    """
+    from mtanno.retrieve import extract_hits
+    from mtanno.templates.match import match_template
+
+    hits, finite, truncated = [], [], False
+    for name, X in documents:
+        delta, start = match_template(values, weights, X, variant=variant)
+        finite.append(delta[np.isfinite(delta)])
+        h = extract_hits(delta, start, tau=max(taus), mode="retrieval", max_hits=max_hits,
+                         doc=name)
+        truncated |= bool(getattr(h, "truncated", False))
+        hits.extend(h)
+    hits.sort(key=lambda h: (h.cost, str(h.doc), h.end))
+    segs = [Segment(str(h.doc), h.start + 1, h.end + 1, label) for h in hits]
+    costs = [h.cost for h in hits]
+    all_finite = np.concatenate(finite) if finite else np.zeros(0)
+    med = float(np.median(all_finite)) if all_finite.size else float("nan")
+    return ClassRetrieval(
+        label=label, rows=retrieval_rows(label, segs, costs, truth, taus=taus),
+        top_recall={k: top_k_recall(segs, truth, label, k) for k in (5, 10, 20)},
+        separation=separation_quotient(med, segs, costs, truth, label), delta_median=med,
+        truncated=truncated)
+
+
+def retrieval_report(results: Sequence[ClassRetrieval]) -> str:
+    """A readable table: one line per class and τ, then top-k recall and s."""
+    lines = [f"{'class':<30} {'tau':>5} {'|H|':>5} {'|H+|':>5} {'occ':>4} {'P':>6} {'R':>6}"]
+    for r in results:
+        for row in r.rows:
+            lines.append(f"{r.label:<30} {row.tau:5.2f} {row.hits:5d} {row.relevant:5d} "
+                         f"{row.occurrences:4d} {row.P:6.3f} {row.R:6.3f}")
+        tk = "  ".join(f"top-{k} recall {v:.2f}" for k, v in r.top_recall.items())
+        cap = "  (hit cap reached)" if r.truncated else ""
+        lines.append(f"{r.label:<30} {tk}  separation {r.separation:.2f}{cap}")
+    return "\n".join(lines)

@@ -69,3 +69,12 @@ def test_retrieval_rows_and_quotients():
     # correct hits among the top 10: costs 0.01, 0.03, 0.08 → median 0.03
     assert separation_quotient(0.3, hits, costs, truth, "jump") == pytest.approx(10.0)
     assert math.isnan(separation_quotient(0.3, hits[2:3], [0.05], truth, "jump"))
+
+
+def test_relevant_hits_claim_one_occurrence_each():
+    truth = [S("d", 1, 10, "squat"), S("d", 11, 20, "squat"), S("d", 21, 30, "squat")]
+    hits = [S("d", 5, 15, "squat"), S("d", 8, 9, "squat")]  # the first overlaps two
+    rows = retrieval_rows("squat", hits, [0.01, 0.02], truth, taus=(0.1,))
+    assert (rows[0].hits, rows[0].relevant) == (2, 2) and rows[0].P == 1.0
+    rows = retrieval_rows("squat", hits[:1], [0.01], truth, taus=(0.1,))
+    assert (rows[0].hits, rows[0].relevant) == (1, 1) and rows[0].R == pytest.approx(1 / 3)

@@ -198,6 +198,43 @@ def evaluate_cmd(annotations, truth_path, json_path, all_docs, docs):
             tmp.write_text(json.dumps(report.as_dict(), indent=1))
 
 
+@click.command("evaluate-retrieval")
+@click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
+@click.option("--mt", "mt_dir", required=True, type=click.Path(exists=True),
+              help="Directory of class templates (CLASS.json) or one template.")
+@click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
+              help="Ground truth of the documents (doc,start,end,label[,fps]).")
+@click.option("--delta", type=float, default=0.1, show_default=True,
+              help="Quantization delta of the templates (MR06 retrieval: 0.1).")
+@click.option("--max-hits", default=2000, show_default=True, type=click.IntRange(min=1),
+              help="Hit cap per class and document.")
+@click.option("--class", "classes", multiple=True, help="Only these classes.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write the results as JSON.")
+@user_errors(2)
+def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path):
+    """Retrieval quality per class (MR06 Tables 2 and 4): hits |H|, relevant hits |H+|,
+    precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
+    quotient, each template retrieved in all FEATURES documents."""
+    from mtanno.evaluate import retrieval_evaluation, retrieval_report
+    from mtanno.store import atomic_path, read_features
+    from mtanno.truth import read_truth
+
+    models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
+    documents = []
+    for p in feature_paths(features):
+        ff = read_features(p)
+        check_features(ff, key)
+        documents.append((ff.document, ff.X))
+    truth = read_truth(truth_path)
+    results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
+                                    max_hits=max_hits) for m in models]
+    click.echo(retrieval_report(results))
+    if json_path:
+        with atomic_path(json_path) as tmp:
+            tmp.write_text(json.dumps([r.as_dict() for r in results], indent=1))
+
+
 @click.command("compose")
 @click.argument("manifest", type=click.Path(exists=True, dir_okay=False))
 @click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
@@ -255,4 +292,4 @@ def truth_mocap6(labels, output):
     click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
 
 
-COMMANDS = [annotate_cmd, evaluate_cmd, compose_cmd, truth_group]
+COMMANDS = [annotate_cmd, evaluate_cmd, evaluate_retrieval_cmd, compose_cmd, truth_group]
