@@ -1,0 +1,260 @@
+"""Commands of the motion-template stage: ``learn-mt`` and the ``mt`` group (show, mirror,
+quantize). Exit codes: 0 success, 1 some classes failed (the others were written), 2 usage
+error or bad input."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from mtanno.commands._common import show_progress, user_errors
+from mtanno.errors import MtannoError
+
+_EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
+
+
+def _safe_class_file(outdir: Path, class_name: str) -> Path:
+    if not class_name or class_name.startswith(".") or any(c in class_name for c in "/\\\0"):
+        raise MtannoError(f"class name {class_name!r} cannot be used as a file name")
+    return outdir / f"{class_name}.json"
+
+
+@click.command("learn-mt", epilog=_EPILOG_EXIT)
+@click.argument("training", nargs=-1, metavar="[TRAINING]...")
+@click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
+              help="Output folder; one CLASS.json per class is written there.")
+@click.option("--manifest", type=click.Path(dir_okay=False), default=None,
+              help="Manifest CSV with columns file,class[,split,...] listing the examples "
+                   "(no TRAINING arguments then).")
+@click.option("--features-dir", type=click.Path(file_okay=False), default=None,
+              help="With --manifest: folder holding the feature files, mirroring the "
+                   "manifest's file paths (DIR/<file>.parquet).")
+@click.option("--split", default=None, metavar="NAME",
+              help="With --manifest: use only rows whose split column is NAME (e.g. train).")
+@click.option("--truth", type=click.Path(dir_okay=False), default=None,
+              help="Truth table (doc,start,end,label[,fps]); every labelled segment of the "
+                   "TRAINING feature files is an example of its label.")
+@click.option("--hard", is_flag=True,
+              help="Learn hard templates (thesis §3.3: wildcard where examples disagree) "
+                   "instead of soft ones (MR06 §4.1).")
+@click.option("--class", "classes", multiple=True, metavar="NAME",
+              help="Learn only this class (repeatable). Default: every class found.")
+@click.option("--iterations", default=10, show_default=True, type=click.IntRange(min=1),
+              help="Maximum number of learning iterations.")
+@click.option("--thresh", default=0.005, show_default=True, type=click.FloatRange(min=0),
+              help="Stop once the largest normalised alignment cost is at most this.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@user_errors(2)
+def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, classes,
+                 iterations, thresh, quiet):
+    """Learn one motion template per class from example clips (MR06 §4.1).
+
+    Training examples come from one of:
+
+    \b
+      TRAINING...                  folders ROOT with ROOT/CLASS/*.parquet feature files;
+                                   each file is one example of the class named by its
+                                   folder (the layout `mtanno features` gives for a
+                                   CLASS/*.amc tree)
+      --manifest CSV --features-dir DIR [--split train]
+                                   the rows of a manifest (file,class[,split]); the
+                                   feature file of row `file` is DIR/<file>.parquet
+      --truth TRUTH.csv TRAINING...
+                                   labelled segments (30 Hz, 1-based inclusive) of the
+                                   TRAINING feature files (files or folders), each cut
+                                   out as an example of its label
+
+    Examples of a class are used in file-name order (segments by start frame); the
+    template returned is the one learned with the first example as reference. Writes
+    OUTDIR/CLASS.json (schema mtanno.template/1: values, weights, training files with
+    SHA-256, parameters, iterations, final cost); see `mtanno mt show`.
+
+    Example: mtanno learn-mt --manifest ../shared/data/hdm05_cut/clips.csv
+    --features-dir feats/ --split train -o mts/
+    """
+    from tqdm import tqdm
+
+    from mtanno.templates.learn import learn_template
+    from mtanno.templates.model import save_template
+    from mtanno.templates.training import (
+        check_consistent,
+        group_by_class,
+        load_examples,
+        sources_from_manifest,
+        sources_from_tree,
+        sources_from_truth,
+    )
+
+    if manifest is not None and truth is not None:
+        raise click.UsageError("--manifest and --truth exclude each other")
+    if manifest is not None:
+        if training:
+            raise click.UsageError("no TRAINING arguments with --manifest (it lists the files)")
+        if features_dir is None:
+            raise click.UsageError("--manifest needs --features-dir DIR")
+        sources = sources_from_manifest(manifest, features_dir=features_dir, split=split)
+    else:
+        if features_dir is not None or split is not None:
+            raise click.UsageError("--features-dir and --split go with --manifest")
+        if not training:
+            raise click.UsageError("give TRAINING folders or files (or --manifest)")
+        sources = (sources_from_truth(truth, training) if truth is not None
+                   else sources_from_tree(training))
+    groups = group_by_class(sources, classes=list(classes) or None)
+    out = Path(outdir)
+    t0 = time.perf_counter()
+    written, failed, n_examples = [], [], 0
+    reference = None
+    bar = tqdm(groups.items(), total=len(groups), unit="class", desc="learn-mt",
+               disable=not show_progress(quiet))
+    for class_name, srcs in bar:
+        bar.set_postfix_str(class_name)
+        try:
+            target = _safe_class_file(out, class_name)
+            examples = load_examples(srcs)
+            check_consistent(examples, like=reference)
+            reference = reference or examples[0]
+            mt = learn_template(examples, class_name=class_name, hard=hard,
+                                iter_max=iterations, thresh=thresh)
+            save_template(target, mt)
+        except MtannoError as exc:
+            failed.append(class_name)
+            bar.write(f"mtanno: class {class_name}: {exc}", file=sys.stderr)
+            continue
+        written.append(class_name)
+        n_examples += len(examples)
+    bar.close()
+    if not quiet:
+        kind = "hard" if hard else "soft"
+        click.echo(f"learn-mt: {len(written)} {kind} template(s) from {n_examples} examples "
+                   f"-> {out}, {len(failed)} class(es) failed, "
+                   f"{time.perf_counter() - t0:.1f} s", err=True)
+    sys.exit(1 if failed else 0)
+
+
+@click.group("mt")
+def mt_group():
+    """Inspect and transform motion-template files (CLASS.json from `mtanno learn-mt`)."""
+
+
+_PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
+
+
+@mt_group.command("show", epilog="Exit codes: 0 success, 2 bad input.")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+              help="Quantization δ for the feature ranking and picture of an unquantized "
+                   "template  [default: 0.1, MR06]")
+@click.option("--top", default=10, show_default=True, type=click.IntRange(min=0),
+              help="How many features to list.")
+@click.option("--picture", is_flag=True,
+              help="Draw the quantized template: one row per feature, one character per "
+                   "column ('#' 1, '.' 0, '~' wildcard).")
+@click.option("--files", is_flag=True, help="List every training file.")
+@user_errors(2)
+def mt_show_cmd(template, delta, top, picture, files):
+    """Print a readable summary of a motion template.
+
+    Shows the class, kind, length, weights, learning result (iterations and final
+    spread = largest normalised alignment cost), the training files, and the features
+    with the most non-wildcard entries after quantization (those the matching relies
+    on); --picture draws the quantized template.
+    """
+    from mtanno.templates.model import load_template, quantize
+
+    mt = load_template(template)
+    if mt.quantized:
+        q, d = mt, mt.delta
+        state = f"quantized, δ = {mt.delta:g}"
+    else:
+        d = 0.1 if delta is None else delta
+        q = quantize(mt, d)
+        state = "not quantized"
+    w = mt.weights
+    echo = click.echo
+    echo(f"template      {mt.class_name} ({mt.kind}, {state})")
+    echo(f"file          {template}")
+    echo(f"features      {mt.n_features} of feature set {mt.feature_set}, {mt.fps:g} Hz")
+    echo(f"length        {mt.length} columns ({mt.length / mt.fps:.2f} s)")
+    echo(f"weights       sum {w.sum():.3f}, min {w.min():.3f}, mean {w.mean():.3f}, "
+         f"max {w.max():.3f}")
+    hist = mt.history.get("max", [])
+    hist_txt = f" (per iteration: {' '.join(f'{x:.4g}' for x in hist)})" if hist else ""
+    echo(f"learning      {mt.iterations} iteration(s), final cost {mt.final_cost:.6g}"
+         f"{hist_txt}")
+    n = len(mt.training)
+    echo(f"training      {n} example(s)")
+    shown = mt.training if files else mt.training[:3]
+    for t in shown:
+        fr = t.get("frames", ["?", "?"])
+        echo(f"  {t.get('document')}  frames {fr[0]}-{fr[1]}  {t.get('file')}  "
+             f"sha256 {str(t.get('sha256'))[:12]}")
+    if len(shown) < n:
+        echo(f"  ... {n - len(shown)} more (--files lists them all)")
+    V = q.values
+    nonwild = (V != 0.5).sum(axis=1)
+    ones = (V == 1.0).sum(axis=1)
+    order = sorted(range(mt.n_features), key=lambda r: (-nonwild[r], -ones[r], r))
+    if top:
+        echo(f"features with most non-wildcard entries (δ = {d:g}; of {mt.length} columns):")
+        width = max(len(x) for x in mt.feature_names)
+        for r in order[:top]:
+            echo(f"  {mt.feature_names[r]:<{width}}  {nonwild[r]:>4}  "
+                 f"(1: {ones[r]}, 0: {nonwild[r] - ones[r]})")
+    if picture:
+        echo(f"quantized template (δ = {d:g}): '#' 1, '.' 0, '~' wildcard")
+        width = max(len(x) for x in mt.feature_names)
+        for r, name in enumerate(mt.feature_names):
+            echo(f"  {name:<{width}} " + "".join(_PICTURE[float(x)] for x in V[r]))
+
+
+@mt_group.command("mirror", epilog="Exit codes: 0 success, 2 bad input.")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output template file.")
+@click.option("--name", default=None,
+              help="Class name of the mirrored template  [default: the name with "
+                   "'_mirrored' appended, or removed if present]")
+@user_errors(2)
+def mt_mirror_cmd(template, output, name):
+    """Swap left and right in a template (MR06 §5.4).
+
+    The rows of every left/right feature pair (e.g. rhand_fast and lhand_fast) are
+    swapped, so a template learned from left-handed examples finds the right-handed
+    motion, without new training data.
+    """
+    from mtanno.templates.model import load_template, mirror, save_template
+
+    mt = mirror(load_template(template), name=name)
+    save_template(output, mt)
+    click.echo(f"mt mirror: {mt.class_name} -> {output}", err=True)
+
+
+@mt_group.command("quantize", epilog="Exit codes: 0 success, 2 bad input.")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.option("--delta", required=True, type=click.FloatRange(0, 0.5),
+              help="Entries ≤ δ become 0, entries ≥ 1−δ become 1, the rest the wildcard "
+                   "0.5 (0.1 for retrieval, MR06; 0.05 for annotation, MBS09; 0 keeps only "
+                   "unanimous entries).")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output template file.")
+@user_errors(2)
+def mt_quantize_cmd(template, delta, output):
+    """Quantize a template to 0, 1 and wildcard entries (algorithms.md §3.3).
+
+    The output records δ; matching uses a quantized template as it is.
+    """
+    from mtanno.templates.model import load_template, quantize, save_template
+
+    mt = quantize(load_template(template), delta)
+    save_template(output, mt)
+    wild = int(np.sum(mt.values == 0.5))
+    click.echo(f"mt quantize: {mt.class_name}, δ = {delta:g}, {wild} of {mt.values.size} "
+               f"entries are wildcards -> {output}", err=True)
+
+
+COMMANDS = [learn_mt_cmd, mt_group]

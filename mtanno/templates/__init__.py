@@ -1,0 +1,47 @@
+"""Motion templates (MTs): learning, storage, quantization and mirroring (algorithms.md §3).
+
+* :mod:`~mtanno.templates.model` — :class:`MotionTemplate`, its JSON file
+  (:func:`save_template`, :func:`load_template`), :func:`quantize` (§3.3) and
+  :func:`mirror` (MR06 §5.4).
+* :mod:`~mtanno.templates.learn` — soft MT learning (MR06 §4.1, exactly as the reference
+  implementation, features.md App. A) and hard MTs (thesis §3.3):
+  :func:`mtanno.templates.learn.learn` on matrices, :func:`learn_template` on training
+  examples (the function ``learn`` is not re-exported here, so that
+  ``mtanno.templates.learn`` stays the module).
+* :mod:`~mtanno.templates.dtw` — the DTW alignment and warping used by learning.
+* :mod:`~mtanno.templates.training` — gathering training examples from a folder tree, a
+  manifest CSV or annotated documents.
+
+Typical use by a later stage::
+
+    from mtanno.templates import load_template, quantize
+    mt = quantize(load_template("mts/squat1Reps.json"), 0.05)
+    mt.values   # (features × K) with 0, 1, 0.5 (wildcard)
+    mt.weights  # (K,)
+"""
+
+from mtanno.templates.learn import LearnResult, learn_template
+from mtanno.templates.model import (
+    SCHEMA,
+    MotionTemplate,
+    load_template,
+    mirror,
+    quantize,
+    save_template,
+)
+from mtanno.templates.training import (
+    ExampleSource,
+    TrainingExample,
+    group_by_class,
+    load_examples,
+    sources_from_manifest,
+    sources_from_tree,
+    sources_from_truth,
+)
+
+__all__ = [
+    "SCHEMA", "ExampleSource", "LearnResult", "MotionTemplate", "TrainingExample",
+    "group_by_class", "learn_template", "load_examples", "load_template", "mirror",
+    "quantize", "save_template", "sources_from_manifest", "sources_from_tree",
+    "sources_from_truth",
+]

@@ -1,0 +1,431 @@
+"""The motion template (MT) object, its JSON file, quantization and mirroring.
+
+An MT of a motion class (MR06 §4) is a (features × K) matrix with entries in [0, 1] and one
+weight per column; columns are time steps at the 30 Hz analysis rate, and the weights sum
+to about the mean length of the training examples in frames. A *quantized* MT
+(algorithms.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
+ignores wildcard entries.
+
+JSON file (``docs/templates.md`` has the full schema), schema ``mtanno.template/1``: one
+object with the class name, feature set and names, frame rate, length, ``values`` as a
+list of rows — one row of K numbers per feature, in ``feature_names`` order — and
+``weights`` (K numbers), plus how the template was made (training files with SHA-256,
+learning parameters, iterations, final cost). Numbers are written in Python's shortest
+round-trip form, so a load reproduces the template bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.store import atomic_path
+
+__all__ = [
+    "SCHEMA", "KINDS", "MIRROR_SUFFIX", "MotionTemplate", "load_template", "mirror",
+    "quantize", "save_template",
+]
+
+#: Schema identifier written into (and required from) every template file.
+SCHEMA = "mtanno.template/1"
+#: Template kinds: soft (MR06 §4.1) and hard (thesis §3.3.1).
+KINDS = ("soft", "hard")
+#: Appended to (or removed from) the class name by :func:`mirror`.
+MIRROR_SUFFIX = "_mirrored"
+#: Value of a wildcard entry in a quantized or hard template.
+WILDCARD = 0.5
+
+
+@dataclass(eq=False)
+class MotionTemplate:
+    """A motion template of one class.
+
+    Attributes
+    ----------
+    class_name:
+        Name of the motion class (the JSON file is usually ``<class_name>.json``).
+    feature_names:
+        Row names, e.g. ``mtanno.features.FEATURE_NAMES``.
+    values:
+        (features × K) float64 matrix, entries in [0, 1]; after quantization exactly 0, 1
+        or 0.5 (wildcard). Column k is time step k at ``fps``.
+    weights:
+        (K,) positive column weights (how many frames at ``fps`` a column stands for).
+    feature_set:
+        Name of the feature set the rows come from (``"mr06-ak40"``).
+    fps:
+        Frame rate of the columns (30.0).
+    kind:
+        ``"soft"`` or ``"hard"``.
+    quantized:
+        Whether ``values`` are quantized (0, 1, 0.5 only).
+    delta:
+        The quantization δ the template was quantized with (matching uses the template as
+        it is); None when not quantized.
+    training:
+        One dict per training example: ``file`` (feature file), ``document`` (its stem),
+        ``sha256`` (of the file), ``frames`` ([start, end], 1-based inclusive at ``fps``).
+    params:
+        Learning parameters (method, iter_max, iter_thresh, …).
+    iterations:
+        Learning iterations run.
+    final_cost:
+        Final maximum normalised alignment cost of learning (the "spread").
+    history:
+        Per-iteration costs: ``{"max": [...], "mean": [...]}``.
+    """
+
+    class_name: str
+    feature_names: list[str]
+    values: np.ndarray
+    weights: np.ndarray
+    feature_set: str = "mr06-ak40"
+    fps: float = 30.0
+    kind: str = "soft"
+    quantized: bool = False
+    delta: float | None = None
+    training: list[dict] = field(default_factory=list)
+    params: dict = field(default_factory=dict)
+    iterations: int = 0
+    final_cost: float = 0.0
+    history: dict = field(default_factory=dict)
+
+    schema = SCHEMA
+
+    def __post_init__(self) -> None:
+        self.values = np.asarray(self.values, dtype=np.float64)
+        self.weights = np.asarray(self.weights, dtype=np.float64)
+        self.feature_names = list(self.feature_names)
+        _validate(self)
+
+    @property
+    def length(self) -> int:
+        """Number of columns K (time steps at ``fps``)."""
+        return int(self.values.shape[1])
+
+    @property
+    def n_features(self) -> int:
+        return int(self.values.shape[0])
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, MotionTemplate):
+            return NotImplemented
+        a, b = self.to_dict(), other.to_dict()
+        return a == b
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON object of the template (see module docstring)."""
+        return {
+            "schema": SCHEMA,
+            "class": self.class_name,
+            "kind": self.kind,
+            "feature_set": self.feature_set,
+            "fps": float(self.fps),
+            "length": self.length,
+            "quantized": bool(self.quantized),
+            "delta": None if self.delta is None else float(self.delta),
+            "iterations": int(self.iterations),
+            "final_cost": float(self.final_cost),
+            "history": {k: [float(x) for x in v] for k, v in self.history.items()},
+            "params": self.params,
+            "training": self.training,
+            "feature_names": list(self.feature_names),
+            "weights": [float(x) for x in self.weights],
+            "values": [[float(x) for x in row] for row in self.values],
+        }
+
+
+def _validate(mt: MotionTemplate, path: str | None = None) -> None:
+    def bad(msg: str) -> MtannoError:
+        return MtannoError(msg, path=path)
+
+    if not isinstance(mt.class_name, str) or not mt.class_name.strip():
+        raise bad("class name must be a non-empty string")
+    if not mt.feature_names or not all(isinstance(n, str) and n for n in mt.feature_names):
+        raise bad("feature_names must be a non-empty list of names")
+    if len(set(mt.feature_names)) != len(mt.feature_names):
+        dup = sorted({n for n in mt.feature_names if mt.feature_names.count(n) > 1})
+        raise bad(f"duplicate feature names: {', '.join(dup)}")
+    V, w = mt.values, mt.weights
+    if V.ndim != 2 or V.shape[0] != len(mt.feature_names):
+        raise bad(f"values must be ({len(mt.feature_names)} features × columns), got shape "
+                  f"{V.shape}")
+    if V.shape[1] == 0:
+        raise bad("template has no columns")
+    if w.shape != (V.shape[1],):
+        raise bad(f"weights must have one entry per column ({V.shape[1]}), got {w.size}")
+    if not np.isfinite(V).all():
+        r, c = np.argwhere(~np.isfinite(V))[0]
+        raise bad(f"values row {r + 1} ({mt.feature_names[r]}) column {c + 1} is not a "
+                  f"finite number")
+    if (V < 0).any() or (V > 1).any():
+        r, c = np.argwhere((V < 0) | (V > 1))[0]
+        raise bad(f"values row {r + 1} ({mt.feature_names[r]}) column {c + 1} is "
+                  f"{V[r, c]!r}, outside [0, 1]")
+    if not np.isfinite(w).all() or (w <= 0).any():
+        c = int(np.argwhere(~np.isfinite(w) | (w <= 0))[0][0])
+        raise bad(f"weight {c + 1} is {w[c]!r}; weights must be positive and finite")
+    if mt.kind not in KINDS:
+        raise bad(f"kind must be one of {', '.join(KINDS)}, got {mt.kind!r}")
+    if not isinstance(mt.feature_set, str) or not mt.feature_set:
+        raise bad("feature_set must be a non-empty string")
+    if not _is_number(mt.fps) or not math.isfinite(mt.fps) or mt.fps <= 0:
+        raise bad(f"fps must be a positive number, got {mt.fps!r}")
+    if not isinstance(mt.quantized, bool):
+        raise bad("quantized must be true or false")
+    if mt.delta is not None and (not _is_number(mt.delta) or not 0 <= mt.delta <= 0.5):
+        raise bad(f"delta must be null or a number in [0, 0.5], got {mt.delta!r}")
+    if mt.quantized:
+        if mt.delta is None:
+            raise bad("a quantized template needs the delta it was quantized with")
+        off = ~np.isin(V, (0.0, WILDCARD, 1.0))
+        if off.any():
+            r, c = np.argwhere(off)[0]
+            raise bad(f"quantized template has value {V[r, c]!r} at row {r + 1} column "
+                      f"{c + 1} (only 0, 0.5, 1 allowed)")
+    if not isinstance(mt.iterations, int) or isinstance(mt.iterations, bool) \
+            or mt.iterations < 0:
+        raise bad(f"iterations must be an integer ≥ 0, got {mt.iterations!r}")
+    if not _is_number(mt.final_cost) or not math.isfinite(mt.final_cost) \
+            or mt.final_cost < 0:
+        raise bad(f"final_cost must be a finite number ≥ 0, got {mt.final_cost!r}")
+    if not isinstance(mt.params, dict):
+        raise bad("params must be an object")
+    if not isinstance(mt.history, dict) or not all(
+            isinstance(v, list) and all(_is_number(x) for x in v) for v in mt.history.values()):
+        raise bad("history must be an object of number lists")
+    if not isinstance(mt.training, list):
+        raise bad("training must be a list")
+    for n, t in enumerate(mt.training, 1):
+        if not isinstance(t, dict):
+            raise bad(f"training entry {n} must be an object")
+        missing = [k for k in ("file", "document", "sha256", "frames") if k not in t]
+        if missing:
+            raise bad(f"training entry {n} lacks {', '.join(missing)}")
+        fr = t["frames"]
+        if not (isinstance(fr, list) and len(fr) == 2 and all(
+                isinstance(x, int) and not isinstance(x, bool) for x in fr)
+                and 1 <= fr[0] <= fr[1]):
+            raise bad(f"training entry {n}: frames must be [start, end], 1-based, "
+                      f"start ≤ end")
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+# --------------------------------------------------------------------------- JSON I/O
+
+
+def _dumps(mt: MotionTemplate) -> str:
+    """JSON text meant to be read: one line per scalar field, per training file, per
+    feature name, per 10 weights and per feature row of ``values``."""
+    d = mt.to_dict()
+
+    def one(x) -> str:
+        return json.dumps(x, ensure_ascii=False)
+
+    def block(items: list[str]) -> str:
+        return "[\n" + ",\n".join("    " + it for it in items) + "\n  ]"
+
+    lines = []
+    for key, value in d.items():
+        if key == "training":
+            text = block([one(t) for t in value]) if value else "[]"
+        elif key == "feature_names":
+            text = block([one(n) for n in value])
+        elif key == "weights":
+            text = block([", ".join(repr(x) for x in value[i:i + 10])
+                          for i in range(0, len(value), 10)])
+        elif key == "values":
+            text = block(["[" + ", ".join(repr(x) for x in row) + "]" for row in value])
+        else:
+            text = one(value)
+        lines.append(f"  {one(key)}: {text}")
+    return "{\n" + ",\n".join(lines) + "\n}\n"
+
+
+def save_template(path: str | os.PathLike, mt: MotionTemplate) -> None:
+    """Write ``mt`` as JSON to ``path`` atomically (a crash leaves no partial file)."""
+    _validate(mt)
+    text = _dumps(mt)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+
+
+_REQUIRED = ("schema", "class", "kind", "feature_set", "fps", "quantized", "delta",
+             "feature_names", "weights", "values")
+
+
+def _line_of(text: str, key: str) -> int | None:
+    """1-based line of the first ``"key":`` in the JSON text (for error messages)."""
+    needle = json.dumps(key) + ":"
+    pos = text.find(needle)
+    return None if pos < 0 else text.count("\n", 0, pos) + 1
+
+
+def load_template(path: str | os.PathLike) -> MotionTemplate:
+    """Read and validate a template JSON file; every problem is an :class:`MtannoError`
+    naming the file (and the line where it is known)."""
+    spath = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise MtannoError("template file not found", path=spath) from None
+    except IsADirectoryError:
+        raise MtannoError("is a directory, not a template file", path=spath) from None
+    except UnicodeDecodeError:
+        raise MtannoError("not a UTF-8 text file", path=spath) from None
+    except OSError as exc:
+        raise MtannoError(f"cannot read template file ({exc.strerror})", path=spath) from None
+    try:
+        d = json.loads(text, parse_constant=lambda c: float(c))
+    except json.JSONDecodeError as exc:
+        raise MtannoError(f"malformed JSON: {exc.msg} (column {exc.colno})", path=spath,
+                          line=exc.lineno) from None
+    if not isinstance(d, dict):
+        raise MtannoError("a template file must hold one JSON object", path=spath, line=1)
+    if d.get("schema") != SCHEMA:
+        raise MtannoError(f"unsupported template schema {d.get('schema')!r} (expected "
+                          f"{SCHEMA!r})", path=spath, line=_line_of(text, "schema"))
+    missing = [k for k in _REQUIRED if k not in d]
+    if missing:
+        raise MtannoError(f"missing field(s): {', '.join(missing)}", path=spath)
+
+    def field_error(key: str, msg: str) -> MtannoError:
+        return MtannoError(msg, path=spath, line=_line_of(text, key))
+
+    names = d["feature_names"]
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise field_error("feature_names", "feature_names must be a non-empty list of strings")
+    values = d["values"]
+    if not isinstance(values, list) or len(values) != len(names):
+        raise field_error("values", f"values must be a list of {len(names)} rows (one per "
+                          f"feature name), got "
+                          f"{len(values) if isinstance(values, list) else type(values).__name__}")
+    weights = d["weights"]
+    if not isinstance(weights, list) or not weights:
+        raise field_error("weights", "weights must be a non-empty list of numbers")
+    K = len(weights)
+    if not all(_is_number(x) for x in weights):
+        raise field_error("weights", "weights must be numbers")
+    for r, row in enumerate(values):
+        if not isinstance(row, list) or not all(_is_number(x) for x in row):
+            raise field_error("values", f"values row {r + 1} ({names[r]}) must be a list of "
+                              f"numbers")
+        if len(row) != K:
+            raise field_error("values", f"values row {r + 1} ({names[r]}) has {len(row)} "
+                              f"entries, expected {K} (one per weight)")
+    if "length" in d and d["length"] != K:
+        raise field_error("length", f"length is {d['length']!r} but there are {K} columns")
+    for key in ("fps", "delta", "final_cost"):
+        if key in d and d[key] is not None and not _is_number(d[key]):
+            raise field_error(key, f"{key} must be a number")
+    vline = _line_of(text, "values")
+    lines = text.splitlines()
+    for r, row in enumerate(values):
+        bad = [c for c, x in enumerate(row) if not (math.isfinite(x) and 0.0 <= x <= 1.0)]
+        if bad:
+            line = vline
+            if vline is not None and vline + r < len(lines) and \
+                    lines[vline + r].lstrip().startswith("["):
+                line = vline + r + 1  # one row per line, as save_template writes them
+            raise MtannoError(f"values row {r + 1} ({names[r]}) column {bad[0] + 1} is "
+                              f"{row[bad[0]]!r}; values must be finite and in [0, 1]",
+                              path=spath, line=line)
+    mt = MotionTemplate.__new__(MotionTemplate)
+    mt.class_name = d["class"]
+    mt.feature_names = list(names)
+    mt.values = np.array(values, dtype=np.float64).reshape(len(names), K)
+    mt.weights = np.array(weights, dtype=np.float64)
+    mt.feature_set = d["feature_set"]
+    mt.fps = d["fps"]
+    mt.kind = d["kind"]
+    mt.quantized = d["quantized"]
+    mt.delta = d["delta"]
+    mt.training = d.get("training", [])
+    mt.params = d.get("params", {})
+    mt.iterations = d.get("iterations", 0)
+    mt.final_cost = d.get("final_cost", 0.0)
+    mt.history = d.get("history", {})
+    _validate(mt, spath)
+    mt.fps = float(mt.fps)
+    mt.final_cost = float(mt.final_cost)
+    mt.delta = None if mt.delta is None else float(mt.delta)
+    return mt
+
+
+# --------------------------------------------------------------------------- operations
+
+
+def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
+    """Quantized copy of ``mt`` (algorithms.md §3.3; MR06 §5.2): entries ≤ δ become 0,
+    entries ≥ 1 − δ become 1, the rest the wildcard 0.5.
+
+    Both comparisons are inclusive and tested in that order, so δ = 0 keeps exactly the
+    unanimous entries (0 and 1) and δ = 0.5 leaves no wildcard (0.5 itself becomes 0).
+    δ = 0.1 is MR06's retrieval setting, 0.05 MBS09's annotation setting.
+    """
+    if not _is_number(delta) or not 0.0 <= float(delta) <= 0.5:
+        raise MtannoError(f"quantization delta must be a number in [0, 0.5], got {delta!r}")
+    delta = float(delta)
+    V = mt.values
+    Q = np.full(V.shape, WILDCARD)
+    Q[V >= 1.0 - delta] = 1.0
+    Q[V <= delta] = 0.0
+    return replace(mt, values=Q, weights=mt.weights.copy(), quantized=True, delta=delta,
+                   training=[dict(t) for t in mt.training], params=dict(mt.params),
+                   history={k: list(v) for k, v in mt.history.items()})
+
+
+def mirror_names(feature_set: str) -> dict[str, str]:
+    """Feature name → name of its left/right partner (itself when unpaired) for a known
+    feature set (MR06 Table 6; ``mtanno.features.MIRROR_PAIRS``)."""
+    from mtanno.features import FEATURE_NAMES, FEATURE_SET, MIRROR_PAIRS
+
+    if feature_set != FEATURE_SET:
+        raise MtannoError(f"no mirror table for feature set {feature_set!r} (known: "
+                          f"{FEATURE_SET})")
+    table = {n: n for n in FEATURE_NAMES}
+    for a, b in MIRROR_PAIRS:
+        table[FEATURE_NAMES[a]] = FEATURE_NAMES[b]
+        table[FEATURE_NAMES[b]] = FEATURE_NAMES[a]
+    return table
+
+
+def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
+    """Left/right mirrored copy of ``mt`` (MR06 §5.4): the rows of every left/right feature
+    pair are swapped (by feature name, using the feature set's mirror table), so a
+    template of 'CartwheelLeft' finds right cartwheels.
+
+    The class name is ``name`` if given; otherwise :data:`MIRROR_SUFFIX` is appended, or
+    removed when already present, so mirroring twice gives back the original template.
+    """
+    table = mirror_names(mt.feature_set)
+    unknown = [n for n in mt.feature_names if n not in table]
+    if unknown:
+        raise MtannoError(f"features not in the {mt.feature_set} mirror table: "
+                          f"{', '.join(unknown)}")
+    index = {n: i for i, n in enumerate(mt.feature_names)}
+    lonely = [n for n in mt.feature_names if table[n] not in index]
+    if lonely:
+        raise MtannoError("cannot mirror: the template lacks the partner of "
+                          + ", ".join(f"{n} ({table[n]})" for n in lonely))
+    perm = [index[table[n]] for n in mt.feature_names]
+    if name is None:
+        cn = mt.class_name
+        name = cn[: -len(MIRROR_SUFFIX)] if cn.endswith(MIRROR_SUFFIX) and \
+            len(cn) > len(MIRROR_SUFFIX) else cn + MIRROR_SUFFIX
+    params = dict(mt.params)
+    if params.pop("mirrored", False) is False:
+        params["mirrored"] = True
+    return replace(mt, class_name=name, values=mt.values[perm].copy(),
+                   weights=mt.weights.copy(), training=[dict(t) for t in mt.training],
+                   params=params, history={k: list(v) for k, v in mt.history.items()})

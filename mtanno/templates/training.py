@@ -1,0 +1,274 @@
+"""Gathering the training examples of motion-template learning.
+
+Three ways to say which frames are an example of which class (issue 3, ``learn-mt``):
+
+* a folder tree ``ROOT/CLASS/*.parquet`` — every feature file is one example of the class
+  named by its folder (:func:`sources_from_tree`);
+* a manifest CSV with columns ``file,class`` (more columns allowed, e.g. ``split``), such
+  as ``hdm05_cut/clips.csv`` whose ``file`` is ``class/HDM_..._120.amc``; the feature file
+  of an entry is ``FEATURES_DIR/<file with suffix .parquet>``, the path ``mtanno features``
+  writes for that motion file (:func:`sources_from_manifest`);
+* annotated documents: a truth table (``mtanno.truth.read_truth``: doc, start, end,
+  label at 30 Hz, 1-based inclusive) and the documents' feature files; every labelled
+  segment is cut out as one example of its label (:func:`sources_from_truth`).
+
+Collecting gives :class:`ExampleSource` records (cheap, nothing read yet);
+:func:`load_examples` reads the feature files, cuts the segments, checks that every
+example has the same feature names, feature set and frame rate, and orders them by file
+name, then start frame — the order the golden templates were learned in (the first
+example is the reference whose template MT learning returns, MR06 §4.1).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.store import read_features, sha256_file
+from mtanno.truth import read_truth
+
+__all__ = [
+    "ExampleSource", "TrainingExample", "check_consistent", "group_by_class",
+    "load_examples", "sources_from_manifest", "sources_from_tree", "sources_from_truth",
+]
+
+
+@dataclass(frozen=True)
+class ExampleSource:
+    """Where one training example is: a feature file, optionally a frame range.
+
+    ``start``/``end`` are 1-based inclusive analysis frames (30 Hz); None means the whole
+    file. ``origin``/``origin_line`` name the manifest or truth file that listed it (for
+    error messages).
+    """
+
+    class_name: str
+    path: str
+    start: int | None = None
+    end: int | None = None
+    origin: str | None = None
+    origin_line: int | None = None
+
+    def sort_key(self) -> tuple:
+        return (Path(self.path).name, self.path, self.start or 0, self.end or 0)
+
+
+@dataclass
+class TrainingExample:
+    """One training example, read: its (features × frames) 0/1 matrix and provenance.
+
+    ``start``/``end`` are the 1-based inclusive frames (at ``fps``) of the file that ``X``
+    holds.
+    """
+
+    class_name: str
+    X: np.ndarray
+    file: str
+    document: str
+    sha256: str
+    start: int
+    end: int
+    feature_names: list[str]
+    feature_set: str
+    fps: float
+
+    def record(self) -> dict:
+        """The template's ``training`` entry for this example."""
+        return {"file": self.file, "document": self.document, "sha256": self.sha256,
+                "frames": [self.start, self.end]}
+
+
+# --------------------------------------------------------------------------- collecting
+
+
+def sources_from_tree(roots: Iterable[str | os.PathLike]) -> list[ExampleSource]:
+    """One example per ``ROOT/CLASS/*.parquet`` file; the class is the folder name."""
+    out: list[ExampleSource] = []
+    for root in roots:
+        root = Path(root)
+        if not root.exists():
+            raise MtannoError("training folder not found", path=str(root))
+        if not root.is_dir():
+            raise MtannoError("not a folder (expected ROOT/CLASS/*.parquet; use --truth for "
+                              "annotated documents)", path=str(root))
+        found = []
+        for cls_dir in sorted(p for p in root.iterdir() if p.is_dir()):
+            for f in sorted(cls_dir.glob("*.parquet")):
+                found.append(ExampleSource(cls_dir.name, str(f)))
+        if not found:
+            raise MtannoError("no CLASS/*.parquet feature files in this folder",
+                              path=str(root))
+        out.extend(found)
+    return out
+
+
+def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os.PathLike,
+                          split: str | None = None) -> list[ExampleSource]:
+    """Examples listed in a manifest CSV (columns ``file,class[,split,...]``).
+
+    The feature file of a row is ``features_dir / file`` with the suffix replaced by
+    ``.parquet``. With ``split``, only rows whose ``split`` column equals it are used.
+    """
+    spath = str(manifest)
+    try:
+        text = Path(manifest).read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise MtannoError("manifest not found", path=spath) from None
+    except (UnicodeDecodeError, IsADirectoryError):
+        raise MtannoError("not a UTF-8 CSV file", path=spath) from None
+    reader = csv.DictReader(io.StringIO(text))
+    cols = reader.fieldnames or []
+    if not {"file", "class"} <= set(cols):
+        raise MtannoError(f"manifest needs the columns file and class (found "
+                          f"{', '.join(cols) or 'none'})", path=spath, line=1)
+    if split is not None and "split" not in cols:
+        raise MtannoError("manifest has no split column to filter by --split", path=spath,
+                          line=1)
+    fdir = Path(features_dir)
+    if not fdir.is_dir():
+        raise MtannoError("features folder not found", path=str(fdir))
+    out: list[ExampleSource] = []
+    seen_splits: set[str] = set()
+    for lineno, row in enumerate(reader, 2):
+        f, c = (row.get("file") or "").strip(), (row.get("class") or "").strip()
+        if not f or not c:
+            raise MtannoError("empty file or class", path=spath, line=lineno)
+        if split is not None:
+            seen_splits.add((row.get("split") or "").strip())
+            if (row.get("split") or "").strip() != split:
+                continue
+        rel = Path(f)
+        if rel.is_absolute() or ".." in rel.parts:
+            raise MtannoError(f"file {f!r} must be a relative path inside the data folder",
+                              path=spath, line=lineno)
+        out.append(ExampleSource(c, str(fdir / rel.with_suffix(".parquet")), origin=spath,
+                                 origin_line=lineno))
+    if not out:
+        if split is not None:
+            raise MtannoError(f"no rows with split {split!r} (splits present: "
+                              f"{', '.join(sorted(seen_splits)) or 'none'})", path=spath)
+        raise MtannoError("manifest lists no files", path=spath)
+    return out
+
+
+def _feature_files(paths: Iterable[str | os.PathLike]) -> list[Path]:
+    out: list[Path] = []
+    for p in paths:
+        p = Path(p)
+        if p.is_dir():
+            found = sorted(p.rglob("*.parquet"))
+            if not found:
+                raise MtannoError("no .parquet feature files in this folder", path=str(p))
+            out.extend(found)
+        elif p.exists():
+            out.append(p)
+        else:
+            raise MtannoError("feature file or folder not found", path=str(p))
+    return out
+
+
+def sources_from_truth(truth: str | os.PathLike,
+                       features: Iterable[str | os.PathLike]) -> list[ExampleSource]:
+    """One example per labelled segment of a truth table, cut from the feature file of
+    its document (documents are named by feature file stem; ``features`` are files or
+    folders searched recursively)."""
+    segments = read_truth(truth)
+    if not segments:
+        raise MtannoError("truth table has no segments", path=str(truth))
+    by_doc: dict[str, Path] = {}
+    for f in _feature_files(features):
+        prev = by_doc.get(f.stem)
+        if prev is not None and prev.resolve() != f.resolve():
+            raise MtannoError(f"two feature files for document {f.stem!r}: {prev} and {f}")
+        by_doc[f.stem] = f
+    missing = sorted({s.doc for s in segments if s.doc not in by_doc})
+    if missing:
+        more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
+        raise MtannoError(f"no feature file for document(s) {', '.join(missing[:5])}{more} "
+                          f"(give the documents' feature files or folders)", path=str(truth))
+    return [ExampleSource(s.label, str(by_doc[s.doc]), s.start, s.end, origin=str(truth))
+            for s in segments]
+
+
+def group_by_class(sources: Iterable[ExampleSource], *,
+                   classes: Sequence[str] | None = None) -> dict[str, list[ExampleSource]]:
+    """Sources per class (classes sorted by name, sources by :meth:`ExampleSource.sort_key`);
+    with ``classes``, only those (each must be present)."""
+    out: dict[str, list[ExampleSource]] = {}
+    for s in sources:
+        out.setdefault(s.class_name, []).append(s)
+    if classes:
+        unknown = [c for c in classes if c not in out]
+        if unknown:
+            raise MtannoError(f"no training examples for class(es) {', '.join(unknown)} "
+                              f"(classes found: {', '.join(sorted(out)) or 'none'})")
+        out = {c: out[c] for c in classes}
+    return {c: sorted(out[c], key=ExampleSource.sort_key) for c in sorted(out)}
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_examples(sources: Iterable[ExampleSource]) -> list[TrainingExample]:
+    """Read the feature files of ``sources``, cut their frame ranges, check consistency
+    (:func:`check_consistent`) and return the examples in :meth:`ExampleSource.sort_key`
+    order. Each file is read and hashed once."""
+    cache: dict[str, tuple] = {}
+    out: list[TrainingExample] = []
+    for src in sorted(sources, key=ExampleSource.sort_key):
+        if src.path not in cache:
+            try:
+                ff = read_features(src.path)
+            except MtannoError as exc:
+                if src.origin is not None and not Path(src.path).exists():
+                    raise MtannoError(f"feature file {src.path} not found (run `mtanno "
+                                      f"features` first?)", path=src.origin,
+                                      line=src.origin_line) from None
+                raise exc from None
+            cache[src.path] = (ff, sha256_file(src.path))
+        ff, digest = cache[src.path]
+        n = ff.X.shape[1]
+        if n == 0:
+            raise MtannoError("feature file has no frames", path=src.path)
+        start = 1 if src.start is None else src.start
+        end = n if src.end is None else src.end
+        if not 1 <= start <= end <= n:
+            raise MtannoError(f"segment {start}..{end} of document {ff.document!r} "
+                              f"(class {src.class_name}) lies outside its frames 1..{n}",
+                              path=src.origin or src.path, line=src.origin_line)
+        out.append(TrainingExample(
+            class_name=src.class_name, X=np.ascontiguousarray(ff.X[:, start - 1:end]),
+            file=src.path, document=ff.document, sha256=digest, start=start, end=end,
+            feature_names=list(ff.names), feature_set=str(ff.meta.get("feature_set", "")),
+            fps=ff.fps))
+    check_consistent(out)
+    return out
+
+
+def check_consistent(examples: Sequence[TrainingExample], *,
+                     like: TrainingExample | None = None) -> None:
+    """All examples (and ``like``, if given) have the same feature names, feature set and
+    frame rate; otherwise an error names the first file that differs."""
+    if not examples:
+        return
+    ref = like if like is not None else examples[0]
+    for ex in examples:
+        if ex.feature_set != ref.feature_set:
+            raise MtannoError(f"feature set {ex.feature_set!r} differs from "
+                              f"{ref.feature_set!r} of {ref.file}", path=ex.file)
+        if ex.feature_names != ref.feature_names:
+            diff = [a for a, b in zip(ex.feature_names, ref.feature_names) if a != b]
+            detail = (f"first difference {diff[0]!r}" if diff else
+                      f"{len(ex.feature_names)} vs {len(ref.feature_names)} features")
+            raise MtannoError(f"feature names differ from those of {ref.file} ({detail})",
+                              path=ex.file)
+        if ex.fps != ref.fps:
+            raise MtannoError(f"analysis frame rate {ex.fps:g} Hz differs from {ref.fps:g} Hz "
+                              f"of {ref.file}", path=ex.file)
