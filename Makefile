@@ -10,10 +10,10 @@ OUT    ?= out
 $(BIN)/mtanno: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,bench]'
+	$(BIN)/pip install --quiet -e '.[test]'
 	@touch $@
 
-install: $(BIN)/mtanno  ## create .venv and install mtanno with test and benchmark extras
+install: $(BIN)/mtanno  ## create .venv and install mtanno with its test extras
 
 test: $(BIN)/mtanno  ## run the whole test suite (real-data tests skip when ../shared is absent)
 	$(BIN)/python -m pytest -q
@@ -41,8 +41,13 @@ experiment-hdm05: $(BIN)/mtanno  ## the HDM05 annotation experiment (scripts/exp
 experiment-mocap6: $(BIN)/mtanno  ## the CMU mocap6 annotation experiment
 	scripts/experiment_mocap6.sh $(OUT)/mocap6
 
-bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md)
+bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the peers first
+	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python scripts/bench_features.py
+	$(BIN)/python scripts/bench_learn.py
+	$(BIN)/python scripts/bench_match.py
+	$(BIN)/python scripts/bench_annotate.py
+	$(BIN)/python scripts/bench_index.py
 
 lint: $(BIN)/mtanno
 	$(BIN)/ruff check mtanno tests scripts

@@ -1,0 +1,213 @@
+"""Retrieval hits from the distance function Δ of a motion template (MR06 §5.4).
+
+:func:`extract_hits` turns one document's Δ and start frames (from
+:func:`mtanno.templates.match.match_template`) into hits; :func:`retrieve` matches a template
+against several documents and ranks all hits by cost. Two extraction rules, both greedy
+(repeatedly the smallest remaining Δ(ℓ) ≤ τ, ties to the lowest frame), as in the reference
+implementation (``../shared/data/reference/retrieval/README.md``; algorithms.md §3.5):
+
+``"retrieval"`` (``motionTemplateDTWRetrievalWeighted``)
+    A minimum at end frame e with start s (hit length len = e − s + 1) is recorded only if
+    s is not covered by the start zone [s' − ⌈b_s·len'⌉, s' + ⌈f_s·len'⌉] of an earlier
+    recorded hit (``start_excl`` = (b_s, f_s), default (0.1, 0.5)). Either way the end
+    frames [e − ⌈b_e·len⌉, e + ⌈f_e·len⌉] are blanked (``end_excl`` = (b_e, f_e), default
+    (0.5, 0.1)) — for a dropped candidate with len = the length of the recorded hit whose
+    start zone covers s (the latest one where zones overlap), as the reference code does.
+``"classification"`` (``…ForClassification``, used for annotation)
+    Every minimum is recorded and blanks exactly its own frames [s, e]; no start check.
+
+Extraction stops after ``max_hits`` recorded hits; the result then says whether the cap cut
+off further hits (:attr:`HitList.truncated`). Frames are 0-based here (30 Hz frames); the
+command line writes them 1-based.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.templates.match import DEFAULT_STEP_WEIGHTS, DEFAULT_STEPS, PreparedTemplate
+
+__all__ = ["MODES", "Hit", "HitList", "extract_hits", "retrieve"]
+
+MODES = ("retrieval", "classification")
+DEFAULT_MAX_HITS = 1000
+
+
+@dataclass(frozen=True)
+class Hit:
+    """One retrieval hit: document frames ``start``..``end`` (0-based, inclusive, 30 Hz).
+
+    ``cost`` is Δ(end). ``doc`` is the document's name (or whatever label the caller gave)
+    and ``doc_index`` its position in the input sequence.
+    """
+
+    doc: str | int
+    start: int
+    end: int
+    cost: float
+    doc_index: int = 0
+
+    @property
+    def length(self) -> int:
+        """Number of frames of the hit."""
+        return self.end - self.start + 1
+
+
+class HitList(list):
+    """A list of :class:`Hit` in rank order (increasing cost).
+
+    ``truncated`` is True when the hit cap stopped the extraction while at least one more
+    hit would have been recorded without it; ``cap`` is the cap that was applied.
+    """
+
+    def __init__(self, hits: Iterable[Hit] = (), *, truncated: bool = False, cap: int | None = None):
+        super().__init__(hits)
+        self.truncated = truncated
+        self.cap = cap
+
+
+def _check_fraction_pair(value, name: str) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise MtannoError(f"{name} must be a pair of numbers (backward, forward), got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b)) or a < 0 or b < 0:
+        raise MtannoError(f"{name} must be finite and non-negative, got {value!r}")
+    return a, b
+
+
+def _check_options(tau, mode, max_hits) -> float:
+    try:
+        tau = float(tau)
+    except (TypeError, ValueError):
+        raise MtannoError(f"tau must be a number, got {tau!r}") from None
+    if math.isnan(tau):
+        raise MtannoError("tau must be a number, got NaN")
+    if mode not in MODES:
+        raise MtannoError(f"unknown hit mode {mode!r} (choose from {', '.join(MODES)})")
+    if isinstance(max_hits, bool) or not isinstance(max_hits, (int, np.integer)) or max_hits < 1:
+        raise MtannoError(f"max_hits must be a positive integer, got {max_hits!r}")
+    return tau
+
+
+def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str = "retrieval",
+                 max_hits: int = DEFAULT_MAX_HITS,
+                 end_excl: tuple[float, float] = (0.5, 0.1),
+                 start_excl: tuple[float, float] = (0.1, 0.5),
+                 doc: str | int = 0, doc_index: int = 0) -> HitList:
+    """Greedy hits of one document's Δ below ``tau`` (MR06 §5.4, algorithms.md §3.5).
+
+    Parameters
+    ----------
+    delta:
+        (L,) Δ per document frame; ``inf`` or NaN where no match ends.
+    start:
+        (L,) 0-based start frame of the optimal match ending at each frame.
+    tau:
+        Quality threshold: candidates have Δ ≤ tau. The reference drivers use 0.175
+        (retrieval) and 0.13 (classification); MR06 recommends 0.06.
+    mode:
+        ``"retrieval"`` or ``"classification"`` (module docstring).
+    max_hits:
+        Stop after this many recorded hits (the reference used 100 for retrieval and 2000 for
+        classification); ``truncated`` on the result says whether it cut anything off.
+    end_excl, start_excl:
+        (backward, forward) exclusion fractions of the hit length for end frames and start
+        frames; retrieval mode only.
+    doc, doc_index:
+        Copied into every :class:`Hit`.
+
+    Returns
+    -------
+    HitList
+        Hits in the order found (non-decreasing cost; equal costs by increasing end frame).
+    """
+    tau = _check_options(tau, mode, max_hits)
+    eb, ef = _check_fraction_pair(end_excl, "end_excl")
+    sb, sf = _check_fraction_pair(start_excl, "start_excl")
+    d = np.asarray(delta, dtype=np.float64)
+    a = np.asarray(start)
+    if d.ndim != 1 or a.shape != d.shape:
+        raise MtannoError(f"delta and start must be 1-D arrays of equal length, got shapes "
+                          f"{d.shape} and {a.shape}")
+    n = d.shape[0]
+    cand = np.flatnonzero(d <= tau)  # NaN and inf never qualify
+    if cand.size and not np.issubdtype(a.dtype, np.integer):
+        raise MtannoError(f"start must hold integer frame indices, got dtype {a.dtype}")
+    s_c = a[cand]
+    if np.any((s_c < 0) | (s_c > cand)):
+        raise MtannoError("start frames must lie in 0..end for every frame where delta is finite")
+    order = cand[np.argsort(d[cand], kind="stable")]  # by cost, ties by frame
+    retrieval = mode == "retrieval"
+    blanked = np.zeros(n, dtype=bool)
+    # zone_len[t] > 0: start frame t lies in the start zone of a recorded hit of that length
+    # (the latest recorded hit wins where zones overlap)
+    zone_len = np.zeros(n, dtype=np.int64) if retrieval else None
+    hits = HitList(cap=int(max_hits))
+    for e in order.tolist():
+        if blanked[e]:
+            continue
+        s = int(a[e])
+        length = e - s + 1
+        if retrieval:
+            record = zone_len[s] == 0
+            if not record:
+                # as the reference does: a dropped candidate's end zone is measured with the
+                # length of the recorded hit whose start zone covers its start
+                length = int(zone_len[s])
+            lo, hi = e - math.ceil(eb * length), e + math.ceil(ef * length)
+        else:
+            record = True
+            lo, hi = s, e
+        if record and len(hits) >= max_hits:
+            hits.truncated = True
+            break
+        blanked[max(0, lo):hi + 1] = True
+        if record:
+            hits.append(Hit(doc=doc, start=s, end=e, cost=float(d[e]), doc_index=doc_index))
+            if retrieval:
+                zone_len[max(0, s - math.ceil(sb * length)):s + math.ceil(sf * length) + 1] = length
+    return hits
+
+
+def retrieve(template_values: np.ndarray, weights: np.ndarray,
+             documents: Iterable[tuple[str, np.ndarray]], *, tau: float,
+             mode: str = "retrieval", max_hits: int = DEFAULT_MAX_HITS,
+             variant: str = "reference",
+             steps: Sequence[tuple[int, int]] = DEFAULT_STEPS,
+             step_weights: Sequence[float] = DEFAULT_STEP_WEIGHTS,
+             end_excl: tuple[float, float] = (0.5, 0.1),
+             start_excl: tuple[float, float] = (0.1, 0.5)) -> HitList:
+    """Match a quantized template against documents and rank all hits by cost (MR06 §5.4).
+
+    ``documents`` yields ``(name, X)`` pairs, X (f × L) 0/1 features at 30 Hz; each is
+    matched on its own (:func:`mtanno.templates.match.match_template`, paths never cross
+    documents) and its hits extracted with :func:`extract_hits`, one document at a time so
+    only one Δ is held. The hits of all documents are then merged by cost (ties: earlier
+    document, then the order within the document — the same result as one greedy pass over
+    all documents with separators) and cut to ``max_hits``; ``truncated`` is set when that
+    or a per-document cap cut hits off.
+    """
+    tau = _check_options(tau, mode, max_hits)
+    prep = PreparedTemplate(template_values, weights, variant=variant, steps=steps,
+                            step_weights=step_weights)
+    per_doc: list[HitList] = []
+    for i, item in enumerate(documents):
+        if not isinstance(item, (tuple, list)) or len(item) != 2:
+            raise MtannoError(f"documents must be (name, features) pairs, got {type(item).__name__} "
+                              f"as item {i + 1}")
+        name, X = item
+        delta, start = prep.match(X)
+        per_doc.append(extract_hits(delta, start, tau=tau, mode=mode, max_hits=max_hits,
+                                    end_excl=end_excl, start_excl=start_excl, doc=name,
+                                    doc_index=i))
+    ranked = sorted(((h.cost, h.doc_index, r, h) for hl in per_doc for r, h in enumerate(hl)),
+                    key=lambda t: t[:3])
+    out = HitList((t[3] for t in ranked[:max_hits]), cap=int(max_hits),
+                  truncated=len(ranked) > max_hits or any(hl.truncated for hl in per_doc))
+    return out

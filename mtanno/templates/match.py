@@ -1,0 +1,445 @@
+"""Matching a quantized motion template against documents: the distance function Δ.
+
+Subsequence DTW with a masked local cost (MR06 §5.2, MBS09 §4; algorithms.md §3.4). For a
+quantized template X (f × K, entries 0, 1 and the wildcard 0.5) and a document Y (f × L,
+0/1, one column per 30 Hz frame), Δ(ℓ) is the cost of the cheapest warping path that ends at
+document frame ℓ and covers the whole template, starting at any frame a_ℓ ≤ ℓ. Small values
+mark the END of a match; ``start`` holds a_ℓ.
+
+Two variants:
+
+``"reference"`` (default)
+    What the reference implementation computes (features.md Appendix A, last paragraphs;
+    ``../shared/data/reference/retrieval/README.md``): the template is first expanded by its
+    weights (column i repeated max(1, round(w_i)) times, round half away from zero, each copy
+    of weight w_i / copies); the local cost of expanded column i against a document frame is
+    ``m / n * ((w_i + 1) / (2 * max(1, nnz_i)))`` with m the disagreements over the nnz_i
+    non-wildcard rows and n the expanded length; D(1, ℓ) = C(1, ℓ); for i ≥ 2 the predecessor
+    with the smallest D among the steps is chosen (ties: the first step) and the chosen
+    step's weight times C(i, ℓ) is added; Δ(ℓ) = D(n, ℓ).
+``"paper"``
+    algorithms.md §3.4 as written: c(k, ℓ) = mean disagreement over the non-wildcard rows
+    (0 for an all-wildcard column), no expansion, no weight factor; D(k, ℓ) = min over the
+    steps of D(predecessor) + weight(step) · c(k, ℓ) (ties: the first step); Δ(ℓ) = D(K, ℓ)/K.
+
+Steps are (template, document) increments; the default is (1,1), (1,2), (2,1) with weights
+1, 1, 2 (MR06 §5.2). A cell no path reaches is +∞ (the reference writes NaN); ``start`` is then
+−1. Paths never cross a document boundary.
+
+The kernels stream over the document: they keep only a few columns of D and of the start
+pointers (the last max(Δj)+1, or four for the default steps, which are done two document
+frames at a time); a_ℓ is propagated forward with the DP, so there is no backtracking matrix
+and the working memory is O(K) whatever the document length. The outputs are the two
+length-L arrays (plus the packed frames, 8 bytes per frame, while matching).
+
+Features are bit-packed (one uint64 per frame for f ≤ 64) and each template column becomes
+a (mask of non-wildcard rows, value bits) pair, so the disagreement count is
+``popcount((frame ^ value) & mask)``; the cost itself is looked up in a per-column table
+indexed by that count, which keeps the floating-point arithmetic exactly that of the
+formulas above.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+
+from mtanno.errors import MtannoError
+
+__all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate", "match_documents",
+           "match_template"]
+
+DEFAULT_STEPS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (2, 1))
+DEFAULT_STEP_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 2.0)
+VARIANTS = ("reference", "paper")
+
+_M1 = np.uint64(0x5555555555555555)
+_M2 = np.uint64(0x3333333333333333)
+_M4 = np.uint64(0x0F0F0F0F0F0F0F0F)
+_H01 = np.uint64(0x0101010101010101)
+_S1 = np.uint64(1)
+_S2 = np.uint64(2)
+_S4 = np.uint64(4)
+_S56 = np.uint64(56)
+
+
+@numba.njit(cache=True, inline="always")
+def _popcount64(x):
+    """Number of set bits of a uint64 (SWAR bit trick; LLVM compiles it to one popcnt).
+
+    The final multiply wraps around modulo 2**64 by design (numpy warns about it when the
+    kernels run as plain Python with NUMBA_DISABLE_JIT=1; the result is still right)."""
+    x = x - ((x >> _S1) & _M1)
+    x = (x & _M2) + ((x >> _S2) & _M2)
+    x = (x + (x >> _S4)) & _M4
+    return np.int64((x * _H01) >> _S56)
+
+
+@numba.njit(cache=True)
+def _pack_frames(X, out):
+    """Bit-pack a (features × frames) 0/1 uint8 matrix: bit i % 64 of ``out[j, i // 64]`` = X[i, j]."""
+    f, n = X.shape
+    block = 2048  # frames per block: the block's words stay in L1 while the rows pass
+    buf = np.empty(block, np.uint64)
+    for j0 in range(0, n, block):
+        m = min(n, j0 + block) - j0
+        for q in range(out.shape[1]):
+            buf[:m] = 0
+            for i in range(64 * q, min(f, 64 * q + 64)):
+                sh = np.uint64(i & 63)
+                x = X[i, j0:j0 + m]
+                for j in range(m):
+                    buf[j] |= np.uint64(x[j]) << sh
+            out[j0:j0 + m, q] = buf[:m]
+
+
+@numba.njit(cache=True)
+def _dtw_default_steps(doc, offsets, masks, vals, table, sel, add, divisor, delta, start):
+    """Streaming subsequence DTW, steps (1,1), (1,2), (2,1), f ≤ 64 (one word per frame).
+
+    ``doc`` (L,) packed frames of all documents, ``offsets`` their boundaries; ``masks``,
+    ``vals`` (K,) packed template columns; ``table[k, m]`` the local cost of column k for m
+    disagreements. A candidate step s is ranked by D(pred) + sel[s]·c and, when chosen, gives
+    D(pred) + add[s]·c (reference: sel = 0, i.e. the smallest predecessor wins; paper:
+    sel = add); ties go to the first step. Writes Δ = D(K, ℓ)/divisor and the 0-based start
+    frame (relative to the document) into ``delta`` and ``start``.
+
+    Two document frames j, j+1 are done per pass over the rows: cell (k, j+1) takes its
+    predecessors (k-1, j) and (k-2, j) from registers and shares the load of (k-1, j-1) with
+    cell (k, j), which halves the memory traffic. Columns carry two unreachable padding rows
+    in front; start pointers are float64 (exact below 2**53) so that all selects stay in one
+    register type. An unreachable cell has D = inf and start -1 (its first candidate is
+    unreachable too, so the -1 propagates).
+    """
+    K = masks.shape[0]
+    inf = np.inf
+    Dc = np.full(K + 2, inf)  # column j
+    Dn = np.full(K + 2, inf)  # column j + 1
+    D1 = np.full(K + 2, inf)  # column j - 1
+    D2 = np.full(K + 2, inf)  # column j - 2
+    Sc = np.full(K + 2, -1.0)
+    Sn = np.full(K + 2, -1.0)
+    S1 = np.full(K + 2, -1.0)
+    S2 = np.full(K + 2, -1.0)
+    c0 = np.empty(K)
+    c1 = np.empty(K)
+    e0, e1, e2 = sel[0], sel[1], sel[2]
+    a0, a1, a2 = add[0], add[1], add[2]
+    by_pred = e0 == 0.0 and e1 == 0.0 and e2 == 0.0
+    for d in range(offsets.shape[0] - 1):
+        b = offsets[d]
+        n = offsets[d + 1] - b
+        D1[:] = inf
+        D2[:] = inf
+        S1[:] = -1.0
+        S2[:] = -1.0
+        for j in range(0, n, 2):
+            y0 = doc[b + j]
+            y1 = doc[b + j + 1] if j + 1 < n else y0  # odd length: a dummy last column
+            for k in range(K):
+                c0[k] = table[k, _popcount64((y0 ^ vals[k]) & masks[k])]
+                c1[k] = table[k, _popcount64((y1 ^ vals[k]) & masks[k])]
+            Dc[2] = c0[0]
+            Sc[2] = j
+            Dn[2] = c1[0]
+            Sn[2] = j + 1
+            dm1, sm1 = c0[0], np.float64(j)  # (k-1, j)
+            dm2, sm2 = inf, -1.0  # (k-2, j)
+            q, qs = D1[1], S1[1]  # (k-2, j-1)
+            for k in range(1, K):
+                # cell (k, j): predecessors (k-1, j-1), (k-1, j-2), (k-2, j-1)
+                c = c0[k]
+                p0, s0 = D1[k + 1], S1[k + 1]
+                p1, s1 = D2[k + 1], S2[k + 1]
+                p2, s2 = q, qs
+                if by_pred:
+                    x0, x1, x2 = p0, p1, p2
+                else:
+                    x0, x1, x2 = p0 + e0 * c, p1 + e1 * c, p2 + e2 * c
+                t = x1 < x0
+                x = x1 if t else x0
+                p = p1 if t else p0
+                w = a1 if t else a0
+                sv = s1 if t else s0
+                t = x2 < x
+                p = p2 if t else p
+                w = a2 if t else w
+                sv = s2 if t else sv
+                d0 = p + w * c
+                # cell (k, j+1): predecessors (k-1, j), (k-1, j-1), (k-2, j)
+                c = c1[k]
+                if by_pred:
+                    x0, x1, x2 = dm1, p0, dm2
+                else:
+                    x0, x1, x2 = dm1 + e0 * c, p0 + e1 * c, dm2 + e2 * c
+                t = x1 < x0
+                x = x1 if t else x0
+                r = p0 if t else dm1
+                w = a1 if t else a0
+                rs = s0 if t else sm1
+                t = x2 < x
+                r = dm2 if t else r
+                w = a2 if t else w
+                rs = sm2 if t else rs
+                Dc[k + 2] = d0
+                Sc[k + 2] = sv
+                Dn[k + 2] = r + w * c
+                Sn[k + 2] = rs
+                dm2, sm2 = dm1, sm1
+                dm1, sm1 = d0, sv
+                q, qs = p0, s0
+            delta[b + j] = Dc[K + 1] / divisor
+            start[b + j] = np.int64(Sc[K + 1])
+            if j + 1 < n:
+                delta[b + j + 1] = Dn[K + 1] / divisor
+                start[b + j + 1] = np.int64(Sn[K + 1])
+            Dc, Dn, D2, D1 = D2, D1, Dc, Dn
+            Sc, Sn, S2, S1 = S2, S1, Sc, Sn
+
+
+@numba.njit(cache=True)
+def _dtw_general(doc, offsets, masks, vals, table, di, dj, sel, add, divisor, delta, start):
+    """Streaming subsequence DTW for any steps (di[s], dj[s]) and any number of words per frame.
+
+    Same contract as :func:`_dtw_default_steps`, with ``doc`` (L, W) and ``masks``, ``vals``
+    (K, W). Keeps a ring of max(dj) + 1 columns; steps with dj = 0 read the current column,
+    whose rows above are already done (rows run upwards).
+    """
+    K, W = masks.shape
+    ns = di.shape[0]
+    R = 1
+    for s in range(ns):
+        R = max(R, dj[s] + 1)
+    inf = np.inf
+    D = np.empty((R, K))
+    S = np.empty((R, K), np.int64)
+    for d in range(offsets.shape[0] - 1):
+        b = offsets[d]
+        n = offsets[d + 1] - b
+        D[:] = inf
+        S[:] = -1
+        for j in range(n):
+            slot = j % R
+            for k in range(K):
+                m = 0
+                for q in range(W):
+                    m += _popcount64((doc[b + j, q] ^ vals[k, q]) & masks[k, q])
+                c = table[k, m]
+                if k == 0:
+                    D[slot, 0] = c
+                    S[slot, 0] = j
+                    continue
+                best = inf
+                val = inf
+                bs = -1
+                for s in range(ns):
+                    pk = k - di[s]
+                    if pk < 0 or j < dj[s]:
+                        continue
+                    ps = (j - dj[s]) % R
+                    p = D[ps, pk]
+                    x = p + sel[s] * c
+                    if x < best:
+                        best = x
+                        val = p + add[s] * c
+                        bs = S[ps, pk]
+                D[slot, k] = val
+                S[slot, k] = bs if val < inf else -1
+            delta[b + j] = D[slot, K - 1] / divisor
+            start[b + j] = S[slot, K - 1]
+
+
+# ---------------------------------------------------------------------------------------------
+# input checks and template preparation
+
+
+def _check_template(values, weights) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        V = np.asarray(values, dtype=np.float64)
+        w = np.asarray(weights, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MtannoError("template values and weights must be numeric arrays") from None
+    if V.ndim != 2 or V.shape[0] < 1 or V.shape[1] < 1:
+        raise MtannoError(f"template values must be a non-empty (features × columns) matrix, "
+                          f"got shape {V.shape}")
+    if not np.all((V == 0.0) | (V == 1.0) | (V == 0.5)):
+        raise MtannoError("template values must be quantized: every entry 0, 1 or 0.5 "
+                          "(the wildcard); quantize the template first")
+    if w.shape != (V.shape[1],):
+        raise MtannoError(f"template weights must have one entry per column ({V.shape[1]}), "
+                          f"got shape {w.shape}")
+    if not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise MtannoError("template weights must be finite and non-negative")
+    return V, w
+
+
+def _check_document(X, f: int, what: str = "document") -> np.ndarray:
+    A = np.asarray(X)
+    if A.ndim != 2 or A.shape[0] != f:
+        raise MtannoError(f"{what} must be a ({f} features × frames) matrix like the template, "
+                          f"got shape {A.shape}")
+    if A.dtype == np.bool_:
+        return A.view(np.uint8)
+    if A.dtype == np.uint8:
+        if A.size and A.max() > 1:
+            raise MtannoError(f"{what} features must be 0 or 1")
+        return A
+    if not (np.issubdtype(A.dtype, np.integer) or np.issubdtype(A.dtype, np.floating)):
+        raise MtannoError(f"{what} features must be 0/1 numbers, got dtype {A.dtype}")
+    if A.size and not np.all((A == 0) | (A == 1)):
+        raise MtannoError(f"{what} features must be 0 or 1")
+    return A.astype(np.uint8)
+
+
+def _check_steps(steps, step_weights) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        st = np.asarray(steps, dtype=np.float64)
+        sw = np.asarray(step_weights, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MtannoError("steps must be (template, document) integer pairs and step_weights "
+                          "numbers") from None
+    if st.ndim != 2 or st.shape[1] != 2 or st.shape[0] < 1:
+        raise MtannoError(f"steps must be a non-empty list of (template, document) pairs, "
+                          f"got {steps!r}")
+    if not np.all(np.isfinite(st)) or np.any(st != np.round(st)) or np.any(st < 0):
+        raise MtannoError(f"steps must be non-negative integers, got {steps!r}")
+    if np.any((st[:, 0] == 0) & (st[:, 1] == 0)):
+        raise MtannoError("step (0, 0) is not allowed")
+    if sw.shape != (st.shape[0],):
+        raise MtannoError(f"step_weights must have one weight per step ({st.shape[0]}), "
+                          f"got {step_weights!r}")
+    if not np.all(np.isfinite(sw)) or np.any(sw < 0):
+        raise MtannoError("step weights must be finite and non-negative")
+    return st[:, 0].astype(np.int64), st[:, 1].astype(np.int64), sw
+
+
+class PreparedTemplate:
+    """A quantized template in kernel form (packed columns, cost table, steps), to match
+    many documents without preparing the template again each time.
+
+    Same parameters and checks as :func:`match_template`; :meth:`match` and
+    :meth:`match_documents` behave like the functions of the same names.
+    """
+
+    def __init__(self, values: np.ndarray, weights: np.ndarray, *, variant: str = "reference",
+                 steps: Sequence[tuple[int, int]] = DEFAULT_STEPS,
+                 step_weights: Sequence[float] = DEFAULT_STEP_WEIGHTS):
+        if variant not in VARIANTS:
+            raise MtannoError(f"unknown matching variant {variant!r} (choose from "
+                              f"{', '.join(VARIANTS)})")
+        V, w = _check_template(values, weights)
+        self.di, self.dj, sw = _check_steps(steps, step_weights)
+        self.f = V.shape[0]
+        if variant == "reference":
+            # expand (features.md App. A): column i repeated max(1, round(w_i)) times, round
+            # half away from zero (weights are non-negative), each copy of weight w_i / r_i
+            reps = np.maximum(1, np.floor(w + 0.5)).astype(np.int64)
+            V = np.repeat(V, reps, axis=1)
+            w = np.repeat(w / reps, reps)
+        K = V.shape[1]
+        mask = V != 0.5
+        nnz = mask.sum(axis=0)
+        m = np.arange(self.f + 1, dtype=np.float64)[None, :]
+        if variant == "reference":
+            n = float(K)
+            factor = (w + 1.0) / (2.0 * np.maximum(1, nnz))
+            self.table = m / n * factor[:, None]
+            self.sel = np.zeros_like(sw)
+            self.divisor = 1.0
+        else:
+            self.table = m / np.maximum(1, nnz)[:, None]
+            self.sel = sw.copy()
+            self.divisor = float(K)
+        self.table = np.ascontiguousarray(self.table)
+        self.add = sw
+        self.K = K
+        self.words = (self.f + 63) // 64
+        vbits = np.ascontiguousarray((V == 1.0).astype(np.uint8))
+        self.masks = np.zeros((K, self.words), dtype=np.uint64)
+        self.vals = np.zeros((K, self.words), dtype=np.uint64)
+        _pack_frames(np.ascontiguousarray(mask.astype(np.uint8)), self.masks)
+        _pack_frames(vbits, self.vals)
+        self.fast = (self.words == 1 and len(self.di) == 3
+                     and tuple(zip(self.di.tolist(), self.dj.tolist())) == DEFAULT_STEPS)
+
+    def match(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, start) on one document, as :func:`match_template`."""
+        return self.match_documents([X])[0]
+
+    def match_documents(self, documents: Sequence[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """One (delta, start) pair per document, as :func:`match_documents`."""
+        docs = [_check_document(X, self.f, f"document {i + 1}") for i, X in enumerate(documents)]
+        offsets = np.zeros(len(docs) + 1, dtype=np.int64)
+        np.cumsum([d.shape[1] for d in docs], out=offsets[1:])
+        packed = np.empty((int(offsets[-1]), self.words), dtype=np.uint64)
+        for d, b, e in zip(docs, offsets[:-1], offsets[1:]):
+            _pack_frames(d, packed[b:e])
+        delta, start = self.run(packed, offsets)
+        return [(delta[b:e], start[b:e]) for b, e in zip(offsets[:-1], offsets[1:])]
+
+    def run(self, packed: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Kernel call on packed frames (L, words) with document boundaries ``offsets``."""
+        L = packed.shape[0]
+        delta = np.empty(L, dtype=np.float64)
+        start = np.empty(L, dtype=np.int64)
+        if self.fast:
+            _dtw_default_steps(packed[:, 0], offsets, self.masks[:, 0], self.vals[:, 0],
+                               self.table, self.sel, self.add, self.divisor, delta, start)
+        else:
+            _dtw_general(packed, offsets, self.masks, self.vals, self.table, self.di, self.dj,
+                         self.sel, self.add, self.divisor, delta, start)
+        return delta, start
+
+
+def match_template(values: np.ndarray, weights: np.ndarray, X: np.ndarray, *,
+                   variant: str = "reference",
+                   steps: Sequence[tuple[int, int]] = DEFAULT_STEPS,
+                   step_weights: Sequence[float] = DEFAULT_STEP_WEIGHTS,
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Distance function Δ and match start frames of a quantized template on one document.
+
+    MR06 §5.2, MBS09 §4, algorithms.md §3.4 (the module docstring describes both variants).
+
+    Parameters
+    ----------
+    values:
+        Quantized template, (f features × K columns), entries 0, 1 or 0.5 (wildcard).
+    weights:
+        Template column weights (K,), non-negative; used by the ``"reference"`` variant
+        (expansion and cost factor), ignored by ``"paper"``.
+    X:
+        Document features, (f × L) 0/1 (uint8 or bool), one column per 30 Hz frame.
+    variant:
+        ``"reference"`` (reproduces the reference implementation) or ``"paper"``.
+    steps, step_weights:
+        DTW step sizes as (template, document) increments and their multiplicative weights.
+        Default (1,1), (1,2), (2,1) with weights 1, 1, 2.
+
+    Returns
+    -------
+    delta:
+        (L,) float64: Δ(ℓ) for every document frame ℓ; ``np.inf`` where no path ends.
+    start:
+        (L,) int64: 0-based first document frame a_ℓ of the optimal path ending at ℓ
+        (frames at 30 Hz), −1 where Δ is infinite. A match spans frames start[ℓ]..ℓ.
+    """
+    return match_documents(values, weights, [X], variant=variant, steps=steps,
+                           step_weights=step_weights)[0]
+
+
+def match_documents(values: np.ndarray, weights: np.ndarray, documents: Sequence[np.ndarray], *,
+                    variant: str = "reference",
+                    steps: Sequence[tuple[int, int]] = DEFAULT_STEPS,
+                    step_weights: Sequence[float] = DEFAULT_STEP_WEIGHTS,
+                    ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`match_template` for several documents at once (one kernel call).
+
+    Every document is matched on its own (paths never cross documents, as in a database with
+    separators); returns one ``(delta, start)`` pair per document, ``start`` relative to that
+    document. Documents may be empty (0 frames).
+    """
+    prep = PreparedTemplate(values, weights, variant=variant, steps=steps,
+                            step_weights=step_weights)
+    return prep.match_documents(documents)
