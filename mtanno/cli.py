@@ -41,10 +41,16 @@ def main() -> None:
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
               help="ASF skeleton for every AMC input (default: found beside or above it).")
 @click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
+@click.option("--feature-set", "feature_set", default="ak40", show_default=True,
+              type=click.Choice(["ak40", "mrc05", "mrc05-reference"]),
+              help="ak40: the 40 annotation features (MR06 + F40); mrc05: the 31 features "
+                   "of MRC05 (reference bugs fixed, docs/index.md); mrc05-reference: as the "
+                   "reference implementation computes them.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, quiet):
-    """Compute the 40 relational features of mocap files (ASF/AMC, BVH).
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet):
+    """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
+    annotation features, or the 31 MRC05 features with --feature-set mrc05.
 
     INPUT is a motion file (.amc, .bvh), a directory (searched recursively) or `-` to read
     file names from standard input, one per line. A file FILE.amc gives OUTDIR/FILE.parquet;
@@ -83,7 +89,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, quiet):
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
     summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                        progress=progress)
+                        progress=progress, feature_set=feature_set)
     bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)

@@ -184,6 +184,42 @@ def m_extent_xz(J, idx, fps, win):
     return out
 
 
+def m_height(J, idx, fps, win):
+    """Y(q) − Y(p); rows (q, p) (31-set entries 3, 4)."""
+    q, p = idx.T
+    return J[:, q, 1] - J[:, p, 1]
+
+
+def m_angle_max(J, idx, fps, win):
+    """Larger of angle(P_a − P_b, P_c − P_d) and angle(P_e − P_f, P_g − P_h), NaN if either
+    is NaN; rows (a, b, c, d, e, f, g, h) (31-set entry 26)."""
+    return np.maximum(m_angle(J, idx[:, :4], fps, win), m_angle(J, idx[:, 4:], fps, win))
+
+
+def m_touch(J, idx, params, k):
+    """min over capsule tests of d − (k·c)·ℓ (features31.md §4) for one row: ``idx`` is the
+    flat (a, b, q, a, b, q, …) joint list, ``params`` the (c, ball_a, ball_b, …) list.
+    NaN tests are skipped (the feature is their OR)."""
+    best = np.full(J.shape[0], np.nan)
+    for i in range(len(idx) // 3):
+        a, b, q = idx[3 * i:3 * i + 3]
+        c, ball_a, ball_b = params[3 * i:3 * i + 3]
+        r = J[:, b] - J[:, a]
+        ell = np.sqrt(_dot(r, r))
+        u = r / ell[:, None]
+        w = J[:, q] - J[:, a]
+        d = np.sqrt(_dot(_cross(w, u), _cross(w, u)))
+        before = _dot(u, w) < 0
+        d = np.where(before, np.sqrt(_dot(w, w)) if ball_a else np.inf, d)
+        e = J[:, q] - J[:, b]
+        beyond = _dot(u, e) > 0
+        d = np.where(beyond, np.sqrt(_dot(e, e)) if ball_b else np.inf, d)
+        x = d - (k * c) * ell
+        better = ~np.isnan(x) & (np.isnan(best) | (x < best))
+        best = np.where(better, x, best)
+    return best
+
+
 def heading_rate(heading: np.ndarray, fps: float) -> np.ndarray:
     """Root yaw rate in degrees per second (F40): angle between the XZ projections of the
     heading vector at frames t and t+1, times ``fps``; 0 at the last frame."""
@@ -200,7 +236,7 @@ MEASURES = {
     "nplane_abs": m_nplane_abs, "move_plane": m_move_plane, "move_dir": m_move_dir,
     "move_diff": m_move_diff, "crossover": m_crossover, "angle": m_angle,
     "angle_up": m_angle_up, "fast": m_fast, "raised": m_raised, "extent_y": m_extent_y,
-    "extent_xz": m_extent_xz,
+    "extent_xz": m_extent_xz, "height": m_height, "angle_max": m_angle_max,
 }
 
 
@@ -212,15 +248,23 @@ def _interval(V, spec, unit):
                 "<=": np.less_equal}[spec[0]](V, spec[1] * unit)
 
 
-def features_numpy(joints, heading, fps):
-    """(40 × frames) uint8 features computed with the numpy measures above."""
+def features_numpy(joints, heading, fps, features=None):
+    """(features × frames) uint8 features computed with the numpy measures above (default
+    table: the 40 annotation features)."""
     from mtanno.features import FEATURES, hysteresis
     from mtanno.features.measures import body_units
 
+    features = FEATURES if features is None else features
     units = body_units(joints)
-    on = np.empty((len(FEATURES), len(joints)), bool)
+    on = np.empty((len(features), len(joints)), bool)
     off = np.empty_like(on)
-    for r, f in enumerate(FEATURES):
+    for r, f in enumerate(features):
+        if f.measure == "touch":
+            idx = [CANONICAL_JOINTS.index(j) for j in f.joints]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                on[r] = m_touch(joints, idx, f.params, f.on[1]) <= 0
+                off[r] = m_touch(joints, idx, f.params, f.off[1]) <= 0
+            continue
         if f.measure == "heading_rate":
             v = heading_rate(heading, fps)
         else:

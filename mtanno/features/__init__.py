@@ -1,11 +1,16 @@
-"""Relational features: joint positions → 40 boolean features per frame (algorithms.md §2).
+"""Relational features: joint positions → boolean features per frame (algorithms.md §2).
 
-:func:`compute_features` evaluates every row of :data:`~mtanno.features.table.FEATURES` at
-the native frame rate (velocities and hysteresis included) and reduces the result to the
-30 Hz analysis rate.
+:func:`compute_features` evaluates every row of a feature table at the native frame rate
+(velocities and hysteresis included) and reduces the result to the 30 Hz analysis rate.
+Three named feature sets (:data:`FEATURE_SETS`, selected by :func:`get_feature_set`):
+``mr06-ak40`` (alias ``ak40``, the default: the 40 annotation features of
+:mod:`~mtanno.features.table`), ``mrc05`` and ``mrc05-reference`` (the 31 features of MRC05,
+:mod:`~mtanno.features.table31`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,12 +29,21 @@ from mtanno.features.table import (
     feature_index,
     mirror_permutation,
 )
+from mtanno.features.table31 import (
+    FEATURE_SET31,
+    FEATURE_SET31_REFERENCE,
+    FEATURE_SET31_VERSION,
+    FEATURES31,
+    FEATURES31_REFERENCE,
+    GROUPS31,
+)
 from mtanno.io.rigs import CANONICAL_JOINTS
 
 __all__ = [
-    "ANALYSIS_FPS", "FEATURES", "FEATURE_NAMES", "FEATURE_SET", "FEATURE_SET_VERSION",
-    "GROUPS", "MIRROR_PAIRS", "Feature", "analysis_frames", "compute_features",
-    "compute_features_native", "feature_index", "hysteresis", "mirror_permutation",
+    "ANALYSIS_FPS", "FEATURES", "FEATURE_NAMES", "FEATURE_SET", "FEATURE_SETS",
+    "FEATURE_SET_VERSION", "GROUPS", "MIRROR_PAIRS", "Feature", "FeatureSet",
+    "analysis_frames", "compute_features", "compute_features_native", "feature_index",
+    "get_feature_set", "hysteresis", "mirror_permutation",
 ]
 
 #: Measure kind → kernel code (mtanno.features._kernel).
@@ -38,13 +52,77 @@ MEASURE_CODES = {
     "nplane_abs": _k.NPLANE_ABS, "move_plane": _k.MOVE_PLANE, "move_dir": _k.MOVE_DIR,
     "move_diff": _k.MOVE_DIFF, "crossover": _k.CROSSOVER, "angle": _k.ANGLE,
     "angle_up": _k.ANGLE_UP, "fast": _k.FAST, "raised": _k.RAISED, "extent_y": _k.EXTENT_Y,
-    "extent_xz": _k.EXTENT_XZ, "heading_rate": _k.HEADING_RATE,
+    "extent_xz": _k.EXTENT_XZ, "heading_rate": _k.HEADING_RATE, "height": _k.HEIGHT,
+    "angle_max": _k.ANGLE_MAX, "touch": _k.TOUCH,
 }
+
+
+@dataclass(frozen=True)
+class FeatureSet:
+    """A named feature table with its index groups (algorithms.md §2, MRC05 §5.3).
+
+    Attributes
+    ----------
+    name, version:
+        Stored in every feature file (metadata ``feature_set``, ``feature_set_version``).
+    features:
+        The rows, in column order.
+    groups:
+        Index group name → 0-based rows.
+    """
+
+    name: str
+    version: int
+    features: tuple
+    groups: dict[str, tuple[int, ...]] = field(hash=False)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Feature (column) names in order."""
+        return tuple(f.name for f in self.features)
+
+    @property
+    def mirror_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Left/right pairs as (row, row), each pair once."""
+        ids = {f.id: i for i, f in enumerate(self.features)}
+        return tuple((i, ids[f.mirror]) for i, f in enumerate(self.features)
+                     if f.mirror is not None and i < ids[f.mirror])
+
+    def index(self, name: str) -> int:
+        """0-based row of a feature given by name, id (``F07``), reference name or, for the
+        31-set, its MRC05 Table 1 name (``Fl7`` or ``Fℓ7``)."""
+        key = name.strip()
+        for i, f in enumerate(self.features):
+            paper = getattr(f, "paper", "")
+            if key in (f.name, f.id, f.ref_name) or (paper and key.replace("ℓ", "l") == paper):
+                return i
+        raise MtannoError(f"unknown feature '{name}' in feature set {self.name} "
+                          f"(known: {', '.join(self.names)})")
+
+
+#: The built-in feature sets by stored name.
+FEATURE_SETS: dict[str, FeatureSet] = {
+    FEATURE_SET: FeatureSet(FEATURE_SET, FEATURE_SET_VERSION, FEATURES, GROUPS),
+    FEATURE_SET31: FeatureSet(FEATURE_SET31, FEATURE_SET31_VERSION, FEATURES31, GROUPS31),
+    FEATURE_SET31_REFERENCE: FeatureSet(FEATURE_SET31_REFERENCE, FEATURE_SET31_VERSION,
+                                        FEATURES31_REFERENCE, GROUPS31),
+}
+_SET_ALIASES = {"ak40": FEATURE_SET}
+
+
+def get_feature_set(name: str) -> FeatureSet:
+    """The feature set called ``name`` (``ak40`` is an alias of ``mr06-ak40``)."""
+    key = _SET_ALIASES.get(name, name)
+    if key not in FEATURE_SETS:
+        known = ", ".join(["ak40", *FEATURE_SETS])
+        raise MtannoError(f"unknown feature set '{name}' (known: {known})")
+    return FEATURE_SETS[key]
 
 
 class _Compiled:
     """A feature table as the kernel's arrays: measure code, joint indices (−1 padded),
-    velocity window, and both tests as interval bounds ``lo (<|≤) value (<|≤) hi``."""
+    measure parameters (NaN padded), velocity window, and both tests as interval bounds
+    ``lo (<|≤) value (<|≤) hi``."""
 
     def __init__(self, features: tuple[Feature, ...]):
         self.features = features
@@ -54,6 +132,13 @@ class _Compiled:
         self.joints = np.full((n, width), -1, dtype=np.int64)
         for r, f in enumerate(features):
             self.joints[r, :len(f.joints)] = [CANONICAL_JOINTS.index(j) for j in f.joints]
+        prm = [tuple(getattr(f, "params", ())) for f in features]
+        self.params = np.full((n, max(1, max(len(p) for p in prm))), np.nan)
+        for r, p in enumerate(prm):
+            self.params[r, :len(p)] = p
+        for f in features:
+            if f.measure == "touch" and (f.on[0] != "<=" or f.off[0] != "<=" or f.unit):
+                raise ValueError(f"touch feature {f.id} needs ('<=', k) tests without unit")
 
     def windows(self, fps: float) -> np.ndarray:
         return np.array([window_samples(f.window_ms, fps) for f in self.features],
@@ -121,17 +206,20 @@ def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float,
     on_b, on_inc = plan.bounds(units, "on")
     off_b, off_inc = plan.bounds(units, "off")
     out = np.empty((len(features), n), dtype=np.uint8)
-    _k.features_kernel(joints, heading, float(fps), plan.kinds, plan.joints,
+    _k.features_kernel(joints, heading, float(fps), plan.kinds, plan.joints, plan.params,
                        plan.windows(fps), on_b, on_inc, off_b, off_inc, out)
     return out
 
 
 def compute_features(joints: np.ndarray, heading: np.ndarray, fps: float, *,
-                     target_fps: float = ANALYSIS_FPS) -> tuple[np.ndarray, np.ndarray]:
-    """Features at the analysis rate: ((40 × frames) uint8, kept native frame per column).
+                     target_fps: float = ANALYSIS_FPS,
+                     features: tuple[Feature, ...] = FEATURES) -> tuple[np.ndarray, np.ndarray]:
+    """Features at the analysis rate: ((features × frames) uint8, kept native frame per
+    column). ``features`` is the table (default the 40 annotation features; a
+    :class:`FeatureSet`'s ``features`` for another set).
 
     The kept native frames are 0-based (see :func:`analysis_frames`).
     """
-    native = compute_features_native(joints, heading, fps)
+    native = compute_features_native(joints, heading, fps, features=features)
     keep = analysis_frames(native.shape[1], fps, target_fps)
     return np.ascontiguousarray(native[:, keep]), keep

@@ -1,11 +1,17 @@
 """Numba kernel that evaluates a compiled feature table on one document.
 
-The feature table (:mod:`mtanno.features.table`) is compiled by
-:mod:`mtanno.features` into integer and float arrays (measure code, joint indices, velocity
-window, interval bounds of the two tests); this kernel interprets them row by row: the
-measure for every frame (features.md §5), both tests, and the hysteresis (§4). It performs
-the same floating-point operations in the same order as the readable numpy versions in
-``tests/naive_features.py``, which the tests hold it to, bit for bit.
+The feature tables (:mod:`mtanno.features.table`, :mod:`mtanno.features.table31`) are
+compiled by :mod:`mtanno.features` into integer and float arrays (measure code, joint
+indices, measure parameters, velocity window, interval bounds of the two tests); this kernel
+interprets them row by row: the measure for every frame (features.md §5, features31.md §3–4),
+both tests, and the hysteresis (features.md §4). It performs the same floating-point
+operations in the same order as the readable numpy versions in ``tests/naive_features.py``,
+which the tests hold it to, bit for bit.
+
+Capsule ("touch") rows (features31.md §4) are special: their threshold k scales a per-frame
+radius k·c·ℓ(t), so the measure is evaluated once per test, as min over the row's capsule
+tests of d − (k·c)·ℓ, and a test holds where that value is ≤ 0 (the sign of a float
+difference is exact, so this is the same as d ≤ k·c·ℓ).
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ import numpy as np
 # measure codes (see mtanno.features.MEASURE_CODES)
 PLANE, PLANE_DIFF, NPLANE, NPLANE_ABS, MOVE_PLANE, MOVE_DIR, MOVE_DIFF, CROSSOVER = range(8)
 ANGLE, ANGLE_UP, FAST, RAISED, EXTENT_Y, EXTENT_XZ, HEADING_RATE = range(8, 15)
+HEIGHT, ANGLE_MAX, TOUCH = range(15, 18)
 
 _RAD2DEG = 180.0 / math.pi
 
@@ -110,9 +117,12 @@ def _rel(J, t, q, c):
     return J[t, q, 0] - J[t, c, 0], J[t, q, 1] - J[t, c, 1], J[t, q, 2] - J[t, c, 2]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _measure_row(J, heading, fps, kind, jx, L, val, v1, v2, u, c):
-    """Fill ``val`` (frames) with the row's measure (NaN where undefined)."""
+    """Fill ``val`` (frames) with the row's measure (NaN where undefined).
+
+    ``error_model="numpy"``: a zero-length direction or normal gives NaN (whose tests are
+    false, features.md §5) instead of raising ZeroDivisionError; other values are the same."""
     n = J.shape[0]
     if kind == MOVE_PLANE:
         _velocity(J, jx[3], jx[2], fps, L, v1, u, c)
@@ -199,12 +209,67 @@ def _measure_row(J, heading, fps, kind, jx, L, val, v1, v2, u, c):
                     dz = J[t, jx[s_], 2] - J[t, jx[t_], 2]
                     best = max(best, math.sqrt(dx * dx + dz * dz))
             val[t] = best
+        elif kind == HEIGHT:
+            val[t] = J[t, jx[0], 1] - J[t, jx[1], 1]
+        elif kind == ANGLE_MAX:
+            a0, a1, a2 = _rel(J, t, jx[0], jx[1])
+            b0, b1, b2 = _rel(J, t, jx[2], jx[3])
+            x = _angle(a0, a1, a2, b0, b1, b2)
+            a0, a1, a2 = _rel(J, t, jx[4], jx[5])
+            b0, b1, b2 = _rel(J, t, jx[6], jx[7])
+            y = _angle(a0, a1, a2, b0, b1, b2)
+            if x != x or y != y:
+                val[t] = np.nan
+            else:
+                val[t] = x if x >= y else y
         elif kind == HEADING_RATE:
             if t + 1 < n:
                 val[t] = _angle(heading[t, 0], 0.0, heading[t, 2],
                                 heading[t + 1, 0], 0.0, heading[t + 1, 2]) * fps
             else:
                 val[t] = 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def _capsule(J, t, a, b, q, c, ball_a, ball_b, k):
+    """d − (k·c)·ℓ for point q and the capsule around segment a→b (features31.md §4).
+
+    ℓ = |P_b − P_a| at frame t; d is the distance of P_q from the segment's line, or from
+    an end ball where q projects before a / beyond b (∞ without a ball there)."""
+    r0, r1, r2 = _rel(J, t, b, a)
+    ell = math.sqrt(_dot3(r0, r1, r2, r0, r1, r2))
+    u0 = r0 / ell
+    u1 = r1 / ell
+    u2 = r2 / ell
+    w0, w1, w2 = _rel(J, t, q, a)
+    x0 = w1 * u2 - w2 * u1
+    x1 = w2 * u0 - w0 * u2
+    x2 = w0 * u1 - w1 * u0
+    d = math.sqrt(_dot3(x0, x1, x2, x0, x1, x2))
+    if _dot3(u0, u1, u2, w0, w1, w2) < 0.0:
+        d = math.sqrt(_dot3(w0, w1, w2, w0, w1, w2)) if ball_a != 0.0 else np.inf
+    e0, e1, e2 = _rel(J, t, q, b)
+    if _dot3(u0, u1, u2, e0, e1, e2) > 0.0:
+        d = math.sqrt(_dot3(e0, e1, e2, e0, e1, e2)) if ball_b != 0.0 else np.inf
+    return d - (k * c) * ell
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _touch_row(J, jx, prm, k, val):
+    """Fill ``val`` with min over the row's capsule tests of d − (k·c)·ℓ (NaN tests are
+    skipped; NaN if all are NaN, e.g. a rig whose fingertip is its wrist has ℓ = 0). ``jx``
+    holds (a, b, q) triples, ``prm`` (c, ball_a, ball_b) triples."""
+    m = 0
+    while 3 * m + 2 < jx.shape[0] and jx[3 * m] >= 0:
+        m += 1
+    for t in range(J.shape[0]):
+        best = np.nan
+        for i in range(m):
+            x = _capsule(J, t, jx[3 * i], jx[3 * i + 1], jx[3 * i + 2],
+                         prm[3 * i], prm[3 * i + 1], prm[3 * i + 2], k)
+            if x == x and (best != best or x < best):
+                best = x
+        val[t] = best
 
 
 @numba.njit(cache=True, inline="always")
@@ -215,12 +280,14 @@ def _inside(x, lo, lo_inc, hi, hi_inc):
 
 
 @numba.njit(cache=True)
-def features_kernel(J, heading, fps, kinds, joints, windows, on_b, on_inc, off_b, off_inc,
-                    out):
+def features_kernel(J, heading, fps, kinds, joints, params, windows, on_b, on_inc, off_b,
+                    off_inc, out):
     """Evaluate every row of a compiled table: measure, tests, hysteresis → ``out``.
 
     ``on_b``/``off_b`` are (rows × 2) lower/upper bounds, ``*_inc`` whether each is
-    inclusive; ``out`` is (rows × frames) uint8.
+    inclusive; ``params`` are (rows × p) measure parameters (touch rows only); ``out`` is
+    (rows × frames) uint8. A touch row's tests are ``value ≤ k`` with k = the upper bound;
+    the measure is evaluated with each k and compared with 0.
     """
     n = J.shape[0]
     rows = kinds.shape[0]
@@ -230,14 +297,25 @@ def features_kernel(J, heading, fps, kinds, joints, windows, on_b, on_inc, off_b
     v1 = np.empty((n, 3))
     v2 = np.empty((n, 3))
     val = np.empty(n)
+    val2 = np.empty(n)
     for r in range(rows):
-        _measure_row(J, heading, fps, kinds[r], joints[r], windows[r], val, v1, v2, u, c)
+        touch = kinds[r] == TOUCH
+        if touch:
+            _touch_row(J, joints[r], params[r], on_b[r, 1], val)
+            _touch_row(J, joints[r], params[r], off_b[r, 1], val2)
+        else:
+            _measure_row(J, heading, fps, kinds[r], joints[r], windows[r], val, v1, v2, u, c)
         s = False
         prev_on = False
         prev_off = False
         for t in range(n):
-            on = _inside(val[t], on_b[r, 0], on_inc[r, 0], on_b[r, 1], on_inc[r, 1])
-            off = _inside(val[t], off_b[r, 0], off_inc[r, 0], off_b[r, 1], off_inc[r, 1])
+            if touch:
+                on = val[t] <= 0.0
+                off = val2[t] <= 0.0
+            else:
+                on = _inside(val[t], on_b[r, 0], on_inc[r, 0], on_b[r, 1], on_inc[r, 1])
+                off = _inside(val[t], off_b[r, 0], off_inc[r, 0], off_b[r, 1],
+                              off_inc[r, 1])
             rise = on and not prev_on
             fall = t >= 1 and prev_off and not off
             s = (not fall) and (s or rise)

@@ -21,38 +21,47 @@ from mtanno import __version__
 from mtanno.errors import MtannoError
 from mtanno.features import (
     ANALYSIS_FPS,
-    FEATURE_NAMES,
     FEATURE_SET,
-    FEATURE_SET_VERSION,
-    FEATURES,
-    GROUPS,
+    FeatureSet,
     compute_features,
+    get_feature_set,
 )
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
 from mtanno.store import sha256_file, write_features
 
 
+def _feature_set(feature_set: str | FeatureSet) -> FeatureSet:
+    return feature_set if isinstance(feature_set, FeatureSet) else get_feature_set(feature_set)
+
+
 def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
+                         feature_set: str | FeatureSet = FEATURE_SET,
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """(40 × analysis frames) uint8 features and the 1-based native frame of each column."""
+    """(features × analysis frames) uint8 features and the 1-based native frame of each
+    column; ``feature_set`` names the table (default the 40 annotation features)."""
+    fs = _feature_set(feature_set)
     X, keep = compute_features(canonical_positions(motion), motion.heading, motion.fps,
-                               target_fps=target_fps)
+                               target_fps=target_fps, features=fs.features)
     return X, keep + 1
 
 
 def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *,
                  asf: str | os.PathLike | None = None,
-                 skeleton: str | os.PathLike | None = None) -> tuple[np.ndarray, dict]:
+                 skeleton: str | os.PathLike | None = None,
+                 feature_set: str | FeatureSet = FEATURE_SET) -> tuple[np.ndarray, dict]:
     """Compute the features of one motion file; write them to ``dst`` if given.
 
-    Returns the (40 × frames) matrix and the metadata stored with it.
+    ``feature_set``: ``mr06-ak40`` (alias ``ak40``, default), ``mrc05`` or
+    ``mrc05-reference``; its name is stored in the metadata. Returns the (features × frames)
+    matrix and the metadata stored with it.
     """
+    fs = _feature_set(feature_set)
     src = Path(src)
     if src.suffix.lower() == ".amc" and asf is None:
         asf = find_asf(src)
     motion = read_motion(src, asf=asf, skeleton=skeleton)
-    X, native = features_from_motion(motion)
+    X, native = features_from_motion(motion, feature_set=fs)
     meta = {
         "document": src.stem,
         "source": str(src),
@@ -68,14 +77,14 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
                          "for analysis frame k = 0, 1, ... (column native_frame)",
         "skeleton_map": motion.smap.name,
         "skeleton_map_file": motion.smap.path,
-        "feature_set": FEATURE_SET,
-        "feature_set_version": FEATURE_SET_VERSION,
-        "feature_ids": [f.id for f in FEATURES],
-        "groups": {g: [FEATURE_NAMES[i] for i in rows] for g, rows in GROUPS.items()},
+        "feature_set": fs.name,
+        "feature_set_version": fs.version,
+        "feature_ids": [f.id for f in fs.features],
+        "groups": {g: [fs.names[i] for i in rows] for g, rows in fs.groups.items()},
         "mtanno_version": __version__,
     }
     if dst is not None:
-        write_features(dst, X, FEATURE_NAMES, native, meta)
+        write_features(dst, X, fs.names, native, meta)
     return X, meta
 
 
@@ -151,18 +160,36 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     return list(unique.values())
 
 
-def _up_to_date(job: Job) -> bool:
+def _stored_feature_set(path: Path) -> str | None:
+    """The ``feature_set`` in a feature file's metadata (None if unreadable)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    from mtanno.store import META_KEY
+
+    try:
+        raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
+        return json.loads(raw).get("feature_set") if raw else None
+    except (OSError, ValueError):
+        return None
+
+
+def _up_to_date(job: Job, feature_set: str = FEATURE_SET) -> bool:
     if not job.dst.exists():
         return False
     newest = job.src.stat().st_mtime
     if job.asf is not None and job.asf.exists():
         newest = max(newest, job.asf.stat().st_mtime)
-    return job.dst.stat().st_mtime > newest
+    if job.dst.stat().st_mtime <= newest:
+        return False
+    return _stored_feature_set(job.dst) == feature_set
 
 
-def _run_one(job: Job, skeleton: str | None) -> Outcome:
+def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET) -> Outcome:
     try:
-        X, _ = extract_file(job.src, job.dst, asf=job.asf, skeleton=skeleton)
+        X, _ = extract_file(job.src, job.dst, asf=job.asf, skeleton=skeleton,
+                            feature_set=feature_set)
         return Outcome(job, "written", frames=int(X.shape[1]))
     except MtannoError as exc:
         return Outcome(job, "failed", str(exc))
@@ -172,16 +199,19 @@ def _run_one(job: Job, skeleton: str | None) -> Outcome:
 
 def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
               skeleton: str | None = None,
-              progress: Callable[[Outcome], None] | None = None) -> Summary:
+              progress: Callable[[Outcome], None] | None = None,
+              feature_set: str = FEATURE_SET) -> Summary:
     """Extract features for every job; failures are recorded, the batch goes on.
 
     ``n_jobs`` > 1 runs documents in that many processes. Outputs newer than their inputs
-    are skipped unless ``force``. ``progress`` is called once per finished job.
+    and of the same ``feature_set`` are skipped unless ``force``. ``progress`` is called
+    once per finished job.
     """
+    feature_set = get_feature_set(feature_set).name
     summary = Summary()
     todo = []
     for j in jobs:
-        if not force and _up_to_date(j):
+        if not force and _up_to_date(j, feature_set):
             o = Outcome(j, "skipped")
             summary.outcomes.append(o)
             if progress:
@@ -189,7 +219,7 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
         else:
             todo.append(j)
     if n_jobs <= 1 or len(todo) <= 1:
-        results: Iterable[Outcome] = (_run_one(j, skeleton) for j in todo)
+        results: Iterable[Outcome] = (_run_one(j, skeleton, feature_set) for j in todo)
         for o in results:
             summary.outcomes.append(o)
             if progress:
@@ -201,7 +231,8 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
 
         ctx = multiprocessing.get_context("fork")
     with ProcessPoolExecutor(max_workers=n_jobs, mp_context=ctx) as pool:
-        for o in pool.map(_run_one, todo, [skeleton] * len(todo), chunksize=4):
+        for o in pool.map(_run_one, todo, [skeleton] * len(todo),
+                          [feature_set] * len(todo), chunksize=4):
             summary.outcomes.append(o)
             if progress:
                 progress(o)

@@ -19,10 +19,12 @@ _J = {name: k for k, name in enumerate(CANONICAL_JOINTS)}
 
 
 def body_units(J: np.ndarray) -> dict[str, float]:
-    """Body measures from frame 1 (features.md §2), in the positions' length unit.
+    """Body measures from frame 1 (features.md §2, features31.md §2), in the positions'
+    length unit.
 
     ``hl`` right humerus, ``hlL`` left humerus, ``sw`` shoulder width, ``hw`` hip width,
-    ``cl`` chest–neck length, ``BL`` body length (sum of seven segments).
+    ``cl`` chest–neck length, ``BL`` body length (sum of seven segments), ``femR``/``femL``
+    right/left femur (hip–knee).
     """
 
     def d(a: str, b: str) -> float:
@@ -38,6 +40,8 @@ def body_units(J: np.ndarray) -> dict[str, float]:
         "BL": (d("rankle", "rknee") + d("rknee", "rhip") + d("root", "belly")
                + d("belly", "chest") + d("chest", "neck") + d("neck", "head")
                + d("head", "headtop")),
+        "femR": d("rknee", "rhip"),
+        "femL": d("lknee", "lhip"),
     }
 
 

@@ -1,0 +1,314 @@
+"""``mtanno index`` (build, add, remove, info) and ``mtanno query``: thin layers over
+:mod:`mtanno.index` (MRC05 §5–6)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import click
+
+from mtanno.commands._common import user_errors
+from mtanno.errors import MtannoError
+
+
+class _IndexGroup(click.Group):
+    """``mtanno index FEATURES... -o INDEX`` builds; ``mtanno index add|remove|info …``
+    update or describe. Arguments that are not a subcommand name go to ``build``."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and args[0] not in ("-h", "--help"):
+            args = ["build", *args]
+        return super().parse_args(ctx, args)
+
+
+@click.group("index", cls=_IndexGroup, context_settings={"help_option_names": ["-h", "--help"]})
+def index_group() -> None:
+    """Build, update and describe a relational index (MRC05 §5).
+
+    \b
+    mtanno index FEATURES... -o INDEX/     build (FEATURES = feature files or directories)
+    mtanno index add INDEX FEATURES...     add or replace documents, in place
+    mtanno index remove INDEX DOC...       remove documents by name, in place
+    mtanno index info INDEX                frames, segments, lists, bytes per segment
+
+    The index keeps, per feature group (lower/upper/mix), the documents' F-segments and the
+    inverted lists over their feature vectors. Updates are atomic: an interrupted update
+    leaves the previous index readable.
+    """
+
+
+def _groups_option(value: str | None):
+    if not value:
+        return None
+    return [g.strip() for g in value.split(",") if g.strip()]
+
+
+def _summary(index) -> str:
+    segs = ", ".join(f"{g.name} {g.n_segments}" for g in index.groups.values())
+    return (f"{len(index.documents)} documents, {index.frames} frames at {index.fps:g} Hz, "
+            f"segments: {segs}")
+
+
+@index_group.command("build")
+@click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
+@click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
+              help="Index directory (new, empty, or an index to replace).")
+@click.option("--groups", default=None, metavar="G1,G2",
+              help="Index only these groups of the feature set (default: all).")
+@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@user_errors(2)
+def build_cmd(features, out, groups, quiet):
+    """Index feature files (or directories of them) into OUTPUT."""
+    from mtanno.index import build_index
+
+    index = build_index(features, out, groups=_groups_option(groups))
+    if not quiet:
+        click.echo(f"index: {_summary(index)} -> {out}", err=True)
+
+
+@index_group.command("add")
+@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+@click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
+@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@user_errors(2)
+def add_cmd(index_dir, features, quiet):
+    """Add feature files to INDEX (a document already indexed is replaced if its file
+    changed). Only the new files are read."""
+    from mtanno.index import add_documents
+
+    index, report = add_documents(index_dir, features)
+    if not quiet:
+        click.echo(f"index add: {report.line()}; {_summary(index)}", err=True)
+
+
+@index_group.command("remove")
+@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+@click.argument("docs", nargs=-1, required=True, metavar="DOC...")
+@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@user_errors(2)
+def remove_cmd(index_dir, docs, quiet):
+    """Remove documents (names = feature file stems) from INDEX."""
+    from mtanno.index import remove_documents
+
+    index, report = remove_documents(index_dir, docs)
+    if not quiet:
+        click.echo(f"index remove: {report.line()}; {_summary(index)}", err=True)
+
+
+def info_rows(index) -> list[dict]:
+    """Per group: features, frames, segments, lists, bytes and bytes per segment."""
+    from mtanno.index.storage import read_manifest
+
+    files = read_manifest(index.root)["files"] if index.root is not None else {}
+    rows = []
+    for g in index.groups.values():
+        size = sum(files.get(f"{k}-{g.name}.parquet", {}).get("bytes", 0)
+                   for k in ("segments", "lists"))
+        rows.append({"group": g.name, "features": len(g.features), "frames": index.frames,
+                     "segments": g.n_segments, "lists": g.n_lists,
+                     "possible_lists": 2 ** len(g.features), "bytes": size,
+                     "bytes_per_segment": size / g.n_segments if g.n_segments else 0.0,
+                     "segments_per_frame": g.n_segments / index.frames if index.frames else 0.0})
+    return rows
+
+
+@index_group.command("info")
+@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON object instead.")
+@user_errors(2)
+def info_cmd(index_dir, as_json):
+    """Describe INDEX: documents, frames, and per group segments, lists and sizes."""
+    from mtanno.index import open_index
+    from mtanno.index.storage import read_manifest
+
+    index = open_index(index_dir)
+    manifest = read_manifest(index.root)
+    total = sum(e["bytes"] for e in manifest["files"].values())
+    rows = info_rows(index)
+    if as_json:
+        click.echo(json.dumps({"index": str(index_dir), "generation": index.generation,
+                               "feature_set": index.feature_set, "documents": len(index.documents),
+                               "frames": index.frames, "frame_rate": index.fps,
+                               "bytes": total, "mtanno_version": manifest.get("mtanno_version"),
+                               "groups": rows}, indent=1))
+        return
+    click.echo(f"index          {index_dir} (generation {index.generation}, "
+               f"mtanno {manifest.get('mtanno_version')})")
+    click.echo(f"feature set    {index.feature_set} v{index.feature_set_version}, "
+               f"{len(index.features)} features")
+    click.echo(f"documents      {len(index.documents)}")
+    click.echo(f"frames         {index.frames} at {index.fps:g} Hz "
+               f"({index.frames / index.fps / 60:.1f} min)")
+    click.echo(f"size           {total} bytes")
+    click.echo(f"{'group':<8} {'f':>3} {'segments':>9} {'seg/frame':>9} {'lists':>6} "
+               f"{'of':>8} {'bytes':>9} {'B/segment':>9}")
+    for r in rows:
+        click.echo(f"{r['group']:<8} {r['features']:>3} {r['segments']:>9} "
+                   f"{r['segments_per_frame']:>9.3f} {r['lists']:>6} {r['possible_lists']:>8} "
+                   f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}")
+
+
+def _parse_frames(text: str | None, n: int) -> tuple[int, int] | None:
+    """'A:B' (1-based, inclusive; either side may be empty) → 0-based (a, b)."""
+    if text is None:
+        return None
+    a, sep, b = text.partition(":")
+    try:
+        lo = int(a) if a.strip() else 1
+        hi = int(b) if b.strip() else n
+    except ValueError:
+        raise MtannoError(f"--frames must be A:B with 1-based frame numbers, got '{text}'") from None
+    if not sep or lo < 1 or hi < lo or hi > n:
+        raise MtannoError(f"--frames {text} is not a range inside 1:{n}")
+    return lo - 1, hi - 1
+
+
+def _example(index, example: str):
+    """(matrix, names, label) of an example: a feature file, or an indexed document name."""
+    from mtanno.index.core import read_feature_doc
+
+    p = Path(example)
+    if p.is_file():
+        doc = read_feature_doc(p)
+        fs = doc.meta.get("feature_set")
+        if fs != index.feature_set:
+            raise MtannoError(f"example has feature set '{fs}' but the index holds "
+                              f"'{index.feature_set}'", path=str(p))
+        return doc.X, doc.names, str(p)
+    if example in {d.name for d in index.documents}:
+        covered = {f for g in index.groups.values() for f in g.features}
+        names = [f for f in index.features if f in covered]
+        return index.feature_matrix(example, names), names, example
+    raise MtannoError("example is neither a feature file nor an indexed document", path=example)
+
+
+def load_template_for(index, path: str):
+    """(values f×K, weights K, feature names) of a motion-template JSON file for ranking:
+    read with :func:`mtanno.templates.model.load_template`, checked against the index's
+    feature set, quantized with δ = 0.1 (MR06 §5.2 retrieval setting) unless it already is."""
+    from mtanno.templates.model import load_template, quantize
+
+    mt = load_template(path)
+    if mt.feature_set != index.feature_set:
+        raise MtannoError(f"template is for feature set '{mt.feature_set}' but the index holds "
+                          f"'{index.feature_set}'", path=path)
+    missing = [n for n in mt.feature_names if n not in index.features]
+    if missing:
+        raise MtannoError(f"template feature '{missing[0]}' is not in the index's feature set",
+                          path=path)
+    if not mt.quantized:
+        mt = quantize(mt, 0.1)
+    return mt.values, mt.weights, list(mt.feature_names)
+
+
+def _write_output(output: str | None, text: str) -> None:
+    """Standard output for None or ``-``; a regular file is replaced atomically; anything
+    else that exists (a device such as /dev/null, a FIFO) is written in place, never
+    renamed over."""
+    from mtanno.store import atomic_path
+
+    if output is None or output == "-":
+        sys.stdout.write(text)
+        return
+    p = Path(output)
+    if p.exists() and not p.is_file():
+        with open(p, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        return
+    with atomic_path(p) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+_CSV_COLUMNS = ["doc", "start", "end", "rank", "score", "mt_cost", "boundaries"]
+
+
+@click.command("query")
+@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+@click.option("--example", default=None, metavar="FILE.parquet|DOC",
+              help="Query by example: a feature file, or the name of an indexed document.")
+@click.option("--frames", default=None, metavar="A:B",
+              help="Example frames, 1-based inclusive at 30 Hz (default: all).")
+@click.option("--features", "feature_list", default=None, metavar="NAME,...",
+              help="Features of the example that matter (names, ids such as F07, or MRC05 "
+                   "Table 1 names such as Fl7).")
+@click.option("--query", "query_file", default=None, type=click.Path(dir_okay=False),
+              metavar="Q.json", help="JSON query file (docs/index.md).")
+@click.option("--mode", type=click.Choice(["exact", "fuzzy", "adaptive"]), default=None,
+              help="Hit type (default: adaptive, or the query file's mode).")
+@click.option("--mismatches", type=click.IntRange(min=0), default=None, metavar="M",
+              help="Allow up to M query segments to disagree (exact and fuzzy modes).")
+@click.option("--rank-mt", "rank_mt", default=None, type=click.Path(dir_okay=False),
+              metavar="MT.json", help="Rank the hits by this motion template's cost.")
+@click.option("--top", type=click.IntRange(min=1), default=None, metavar="N",
+              help="Print only the N best hits.")
+@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False),
+              metavar="HITS.csv", help="Write the hits here instead of standard output.")
+@click.option("-q", "--quiet", is_flag=True, help="No summary line on standard error.")
+@user_errors(2)
+def query_cmd(index_dir, example, frames, feature_list, query_file, mode, mismatches, rank_mt,
+              top, output, quiet):
+    """Find motions in INDEX (MRC05 §5–6): by example or with a JSON query file.
+
+    \b
+    mtanno query INDEX --example FILE.parquet [--frames A:B] --features NAME,...
+    mtanno query INDEX --query Q.json
+
+    Hits are printed as CSV: doc, start, end (1-based inclusive frames at 30 Hz), rank,
+    score (sum of segment length differences to the example, MRC05 §6.2; lower is better),
+    mt_cost (with --rank-mt), boundaries (per group: first frame of each matched segment,
+    then the last frame).
+    """
+    import time
+
+    from mtanno.index import example_query, load_query, open_index, rank_by_template, search
+    from mtanno.index.query import resolve_features, warm_up
+    if (example is None) == (query_file is None):
+        raise MtannoError("give either --example (with --features) or --query")
+    index = open_index(index_dir)
+    if example is not None:
+        if not feature_list:
+            raise MtannoError("--example needs --features NAME,...")
+        X, names, _ = _example(index, example)
+        feats = resolve_features(index, feature_list.split(","))
+        rng = _parse_frames(frames, X.shape[1])
+        query = example_query(index, X, names, feats, frames=rng, mode=mode or "adaptive",
+                              mismatches=mismatches or 0)
+    else:
+        if frames or feature_list:
+            raise MtannoError("--frames and --features go with --example, not --query")
+        query = load_query(query_file, index)
+        if mode is not None or mismatches is not None:
+            query = replace(query, mode=mode or query.mode,
+                            mismatches=query.mismatches if mismatches is None else mismatches)
+    warm_up()  # load the compiled kernels first: the time printed is the query's own
+    t0 = time.perf_counter()
+    hits = search(index, query)
+    elapsed = time.perf_counter() - t0
+    if rank_mt is not None:
+        values, weights, mt_names = load_template_for(index, rank_mt)
+        hits = rank_by_template(index, hits, values, weights, mt_names)
+    rows = hits.rows(index)
+    if top is not None:
+        rows = rows[:top]
+    columns = [c for c in _CSV_COLUMNS if c != "mt_cost" or rank_mt is not None]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        r = dict(r)
+        if r["score"] is not None:
+            r["score"] = f"{r['score']:g}"
+        w.writerow(r)
+    _write_output(output, buf.getvalue())
+    if not quiet:
+        segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
+        click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
+                   f"segments: {segs})" + (f" -> {output}" if output else ""), err=True)
+
+
+COMMANDS = [index_group, query_cmd]

@@ -1,0 +1,52 @@
+"""Relational index and queries (MRC05 §4–6, algorithms.md §4): the Python API behind
+``mtanno index`` and ``mtanno query``.
+
+* :func:`build_index`, :func:`open_index`, :func:`add_documents`, :func:`remove_documents`
+  (:mod:`~mtanno.index.build`): feature files → index directory, updated atomically.
+* :class:`Index` / :class:`GroupIndex` (:mod:`~mtanno.index.core`): documents, per-group
+  F-segments (start frame, length, vector code) and inverted lists, in memory; also what
+  keyframe search uses (:meth:`GroupIndex.intervals`).
+* :func:`search` with a :class:`Query` (:mod:`~mtanno.index.query`): exact, fuzzy, adaptive
+  fuzzy and m-mismatch hits over one or several groups; :func:`example_query` (query by
+  example), :func:`load_query` (JSON), :func:`rank_by_template`.
+"""
+
+from mtanno.index.build import (
+    UpdateReport,
+    add_documents,
+    build_index,
+    open_index,
+    remove_documents,
+)
+from mtanno.index.core import (
+    Document,
+    GroupIndex,
+    Index,
+    frame_codes,
+    index_from_matrices,
+    segment,
+)
+from mtanno.index.query import (
+    MODES,
+    FuzzySet,
+    GroupHits,
+    GroupQuery,
+    Hits,
+    Query,
+    example_query,
+    load_query,
+    parse_query,
+    rank_by_template,
+    resolve_features,
+    run_group,
+    search,
+)
+from mtanno.index.storage import INDEX_FORMAT, CorruptIndex
+
+__all__ = [
+    "INDEX_FORMAT", "MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits", "GroupIndex",
+    "GroupQuery", "Hits", "Index", "Query", "UpdateReport", "add_documents", "build_index",
+    "example_query", "frame_codes", "index_from_matrices", "load_query", "open_index",
+    "parse_query", "rank_by_template", "remove_documents", "resolve_features", "run_group",
+    "search", "segment",
+]

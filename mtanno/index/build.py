@@ -1,0 +1,178 @@
+"""Building and updating an index directory from feature files (MRC05 §5.3, §6.1).
+
+:func:`build_index` segments every feature file per group and writes a new index;
+:func:`add_documents` and :func:`remove_documents` update one in place: they reuse the stored
+segments of the documents already indexed (their feature files are not read again), and
+produce exactly the index a full rebuild over the resulting documents would give, because
+the index depends only on the set of documents (ordered by name). Every write is atomic
+(:mod:`mtanno.index.storage`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mtanno.errors import MtannoError
+from mtanno.index.core import (
+    Document,
+    FeatureDoc,
+    Index,
+    assemble,
+    check_compatible,
+    collect_feature_files,
+    read_feature_docs,
+    resolve_groups,
+    segment_documents,
+)
+from mtanno.index.storage import (
+    is_index_dir,
+    read_index,
+    write_index,
+    write_lock,
+)
+
+GroupsArg = Mapping[str, Sequence[str]] | Sequence[str] | None
+
+
+def _default_groups(doc: FeatureDoc) -> dict[str, list[str]]:
+    """The groups of the file's (built-in) feature set, in its order, else the groups
+    stored in the file's metadata."""
+    from mtanno.features import FEATURE_SETS
+
+    fs = FEATURE_SETS.get(doc.meta.get("feature_set", ""))
+    if fs is not None and list(fs.names) == list(doc.names):
+        return {g: [fs.names[i] for i in rows] for g, rows in fs.groups.items()}
+    groups = doc.meta.get("groups")
+    if isinstance(groups, dict) and groups:
+        return {str(g): list(f) for g, f in groups.items()}
+    raise MtannoError("feature file names no index groups; pass groups explicitly",
+                      path=doc.path)
+
+
+def _entries(docs: Sequence[FeatureDoc], groups: Mapping[str, Sequence[str]]) -> dict:
+    """Name → (document record, group → segments) of freshly read feature files (all with
+    the same columns, see :func:`check_compatible`)."""
+    segs = segment_documents([d.X for d in docs], docs[0].names if docs else [], groups)
+    return {d.name: (Document(d.name, d.sha256, int(d.X.shape[1]), os.path.abspath(d.path)),
+                     sg) for d, sg in zip(docs, segs)}
+
+
+def _existing_entries(index: Index) -> dict:
+    out = {}
+    for i, doc in enumerate(index.documents):
+        out[doc.name] = (doc, {g: tuple(a.astype("int64") for a in gi.segments(i))
+                               for g, gi in index.groups.items()})
+    return out
+
+
+def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None,
+                *, groups: GroupsArg = None) -> Index:
+    """Index feature files (files or directories searched for ``*.parquet``).
+
+    ``groups``: None for the feature set's groups (lower/upper/mix), a list of some of their
+    names, or a mapping group → feature names. All files must have the same feature set;
+    document names (file stems) must be unique. Writes the index to ``out_dir`` (a new or
+    empty directory, or an existing index, which is replaced atomically) unless it is None.
+    """
+    paths = collect_feature_files(feature_files)
+    if not paths:
+        raise MtannoError("no feature files given")
+    docs = read_feature_docs(paths)
+    check_compatible(docs)
+    first = docs[0]
+    gs = resolve_groups(first.names, _default_groups(first), groups)
+    index = assemble(first.meta.get("feature_set", "custom"),
+                     int(first.meta.get("feature_set_version", 1)), first.names,
+                     float(first.meta.get("analysis_fps", 30.0)), gs, _entries(docs, gs))
+    if out_dir is None:
+        return index
+    root = Path(out_dir)
+    if root.exists() and not root.is_dir():
+        raise MtannoError("index path exists and is not a directory", path=str(root))
+    if root.is_dir() and any(p.name != ".lock" for p in root.iterdir()) and not is_index_dir(root):
+        raise MtannoError("directory is not empty and holds no index; choose a new directory",
+                          path=str(root))
+    with write_lock(root):
+        return write_index(index, root)
+
+
+def open_index(path: str | os.PathLike) -> Index:
+    """Open the index in directory ``path`` (verified against its manifest)."""
+    return read_index(path)
+
+
+@dataclass
+class UpdateReport:
+    """What an update did: document names added, replaced (new content), unchanged, removed."""
+
+    added: list[str] = field(default_factory=list)
+    updated: list[str] = field(default_factory=list)
+    unchanged: list[str] = field(default_factory=list)
+    removed: list[str] = field(default_factory=list)
+
+    def line(self) -> str:
+        return (f"{len(self.added)} added, {len(self.updated)} updated, "
+                f"{len(self.unchanged)} unchanged, {len(self.removed)} removed")
+
+
+def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os.PathLike],
+                  ) -> tuple[Index, UpdateReport]:
+    """Add feature files to the index in ``index_dir``, in place and atomically. A document
+    whose name is already indexed is replaced if its feature file changed (by SHA-256) and
+    left alone otherwise. Only the new files are read."""
+    root = Path(index_dir)
+    paths = collect_feature_files(feature_files)
+    with write_lock(root):
+        index = read_index(root)
+        docs = read_feature_docs(paths)
+        check_compatible(docs, feature_set=index.feature_set, features=index.features,
+                         fps=index.fps)
+        gs = {g: gi.features for g, gi in index.groups.items()}
+        entries = _existing_entries(index)
+        report = UpdateReport()
+        fresh = []
+        for d in docs:
+            old = entries.get(d.name)
+            if old is None:
+                report.added.append(d.name)
+                fresh.append(d)
+            elif old[0].sha256 != d.sha256:
+                report.updated.append(d.name)
+                fresh.append(d)
+            else:
+                report.unchanged.append(d.name)
+        if not fresh:
+            return index, report
+        entries.update(_entries(fresh, gs))
+        new = assemble(index.feature_set, index.feature_set_version, index.features, index.fps,
+                       gs, entries)
+        return write_index(new, root), report
+
+
+def remove_documents(index_dir: str | os.PathLike, names: Iterable[str],
+                     ) -> tuple[Index, UpdateReport]:
+    """Remove documents (by name, or feature file path whose stem is the name) from the index
+    in ``index_dir``, in place and atomically. Every name must be indexed."""
+    root = Path(index_dir)
+    wanted = []
+    for n in names:
+        n = str(n)
+        wanted.append(Path(n).stem if n.endswith(".parquet") else n)
+    if not wanted:
+        raise MtannoError("no documents to remove")
+    with write_lock(root):
+        index = read_index(root)
+        entries = _existing_entries(index)
+        missing = [n for n in wanted if n not in entries]
+        if missing:
+            raise MtannoError(f"document '{missing[0]}' is not in the index", path=str(root))
+        for n in wanted:
+            entries.pop(n, None)
+        gs = {g: gi.features for g, gi in index.groups.items()}
+        new = assemble(index.feature_set, index.feature_set_version, index.features, index.fps,
+                       gs, entries)
+        report = UpdateReport(removed=sorted(set(wanted)))
+        return write_index(new, root), report

@@ -1,0 +1,562 @@
+"""Queries on the relational index: exact, fuzzy, adaptive fuzzy and m-mismatch hits.
+
+MRC05 §5.1–5.2 and §6.2 (algorithms.md §4). A query over one feature group is a sequence of
+*fuzzy sets* V_1 … V_L of that group's feature vectors. A fuzzy set is written as patterns
+``(mask, value)`` over the group's bits: vector v is in the set iff ``v & mask == value`` for
+some pattern (features outside ``mask`` are free, "*"); an exact query has one full-mask
+pattern per position. Adjacent sets that intersect are merged (their union) until neighbours
+are disjoint, as MRC05 §5.2 prescribes; this coarsens the query.
+
+Hits on a document with F-feature sequence w_1 … w_M (its F-segments, MRC05 §4):
+
+* ``exact`` / ``fuzzy``: segment k with w_{k+i−1} ∈ V_i for i = 1 … L (eq. 4 and 9); computed
+  as the intersection of the inverted lists L(V_i) shifted by i − 1 (eq. 7 and 11): the
+  candidates are the rows of the smallest L(V_j), and a candidate survives the intersection
+  with L(V_i) iff its segment i − j further on lies in one of V_i's lists (each segment is
+  in exactly one list, so this membership test *is* the intersection).
+* ``mismatches = m``: up to m positions may disagree (optionally only positions marked
+  allowed); candidates are the union of the m + 1 smallest shifted lists (one of them must
+  match), or the smallest list of a position that may not mismatch.
+* ``adaptive``: the document's segmentation is coarsened into maximal runs of V_1-segments,
+  V_2-segments, …; a hit is the first segment of a maximal V_1 run followed directly by
+  runs of V_2 … V_L; the hit reports the coarsened boundaries (MRC05 §5.2, the example
+  after eq. 11).
+
+Queries over several groups are answered per group and intersected on frames: a hit is a
+combination of one hit per group in the same document whose frame ranges overlap, reported
+as the common frames. Hits are ranked by the segment-length heuristic of MRC05 §6.2 (sum over
+positions of |query segment length − hit segment length| in frames) when the query has
+segment lengths (query by example), else listed in document order.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.index import _kernels
+from mtanno.index.core import GroupIndex, Index, segment
+
+MODES = ("exact", "fuzzy", "adaptive")
+
+
+@dataclass(frozen=True)
+class FuzzySet:
+    """A set of feature vectors of one group, as patterns ``(mask, value)`` (value ⊆ mask):
+    v is in the set iff ``v & mask == value`` for some pattern. ``mask == 0`` is every
+    vector."""
+
+    patterns: tuple[tuple[int, int], ...]
+
+    def __post_init__(self):
+        if not self.patterns:
+            raise MtannoError("empty fuzzy set (no allowed feature vector)")
+        for m, v in self.patterns:
+            if m < 0 or v & ~m:
+                raise ValueError(f"pattern value {v:b} has bits outside its mask {m:b}")
+
+    @classmethod
+    def exact(cls, code: int, n_bits: int) -> FuzzySet:
+        """The set holding one vector (all ``n_bits`` features fixed)."""
+        return cls((((1 << n_bits) - 1, int(code)),))
+
+    @property
+    def universal(self) -> bool:
+        """True if the set allows every vector."""
+        return any(m == 0 for m, _ in self.patterns)
+
+    def contains(self, code: int) -> bool:
+        return any(code & m == v for m, v in self.patterns)
+
+    def intersects(self, other: FuzzySet) -> bool:
+        return any((v1 ^ v2) & m1 & m2 == 0
+                   for m1, v1 in self.patterns for m2, v2 in other.patterns)
+
+    def union(self, other: FuzzySet) -> FuzzySet:
+        pats = list(self.patterns)
+        pats += [p for p in other.patterns if p not in pats]
+        return FuzzySet(tuple(pats))
+
+    def size(self, n_bits: int) -> int:
+        """Number of vectors in the set (exact count, by enumeration for small groups)."""
+        if len(self.patterns) == 1:
+            return 1 << (n_bits - bin(self.patterns[0][0]).count("1"))
+        return sum(self.contains(v) for v in range(1 << n_bits))
+
+
+@dataclass(frozen=True)
+class GroupQuery:
+    """A query over one group: fuzzy sets, optional segment lengths in frames (for ranking)
+    and optional per-position flags saying where a mismatch is allowed."""
+
+    group: str
+    sets: tuple[FuzzySet, ...]
+    lengths: tuple[int, ...] | None = None
+    allowed: tuple[bool, ...] | None = None
+
+    def __post_init__(self):
+        if not self.sets:
+            raise MtannoError(f"query for group '{self.group}' has no fuzzy sets")
+        for name in ("lengths", "allowed"):
+            v = getattr(self, name)
+            if v is not None and len(v) != len(self.sets):
+                raise MtannoError(f"query for group '{self.group}': {len(v)} {name} for "
+                                  f"{len(self.sets)} fuzzy sets")
+
+    def normalized(self) -> GroupQuery:
+        """Adjacent intersecting sets merged into their union, repeatedly, until neighbours
+        are disjoint (MRC05 §5.2); lengths add up, a merged position may mismatch if any of
+        its parts may."""
+        sets = list(self.sets)
+        lengths = list(self.lengths) if self.lengths is not None else None
+        allowed = list(self.allowed) if self.allowed is not None else None
+        i = 0
+        while i + 1 < len(sets):
+            if sets[i].intersects(sets[i + 1]):
+                sets[i] = sets[i].union(sets.pop(i + 1))
+                if lengths is not None:
+                    lengths[i] += lengths.pop(i + 1)
+                if allowed is not None:
+                    other = allowed.pop(i + 1)
+                    allowed[i] = allowed[i] or other
+                i = max(i - 1, 0)
+            else:
+                i += 1
+        return GroupQuery(self.group, tuple(sets), None if lengths is None else tuple(lengths),
+                          None if allowed is None else tuple(allowed))
+
+    @property
+    def trivial(self) -> bool:
+        """A single set allowing every vector: constrains nothing."""
+        return len(self.sets) == 1 and self.sets[0].universal
+
+
+@dataclass(frozen=True)
+class Query:
+    """A query: one :class:`GroupQuery` per group, the mode and the number of mismatches."""
+
+    parts: tuple[GroupQuery, ...]
+    mode: str = "adaptive"
+    mismatches: int = 0
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise MtannoError(f"unknown query mode '{self.mode}' (one of {', '.join(MODES)})")
+        if self.mismatches < 0:
+            raise MtannoError("mismatches must be ≥ 0")
+        if self.mismatches and self.mode == "adaptive":
+            raise MtannoError("mismatches work with the exact and fuzzy modes, not adaptive")
+        if not self.parts:
+            raise MtannoError("query has no groups")
+        if len({p.group for p in self.parts}) != len(self.parts):
+            raise MtannoError("query names a group twice")
+
+
+@dataclass
+class GroupHits:
+    """Hits of one group query, sorted by (document, start).
+
+    ``rows`` is (hits × (L+1)): the first segment row matched to each query position, then
+    one past the last row; ``doc``, ``start``, ``end`` are the document number and the
+    frame range (0-based, end inclusive); ``bounds`` (hits × (L+1)) are the start frame of
+    each matched (coarsened) segment and, last, end + 1."""
+
+    group: str
+    rows: np.ndarray
+    doc: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    bounds: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.doc)
+
+
+@dataclass
+class Hits:
+    """Ranked hits of a query (arrays in rank order).
+
+    ``doc`` document numbers, ``start``/``end`` frames (0-based, end inclusive), ``score``
+    the segment-length score (NaN without query lengths; lower is better), ``bounds``
+    group → (hits × (L_g+1)) frame boundaries of the matched segments of that group (start
+    frame of each, then end + 1), ``cost`` template costs when ranked by an MT."""
+
+    doc: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    score: np.ndarray
+    bounds: dict[str, np.ndarray] = field(default_factory=dict)
+    cost: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.doc)
+
+    def take(self, order: np.ndarray) -> Hits:
+        return Hits(self.doc[order], self.start[order], self.end[order], self.score[order],
+                    {g: b[order] for g, b in self.bounds.items()},
+                    None if self.cost is None else self.cost[order])
+
+    def rows(self, index: Index) -> list[dict]:
+        """One dict per hit for output files: doc name, 1-based inclusive frames, rank,
+        score, boundaries (``group=b1 b2 … end`` with 1-based frames; the last number is the
+        group's last matched frame)."""
+        out = []
+        for i in range(len(self)):
+            parts = []
+            for g, b in self.bounds.items():
+                nums = [int(x) + 1 for x in b[i, :-1]] + [int(b[i, -1])]
+                parts.append(f"{g}=" + " ".join(map(str, nums)))
+            row = {"doc": index.documents[int(self.doc[i])].name, "start": int(self.start[i]) + 1,
+                   "end": int(self.end[i]) + 1, "rank": i + 1,
+                   "score": None if np.isnan(self.score[i]) else float(self.score[i])}
+            if self.cost is not None:
+                row["mt_cost"] = float(self.cost[i])
+            row["boundaries"] = "; ".join(parts)
+            out.append(row)
+        return out
+
+
+# --- running one group ----------------------------------------------------------------------
+
+def _membership(g: GroupIndex, sets: Sequence[FuzzySet]) -> np.ndarray:
+    """(positions × lists) uint8: list v belongs to V_i."""
+    member = np.zeros((len(sets), g.n_lists), dtype=np.uint8)
+    for i, s in enumerate(sets):
+        member[i] = g.lists_matching(s.patterns)
+    return member
+
+
+def _csr(member: np.ndarray, positions: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    ids = [np.flatnonzero(member[p]) for p in positions]
+    off = np.zeros(len(ids) + 1, dtype=np.int64)
+    off[1:] = np.cumsum([len(x) for x in ids])
+    return (np.concatenate(ids).astype(np.int64) if ids else np.zeros(0, np.int64)), off
+
+
+def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatches: int = 0,
+              ) -> GroupHits:
+    """All hits of one (normalized) group query; see the module docstring."""
+    if gq.group not in index.groups:
+        raise MtannoError(f"unknown group '{gq.group}' (index groups: {', '.join(index.groups)})")
+    g = index.groups[gq.group]
+    n_bits = len(g.features)
+    for s in gq.sets:
+        for m, _ in s.patterns:
+            if m >> n_bits:
+                raise MtannoError(f"pattern uses bits beyond the {n_bits} features of group "
+                                  f"'{g.name}'")
+    if mode == "exact":
+        full = (1 << n_bits) - 1
+        if any(len(s.patterns) != 1 or s.patterns[0][0] != full for s in gq.sets):
+            raise MtannoError(f"exact mode needs every feature of group '{g.name}' fixed at "
+                              "every position (use --mode fuzzy or adaptive)")
+    L = len(gq.sets)
+    if mismatches and mismatches >= L:
+        raise MtannoError(f"{mismatches} mismatches allowed in a query of {L} segments "
+                          f"(group '{g.name}'); must be fewer")
+    member = _membership(g, gq.sets)
+    sizes = member.astype(np.int64) @ g.list_sizes
+    if mode == "adaptive":
+        j = int(np.argmin(sizes))
+        lists = np.flatnonzero(member[j]).astype(np.int64)
+        out = np.empty(int(sizes[j]), dtype=np.int64)
+        n = _kernels.adaptive_hits(j, lists, g.list_offsets, g.postings, member, g.seg_list,
+                                   g.doc, g.doc_offsets, out)
+        firsts = np.sort(out[:n])
+        rows = np.empty((n, L + 1), dtype=np.int64)
+        _kernels.adaptive_bounds(firsts, member, g.seg_list, g.doc, g.doc_offsets, rows)
+    else:
+        allowed = np.ones(L, np.uint8) if gq.allowed is None else np.array(gq.allowed, np.uint8)
+        if mismatches == 0:
+            src = [int(np.argmin(sizes))]
+        else:
+            forced = np.flatnonzero(allowed == 0)
+            if len(forced):
+                src = [int(forced[np.argmin(sizes[forced])])]
+            else:
+                src = sorted(np.argsort(sizes, kind="stable")[:mismatches + 1].tolist())
+        src_lists, src_off = _csr(member, src)
+        out = np.empty(int(sizes[src].sum()), dtype=np.int64)
+        n = _kernels.fixed_hits(np.array(src, np.int64), src_lists, src_off, g.list_offsets,
+                                g.postings, member, g.seg_list, g.doc, int(mismatches),
+                                allowed, out)
+        firsts = np.sort(out[:n])
+        rows = firsts[:, None] + np.arange(L + 1, dtype=np.int64)[None, :]
+    last = rows[:, -1] - 1
+    start = g.start[rows[:, 0]].astype(np.int64)
+    end = (g.start[last] + g.length[last] - 1).astype(np.int64)
+    bounds = np.empty_like(rows)
+    bounds[:, :-1] = g.start[rows[:, :-1]]
+    bounds[:, -1] = end + 1
+    return GroupHits(g.name, rows, g.doc[rows[:, 0]].astype(np.int64), start, end, bounds)
+
+
+# --- several groups, ranking ---------------------------------------------------------------
+
+def _length_score(bounds: np.ndarray, lengths: Sequence[int] | None) -> np.ndarray:
+    if lengths is None:
+        return np.full(len(bounds), np.nan)
+    hit_len = np.diff(bounds, axis=1)
+    return np.abs(hit_len - np.asarray(lengths, dtype=np.int64)[None, :]).sum(axis=1).astype(float)
+
+
+def _intersect(a_doc, a_start, a_end, gh: GroupHits):
+    """Pairs of overlapping hits (combined so far × next group), with the common frames."""
+    cap = max(16, 2 * (len(a_doc) + len(gh)))
+    while True:
+        ia = np.empty(cap, np.int64)
+        ib = np.empty(cap, np.int64)
+        n = _kernels.overlap_pairs(a_doc, a_start, a_end, gh.doc, gh.start, gh.end, ia, ib)
+        if n <= cap:
+            return ia[:n], ib[:n]
+        cap = n
+
+
+def search(index: Index, query: Query) -> Hits:
+    """Answer ``query`` on ``index``: per group, then intersected on frames, then ranked by
+    the segment-length heuristic (MRC05 §6.2) or, without query lengths, in document order."""
+    parts = [p.normalized() for p in query.parts]
+    parts = [p for p in parts if not p.trivial] or parts[:1]
+    if len(parts) == 1 and parts[0].trivial:
+        raise MtannoError("query constrains no feature (every set allows every vector)")
+    ghits = [run_group(index, p, mode=query.mode, mismatches=query.mismatches) for p in parts]
+    first = ghits[0]
+    doc, start, end = first.doc, first.start, first.end
+    picks = [np.arange(len(first))]
+    for gh in ghits[1:]:
+        ia, ib = _intersect(doc, start, end, gh)
+        doc = doc[ia]
+        start = np.maximum(start[ia], gh.start[ib])
+        end = np.minimum(end[ia], gh.end[ib])
+        picks = [p[ia] for p in picks] + [ib]
+        order = np.lexsort((end, start, doc))
+        doc, start, end = doc[order], start[order], end[order]
+        picks = [p[order] for p in picks]
+    score = np.zeros(len(doc))
+    for p, gh, pick in zip(parts, ghits, picks):
+        score += _length_score(gh.bounds[pick], p.lengths)
+    hits = Hits(doc, start, end, score, {gh.group: gh.bounds[pick] for gh, pick in zip(ghits, picks)})
+    if len(ghits) > 1:  # identical frame ranges from different combinations: keep the best
+        order = np.lexsort((np.nan_to_num(score, nan=np.inf), end, start, doc))
+        hits = hits.take(order)
+        keep = np.r_[True, (np.diff(hits.doc) != 0) | (np.diff(hits.start) != 0)
+                     | (np.diff(hits.end) != 0)]
+        hits = hits.take(np.flatnonzero(keep))
+    order = np.lexsort((hits.start, hits.doc, np.nan_to_num(hits.score, nan=np.inf)))
+    return hits.take(order)
+
+
+def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.ndarray,
+                     features: Sequence[str]) -> Hits:
+    """Re-rank hits by the cost of a quantized motion template on each hit's frames only
+    (MRC05 §6.2, "finer ranking … on the few hits"; algorithms.md §3.4): cost = min Δ over
+    the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
+    template. ``values`` (f × K, 0/1/0.5), ``weights`` (K,), ``features`` the template's
+    feature names (rebuilt from the index's groups)."""
+    from mtanno.templates.match import match_documents
+
+    names = list(features)
+    cache: dict[int, np.ndarray] = {}
+    docs = []
+    for d, s, e in zip(hits.doc, hits.start, hits.end):
+        d = int(d)
+        if d not in cache:
+            cache[d] = index.feature_matrix(d, names)
+        docs.append(cache[d][:, int(s):int(e) + 1])
+    costs = np.full(len(hits), np.inf)
+    if docs:
+        for i, (delta, _) in enumerate(match_documents(values, weights, docs)):
+            if len(delta) and np.isfinite(delta).any():
+                costs[i] = float(np.min(delta))
+    hits = replace(hits, cost=costs)
+    order = np.lexsort((hits.start, hits.doc, costs))
+    return hits.take(order)
+
+
+# --- building queries ----------------------------------------------------------------------
+
+def _projection(index: Index, features: Sequence[str]) -> dict[str, list[tuple[int, int]]]:
+    """Group → [(position in ``features``, bit in group)] of the chosen features."""
+    if not features:
+        raise MtannoError("no features chosen")
+    if len(set(features)) != len(features):
+        raise MtannoError("a feature is chosen twice")
+    out: dict[str, list[tuple[int, int]]] = {}
+    for i, f in enumerate(features):
+        g, bit = index.locate(f)
+        out.setdefault(g, []).append((i, bit))
+    return {g: out[g] for g in index.groups if g in out}
+
+
+def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: Sequence[str], *,
+                  frames: tuple[int, int] | None = None, mode: str = "adaptive",
+                  mismatches: int = 0) -> Query:
+    """Query by example (MRC05 §6.2, algorithms.md §4): the example's segmentation over the
+    chosen features, per group, becomes a sequence of fuzzy sets that fix the chosen bits
+    and leave the group's other features free; segment lengths (frames) go along for the
+    ranking. ``X`` is the example's (features × frames) matrix with row ``names`` (the
+    index's feature set), ``frames`` an optional 0-based inclusive range."""
+    features = [index.features[_feature_pos(index, f)] for f in features]
+    pos = {n: i for i, n in enumerate(names)}
+    missing = [f for f in features if f not in pos]
+    if missing:
+        raise MtannoError(f"example lacks feature '{missing[0]}'")
+    n = X.shape[1]
+    a, b = (0, n - 1) if frames is None else frames
+    if not (0 <= a <= b < n):
+        raise MtannoError(f"frames {a + 1}:{b + 1} outside the example's 1:{n}")
+    parts = []
+    for g, chosen in _projection(index, features).items():
+        mask = sum(1 << bit for _, bit in chosen)
+        codes = np.zeros(b - a + 1, dtype=np.int64)
+        for i, bit in chosen:
+            codes |= X[pos[features[i]], a:b + 1].astype(np.int64) << bit
+        _, lengths, vals = segment(codes)
+        sets = tuple(FuzzySet(((mask, int(v)),)) for v in vals)
+        parts.append(GroupQuery(g, sets, tuple(int(x) for x in lengths)))
+    return Query(tuple(parts), mode, mismatches)
+
+
+def _feature_pos(index: Index, name: str) -> int:
+    """Position of a feature in the index's feature set, by name or, for a built-in set,
+    by id, reference name or MRC05 Table 1 name (``F07``, ``kneeRightAngle``, ``Fl7``)."""
+    if name in index.features:
+        return index.features.index(name)
+    from mtanno.features import FEATURE_SETS
+
+    fs = FEATURE_SETS.get(index.feature_set)
+    if fs is not None and list(fs.names) == list(index.features):
+        try:
+            return fs.index(name)
+        except MtannoError:
+            pass
+    raise MtannoError(f"unknown feature '{name}' (feature set {index.feature_set}; known: "
+                      f"{', '.join(index.features)})")
+
+
+def resolve_features(index: Index, names: Iterable[str]) -> list[str]:
+    """Feature names (or ids/aliases of a built-in set) → the index's feature names."""
+    return [index.features[_feature_pos(index, n.strip())] for n in names if n.strip()]
+
+
+_JSON_KEYS = {"feature_set", "features", "steps", "lengths", "mode", "mismatches",
+              "allowed_mismatches", "comment"}
+
+
+def _pattern(text: str, n: int, where: str) -> list[str | None]:
+    s = "".join(text.split())
+    if len(s) != n or any(c not in "01*" for c in s):
+        raise MtannoError(f"{where}: pattern '{text}' must have one of 0, 1, * per chosen "
+                          f"feature ({n})")
+    return [None if c == "*" else c for c in s]
+
+
+def parse_query(spec: dict, index: Index, *, path: str | None = None) -> Query:
+    """A :class:`Query` from a JSON query object (``docs/index.md``)::
+
+        {"features": ["rknee_bent", "lknee_bent"],
+         "steps": ["00", "11", ["01", "10"], "00"],
+         "lengths": [10, 20, 5, 10],            (optional, frames, for ranking)
+         "mode": "adaptive",                     (optional: exact | fuzzy | adaptive)
+         "mismatches": 0, "allowed_mismatches": [3],   (optional, 1-based steps)
+         "feature_set": "mrc05"}                 (optional, checked against the index)
+
+    A step is a pattern (one 0/1/* per chosen feature) or a list of patterns (their union).
+    Each group gets the projection of the steps onto its chosen features (then adjacent
+    intersecting sets are merged)."""
+    def err(msg):
+        return MtannoError(msg, path=path)
+
+    if not isinstance(spec, dict):
+        raise err("query must be a JSON object")
+    unknown = sorted(set(spec) - _JSON_KEYS)
+    if unknown:
+        raise err(f"unknown key '{unknown[0]}' in query (known: {', '.join(sorted(_JSON_KEYS))})")
+    fs = spec.get("feature_set")
+    if fs is not None and fs != index.feature_set:
+        raise err(f"query is for feature set '{fs}' but the index holds '{index.feature_set}'")
+    feats = spec.get("features")
+    if not isinstance(feats, list) or not feats or not all(isinstance(f, str) for f in feats):
+        raise err("'features' must be a non-empty list of feature names")
+    try:
+        feats = resolve_features(index, feats)
+        proj = _projection(index, feats)
+    except MtannoError as exc:
+        raise err(exc.message) from None
+    steps = spec.get("steps")
+    if not isinstance(steps, list) or not steps:
+        raise err("'steps' must be a non-empty list of patterns")
+    parsed: list[list[list[str | None]]] = []
+    for i, st in enumerate(steps, 1):
+        alts = st if isinstance(st, list) else [st]
+        if not alts:
+            raise err(f"step {i}: empty fuzzy set (no allowed pattern)")
+        if not all(isinstance(a, str) for a in alts):
+            raise err(f"step {i}: a pattern must be a string of 0, 1 and *")
+        parsed.append([_pattern(a, len(feats), f"step {i}") for a in alts])
+    lengths = spec.get("lengths")
+    if lengths is not None and (not isinstance(lengths, list) or len(lengths) != len(steps)
+                                or not all(isinstance(x, int) and x > 0 for x in lengths)):
+        raise err("'lengths' must list one positive frame count per step")
+    mism = spec.get("mismatches", 0)
+    if not isinstance(mism, int) or mism < 0:
+        raise err("'mismatches' must be a non-negative integer")
+    allowed_pos = spec.get("allowed_mismatches")
+    allowed = None
+    if allowed_pos is not None:
+        if not isinstance(allowed_pos, list) or not all(
+                isinstance(x, int) and 1 <= x <= len(steps) for x in allowed_pos):
+            raise err(f"'allowed_mismatches' must list step numbers 1..{len(steps)}")
+        allowed = tuple(i + 1 in allowed_pos for i in range(len(steps)))
+    mode = spec.get("mode", "adaptive")
+    parts = []
+    for g, chosen in proj.items():
+        sets = []
+        for alts in parsed:
+            pats = []
+            for a in alts:
+                m = v = 0
+                for i, bit in chosen:
+                    if a[i] is not None:
+                        m |= 1 << bit
+                        v |= (a[i] == "1") << bit
+                if (m, v) not in pats:
+                    pats.append((m, v))
+            sets.append(FuzzySet(tuple(pats)))
+        parts.append(GroupQuery(g, tuple(sets), None if lengths is None else tuple(lengths),
+                                allowed))
+    try:
+        return Query(tuple(parts), mode, mism)
+    except MtannoError as exc:
+        raise err(exc.message) from None
+
+
+def load_query(path: str | os.PathLike, index: Index) -> Query:
+    """Read a JSON query file (see :func:`parse_query`)."""
+    p = Path(path)
+    try:
+        spec = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise MtannoError("query file not found", path=str(p)) from None
+    except json.JSONDecodeError as exc:
+        raise MtannoError(f"invalid JSON ({exc.msg})", path=str(p), line=exc.lineno) from None
+    return parse_query(spec, index, path=str(p))
+
+
+def warm_up() -> None:
+    """Load the compiled query kernels (numba's on-disk cache, a few hundred ms once per
+    process), so that timings taken afterwards measure the queries alone."""
+    from mtanno.index.core import index_from_matrices
+
+    idx = index_from_matrices({"w": np.array([[0, 1, 0], [1, 1, 0]], np.uint8)}, ["a", "b"],
+                              {"g": ["a"], "h": ["b"]})
+    parts = (GroupQuery("g", (FuzzySet.exact(0, 1), FuzzySet.exact(1, 1))),
+             GroupQuery("h", (FuzzySet.exact(1, 1),)))
+    search(idx, Query(parts, "adaptive"))
+    search(idx, Query(parts[:1], "exact"))

@@ -1,0 +1,301 @@
+"""The index directory: Parquet tables per generation and an atomically replaced manifest.
+
+Layout (``docs/index.md`` has the columns)::
+
+    INDEX/
+      manifest.json            what is in the index and which generation holds it
+      gen-000007/
+        documents.parquet      doc, name, sha256, frames, path
+        groups.parquet         group, features, segments, lists
+        segments-<group>.parquet   doc, segment, start, length, code (one row per F-segment)
+        lists-<group>.parquet      code, rows (one row per inverted list L(code))
+
+Frames, documents and segment numbers are 1-based in these files; ``rows`` are 0-based row
+numbers of the group's segments table. An update writes a complete new generation
+directory (files fsynced), renames it into place, then replaces ``manifest.json`` with
+``os.replace`` (atomic), and only then deletes older generations: a crash at any point leaves
+a manifest that names a complete generation. Readers verify every file's size and SHA-256
+against the manifest, so a damaged or half-copied index is reported, never half read.
+Writers hold an exclusive ``fcntl`` lock on ``INDEX/.lock`` (released if the process dies).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from mtanno import __version__
+from mtanno.errors import MtannoError
+from mtanno.index.core import Document, GroupIndex, Index
+
+INDEX_FORMAT = "mtanno.index/1"
+MANIFEST = "manifest.json"
+_GEN_PREFIX = "gen-"
+_TMP_PREFIX = ".tmp-"
+
+
+class CorruptIndex(MtannoError):
+    """An index directory that cannot be read as a complete index."""
+
+
+@contextlib.contextmanager
+def write_lock(root: Path) -> Iterator[None]:
+    """Exclusive writer lock on ``root/.lock`` (advisory; a dead process releases it)."""
+    root.mkdir(parents=True, exist_ok=True)
+    fh = open(root / ".lock", "a+")
+    try:
+        try:
+            import fcntl
+
+            try:
+                fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise MtannoError("index is being updated by another process (lock held)",
+                                  path=str(root)) from None
+        except ImportError:  # pragma: no cover - not POSIX
+            pass
+        yield
+    finally:
+        fh.close()
+
+
+def _fsync_dir(path: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _write_table(table: pa.Table, path: Path) -> dict:
+    pq.write_table(table, path, compression="zstd")
+    with open(path, "rb+") as fh:
+        data = fh.read()
+        os.fsync(fh.fileno())
+    return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _tables(index: Index) -> dict[str, pa.Table]:
+    docs = index.documents
+    tables = {
+        "documents.parquet": pa.table({
+            "doc": pa.array(np.arange(1, len(docs) + 1, dtype=np.int32)),
+            "name": pa.array([d.name for d in docs], pa.string()),
+            "sha256": pa.array([d.sha256 for d in docs], pa.string()),
+            "frames": pa.array([d.frames for d in docs], pa.int32()),
+            "path": pa.array([d.path for d in docs], pa.string()),
+        }),
+        "groups.parquet": pa.table({
+            "group": pa.array(list(index.groups), pa.string()),
+            "features": pa.array([list(g.features) for g in index.groups.values()],
+                                 pa.list_(pa.string())),
+            "segments": pa.array([g.n_segments for g in index.groups.values()], pa.int64()),
+            "lists": pa.array([g.n_lists for g in index.groups.values()], pa.int64()),
+        }),
+    }
+    for name, g in index.groups.items():
+        seg_no = np.arange(g.n_segments, dtype=np.int64) - np.repeat(
+            g.doc_offsets[:-1], np.diff(g.doc_offsets))
+        tables[f"segments-{name}.parquet"] = pa.table({
+            "doc": pa.array(g.doc + 1),
+            "segment": pa.array((seg_no + 1).astype(np.int32)),
+            "start": pa.array(g.start + 1),
+            "length": pa.array(g.length),
+            "code": pa.array(g.code),
+        })
+        rows = pa.ListArray.from_arrays(pa.array(g.list_offsets.astype(np.int32)),
+                                        pa.array(g.postings))
+        tables[f"lists-{name}.parquet"] = pa.table({"code": pa.array(g.list_codes),
+                                                    "rows": rows})
+    return tables
+
+
+def manifest_of(index: Index, generation: int, files: dict) -> dict:
+    """The manifest JSON object of an index written as ``generation``."""
+    return {
+        "format": INDEX_FORMAT,
+        "generation": generation,
+        "directory": f"{_GEN_PREFIX}{generation:06d}",
+        "mtanno_version": __version__,
+        "feature_set": index.feature_set,
+        "feature_set_version": index.feature_set_version,
+        "features": list(index.features),
+        "frame_rate": index.fps,
+        "groups": {g.name: list(g.features) for g in index.groups.values()},
+        "documents": [{"name": d.name, "sha256": d.sha256, "frames": d.frames, "path": d.path}
+                      for d in index.documents],
+        "totals": {"documents": len(index.documents), "frames": index.frames,
+                   "segments": {g.name: g.n_segments for g in index.groups.values()}},
+        "files": files,
+    }
+
+
+def read_manifest(root: Path) -> dict:
+    """The manifest of the index in ``root`` (validated shape), or an error saying what is
+    wrong with the directory."""
+    path = root / MANIFEST
+    if not root.is_dir():
+        raise MtannoError("index directory not found", path=str(root))
+    if not path.is_file():
+        if any(p.name.startswith((_GEN_PREFIX, _TMP_PREFIX)) for p in root.iterdir()):
+            raise CorruptIndex("partially written index: manifest.json is missing",
+                               path=str(root))
+        raise MtannoError("not an index directory (no manifest.json)", path=str(root))
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise CorruptIndex("corrupt index: manifest.json is not valid JSON", path=str(path)) from None
+    if not isinstance(manifest, dict) or manifest.get("format") != INDEX_FORMAT:
+        fmt = manifest.get("format") if isinstance(manifest, dict) else None
+        raise CorruptIndex(f"unsupported index format {fmt!r} (expected {INDEX_FORMAT})",
+                           path=str(path))
+    for key in ("directory", "files", "groups", "documents", "feature_set", "features"):
+        if key not in manifest:
+            raise CorruptIndex(f"corrupt index: manifest.json lacks '{key}'", path=str(path))
+    return manifest
+
+
+def _read_verified(gen_dir: Path, name: str, entry: dict) -> pa.Table:
+    path = gen_dir / name
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise CorruptIndex("corrupt or partially written index: file missing",
+                           path=str(path)) from None
+    if len(data) != entry.get("bytes") or hashlib.sha256(data).hexdigest() != entry.get("sha256"):
+        raise CorruptIndex("corrupt index: file size or checksum differs from manifest.json",
+                           path=str(path))
+    try:
+        return pq.read_table(pa.BufferReader(data))
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise CorruptIndex(f"corrupt index: unreadable Parquet ({exc})", path=str(path)) from None
+
+
+def _np(table: pa.Table, column: str, dtype) -> np.ndarray:
+    return table.column(column).to_numpy().astype(dtype, copy=False)
+
+
+def read_index(root: str | os.PathLike) -> Index:
+    """Read and verify the index in ``root`` (see module docstring)."""
+    root = Path(root)
+    for attempt in range(2):  # a writer may replace the generation between our reads
+        manifest = read_manifest(root)
+        gen_dir = root / manifest["directory"]
+        try:
+            return _read_generation(root, gen_dir, manifest)
+        except CorruptIndex:
+            if attempt == 0 and read_manifest(root)["directory"] != manifest["directory"]:
+                continue
+            raise
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _read_generation(root: Path, gen_dir: Path, manifest: dict) -> Index:
+    files = manifest["files"]
+    where = str(root / MANIFEST)
+    need = ["documents.parquet", "groups.parquet"]
+    for g in manifest["groups"]:
+        need += [f"segments-{g}.parquet", f"lists-{g}.parquet"]
+    missing = [n for n in need if n not in files]
+    if missing:
+        raise CorruptIndex(f"corrupt index: manifest.json lists no {missing[0]}", path=where)
+    t = {n: _read_verified(gen_dir, n, files[n]) for n in need}
+    dt = t["documents.parquet"]
+    docs = [Document(n, h, int(f), p) for n, h, f, p in zip(
+        dt.column("name").to_pylist(), dt.column("sha256").to_pylist(),
+        dt.column("frames").to_pylist(), dt.column("path").to_pylist())]
+    if [d["name"] for d in manifest["documents"]] != [d.name for d in docs]:
+        raise CorruptIndex("corrupt index: documents.parquet and manifest.json disagree",
+                           path=where)
+    n_docs = len(docs)
+    frames = np.array([d.frames for d in docs], dtype=np.int64)
+    groups: dict[str, GroupIndex] = {}
+    for g, feats in manifest["groups"].items():
+        st, lt = t[f"segments-{g}.parquet"], t[f"lists-{g}.parquet"]
+        doc = _np(st, "doc", np.int32) - 1
+        start = _np(st, "start", np.int32) - 1
+        length = _np(st, "length", np.int32)
+        counts = np.bincount(doc, minlength=n_docs) if len(doc) else np.zeros(n_docs, np.int64)
+        rows = lt.column("rows").combine_chunks()
+        offsets = rows.offsets.to_numpy().astype(np.int64)
+        postings = rows.values.to_numpy().astype(np.int32)
+        ok = (len(counts) == n_docs and np.all(np.diff(doc) >= 0)
+              and np.array_equal(np.bincount(doc, weights=length, minlength=n_docs)
+                                 .astype(np.int64) if len(doc) else np.zeros(n_docs, np.int64),
+                                 frames)
+              and len(postings) == len(doc) and offsets[-1] == len(doc)
+              and (len(postings) == 0 or (postings.min() >= 0 and postings.max() < len(doc))))
+        if not ok:
+            raise CorruptIndex(f"corrupt index: group '{g}' segments do not cover the documents",
+                               path=str(gen_dir / f"segments-{g}.parquet"))
+        groups[g] = GroupIndex(g, feats, doc, start, length, _np(st, "code", np.int64),
+                               np.r_[0, np.cumsum(counts)].astype(np.int64),
+                               _np(lt, "code", np.int64), offsets, postings)
+    return Index(manifest["feature_set"], int(manifest.get("feature_set_version", 1)),
+                 tuple(manifest["features"]), float(manifest.get("frame_rate", 30.0)), docs,
+                 groups, root=root, generation=int(manifest.get("generation", 0)))
+
+
+def write_index(index: Index, root: str | os.PathLike) -> Index:
+    """Write ``index`` into ``root`` as a new generation and switch the manifest to it
+    atomically; remove older generations afterwards. The caller holds :func:`write_lock`.
+    Returns the index with ``root`` and ``generation`` set."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    old_gen = 0
+    if (root / MANIFEST).is_file():
+        with contextlib.suppress(MtannoError):
+            old_gen = int(read_manifest(root).get("generation", 0))
+    existing = [int(p.name[len(_GEN_PREFIX):]) for p in root.glob(f"{_GEN_PREFIX}*")
+                if p.name[len(_GEN_PREFIX):].isdigit()]
+    gen = max([old_gen, *existing]) + 1
+    final = root / f"{_GEN_PREFIX}{gen:06d}"
+    tmp = Path(tempfile.mkdtemp(prefix=f"{_TMP_PREFIX}{final.name}-", dir=root))
+    try:
+        files = {}
+        for name, table in _tables(index).items():
+            files[name] = _write_table(table, tmp / name)
+        _fsync_dir(tmp)
+        os.replace(tmp, final)
+        _fsync_dir(root)
+        manifest = manifest_of(index, gen, files)
+        fd, mtmp = tempfile.mkstemp(prefix=f"{_TMP_PREFIX}manifest-", dir=root)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(manifest, fh, indent=1)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(mtmp, root / MANIFEST)
+        _fsync_dir(root)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    for p in root.iterdir():  # older generations and leftovers of interrupted writes
+        if p.name != final.name and p.name.startswith((_GEN_PREFIX, _TMP_PREFIX)):
+            if p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    p.unlink()
+    index.root, index.generation = root, gen
+    return index
+
+
+def is_index_dir(root: Path) -> bool:
+    return (root / MANIFEST).is_file()
+
+
+def index_bytes(root: Path, manifest: dict) -> dict[str, int]:
+    """Bytes on disk per file of the current generation (from the manifest)."""
+    return {name: int(e["bytes"]) for name, e in manifest["files"].items()}
