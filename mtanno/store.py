@@ -43,8 +43,13 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it over ``target`` on success.
 
     A crash or an exception leaves no partial ``target`` (the temporary file is removed).
+    A ``target`` that exists and is not a regular file (``/dev/null``, a FIFO) is yielded
+    itself and written in place: renaming over a device would replace it.
     """
     target = Path(target)
+    if target.exists() and not target.is_file():
+        yield target
+        return
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     os.close(fd)

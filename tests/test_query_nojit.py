@@ -56,6 +56,6 @@ def test_index_and_31_kernels_without_jit():
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
     tests = Path(__file__).resolve().parent
     r = subprocess.run([sys.executable, "-c", SCRIPT, str(tests)], env=env, capture_output=True,
-                       text=True, timeout=300)
+                       text=True)
     assert r.returncode == 0, r.stderr[-3000:]
     assert json.loads(r.stdout.strip().splitlines()[-1]) == results()

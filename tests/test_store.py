@@ -61,3 +61,20 @@ def test_read_bad_files(tmp_path):
     pq.write_table(t, other)
     with pytest.raises(MtannoError, match="unsupported feature file schema"):
         read_features(other)
+
+
+def test_atomic_path_writes_a_fifo_in_place(tmp_path):
+    import os
+    import threading
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    with atomic_path(fifo) as tmp:
+        assert tmp == fifo
+        tmp.write_bytes(b"hello")
+    reader.join()
+    assert got == [b"hello"] and fifo.is_fifo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]

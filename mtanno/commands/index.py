@@ -207,20 +207,14 @@ def load_template_for(index, path: str):
 
 
 def _write_output(output: str | None, text: str) -> None:
-    """Standard output for None or ``-``; a regular file is replaced atomically; anything
-    else that exists (a device such as /dev/null, a FIFO) is written in place, never
-    renamed over."""
+    """Standard output for None or ``-``; a file is replaced atomically (a device or FIFO
+    is written in place, see :func:`mtanno.store.atomic_path`)."""
     from mtanno.store import atomic_path
 
     if output is None or output == "-":
         sys.stdout.write(text)
         return
-    p = Path(output)
-    if p.exists() and not p.is_file():
-        with open(p, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        return
-    with atomic_path(p) as tmp:
+    with atomic_path(Path(output)) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
 
