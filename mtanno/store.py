@@ -15,7 +15,7 @@ import hashlib
 import json
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -114,6 +114,27 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     table = table.replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True)})
     with atomic_path(path) as tmp:
         pq.write_table(table, tmp, compression="zstd")
+
+
+def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """Feature files named by ``inputs``: files as given, directories searched recursively
+    for ``*.parquet`` (sorted). A missing input, a directory without feature files, or no
+    file at all is an error."""
+    out: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.rglob("*.parquet") if q.is_file())
+            if not found:
+                raise MtannoError("no feature files (*.parquet) in this folder", path=str(p))
+            out.extend(found)
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise MtannoError("no such feature file or folder", path=str(p))
+    if not out:
+        raise MtannoError("no feature files (*.parquet) in the inputs")
+    return out
 
 
 def read_features(path: str | os.PathLike) -> FeatureFile:

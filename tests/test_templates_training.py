@@ -153,7 +153,7 @@ def test_truth_errors(tmp_path):
     write_doc(tmp_path / "other" / "docA.parquet", rand_X(2, 20))
     with pytest.raises(MtannoError, match="two feature files for document 'docA'"):
         sources_from_truth(truth, [docs, tmp_path / "other"])
-    with pytest.raises(MtannoError, match="not found"):
+    with pytest.raises(MtannoError, match="nope.parquet: no such feature file or folder"):
         sources_from_truth(truth, [tmp_path / "nope.parquet"])
     truth.write_text("doc,start,end,label\n")
     with pytest.raises(MtannoError, match="no segments"):

@@ -13,19 +13,12 @@ from mtanno.errors import MtannoError
 
 
 def feature_paths(inputs) -> list[Path]:
-    """Feature files named directly or found (recursively, *.parquet) in directories."""
-    out: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            out.extend(sorted(q for q in p.rglob("*.parquet") if q.is_file()))
-        elif p.is_file():
-            out.append(p)
-        else:
-            raise MtannoError("no such file or directory", path=str(p))
-    if not out:
-        raise MtannoError("no feature files (.parquet) in the inputs")
-    names = {}
+    """Feature files of the inputs (:func:`mtanno.store.feature_files`); two files may not
+    name the same document."""
+    from mtanno.store import feature_files
+
+    out = feature_files(inputs)
+    names: dict[str, Path] = {}
     for p in out:
         if p.stem in names:
             raise MtannoError(f"two feature files name the same document '{p.stem}': "

@@ -16,26 +16,10 @@ import numpy as np
 
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
+from mtanno.store import feature_files
 
 COLUMNS = ("doc", "start", "end", "start_native", "end_native", "cost", "rank")
 FORMATS = (".csv", ".parquet", ".jsonl")
-
-
-def feature_files(inputs) -> list[Path]:
-    """Feature files named on the command line: files as given, folders searched
-    recursively for ``*.parquet`` (sorted). Missing paths are errors."""
-    files: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            files.extend(sorted(q for q in p.rglob("*.parquet") if q.is_file()))
-        elif p.is_file():
-            files.append(p)
-        else:
-            raise MtannoError("no such feature file or folder", path=str(p))
-    if not files:
-        raise MtannoError("no feature files (*.parquet) found in the inputs")
-    return files
 
 
 def check_compatible(mt, mt_path: str, ff) -> None:

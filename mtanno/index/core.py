@@ -31,7 +31,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno.errors import MtannoError
-from mtanno.store import FEATURES_SCHEMA, META_KEY
+from mtanno.store import FEATURES_SCHEMA, META_KEY, feature_files
 
 #: Most features a group may have (codes are int64).
 MAX_GROUP_FEATURES = 62
@@ -242,21 +242,8 @@ def read_feature_docs(paths: Sequence[str | os.PathLike]) -> list[FeatureDoc]:
 
 
 def collect_feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Feature files named by ``inputs``: files as given, directories searched recursively
-    for ``*.parquet``. Raises for a missing input or an input without feature files."""
-    out: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            found = sorted(q for q in p.rglob("*.parquet") if q.is_file())
-            if not found:
-                raise MtannoError("directory contains no .parquet feature files", path=str(p))
-            out.extend(found)
-        elif p.is_file():
-            out.append(p)
-        else:
-            raise MtannoError("no such file or directory", path=str(p))
-    return out
+    """Feature files named by ``inputs`` (see :func:`mtanno.store.feature_files`)."""
+    return feature_files(inputs)
 
 
 @dataclass

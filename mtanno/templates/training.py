@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.store import read_features, sha256_file
+from mtanno.store import feature_files, read_features, sha256_file
 from mtanno.truth import read_truth
 
 __all__ = [
@@ -158,22 +158,6 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     return out
 
 
-def _feature_files(paths: Iterable[str | os.PathLike]) -> list[Path]:
-    out: list[Path] = []
-    for p in paths:
-        p = Path(p)
-        if p.is_dir():
-            found = sorted(p.rglob("*.parquet"))
-            if not found:
-                raise MtannoError("no .parquet feature files in this folder", path=str(p))
-            out.extend(found)
-        elif p.exists():
-            out.append(p)
-        else:
-            raise MtannoError("feature file or folder not found", path=str(p))
-    return out
-
-
 def sources_from_truth(truth: str | os.PathLike,
                        features: Iterable[str | os.PathLike]) -> list[ExampleSource]:
     """One example per labelled segment of a truth table, cut from the feature file of
@@ -183,7 +167,7 @@ def sources_from_truth(truth: str | os.PathLike,
     if not segments:
         raise MtannoError("truth table has no segments", path=str(truth))
     by_doc: dict[str, Path] = {}
-    for f in _feature_files(features):
+    for f in feature_files(features):
         prev = by_doc.get(f.stem)
         if prev is not None and prev.resolve() != f.resolve():
             raise MtannoError(f"two feature files for document {f.stem!r}: {prev} and {f}")
