@@ -78,6 +78,8 @@ class FeatureFile:
         The ``mtanno`` metadata object (see ``docs/formats.md``).
     path:
         The file read.
+    sha256:
+        SHA-256 of the file's bytes, when asked for.
     """
 
     X: np.ndarray
@@ -85,6 +87,7 @@ class FeatureFile:
     native_frames: np.ndarray
     meta: dict
     path: str
+    sha256: str | None = None
 
     @property
     def document(self) -> str:
@@ -137,13 +140,21 @@ def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     return out
 
 
-def read_features(path: str | os.PathLike) -> FeatureFile:
-    """Read a feature file written by :func:`write_features` (or ``mtanno features``)."""
+def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFile:
+    """Read a feature file written by :func:`write_features` (or ``mtanno features``).
+
+    The file is read once; with ``sha256`` its hash is computed from the same bytes
+    (``FeatureFile.sha256``), for indexes that record what they were built from.
+    """
     spath = str(path)
     try:
-        table = pq.read_table(path)
+        data = Path(path).read_bytes()
     except FileNotFoundError:
         raise MtannoError("feature file not found", path=spath) from None
+    except OSError as exc:
+        raise MtannoError(f"cannot read feature file ({exc.strerror})", path=spath) from None
+    try:
+        table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
     except (pa.ArrowInvalid, OSError) as exc:
         raise MtannoError(f"not a readable Parquet feature file ({exc})", path=spath) from None
     raw = (table.schema.metadata or {}).get(META_KEY)
@@ -168,7 +179,8 @@ def read_features(path: str | os.PathLike) -> FeatureFile:
             raise MtannoError(f"column '{name}' is {col.type}, not boolean", path=spath)
         X[i] = col.to_numpy(zero_copy_only=False)
     native = table.column("native_frame").to_numpy().astype(np.int64)
-    return FeatureFile(X=X, names=names, native_frames=native, meta=meta, path=spath)
+    return FeatureFile(X=X, names=names, native_frames=native, meta=meta, path=spath,
+                       sha256=hashlib.sha256(data).hexdigest() if sha256 else None)
 
 
 def read_feature_matrix(path: str | os.PathLike) -> np.ndarray:

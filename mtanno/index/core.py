@@ -17,8 +17,6 @@ keyframe code use; :mod:`mtanno.index.storage` reads and writes it.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 import re
 from collections.abc import Iterable, Mapping, Sequence
@@ -27,11 +25,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from mtanno.errors import MtannoError
-from mtanno.store import FEATURES_SCHEMA, META_KEY, feature_files
+from mtanno.store import feature_files, read_features
 
 #: Most features a group may have (codes are int64).
 MAX_GROUP_FEATURES = 62
@@ -199,38 +195,8 @@ class FeatureDoc:
 
 def read_feature_doc(path: str | os.PathLike) -> FeatureDoc:
     """Read a feature file (``mtanno features`` output) and hash its bytes in one pass."""
-    spath = str(path)
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise MtannoError("feature file not found", path=spath) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read feature file ({exc.strerror})", path=spath) from None
-    digest = hashlib.sha256(data).hexdigest()
-    try:
-        pf = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False)
-        raw = (pf.schema_arrow.metadata or {}).get(META_KEY)
-        table = pf.read(use_threads=False)
-    except (pa.ArrowInvalid, OSError) as exc:
-        raise MtannoError(f"not a readable Parquet feature file ({exc})", path=spath) from None
-    if raw is None:
-        raise MtannoError("Parquet file has no mtanno metadata (not written by mtanno "
-                          "features?)", path=spath)
-    try:
-        meta = json.loads(raw)
-    except json.JSONDecodeError:
-        raise MtannoError("mtanno metadata is not valid JSON", path=spath) from None
-    if meta.get("schema") != FEATURES_SCHEMA:
-        raise MtannoError(f"unsupported feature file schema {meta.get('schema')!r} "
-                          f"(expected {FEATURES_SCHEMA})", path=spath)
-    names = [c for c in table.column_names if c != "native_frame"]
-    X = np.empty((len(names), table.num_rows), dtype=np.uint8)
-    for i, name in enumerate(names):
-        col = table.column(name)
-        if not pa.types.is_boolean(col.type):
-            raise MtannoError(f"column '{name}' is {col.type}, not boolean", path=spath)
-        X[i] = col.to_numpy(zero_copy_only=False)
-    return FeatureDoc(Path(spath).stem, digest, X, names, meta, spath)
+    ff = read_features(path, sha256=True)
+    return FeatureDoc(ff.document, ff.sha256, ff.X, ff.names, ff.meta, ff.path)
 
 
 def read_feature_docs(paths: Sequence[str | os.PathLike]) -> list[FeatureDoc]:
