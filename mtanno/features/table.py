@@ -22,7 +22,9 @@ FEATURE_SET_VERSION = 1
 
 
 class Feature(NamedTuple):
-    """One relational feature (see module docstring for the fields' meaning)."""
+    """One relational feature (see module docstring for the fields' meaning; ``params``
+    are extra measure parameters and ``paper`` the feature's name in its paper's table,
+    both used by the MRC05 set of :mod:`mtanno.features.table31`)."""
 
     id: str
     name: str
@@ -35,6 +37,8 @@ class Feature(NamedTuple):
     on: tuple
     off: tuple
     window_ms: int = 0
+    params: tuple[float, ...] = ()
+    paper: str = ""
 
 
 _F = Feature

@@ -37,7 +37,7 @@ tests returns the test unchanged). Length units: ``femR``/``femL`` femur, ``hw``
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from mtanno.features.table import Feature
 
 #: Names (stored in feature files as ``feature_set``) and versions of the two tables.
 FEATURE_SET31 = "mrc05"
@@ -45,23 +45,8 @@ FEATURE_SET31_REFERENCE = "mrc05-reference"
 FEATURE_SET31_VERSION = 1
 
 
-class Feature31(NamedTuple):
-    """One relational feature of the 31-set (fields as :class:`~mtanno.features.table.Feature`,
-    plus ``params`` for the measure and ``paper``, the name in MRC05 Table 1)."""
-
-    id: str
-    name: str
-    ref_name: str
-    group: str
-    mirror: str | None
-    measure: str
-    joints: tuple[str, ...]
-    unit: str | None
-    on: tuple
-    off: tuple
-    window_ms: int = 0
-    params: tuple[float, ...] = ()
-    paper: str = ""
+#: The 31-set's rows use the same :class:`~mtanno.features.table.Feature` record.
+Feature31 = Feature
 
 
 def _leg_touch(q1: str, q2: str) -> tuple[tuple[str, ...], tuple[float, ...]]:
