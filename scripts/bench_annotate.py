@@ -13,7 +13,6 @@ start-up, reading the feature file, matching, writing the table), median of ``--
 from __future__ import annotations
 
 import argparse
-import platform
 import resource
 import statistics
 import subprocess
@@ -22,6 +21,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import machine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
@@ -76,12 +78,7 @@ def main() -> int:
              str(out / "doc")])
         run(["features", str(out / "doc"), "-o", str(out / "docfeat"), "-q"])
     src = next((out / "docfeat").glob("*.parquet"))
-    cpu = "?"
-    for line in Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            cpu = line.split(":", 1)[1].strip()
-            break
-    print(f"machine: {cpu}, Python {platform.python_version()}; templates: 11 HDM05 classes")
+    print(f"machine: {machine()}; templates: 11 HDM05 classes")
     for minutes, jobs in ((60, 1), (60, 2)):
         doc = tiled(src, out / f"doc_{minutes}min.parquet", minutes * 60 * 30)
         wall, _ = timed(["annotate", "--mt", str(out / "mt"), str(doc), "-o",

@@ -16,13 +16,15 @@ the numba kernels from their cache); the warm-up pass is reported as "cold". Run
 from __future__ import annotations
 
 import argparse
-import platform
 import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import machine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
@@ -34,23 +36,6 @@ from mtanno.features import compute_features  # noqa: E402
 from mtanno.io import read_channels  # noqa: E402
 from mtanno.io.rigs import find_map  # noqa: E402
 from mtanno.io.skeleton import forward_kinematics  # noqa: E402
-
-
-def machine() -> str:
-    cpu = "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    import os
-
-    import numba
-
-    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-            f"numpy {np.__version__}, numba {numba.__version__}")
 
 
 def one_pass(files) -> tuple[int, float, float, float]:

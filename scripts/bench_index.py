@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import shutil
 import statistics
 import subprocess
@@ -41,6 +40,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import machine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
@@ -56,30 +58,6 @@ SET2 = ["set2-active", "set2-elderly", "set2-feminine", "set2-masculine", "set2-
 SIZES = (5, 10, 20)
 BUCKETS = ((1, 9, "1–9"), (10, 99, "10–99"), (100, None, "≥100"))
 FREE_BITS = 6
-
-
-def machine() -> str:
-    cpu = platform.processor() or ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    import numba
-    import pyarrow
-
-    mem = ""
-    try:
-        kb = int(next(ln for ln in Path("/proc/meminfo").read_text().splitlines()
-                      if ln.startswith("MemTotal")).split()[1])
-        mem = f", {kb / 1024 ** 2:.1f} GiB RAM"
-    except (OSError, StopIteration):
-        pass
-    return (f"{platform.system()} {platform.release()}, {cpu}, {os.cpu_count()} logical CPUs"
-            f"{mem}; Python {platform.python_version()}, numpy {np.__version__}, "
-            f"numba {numba.__version__}, pyarrow {pyarrow.__version__}")
 
 
 def features_dir(name: str, sources: list[Path], feature_set: str) -> Path:

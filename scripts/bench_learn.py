@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
-import platform
 import re
 import statistics
 import sys
@@ -30,32 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import machine  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared" / "data"
 REFERENCE = SHARED / "reference"
 sys.path.insert(0, str(REPO))
 
 from mtanno.templates.learn import learn  # noqa: E402
-
-
-def machine() -> str:
-    import numba
-
-    cpu = "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        load = " load " + " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        load = ""
-    return (f"{cpu}, {os.cpu_count()} logical cores,{load}; {platform.system()} "
-            f"{platform.release()}; Python {platform.python_version()}, numpy "
-            f"{np.__version__}, numba {numba.__version__}; one thread")
 
 
 def training_sets(features_dir: Path | None) -> dict[str, list[np.ndarray]]:
