@@ -246,3 +246,16 @@ def test_load_file_level_errors(tmp_path):
         load_template(_write(tmp_path, "[1, 2]"))
     with pytest.raises(MtannoError, match="malformed JSON"):
         load_template(_write(tmp_path, ""))
+
+
+def test_mirror_mrc05_template():
+    from mtanno.features import get_feature_set
+
+    fs = get_feature_set("mrc05")
+    names = list(fs.names)
+    a, b = fs.mirror_pairs[0]
+    values = np.zeros((len(names), 2))
+    values[a] = 1.0
+    m = mirror(make_mt(feature_set="mrc05", feature_names=names, values=values, K=2,
+                       weights=np.ones(2)))
+    assert m.values[b].tolist() == [1.0, 1.0] and m.values[a].tolist() == [0.0, 0.0]

@@ -387,16 +387,19 @@ def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
 
 def mirror_names(feature_set: str) -> dict[str, str]:
     """Feature name → name of its left/right partner (itself when unpaired) for a known
-    feature set (MR06 Table 6; ``mtanno.features.MIRROR_PAIRS``)."""
-    from mtanno.features import FEATURE_NAMES, FEATURE_SET, MIRROR_PAIRS
+    feature set (MR06 Table 6 / MRC05 Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`)."""
+    from mtanno.features import FEATURE_SETS, get_feature_set
 
-    if feature_set != FEATURE_SET:
+    try:
+        fs = get_feature_set(feature_set)
+    except MtannoError:
         raise MtannoError(f"no mirror table for feature set {feature_set!r} (known: "
-                          f"{FEATURE_SET})")
-    table = {n: n for n in FEATURE_NAMES}
-    for a, b in MIRROR_PAIRS:
-        table[FEATURE_NAMES[a]] = FEATURE_NAMES[b]
-        table[FEATURE_NAMES[b]] = FEATURE_NAMES[a]
+                          f"{', '.join(FEATURE_SETS)})") from None
+    names = fs.names
+    table = {n: n for n in names}
+    for a, b in fs.mirror_pairs:
+        table[names[a]] = names[b]
+        table[names[b]] = names[a]
     return table
 
 
