@@ -22,6 +22,24 @@ __all__ = ["MOCAP_SUFFIXES", "read_channels", "read_motion", "canonical_position
 MOCAP_SUFFIXES = (".amc", ".bvh")
 
 
+_LISTING_CACHE: dict[tuple[str, int], list[Path]] = {}
+
+
+def _asf_files(folder: Path) -> list[Path]:
+    """The ASF files of a folder, sorted; listings are remembered per folder modification
+    time, so a batch of AMC files in one folder lists it once."""
+    try:
+        key = (str(folder), folder.stat().st_mtime_ns)
+    except OSError:
+        return []
+    if key not in _LISTING_CACHE:
+        if len(_LISTING_CACHE) > 256:
+            _LISTING_CACHE.clear()
+        _LISTING_CACHE[key] = sorted(p for p in folder.glob("*")
+                                     if p.suffix.lower() == ".asf" and p.is_file())
+    return _LISTING_CACHE[key]
+
+
 def find_asf(amc_path: str | os.PathLike) -> Path:
     """The ASF skeleton belonging to an AMC file when none is given.
 
@@ -33,7 +51,7 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
     amc = Path(amc_path)
     stem = amc.stem
     for folder in [amc.parent, *amc.resolve().parent.parents]:
-        asfs = sorted(p for p in folder.glob("*") if p.suffix.lower() == ".asf" and p.is_file())
+        asfs = _asf_files(folder)
         if not asfs:
             continue
         prefixed = [p for p in asfs if stem.startswith(p.stem)]

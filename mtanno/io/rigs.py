@@ -139,18 +139,25 @@ def search_dirs() -> list[Path]:
 
 
 _MAP_CACHE: dict[tuple, list[SkeletonMap]] = {}
+_DIR_CACHE: dict[tuple[str, int], list[Path]] = {}
 
 
 def available_maps() -> list[SkeletonMap]:
     """All maps on the search path (a name found earlier hides later ones).
 
-    Parsed maps are cached per (file, modification time), so a batch reads each map once.
+    Folder listings are cached per folder modification time and parsed maps per (file,
+    modification time), so a batch reads each map once.
     """
     files = []
     for d in search_dirs():
-        if d.is_dir():
-            files.extend(sorted(d.glob("*.toml")))
-    key = tuple((str(f), f.stat().st_mtime_ns) for f in files)
+        try:
+            dkey = (str(d), d.stat().st_mtime_ns)
+        except OSError:
+            continue
+        if dkey not in _DIR_CACHE:
+            _DIR_CACHE[dkey] = sorted(d.glob("*.toml"))
+        files.extend(_DIR_CACHE[dkey])
+    key = tuple((str(f), f.stat().st_mtime_ns) for f in files if f.exists())
     if key not in _MAP_CACHE:
         seen: dict[str, SkeletonMap] = {}
         for f in files:
