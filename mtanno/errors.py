@@ -8,6 +8,9 @@ as it is and never shows a traceback for user error.
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 
 class MtannoError(Exception):
     """An error caused by input a user can fix.
@@ -34,3 +37,27 @@ class MtannoError(Exception):
         if self.line is None:
             return f"{self.path}: {self.message}"
         return f"{self.path}:{self.line}: {self.message}"
+
+
+def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
+    """The bytes of an input file; a missing or unreadable file is a :class:`MtannoError`
+    naming it (``what`` names the kind of file in the message)."""
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise MtannoError(f"{what} not found", path=str(path)) from None
+    except OSError as exc:
+        raise MtannoError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from None
+
+
+def read_text_input(path: str | os.PathLike) -> bytes:
+    """:func:`read_input` for a text format: also rejects an empty file and one with a NUL
+    byte (binary), naming the line."""
+    raw = read_input(path)
+    if not raw.strip():
+        raise MtannoError("file is empty", path=str(path), line=1)
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise MtannoError("binary data (NUL byte) in a text file", path=str(path),
+                          line=raw[:nul].count(b"\n") + 1)
+    return raw

@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_input
 
 FEATURES_SCHEMA = "mtanno.features/1"
 META_KEY = b"mtanno"
@@ -147,12 +147,7 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     (``FeatureFile.sha256``), for indexes that record what they were built from.
     """
     spath = str(path)
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise MtannoError("feature file not found", path=spath) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read feature file ({exc.strerror})", path=spath) from None
+    data = read_input(path, what="feature file")
     try:
         table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
     except (pa.ArrowInvalid, OSError) as exc:

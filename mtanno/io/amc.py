@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_text_input
 from mtanno.io import _numparse as _np
 from mtanno.io.asf import AsfSkeleton
 from mtanno.io.skeleton import AXIS_CODES, Channels
@@ -64,17 +64,7 @@ def _header(raw: bytes, path: str) -> tuple[int, int, float]:
 def read_amc(path: str | os.PathLike, skel: AsfSkeleton) -> Channels:
     """Read an AMC file against its ASF skeleton into :class:`Channels` (cm, radians)."""
     spath = str(path)
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise MtannoError("file not found", path=spath) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read file: {exc.strerror}", path=spath) from None
-    if not raw.strip():
-        raise MtannoError("file is empty", path=spath, line=1)
-    if b"\x00" in raw:
-        line = raw[: raw.index(b"\x00")].count(b"\n") + 1
-        raise MtannoError("binary data (NUL byte) in a text file", path=spath, line=line)
+    raw = read_text_input(path)
     body_at, header_lines, fps = _header(raw, spath)
     ch = _fast_parse(raw[body_at:], skel, fps)
     if ch is None:

@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_text_input
 from mtanno.io.skeleton import AXIS_CODES, Rig, euler_matrix
 
 INCH_CM = 2.54
@@ -53,17 +52,7 @@ class AsfSkeleton:
 
 def read_text_lines(path: str | os.PathLike) -> list[str]:
     """Lines of a text file read as Latin-1, any line ending; rejects empty and binary files."""
-    try:
-        raw = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise MtannoError("file not found", path=str(path)) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read file: {exc.strerror}", path=str(path)) from None
-    if not raw.strip():
-        raise MtannoError("file is empty", path=str(path), line=1)
-    if b"\x00" in raw:
-        line = raw[: raw.index(b"\x00")].count(b"\n") + 1
-        raise MtannoError("binary data (NUL byte) in a text file", path=str(path), line=line)
+    raw = read_text_input(path)
     return raw.decode("latin-1").splitlines()
 
 

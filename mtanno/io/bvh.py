@@ -32,12 +32,11 @@ import os
 import re
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
-from pathlib import Path
 
 import numba
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_input
 from mtanno.io import _numparse
 from mtanno.io.skeleton import AXIS_CODES, Channels, Rig
 
@@ -345,12 +344,7 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
         ``path:line: message`` for any malformed input.
     """
     spath = str(path)
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise MtannoError("file not found", path=spath) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read the file: {exc.strerror or exc}", path=spath) from None
+    data = read_input(path)
     data = data.removeprefix(b"\xef\xbb\xbf").rstrip(b"\x1a")  # UTF-8 BOM, DOS end mark
     if not data.strip():
         raise MtannoError("the file is empty", path=spath, line=1)
