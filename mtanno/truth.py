@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_input
 from mtanno.store import atomic_path
 
 ANALYSIS_FPS = 30.0
@@ -49,9 +49,7 @@ def read_truth(path: str | os.PathLike) -> list[Segment]:
     """Read a segment table (columns doc, start, end, label[, fps]) into 30 Hz segments."""
     spath = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise MtannoError("truth file not found", path=spath) from None
+        text = read_input(path, what="truth file").decode("utf-8-sig")
     except UnicodeDecodeError:
         raise MtannoError("not a UTF-8 text file", path=spath) from None
     reader = csv.DictReader(io.StringIO(text))

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_input
 from mtanno.store import atomic_path
 
 __all__ = [
@@ -276,15 +276,9 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     naming the file (and the line where it is known)."""
     spath = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise MtannoError("template file not found", path=spath) from None
-    except IsADirectoryError:
-        raise MtannoError("is a directory, not a template file", path=spath) from None
+        text = read_input(path, what="template file").decode("utf-8")
     except UnicodeDecodeError:
         raise MtannoError("not a UTF-8 text file", path=spath) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read template file ({exc.strerror})", path=spath) from None
     try:
         d = json.loads(text, parse_constant=lambda c: float(c))
     except json.JSONDecodeError as exc:
