@@ -212,11 +212,23 @@ def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
 
 @dataclass
 class ClassModel:
-    """A class as the annotator needs it: name, quantized template values and weights."""
+    """A class as the annotator needs it: name, quantized template values and weights.
+
+    :meth:`matcher` packs the template for the matching kernel once and keeps it, so a
+    batch of documents does not repeat that work per document."""
 
     name: str
     values: np.ndarray
     weights: np.ndarray
+    _prepared: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def matcher(self, variant: str = "reference"):
+        from mtanno.templates.match import PreparedTemplate
+
+        if variant not in self._prepared:
+            self._prepared[variant] = PreparedTemplate(self.values, self.weights,
+                                                       variant=variant)
+        return self._prepared[variant]
 
 
 def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
@@ -225,27 +237,26 @@ def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
     """Δ_p and start frames of every class over one document (X: features × frames).
 
     ``windows`` (from a keyframe stage) restricts a class to candidate windows
-    [first, last] (0-based inclusive): Δ_p is computed inside each window and is ∞
-    elsewhere (MBS09 §5). Classes without an entry are matched everywhere.
+    [first, last] (0-based inclusive): Δ_p is computed inside each window (windows are
+    matched as separate documents) and is ∞ elsewhere (MBS09 §5). Classes without an
+    entry are matched everywhere.
     """
-    from mtanno.templates.match import match_template
-
     L = X.shape[1]
     out = []
     for c in classes:
+        matcher = c.matcher(match_variant)
         if windows is not None and c.name in windows:
             delta = np.full(L, np.inf)
             start = np.full(L, -1, dtype=np.int64)
-            for a, b in windows[c.name]:
-                a, b = max(0, int(a)), min(L - 1, int(b))
-                if b < a:
-                    continue
-                d, s = match_template(c.values, c.weights, X[:, a:b + 1], variant=match_variant)
+            spans = [(max(0, int(a)), min(L - 1, int(b))) for a, b in windows[c.name]]
+            spans = [(a, b) for a, b in spans if b >= a]
+            results = matcher.match_documents([X[:, a:b + 1] for a, b in spans])
+            for (a, b), (d, s) in zip(spans, results):
                 better = d < delta[a:b + 1]
                 delta[a:b + 1][better] = d[better]
                 start[a:b + 1][better] = s[better] + a
         else:
-            delta, start = match_template(c.values, c.weights, X, variant=match_variant)
+            delta, start = matcher.match(X)
         out.append((np.asarray(delta, dtype=np.float64), np.asarray(start, dtype=np.int64)))
     return out
 

@@ -135,3 +135,24 @@ def test_annotation_table_round_trip(tmp_path, suffix):
         assert t["start"] == [1, 6] and t["start_native"] == [1, 21] and t["end_native"] == [37, 81]
     with pytest.raises(MtannoError, match=".csv or .parquet"):
         write_annotations(tmp_path / "a.txt", rows)
+
+
+def test_class_deltas_with_candidate_windows():
+    from mtanno.annotate import ClassModel, class_deltas
+    from mtanno.templates.match import match_template
+
+    rng = np.random.default_rng(3)
+    X = (rng.random((40, 120)) < 0.4).astype(np.uint8)
+    values = rng.choice([0.0, 0.5, 1.0], size=(40, 9))
+    cm = ClassModel("a", values, np.ones(9))
+    other = ClassModel("b", values[:, ::-1].copy(), np.ones(9))
+    full = class_deltas(X, [cm, other])
+    d0, s0 = match_template(values, np.ones(9), X)
+    assert np.array_equal(full[0][0], d0) and np.array_equal(full[0][1], s0)
+    (dw, sw), (db, _) = class_deltas(X, [cm, other], windows={"a": [(10, 50), (-5, 3), (90, 200)]})
+    assert np.array_equal(db, full[1][0])  # no windows for b: matched everywhere
+    for a, b in ((10, 50), (90, 119)):
+        d, s = match_template(values, np.ones(9), X[:, a:b + 1])
+        assert np.array_equal(dw[a:b + 1], d)
+        assert np.array_equal(sw[a:b + 1][np.isfinite(d)], s[np.isfinite(d)] + a)
+    assert np.isinf(dw[51:90]).all() and np.isinf(dw[4:10]).all()
