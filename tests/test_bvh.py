@@ -25,7 +25,7 @@ except ImportError:  # pragma: no cover - rootdir-relative import mode
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-SKELETONS = REPO / "configs" / "skeletons"
+SKELETONS = REPO / "mtanno" / "skeletons"
 
 
 # --------------------------------------------------------------------------------------

@@ -116,9 +116,9 @@ def test_unknown_skeleton_map_is_reported_per_file(tree, tmp_path):
 
 
 def test_skeleton_map_missing_joint(tree, tmp_path):
-    from mtanno.io.rigs import _BUILTIN_DIR
+    from mtanno.io.rigs import builtin_dir
 
-    src = (_BUILTIN_DIR / "cmu-asf.toml").read_text()
+    src = (builtin_dir() / "cmu-asf.toml").read_text()
     m = tmp_path / "partial.toml"
     m.write_text(src.replace('name = "cmu-asf"', 'name = "partial"').replace('lknee = "lfemur"\n', ""))
     r = run(["features", str(tree / "a" / "walk1.amc"), "-o", str(tmp_path / "o"),
@@ -145,3 +145,16 @@ def test_help_texts():
     r = run(["features", "--help"])
     text = " ".join(r.output.split())
     assert "--jobs" in text and "--asf" in text and "Exit code: 0 all written" in text
+
+
+def test_user_skeleton_folder_follows_xdg(monkeypatch, tmp_path):
+    from mtanno.io.rigs import builtin_dir, search_dirs, user_dir
+
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "cfg"))
+    monkeypatch.setenv("MTANNO_SKELETON_PATH", str(tmp_path / "extra"))
+    assert user_dir() == tmp_path / "cfg" / "mtanno" / "skeletons"
+    assert search_dirs() == [tmp_path / "extra", user_dir(), builtin_dir()]
+    monkeypatch.setenv("XDG_CONFIG_HOME", "")  # empty or relative: the default
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert user_dir() == tmp_path / "home" / ".config" / "mtanno" / "skeletons"
+    assert (builtin_dir() / "cmu-asf.toml").is_file()

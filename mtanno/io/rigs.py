@@ -1,7 +1,7 @@
 """Skeleton maps: which node of a rig is which canonical joint.
 
 Spec: ``algorithms.md`` §1 (canonical joints) and ``features.md`` §1.5. A skeleton map is a
-TOML file (see ``configs/skeletons/*.toml`` and ``docs/formats.md``)::
+TOML file (see ``mtanno/skeletons/*.toml`` and ``docs/formats.md``)::
 
     name = "cmu-asf"
     description = "..."
@@ -15,8 +15,10 @@ TOML file (see ``configs/skeletons/*.toml`` and ``docs/formats.md``)::
     ...
 
 Maps are searched in the directories of ``$MTANNO_SKELETON_PATH`` (``os.pathsep``
-separated), then ``~/.config/mtanno/skeletons``, then the project's ``configs/skeletons``,
-so a user adds a rig by dropping a file there, or passes one with ``--skeleton``.
+separated), then the user folder ``$XDG_CONFIG_HOME/mtanno/skeletons`` (``~/.config`` when
+``XDG_CONFIG_HOME`` is unset or empty), then the maps shipped inside the package
+(``mtanno/skeletons``, package data found through :mod:`importlib.resources`), so a user
+adds a rig by dropping a file there, or passes one with ``--skeleton``.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from __future__ import annotations
 import os
 import sys
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +46,19 @@ CANONICAL_JOINTS: tuple[str, ...] = (
     "rwrist", "lfingers", "rfingers",
 )
 
-_BUILTIN_DIR = Path(__file__).resolve().parents[2] / "configs" / "skeletons"
+
+
+def builtin_dir() -> Path:
+    """Folder of the skeleton maps shipped with the package (package data)."""
+    return Path(str(resources.files("mtanno") / "skeletons"))
+
+
+def user_dir() -> Path:
+    """The user's skeleton-map folder: ``$XDG_CONFIG_HOME/mtanno/skeletons``, by default
+    ``~/.config/mtanno/skeletons`` (XDG Base Directory specification)."""
+    base = os.environ.get("XDG_CONFIG_HOME", "")
+    return (Path(base) if base and Path(base).is_absolute() else Path.home() / ".config") \
+        / "mtanno" / "skeletons"
 
 
 @dataclass(frozen=True)
@@ -133,8 +148,8 @@ def load_map(path: str | os.PathLike) -> SkeletonMap:
 def search_dirs() -> list[Path]:
     """Directories searched for skeleton maps, first match wins."""
     dirs = [Path(p) for p in os.environ.get("MTANNO_SKELETON_PATH", "").split(os.pathsep) if p]
-    dirs.append(Path.home() / ".config" / "mtanno" / "skeletons")
-    dirs.append(_BUILTIN_DIR)
+    dirs.append(user_dir())
+    dirs.append(builtin_dir())
     return dirs
 
 
@@ -183,5 +198,5 @@ def find_map(rig: Rig, override: str | os.PathLike | None = None) -> SkeletonMap
         if m.fits(rig):
             return m
     raise MtannoError(f"no skeleton map fits this {rig.kind.upper()} rig (nodes: "
-                      f"{', '.join(rig.names[:8])}, ...); add one to configs/skeletons/ or "
+                      f"{', '.join(rig.names[:8])}, ...); add one to {user_dir()} or "
                       f"pass --skeleton MAP.toml", path=rig.source)
