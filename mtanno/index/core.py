@@ -137,9 +137,14 @@ class GroupIndex:
         end) arrays, 0-based, ``end`` inclusive, sorted by document and frame."""
         from mtanno.index import _kernels
 
-        sel = np.flatnonzero(self.lists_matching(patterns))
-        parts = [self.postings[self.list_offsets[v]:self.list_offsets[v + 1]] for v in sel]
-        rows = np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int32)
+        member = self.lists_matching(patterns)
+        sel = np.flatnonzero(member)
+        total = int(self.list_sizes[sel].sum())
+        if total * 8 < self.n_segments:  # few postings: gather and sort them
+            parts = [self.postings[self.list_offsets[v]:self.list_offsets[v + 1]] for v in sel]
+            rows = np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int32)
+        else:  # many: one pass over the segments, already in row order
+            rows = np.flatnonzero(member[self.seg_list])
         n = len(rows)
         doc, start, end = (np.empty(n, np.int64) for _ in range(3))
         k = _kernels.merge_rows(rows.astype(np.int64), self.doc, self.start, self.length,

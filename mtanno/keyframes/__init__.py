@@ -1,0 +1,41 @@
+"""Keyframe queries: search and learning (MBS09 §5–6, thesis ch. 4 and 6, algorithms.md
+§5–6) — the preselection stage in front of template matching.
+
+* :mod:`~mtanno.keyframes.model` — :class:`KeyframeQuery` (keyframes over one feature group
+  each, gap bounds, template positions, window extension), its JSON file
+  (:func:`load_keyframes`, :func:`save_keyframes`, schema ``mtanno.keyframes/1``) and
+  :func:`format_query` (``mtanno keyframes show``).
+* :mod:`~mtanno.keyframes.search` — all chains of a query at once, through an index
+  (:func:`search_index`) or by a direct scan of feature matrices (:func:`search_documents`);
+  :class:`KeyframeHits` and candidate windows for annotation (:func:`document_windows`).
+* :mod:`~mtanno.keyframes.learn` — learning a query per class from positive and negative
+  training clips: the genetic algorithm of MBS09 §6 (``ga``), hard-template columns
+  (``hard``, thesis) and MR06's column heuristic (``heuristic``).
+* ``_kernels`` — numba kernels on interval lists (private).
+"""
+
+from mtanno.keyframes.model import (
+    SCHEMA,
+    Extension,
+    Gap,
+    Keyframe,
+    KeyframeQuery,
+    format_query,
+    load_keyframe_folder,
+    load_keyframes,
+    save_keyframes,
+    stiffness_bounds,
+)
+from mtanno.keyframes.search import (
+    KeyframeHits,
+    chain_hits,
+    document_windows,
+    search_documents,
+    search_index,
+)
+
+__all__ = [
+    "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeHits", "KeyframeQuery", "chain_hits",
+    "document_windows", "format_query", "load_keyframe_folder", "load_keyframes",
+    "save_keyframes", "search_documents", "search_index", "stiffness_bounds",
+]

@@ -1,0 +1,324 @@
+"""Keyframe search: the frames of documents where a keyframe query has a chain, and the
+candidate windows annotation matches templates in (MBS09 §5; algorithms.md §5).
+
+For each keyframe V_j, the frames whose group vector matches V_j form an interval list
+I_j: from an index, the union of the inverted lists of every vector V_j matches with
+adjacent segments merged (:meth:`mtanno.index.GroupIndex.intervals`); without an index,
+by a direct scan of the feature matrix. A *chain* is t_1 ≤ … ≤ t_n with t_j ∈ I_j and
+dmin_j ≤ t_{j+1} − t_j ≤ dmax_j, never crossing a document end. Three linear passes over
+the lists find all chains at once:
+
+1. forward: F_1 = I_1, F_{j+1} = I_{j+1} ∩ (F_j ⊕ [dmin_j, dmax_j]) — frames reachable
+   from level 1;
+2. backward: B_n = F_n, B_j = F_j ∩ (B_{j+1} ⊕ [−dmax_j, −dmin_j]) — the frames that lie on
+   a complete chain (on a path of constraints, forward and backward consistency together
+   are global consistency);
+3. spans: for consecutive levels, each pair of a B_j and a B_{j+1} interval joined by an
+   admissible gap contributes the span of its pairs; the union of these spans is exactly
+   the union of the spans [t_1, t_n] of all chains (``docs/keyframes.md`` has the proof).
+
+The union's maximal runs are the *hits* (the reference implementation reports, per chain of
+segments, [leftmost feasible t_1, rightmost feasible t_n] and merges overlapping windows —
+the same frames). Candidate windows widen each hit by the query's extension, clip it to
+its document and merge (:meth:`KeyframeHits.windows`). Frames are 0-based in code.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.keyframes import _kernels
+from mtanno.keyframes.model import KeyframeQuery, check_features_known
+
+__all__ = ["Intervals", "KeyframeHits", "chain_hits", "document_windows", "search_documents",
+           "search_index"]
+
+Intervals = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""An interval list: (doc, start, end) int64 arrays, sorted, disjoint, end inclusive."""
+
+
+def _empty() -> Intervals:
+    z = np.zeros(0, np.int64)
+    return z, z.copy(), z.copy()
+
+
+def _dilate(iv: Intervals, lo: int, hi: int) -> Intervals:
+    n = len(iv[0])
+    out = tuple(np.empty(n, np.int64) for _ in range(3))
+    k = _kernels.dilate(iv[0], iv[1], iv[2], lo, hi, *out)
+    return out[0][:k], out[1][:k], out[2][:k]
+
+
+def _intersect(a: Intervals, b: Intervals) -> Intervals:
+    n = len(a[0]) + len(b[0])
+    out = tuple(np.empty(n, np.int64) for _ in range(3))
+    k = _kernels.intersect(a[0], a[1], a[2], b[0], b[1], b[2], *out)
+    return out[0][:k], out[1][:k], out[2][:k]
+
+
+def _pair_spans(a: Intervals, b: Intervals, dmin: int, dmax: int) -> Intervals:
+    cap = len(a[0]) + len(b[0]) + 1
+    while True:
+        out = tuple(np.empty(cap, np.int64) for _ in range(3))
+        k = _kernels.pair_spans(a[0], a[1], a[2], b[0], b[1], b[2], dmin, dmax, *out)
+        if k <= cap:
+            return out[0][:k], out[1][:k], out[2][:k]
+        cap = k
+
+
+def _union(parts: Sequence[Intervals]) -> Intervals:
+    doc = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, np.int64)
+    if not len(doc):
+        return _empty()
+    start = np.concatenate([p[1] for p in parts])
+    end = np.concatenate([p[2] for p in parts])
+    order = np.lexsort((start, doc))
+    out = tuple(np.empty(len(doc), np.int64) for _ in range(3))
+    k = _kernels.merge_sorted(doc[order], start[order], end[order], *out)
+    return out[0][:k], out[1][:k], out[2][:k]
+
+
+def chain_levels(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]],
+                 ) -> list[Intervals]:
+    """B_1 … B_n: for each level the frames t_j that lie on a complete chain (passes 1 and
+    2 of the module docstring). ``gaps[j] = (dmin, dmax)`` between levels j and j+1."""
+    if len(gaps) != len(levels) - 1:
+        raise MtannoError(f"{len(levels)} levels need {len(levels) - 1} gaps")
+    F = [levels[0]]
+    for j, (lo, hi) in enumerate(gaps):
+        if not len(F[-1][0]):
+            return [_empty() for _ in levels]
+        F.append(_intersect(_dilate(F[-1], lo, hi), levels[j + 1]))
+    B = [_empty() for _ in levels]
+    B[-1] = F[-1]
+    for j in range(len(levels) - 2, -1, -1):
+        lo, hi = gaps[j]
+        B[j] = _intersect(F[j], _dilate(B[j + 1], -hi, -lo))
+    return B
+
+
+def chain_hits(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]]) -> Intervals:
+    """The union of the spans [t_1, t_n] of all chains through ``levels`` (interval lists
+    I_1 … I_n) with ``gaps`` (dmin, dmax), as maximal runs: the keyframe hits."""
+    B = chain_levels(levels, gaps)
+    if len(B) == 1:
+        return B[0]
+    parts = [_pair_spans(B[j], B[j + 1], lo, hi) for j, (lo, hi) in enumerate(gaps)]
+    return _union(parts)
+
+
+def first_chains(B: Sequence[Intervals], gaps: Sequence[tuple[int, int]], hits: Intervals,
+                 ) -> np.ndarray:
+    """(hits × n) frames t_1 … t_n of the earliest chain in each hit (greedy: the first
+    frame of B_1 in the hit, then the first frame of B_{j+1} at least dmin_j later; every
+    frame of B_j continues to a complete chain, so the greedy choice never fails)."""
+    n = len(B)
+    out = np.empty((len(hits[0]), n), np.int64)
+    keys = [(b[0] << 32) | b[1] for b in B]
+    for h in range(len(hits[0])):
+        d = int(hits[0][h])
+        t = int(hits[1][h])
+        for j in range(n):
+            lo = t if j == 0 else t + gaps[j - 1][0]
+            # first interval of B_j in document d ending at or after lo
+            ends = B[j][2]
+            i = int(np.searchsorted(keys[j], (d << 32) | lo, side="right")) - 1
+            if i < 0 or B[j][0][i] != d or ends[i] < lo:
+                i += 1
+            t = max(lo, int(B[j][1][i]))
+            out[h, j] = t
+    return out
+
+
+@dataclass
+class KeyframeHits:
+    """Keyframe hits in a set of documents.
+
+    Attributes
+    ----------
+    names, lengths:
+        Document names and frame counts, by document number.
+    doc, start, end:
+        One entry per hit (a maximal run of frames covered by chain spans), sorted;
+        frames 0-based inclusive.
+    chains:
+        (hits × n) frames of the earliest chain in each hit.
+    query:
+        The query searched.
+    """
+
+    names: tuple[str, ...]
+    lengths: np.ndarray
+    doc: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    chains: np.ndarray
+    query: KeyframeQuery
+
+    def __len__(self) -> int:
+        return len(self.doc)
+
+    def windows(self, *, widths: tuple[int, int] | None = None) -> Intervals:
+        """Candidate windows: hits widened by ``widths`` (default: the query's extension,
+        :meth:`KeyframeQuery.widths`), clipped to their document and merged where they
+        overlap or touch."""
+        left, right = self.query.widths() if widths is None else widths
+        return widen(self.doc, self.start, self.end, left, right, self.lengths)
+
+    def by_document(self, *, widths: tuple[int, int] | None = None,
+                    ) -> dict[str, list[tuple[int, int]]]:
+        """Document name → candidate windows [(first, last)] (0-based inclusive), the form
+        :func:`mtanno.annotate.annotate_document` takes; documents without a window map
+        to an empty list."""
+        d, s, e = self.windows(widths=widths)
+        out: dict[str, list[tuple[int, int]]] = {n: [] for n in self.names}
+        for i in range(len(d)):
+            out[self.names[int(d[i])]].append((int(s[i]), int(e[i])))
+        return out
+
+    @property
+    def frames(self) -> int:
+        """Frames covered by the hits."""
+        return int((self.end - self.start + 1).sum())
+
+
+def widen(doc: np.ndarray, start: np.ndarray, end: np.ndarray, left: int, right: int,
+          lengths: np.ndarray) -> Intervals:
+    """Intervals widened by ``left``/``right`` frames, clipped to [0, length − 1] of their
+    document and merged where they overlap or touch."""
+    if left < 0 or right < 0:
+        raise MtannoError("window widths must be ≥ 0")
+    doc = np.asarray(doc, np.int64)
+    s = np.maximum(np.asarray(start, np.int64) - left, 0)
+    e = np.minimum(np.asarray(end, np.int64) + right, np.asarray(lengths, np.int64)[doc] - 1)
+    out = tuple(np.empty(len(doc), np.int64) for _ in range(3))
+    k = _kernels.merge_sorted(doc, s, e, *out)
+    return out[0][:k], out[1][:k], out[2][:k]
+
+
+def _gaps(query: KeyframeQuery) -> list[tuple[int, int]]:
+    return [(g.dmin, g.upper) for g in query.gaps]
+
+
+def _run(query: KeyframeQuery, levels: list[Intervals], names, lengths) -> KeyframeHits:
+    gaps = _gaps(query)
+    B = chain_levels(levels, gaps)
+    if len(B) == 1:
+        hits = B[0]
+    else:
+        hits = _union([_pair_spans(B[j], B[j + 1], lo, hi) for j, (lo, hi) in enumerate(gaps)])
+    return KeyframeHits(tuple(names), np.asarray(lengths, np.int64), hits[0], hits[1], hits[2],
+                        first_chains(B, gaps, hits), query)
+
+
+# --------------------------------------------------------------------------- with an index
+
+def _index_pattern(index, query: KeyframeQuery, j: int) -> tuple[str, int, int]:
+    """(index group, mask, value) of keyframe j: its fixed features located in the one
+    index group that holds them all."""
+    kf = query.keyframes[j]
+    feats = query.groups[kf.group]
+    fixed = [(feats[k], c) for k, c in enumerate(kf.vector) if c != "*"]
+    if not fixed:
+        g = next(iter(index.groups))
+        return g, 0, 0
+    for g, gi in index.groups.items():
+        pos = {f: b for b, f in enumerate(gi.features)}
+        if all(f in pos for f, _ in fixed):
+            mask = value = 0
+            for f, c in fixed:
+                mask |= 1 << pos[f]
+                value |= (c == "1") << pos[f]
+            return g, mask, value
+    raise MtannoError(f"keyframe {j + 1} of class '{query.class_name}' uses features that no "
+                      f"single index group holds (index groups: {', '.join(index.groups)})")
+
+
+def search_index(index, query: KeyframeQuery) -> KeyframeHits:
+    """All keyframe hits of ``query`` in an index (:class:`mtanno.index.Index`), through
+    its inverted lists (MBS09 §5, algorithms.md §5). Each keyframe's features must lie in
+    one of the index's groups (a keyframe over fewer features than the group, e.g. the
+    reference's 13-feature AK-mix against the 14-feature mix group, leaves the others
+    free)."""
+    check_features_known(query, index.features, feature_set=index.feature_set, what="index")
+    if float(query.fps) != float(index.fps):
+        raise MtannoError(f"keyframes of class '{query.class_name}' are at {query.fps:g} Hz "
+                          f"but the index at {index.fps:g} Hz")
+    levels = []
+    for j in range(query.n):
+        g, mask, value = _index_pattern(index, query, j)
+        d, s, e = index.groups[g].intervals([(mask, value)])
+        levels.append((d.astype(np.int64), s.astype(np.int64), e.astype(np.int64)))
+    return _run(query, levels, [d.name for d in index.documents],
+                [d.frames for d in index.documents])
+
+
+# --------------------------------------------------------------------------- direct scan
+
+def _runs(match: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, ends) of the maximal runs of True in a boolean vector."""
+    m = np.concatenate(([False], match, [False]))
+    change = np.flatnonzero(m[1:] != m[:-1])
+    return change[0::2].astype(np.int64), change[1::2].astype(np.int64) - 1
+
+
+class _Scanner:
+    """Matches keyframes against feature matrices with named rows (a direct scan)."""
+
+    def __init__(self, query: KeyframeQuery, names: Sequence[str]):
+        check_features_known(query, names, feature_set=None, what="feature file")
+        pos = {n: i for i, n in enumerate(names)}
+        self.rows, self.vals = [], []
+        for kf in query.keyframes:
+            feats = query.groups[kf.group]
+            fixed = [(pos[feats[k]], c == "1") for k, c in enumerate(kf.vector) if c != "*"]
+            self.rows.append(np.array([r for r, _ in fixed], np.int64))
+            self.vals.append(np.array([v for _, v in fixed], np.uint8)[:, None])
+
+    def levels(self, X: np.ndarray, d: int) -> list[Intervals]:
+        out = []
+        for rows, vals in zip(self.rows, self.vals):
+            if len(rows):
+                match = (X[rows] == vals).all(axis=0)
+            else:
+                match = np.ones(X.shape[1], bool)
+            s, e = _runs(match)
+            out.append((np.full(len(s), d, np.int64), s, e))
+        return out
+
+
+def search_documents(documents: Iterable[tuple[str, np.ndarray]], names: Sequence[str],
+                     query: KeyframeQuery, *, feature_set: str | None = None) -> KeyframeHits:
+    """All keyframe hits of ``query`` in documents given as (name, X) pairs, X a
+    (features × frames) 0/1 matrix with rows ``names`` — a direct scan, for documents
+    that have no index (same result as :func:`search_index` on an index of them)."""
+    if feature_set is not None:
+        check_features_known(query, names, feature_set=feature_set, what="feature file")
+    scan = _Scanner(query, names)
+    doc_names, lengths = [], []
+    per_level: list[list[Intervals]] = [[] for _ in range(query.n)]
+    for d, (name, X) in enumerate(documents):
+        X = np.asarray(X)
+        if X.ndim != 2 or X.shape[0] != len(names):
+            raise MtannoError(f"document '{name}': matrix must be ({len(names)} × frames)")
+        doc_names.append(name)
+        lengths.append(X.shape[1])
+        for j, lv in enumerate(scan.levels(X, d)):
+            per_level[j].append(lv)
+    levels = [tuple(np.concatenate([p[k] for p in parts]) if parts else np.zeros(0, np.int64)
+                    for k in range(3)) for parts in per_level]
+    return _run(query, levels, doc_names, lengths)
+
+
+def document_windows(X: np.ndarray, names: Sequence[str], query: KeyframeQuery,
+                     ) -> list[tuple[int, int]]:
+    """Candidate windows [(first, last)] (0-based inclusive) of one class in one document:
+    its keyframe hits widened by the query's extension, clipped and merged (MBS09 §5, the
+    input of :func:`mtanno.annotate.class_deltas`)."""
+    hits = search_documents([("doc", X)], names, query)
+    d, s, e = hits.windows()
+    return [(int(a), int(b)) for a, b in zip(s, e)]

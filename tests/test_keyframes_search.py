@@ -1,0 +1,138 @@
+"""Keyframe search (algorithms.md §5) against the brute-force oracle of naive_keyframes.py:
+random documents and random queries, through an index and by a direct scan."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from naive_keyframes import hits_naive, random_query, windows_naive
+
+from mtanno.errors import MtannoError
+from mtanno.index import index_from_matrices
+from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, search_documents, search_index
+from mtanno.keyframes.search import chain_hits
+
+NAMES = ["a", "b", "c", "d", "e"]
+GROUPS = {"g": ("a", "b", "c"), "h": ("d", "e")}
+
+
+def _docs(rng, n_docs, p=0.25):
+    out = {}
+    for i in range(n_docs):
+        L = int(rng.integers(1, 40))
+        out[f"d{i}"] = (np.cumsum(rng.random((len(NAMES), L)) < p, axis=1) % 2).astype(np.uint8)
+    return out
+
+
+def _as_runs(hits, d):
+    sel = hits.doc == d
+    return list(zip(hits.start[sel].tolist(), hits.end[sel].tolist()))
+
+
+def check_against_oracle(seed):
+    rng = np.random.default_rng(seed)
+    docs = _docs(rng, int(rng.integers(1, 4)))
+    q = random_query(rng, GROUPS)
+    idx = index_from_matrices(docs, NAMES, GROUPS)
+    by_index = search_index(idx, q)
+    by_scan = search_documents(list(docs.items()), NAMES, q)
+    left, right = int(rng.integers(0, 5)), int(rng.integers(0, 5))
+    for name, X in docs.items():
+        want = hits_naive(X, NAMES, q)
+        di = by_index.names.index(name)
+        ds = by_scan.names.index(name)
+        assert _as_runs(by_index, di) == want
+        assert _as_runs(by_scan, ds) == want
+        wd, ws, we = by_index.windows(widths=(left, right))
+        got = list(zip(ws[wd == di].tolist(), we[wd == di].tolist()))
+        assert got == windows_naive(X, NAMES, q, left, right)
+    for h in range(len(by_scan)):  # the earliest chain lies in its hit and is a chain
+        ch = by_scan.chains[h]
+        X = docs[by_scan.names[by_scan.doc[h]]]
+        assert by_scan.start[h] == ch[0] and ch[-1] <= by_scan.end[h]
+        from naive_keyframes import matches
+        for j, t in enumerate(ch):
+            assert matches(X, NAMES, q, j, int(t))
+            if j:
+                g = q.gaps[j - 1]
+                assert g.dmin <= t - ch[j - 1] <= (g.dmax if g.dmax is not None else 10**9)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_search_equals_brute_force(seed):
+    check_against_oracle(seed)
+
+
+def test_dense_documents_and_wide_gaps():
+    """Long runs and unbounded gaps: many interval pairs per level."""
+    for seed in range(40):
+        rng = np.random.default_rng(1000 + seed)
+        docs = _docs(rng, 2, p=0.05)
+        q = random_query(rng, GROUPS, n_max=5)
+        hits = search_documents(list(docs.items()), NAMES, q)
+        for d, X in enumerate(docs.values()):
+            assert _as_runs(hits, d) == hits_naive(X, NAMES, q)
+
+
+def test_worked_example():
+    """F15 on at frames 2–4; keyframe 2 (F15 off) 1–3 frames later: chains (2,5), (3,5),
+    (3,6), (4,5), (4,6), (4,7) → one hit 2–7; widened 0 left, 2·(5−3) = 4 right."""
+    X = np.zeros((5, 20), np.uint8)
+    X[0, 2:5] = 1
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1**", 1), Keyframe("g", "0**", 3)],
+                      [Gap(1, 3)], 5)
+    h = search_documents([("x", X)], NAMES, q)
+    assert (h.start.tolist(), h.end.tolist(), h.chains.tolist()) == ([2], [7], [[2, 5]])
+    d, s, e = h.windows()
+    assert (s.tolist(), e.tolist()) == ([2], [11])
+
+
+def test_same_frame_across_groups():
+    """Gap (0, 0) joins conditions on two groups at one frame."""
+    X = np.zeros((5, 10), np.uint8)
+    X[0, [1, 2, 6]] = 1
+    X[3, [2, 3, 7]] = 1
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1**", 4), Keyframe("h", "1*", 4)],
+                      [Gap(0, 0)], 8)
+    h = search_documents([("x", X)], NAMES, q)
+    assert list(zip(h.start.tolist(), h.end.tolist())) == [(2, 2)]
+
+
+def test_chain_hits_array_api():
+    lv = [(np.array([0, 0]), np.array([0, 10]), np.array([1, 12])),
+          (np.array([0]), np.array([5]), np.array([5]))]
+    d, s, e = chain_hits(lv, [(3, 5)])
+    assert (d.tolist(), s.tolist(), e.tolist()) == ([0], [0], [5])
+    with pytest.raises(MtannoError):
+        chain_hits(lv, [])
+
+
+def test_index_needs_one_group_per_keyframe():
+    docs = {"x": np.zeros((5, 4), np.uint8)}
+    idx = index_from_matrices(docs, NAMES, {"g": ("a", "b"), "h": ("c", "d", "e")})
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "11*", 1)], [], 2)
+    assert len(search_index(idx, q)) == 0
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1*1", 1)], [], 2)
+    with pytest.raises(MtannoError, match="no single index group"):
+        search_index(idx, q)
+
+
+def test_wrong_feature_set_or_missing_feature():
+    docs = {"x": np.zeros((5, 4), np.uint8)}
+    idx = index_from_matrices(docs, NAMES, GROUPS, feature_set="other")
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1**", 1)], [], 2)
+    with pytest.raises(MtannoError, match="feature set 'custom' but the index holds 'other'"):
+        search_index(idx, q)
+    q2 = KeyframeQuery("c", "custom", {"g": ("a", "zz")}, [Keyframe("g", "1*", 1)], [], 2)
+    with pytest.raises(MtannoError, match="'zz', which the feature file lacks"):
+        search_documents([("x", docs["x"])], NAMES, q2)
+
+
+def test_search_without_jit():
+    """The interval kernels as plain Python give the oracle's answers too."""
+    from nojit import run_without_jit
+
+    run_without_jit("test_keyframes_search", "check_against_oracle", *[(s,) for s in range(60)])
