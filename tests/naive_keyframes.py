@@ -15,10 +15,11 @@ def matches(X, names, query, j, t):
     """Does frame t of X (features × frames, rows ``names``) match keyframe j?"""
     kf = query.keyframes[j]
     feats = query.groups[kf.group]
+    wrong = 0
     for k, c in enumerate(kf.vector):
         if c != "*" and int(X[names.index(feats[k]), t]) != int(c):
-            return False
-    return True
+            wrong += 1
+    return wrong <= kf.mismatches
 
 
 def chains_naive(X, names, query):
@@ -92,7 +93,9 @@ def random_query(rng, groups, *, n_max=4, K=30):
         vec = "".join("01*"[int(x)] for x in rng.integers(0, 3, size=len(groups[g])))
         if set(vec) == {"*"}:
             vec = "1" + vec[1:]
-        kfs.append(Keyframe(g, vec, int(pos[j])))
+        fixed = sum(c != "*" for c in vec)
+        tol = int(rng.integers(0, 2)) if fixed >= 4 else 0
+        kfs.append(Keyframe(g, vec, int(pos[j]), tol))
         if j:
             lo = int(rng.integers(0, 4))
             hi = None if rng.random() < 0.15 else lo + int(rng.integers(0, 6))

@@ -14,8 +14,9 @@ from mtanno.index import index_from_matrices
 from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, search_documents, search_index
 from mtanno.keyframes.search import chain_hits
 
-NAMES = ["a", "b", "c", "d", "e"]
-GROUPS = {"g": ("a", "b", "c"), "h": ("d", "e")}
+NAMES = ["a", "b", "c", "d", "e", "f", "g"]
+GROUPS = {"g": ("a", "b", "c", "d", "e"), "h": ("f", "g")}
+SMALL = {"g": ("a", "b", "c"), "h": ("d", "e")}
 
 
 def _docs(rng, n_docs, p=0.25):
@@ -80,9 +81,9 @@ def test_dense_documents_and_wide_gaps():
 def test_worked_example():
     """F15 on at frames 2–4; keyframe 2 (F15 off) 1–3 frames later: chains (2,5), (3,5),
     (3,6), (4,5), (4,6), (4,7) → one hit 2–7; widened 0 left, 2·(5−3) = 4 right."""
-    X = np.zeros((5, 20), np.uint8)
+    X = np.zeros((7, 20), np.uint8)
     X[0, 2:5] = 1
-    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1**", 1), Keyframe("g", "0**", 3)],
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "1**", 1), Keyframe("g", "0**", 3)],
                       [Gap(1, 3)], 5)
     h = search_documents([("x", X)], NAMES, q)
     assert (h.start.tolist(), h.end.tolist(), h.chains.tolist()) == ([2], [7], [[2, 5]])
@@ -92,10 +93,10 @@ def test_worked_example():
 
 def test_same_frame_across_groups():
     """Gap (0, 0) joins conditions on two groups at one frame."""
-    X = np.zeros((5, 10), np.uint8)
+    X = np.zeros((7, 10), np.uint8)
     X[0, [1, 2, 6]] = 1
     X[3, [2, 3, 7]] = 1
-    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1**", 4), Keyframe("h", "1*", 4)],
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "1**", 4), Keyframe("h", "1*", 4)],
                       [Gap(0, 0)], 8)
     h = search_documents([("x", X)], NAMES, q)
     assert list(zip(h.start.tolist(), h.end.tolist())) == [(2, 2)]
@@ -111,19 +112,19 @@ def test_chain_hits_array_api():
 
 
 def test_index_needs_one_group_per_keyframe():
-    docs = {"x": np.zeros((5, 4), np.uint8)}
-    idx = index_from_matrices(docs, NAMES, {"g": ("a", "b"), "h": ("c", "d", "e")})
-    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "11*", 1)], [], 2)
+    docs = {"x": np.zeros((7, 4), np.uint8)}
+    idx = index_from_matrices(docs, NAMES, {"g": ("a", "b"), "h": ("c", "d", "e", "f", "g")})
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "11*", 1)], [], 2)
     assert len(search_index(idx, q)) == 0
-    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1*1", 1)], [], 2)
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "1*1", 1)], [], 2)
     with pytest.raises(MtannoError, match="no single index group"):
         search_index(idx, q)
 
 
 def test_wrong_feature_set_or_missing_feature():
-    docs = {"x": np.zeros((5, 4), np.uint8)}
+    docs = {"x": np.zeros((7, 4), np.uint8)}
     idx = index_from_matrices(docs, NAMES, GROUPS, feature_set="other")
-    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1**", 1)], [], 2)
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "1**", 1)], [], 2)
     with pytest.raises(MtannoError, match="feature set 'custom' but the index holds 'other'"):
         search_index(idx, q)
     q2 = KeyframeQuery("c", "custom", {"g": ("a", "zz")}, [Keyframe("g", "1*", 1)], [], 2)
@@ -136,3 +137,19 @@ def test_search_without_jit():
     from nojit import run_without_jit
 
     run_without_jit("test_keyframes_search", "check_against_oracle", *[(s,) for s in range(60)])
+
+
+def test_mismatch_tolerance():
+    """A keyframe with one mismatch allowed matches frames differing in one fixed entry."""
+    X = np.zeros((7, 6), np.uint8)
+    X[:4, 1] = [1, 1, 1, 1]      # exact
+    X[:4, 3] = [1, 0, 1, 1]      # one off
+    X[:4, 5] = [0, 0, 1, 1]      # two off
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "1111*", 1, 1)], [], 2)
+    h = search_documents([("x", X)], NAMES, q)
+    assert list(zip(h.start.tolist(), h.end.tolist())) == [(1, 1), (3, 3)]
+    idx = index_from_matrices({"x": X}, NAMES, GROUPS)
+    hi = search_index(idx, q)
+    assert list(zip(hi.start.tolist(), hi.end.tolist())) == [(1, 1), (3, 3)]
+    with pytest.raises(MtannoError, match="mismatch"):
+        KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "11***", 1, 1)], [], 2)

@@ -67,13 +67,21 @@ def check_features(ff, key) -> None:
 
 
 def _annotate_one(args):
-    path, models, key, config, variant, match_variant = args
+    path, models, key, config, variant, match_variant, keyframes = args
     from mtanno.annotate import annotate_document
+    from mtanno.keyframes import class_windows
     from mtanno.store import read_features
 
     ff = read_features(path)
     check_features(ff, key)
-    rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
+    windows = None
+    if keyframes:
+        try:
+            windows = class_windows(ff.X, ff.names, keyframes,
+                                    feature_set=ff.meta.get("feature_set"))
+        except MtannoError as exc:
+            raise MtannoError(exc.message, path=ff.path) from None
+    rows, _, _ = annotate_document(ff.document, ff.X, models, config=config, windows=windows,
                                    dbar_variant=variant, match_variant=match_variant)
     return ff.document, rows, ff.native_frames
 
@@ -84,6 +92,9 @@ def _annotate_one(args):
               help="Directory of class templates (CLASS.json) from learn-mt.")
 @click.option("-o", "--output", "outputs", multiple=True, required=True,
               help="Annotation table, .csv or .parquet (repeat for both).")
+@click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
+              help="Folder of keyframe queries (CLASS.json from learn-keyframes): a class's "
+                   "template is matched only inside its candidate windows (MBS09 §5).")
 @click.option("--classes", "config_path", type=click.Path(dir_okay=False), default=None,
               help="Class configuration (TOML): per-class tau, superclasses.")
 @click.option("--tau", type=float, default=None,
@@ -98,14 +109,19 @@ def _annotate_one(args):
               help="Worker processes (documents in parallel).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def annotate_cmd(features, mt_dir, outputs, config_path, tau, delta, variant, match_variant,
-                 jobs, quiet):
+def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, variant,
+                 match_variant, jobs, quiet):
     """Label every frame of documents with motion classes (MBS09 §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
     every document; frames get the class whose modified distance is smallest (below tau),
     and the labelled runs are extended. Output rows: doc, start, end (1-based inclusive
     frames at 30 Hz), label, cost, start_native, end_native; rows may overlap.
+
+    With --keyframes, each class that has a keyframe query is first searched for its key
+    poses (a fast scan of the features), and its template is matched only inside the
+    windows found (widened by the query's extension); classes without a query are matched
+    everywhere, with a note.
     """
     from concurrent.futures import ProcessPoolExecutor
 
@@ -120,8 +136,9 @@ def annotate_cmd(features, mt_dir, outputs, config_path, tau, delta, variant, ma
     if tau is not None:
         config.default_tau = tau
     models, key = load_class_models(mt_dir, delta=delta)
+    keyframes = _load_keyframes(kf_dir, models, key, quiet) if kf_dir else None
     paths = feature_paths(features)
-    work = [(p, models, key, config, variant, match_variant) for p in paths]
+    work = [(p, models, key, config, variant, match_variant, keyframes) for p in paths]
     rows, native, failed = [], {}, 0
     bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")
 
@@ -155,6 +172,28 @@ def annotate_cmd(features, mt_dir, outputs, config_path, tau, delta, variant, ma
         click.echo(f"annotate: {len(paths) - failed} documents, {len(rows)} segments, "
                    f"{len(models)} classes, {failed} failed -> {', '.join(outputs)}", err=True)
     sys.exit(1 if failed else 0)
+
+
+def _load_keyframes(kf_dir, models, key, quiet):
+    """Keyframe queries of the template classes; notes (stderr) for classes without one
+    and queries without a template."""
+    from mtanno.keyframes import load_keyframe_folder
+
+    queries = load_keyframe_folder(kf_dir)
+    names = [m.name for m in models]
+    for cls, q in queries.items():
+        if q.feature_set != key[1]:
+            raise MtannoError(f"keyframes of class '{cls}' are for feature set "
+                              f"'{q.feature_set}' but the templates use '{key[1]}'", path=kf_dir)
+    missing = [n for n in names if n not in queries]
+    extra = sorted(set(queries) - set(names))
+    if not quiet and missing:
+        click.echo(f"annotate: note: no keyframe query for {', '.join(missing)}; matched "
+                   "everywhere", err=True)
+    if not quiet and extra:
+        click.echo(f"annotate: note: keyframe queries without a template ignored: "
+                   f"{', '.join(extra)}", err=True)
+    return {n: queries[n] for n in names if n in queries}
 
 
 @click.command("evaluate")

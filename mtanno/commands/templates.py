@@ -82,28 +82,13 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     from mtanno.templates.model import save_template
     from mtanno.templates.training import (
         check_consistent,
+        collect_sources,
         group_by_class,
         load_examples,
-        sources_from_manifest,
-        sources_from_tree,
-        sources_from_truth,
     )
 
-    if manifest is not None and truth is not None:
-        raise click.UsageError("--manifest and --truth exclude each other")
-    if manifest is not None:
-        if training:
-            raise click.UsageError("no TRAINING arguments with --manifest (it lists the files)")
-        if features_dir is None:
-            raise click.UsageError("--manifest needs --features-dir DIR")
-        sources = sources_from_manifest(manifest, features_dir=features_dir, split=split)
-    else:
-        if features_dir is not None or split is not None:
-            raise click.UsageError("--features-dir and --split go with --manifest")
-        if not training:
-            raise click.UsageError("give TRAINING folders or files (or --manifest)")
-        sources = (sources_from_truth(truth, training) if truth is not None
-                   else sources_from_tree(training))
+    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
+                              split=split, truth=truth)
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     t0 = time.perf_counter()

@@ -29,6 +29,7 @@ from mtanno.keyframes.model import (
 from mtanno.keyframes.search import (
     KeyframeHits,
     chain_hits,
+    class_windows,
     document_windows,
     search_documents,
     search_index,
@@ -36,6 +37,6 @@ from mtanno.keyframes.search import (
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeHits", "KeyframeQuery", "chain_hits",
-    "document_windows", "format_query", "load_keyframe_folder", "load_keyframes",
+    "class_windows", "document_windows", "format_query", "load_keyframe_folder", "load_keyframes",
     "save_keyframes", "search_documents", "search_index", "stiffness_bounds",
 ]

@@ -13,7 +13,6 @@ kernels of this file only (numba's cache does not see changes across files).
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 
 @numba.njit(cache=True)
@@ -118,35 +117,13 @@ def merge_sorted(doc, start, end, out_doc, out_start, out_end):
 
 
 @numba.njit(cache=True)
-def docs_with_chain(lv_doc, lv_start, lv_end, lv_off, dmin, dmax, n_docs, out):
-    """Which documents hold at least one chain of the query (GA fitness, MBS09 §6).
-
-    Level j's interval list is ``lv_*[lv_off[j]:lv_off[j+1]]``; the forward pass keeps the
-    frames t_j reachable from level 1 (F_{j+1} = I_{j+1} ∩ (F_j ⊕ [dmin_j, dmax_j])).
-    ``out[d]`` is set to 1 for every document with a frame left at the last level.
-    """
-    n = lv_off.shape[0] - 1
-    cap = lv_off[n] + 1  # |F_j| ≤ |F_{j-1}| + |I_j| ≤ all intervals of the levels so far
-    fd = np.empty(cap, np.int64)
-    fs = np.empty(cap, np.int64)
-    fe = np.empty(cap, np.int64)
-    gd = np.empty(cap, np.int64)
-    gs = np.empty(cap, np.int64)
-    ge = np.empty(cap, np.int64)
-    m = lv_off[1] - lv_off[0]
-    for i in range(m):
-        fd[i] = lv_doc[i]
-        fs[i] = lv_start[i]
-        fe[i] = lv_end[i]
-    for j in range(n - 1):
-        if m == 0:
-            break
-        k = dilate(fd[:m], fs[:m], fe[:m], dmin[j], dmax[j], gd, gs, ge)
-        a = lv_off[j + 1]
-        b = lv_off[j + 2]
-        m = intersect(gd[:k], gs[:k], ge[:k], lv_doc[a:b], lv_start[a:b], lv_end[a:b],
-                      fd, fs, fe)
-    for i in range(n_docs):
-        out[i] = 0
-    for i in range(m):
-        out[fd[i]] = 1
+def mark_clips(start, end, clip_of_frame, clip_end, out):
+    """Set ``out[c] = 1`` for every clip c that a frame range [start[i], end[i]] (global
+    frames over joined clips) overlaps; ``clip_end[c]`` is one past the clip's last
+    frame. Visits one frame per clip touched, not every frame."""
+    for i in range(start.shape[0]):
+        t = start[i]
+        while t <= end[i]:
+            c = clip_of_frame[t]
+            out[c] = 1
+            t = clip_end[c]

@@ -52,6 +52,7 @@ from mtanno.errors import MtannoError, read_input
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "format_query",
     "load_keyframes", "load_keyframe_folder", "save_keyframes", "stiffness_bounds",
+    "tolerant_patterns",
 ]
 
 SCHEMA = "mtanno.keyframes/1"
@@ -130,11 +131,15 @@ def _fraction_text(s: Fraction) -> str | float:
 @dataclass(frozen=True)
 class Keyframe:
     """One keyframe: ``vector`` has one of ``0``, ``1``, ``*`` per feature of ``group``
-    (in the group's feature order); ``position`` is the 1-based template column."""
+    (in the group's feature order); ``position`` is the 1-based template column.
+    ``mismatches`` is how many of the fixed entries may differ at a matching frame (0:
+    all must agree, as in MBS09; 1 or 2: MRC05's mismatch tolerance, for keyframes that
+    must carry over to performers who differ in a feature or two)."""
 
     group: str
     vector: str
     position: int
+    mismatches: int = 0
 
     def pattern(self) -> tuple[int, int]:
         """(mask, value) over the group's bits: bit k = the group's k-th feature."""
@@ -145,10 +150,32 @@ class Keyframe:
                 value |= (c == "1") << k
         return mask, value
 
+    def patterns(self) -> list[tuple[int, int]]:
+        """(mask, value) patterns whose union is the frames this keyframe matches: the
+        pattern itself, or with ``mismatches`` = m every way of freeing m fixed bits."""
+        return tolerant_patterns(*self.pattern(), self.mismatches)
+
     @property
     def fixed(self) -> int:
         """Number of non-wildcard entries."""
         return sum(c != "*" for c in self.vector)
+
+
+def tolerant_patterns(mask: int, value: int, mismatches: int) -> list[tuple[int, int]]:
+    """Patterns matching the vectors that differ from (mask, value) in at most
+    ``mismatches`` fixed bits: every way of freeing that many bits of ``mask``."""
+    if mismatches <= 0:
+        return [(mask, value)]
+    from itertools import combinations
+
+    bits = [1 << k for k in range(mask.bit_length()) if mask >> k & 1]
+    out = []
+    for free in combinations(bits, min(mismatches, len(bits))):
+        m = mask
+        for b in free:
+            m &= ~b
+        out.append((m, value & m))
+    return out
 
 
 @dataclass(frozen=True)
@@ -245,6 +272,8 @@ class KeyframeQuery:
         for j, kf in enumerate(self.keyframes):
             d: dict[str, Any] = {"group": kf.group, "position": kf.position,
                                  "vector": kf.vector}
+            if kf.mismatches:
+                d["mismatches"] = kf.mismatches
             if j:
                 g = self.gaps[j - 1]
                 if g.stiffness is not None:
@@ -304,6 +333,12 @@ def _validate(q: KeyframeQuery, text: str | None = None, path: str | None = None
         if len(kf.vector) != n:
             raise bad(f"{where}: vector has {len(kf.vector)} entries but group '{kf.group}' "
                       f"has {n} features", "vector", j - 1)
+        m = kf.mismatches
+        if not isinstance(m, int) or isinstance(m, bool) or not 0 <= m <= 2:
+            raise bad(f"{where}: mismatches must be 0, 1 or 2, got {m!r}", "vector", j - 1)
+        if m and kf.fixed <= 2 * m + 1:
+            raise bad(f"{where}: {m} mismatch(es) allowed but only {kf.fixed} fixed entries "
+                      f"(need at least {2 * m + 2})", "vector", j - 1)
         p = kf.position
         if not isinstance(p, int) or isinstance(p, bool) or not 1 <= p <= K:
             raise bad(f"{where}: position must be an integer in 1..{K} (template length), "
@@ -335,7 +370,7 @@ def _line_of(text: str, key: str, nth: int = 0) -> int | None:
 
 _KEYS = {"schema", "class", "feature_set", "fps", "template_length", "extension", "groups",
          "keyframes", "provenance", "comment"}
-_KF_KEYS = {"group", "position", "vector", "stiffness", "gap", "comment"}
+_KF_KEYS = {"group", "position", "vector", "mismatches", "stiffness", "gap", "comment"}
 
 
 def parse_keyframes(d: Any, *, text: str | None = None, path: str | None = None,
@@ -393,7 +428,7 @@ def parse_keyframes(d: Any, *, text: str | None = None, path: str | None = None,
         if not isinstance(k["vector"], str):
             raise bad(f"{where}: vector must be a string of 0, 1 and *", "vector", j - 1)
         vector = "".join(k["vector"].split())
-        keyframes.append(Keyframe(k["group"], vector, k["position"]))
+        keyframes.append(Keyframe(k["group"], vector, k["position"], k.get("mismatches", 0)))
         has_s, has_g = "stiffness" in k, "gap" in k
         if j == 1:
             if has_s or has_g:
@@ -493,11 +528,29 @@ def dumps(q: KeyframeQuery) -> str:
             text = "{\n" + ",\n".join(f"    {one(g)}: {one(f)}" for g, f in value.items()) \
                 + "\n  }"
         elif key == "provenance":
-            text = json.dumps(value, indent=2, ensure_ascii=False).replace("\n", "\n  ")
+            text = _dumps_provenance(value)
         else:
             text = one(value)
         lines.append(f"  {one(key)}: {text}")
     return "{\n" + ",\n".join(lines) + "\n}\n"
+
+
+def _dumps_provenance(prov: dict) -> str:
+    """One line per provenance entry; a list of objects (the training clips) one line per
+    object."""
+    def one(x) -> str:
+        return json.dumps(x, ensure_ascii=False)
+
+    if not prov:
+        return "{}"
+    items = []
+    for k, v in prov.items():
+        if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            text = "[\n" + ",\n".join("      " + one(x) for x in v) + "\n    ]"
+        else:
+            text = one(v)
+        items.append(f"    {one(k)}: {text}")
+    return "{\n" + ",\n".join(items) + "\n  }"
 
 
 def save_keyframes(path: str | os.PathLike, q: KeyframeQuery) -> None:
@@ -540,7 +593,9 @@ def format_query(q: KeyframeQuery, *, path: str | None = None) -> str:
     out.append("  #  pos  group    gap to previous    vector")
     for j, kf in enumerate(q.keyframes):
         gap = q.gaps[j - 1].text() if j else ""
-        out.append(f"{j + 1:3d}  {kf.position:3d}  {kf.group:<7s}  {gap:<17s}  {kf.vector}")
+        tol = f"  (≤{kf.mismatches} mismatch{'es' if kf.mismatches > 1 else ''})" \
+            if kf.mismatches else ""
+        out.append(f"{j + 1:3d}  {kf.position:3d}  {kf.group:<7s}  {gap:<17s}  {kf.vector}{tol}")
     rows = []
     for g, feats in q.groups.items():
         for k, name in enumerate(feats):

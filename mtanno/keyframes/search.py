@@ -32,10 +32,10 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.keyframes import _kernels
-from mtanno.keyframes.model import KeyframeQuery, check_features_known
+from mtanno.keyframes.model import KeyframeQuery, check_features_known, tolerant_patterns
 
-__all__ = ["Intervals", "KeyframeHits", "chain_hits", "document_windows", "search_documents",
-           "search_index"]
+__all__ = ["Intervals", "KeyframeHits", "chain_hits", "class_windows", "document_windows",
+           "search_documents", "search_index"]
 
 Intervals = tuple[np.ndarray, np.ndarray, np.ndarray]
 """An interval list: (doc, start, end) int64 arrays, sorted, disjoint, end inclusive."""
@@ -219,7 +219,7 @@ def _run(query: KeyframeQuery, levels: list[Intervals], names, lengths) -> Keyfr
 
 def _index_pattern(index, query: KeyframeQuery, j: int) -> tuple[str, int, int]:
     """(index group, mask, value) of keyframe j: its fixed features located in the one
-    index group that holds them all."""
+    index group that holds them all (mismatches not applied)."""
     kf = query.keyframes[j]
     feats = query.groups[kf.group]
     fixed = [(feats[k], c) for k, c in enumerate(kf.vector) if c != "*"]
@@ -251,7 +251,8 @@ def search_index(index, query: KeyframeQuery) -> KeyframeHits:
     levels = []
     for j in range(query.n):
         g, mask, value = _index_pattern(index, query, j)
-        d, s, e = index.groups[g].intervals([(mask, value)])
+        pats = tolerant_patterns(mask, value, query.keyframes[j].mismatches)
+        d, s, e = index.groups[g].intervals(pats)
         levels.append((d.astype(np.int64), s.astype(np.int64), e.astype(np.int64)))
     return _run(query, levels, [d.name for d in index.documents],
                 [d.frames for d in index.documents])
@@ -272,20 +273,23 @@ class _Scanner:
     def __init__(self, query: KeyframeQuery, names: Sequence[str]):
         check_features_known(query, names, feature_set=None, what="feature file")
         pos = {n: i for i, n in enumerate(names)}
-        self.rows, self.vals = [], []
+        self.rows, self.vals, self.tol = [], [], []
         for kf in query.keyframes:
             feats = query.groups[kf.group]
             fixed = [(pos[feats[k]], c == "1") for k, c in enumerate(kf.vector) if c != "*"]
             self.rows.append(np.array([r for r, _ in fixed], np.int64))
             self.vals.append(np.array([v for _, v in fixed], np.uint8)[:, None])
+            self.tol.append(kf.mismatches)
 
     def levels(self, X: np.ndarray, d: int) -> list[Intervals]:
         out = []
-        for rows, vals in zip(self.rows, self.vals):
-            if len(rows):
-                match = (X[rows] == vals).all(axis=0)
-            else:
+        for rows, vals, tol in zip(self.rows, self.vals, self.tol):
+            if not len(rows):
                 match = np.ones(X.shape[1], bool)
+            elif tol:
+                match = (X[rows] != vals).sum(axis=0) <= tol
+            else:
+                match = (X[rows] == vals).all(axis=0)
             s, e = _runs(match)
             out.append((np.full(len(s), d, np.int64), s, e))
         return out
@@ -322,3 +326,16 @@ def document_windows(X: np.ndarray, names: Sequence[str], query: KeyframeQuery,
     hits = search_documents([("doc", X)], names, query)
     d, s, e = hits.windows()
     return [(int(a), int(b)) for a, b in zip(s, e)]
+
+
+def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, KeyframeQuery], *,
+                  feature_set: str | None = None) -> dict[str, list[tuple[int, int]]]:
+    """Candidate windows of every class that has a query, in one document (the
+    ``windows`` argument of :func:`mtanno.annotate.annotate_document`); classes without
+    a query are absent, i.e. matched everywhere."""
+    out = {}
+    for cls, q in queries.items():
+        hits = search_documents([("doc", X)], names, q, feature_set=feature_set)
+        _, s, e = hits.windows()
+        out[cls] = [(int(a), int(b)) for a, b in zip(s, e)]
+    return out

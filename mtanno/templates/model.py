@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -426,3 +427,40 @@ def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
     return replace(mt, class_name=name, values=mt.values[perm].copy(),
                    weights=mt.weights.copy(), training=[dict(t) for t in mt.training],
                    params=params, history={k: list(v) for k, v in mt.history.items()})
+
+
+def load_template_folder(path: str | os.PathLike, *,
+                         classes: Sequence[str] | None = None) -> dict[str, MotionTemplate]:
+    """Class name → template of every ``*.json`` in a folder (or of one template file),
+    sorted by class name; with ``classes`` only those (each must have a template). All
+    templates must share feature names, feature set and frame rate; two files of one class
+    are an error."""
+    p = Path(path)
+    if not p.exists():
+        raise MtannoError("template folder or file not found", path=str(p))
+    paths = sorted(p.glob("*.json")) if p.is_dir() else [p]
+    if not paths:
+        raise MtannoError("no templates (*.json) found", path=str(p))
+    out: dict[str, MotionTemplate] = {}
+    where: dict[str, Path] = {}
+    first: tuple | None = None
+    for f in paths:
+        mt = load_template(f)
+        key = (list(mt.feature_names), mt.feature_set, float(mt.fps))
+        if first is None:
+            first = (key, f)
+        elif key != first[0]:
+            raise MtannoError(f"template uses other features or frame rate than {first[1]}",
+                              path=str(f))
+        if mt.class_name in out:
+            raise MtannoError(f"class '{mt.class_name}' has two templates: "
+                              f"{where[mt.class_name]} and {f}")
+        out[mt.class_name] = mt
+        where[mt.class_name] = f
+    if classes:
+        missing = [c for c in classes if c not in out]
+        if missing:
+            raise MtannoError(f"no template for class(es) {', '.join(missing)} (templates: "
+                              f"{', '.join(sorted(out))})", path=str(p))
+        out = {c: out[c] for c in classes}
+    return dict(sorted(out.items()))

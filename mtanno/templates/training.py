@@ -35,7 +35,7 @@ from mtanno.store import feature_files, read_features, sha256_file
 from mtanno.truth import read_truth
 
 __all__ = [
-    "ExampleSource", "TrainingExample", "check_consistent", "group_by_class",
+    "ExampleSource", "TrainingExample", "check_consistent", "collect_sources", "group_by_class",
     "load_examples", "sources_from_manifest", "sources_from_tree", "sources_from_truth",
 ]
 
@@ -46,7 +46,9 @@ class ExampleSource:
 
     ``start``/``end`` are 1-based inclusive analysis frames (30 Hz); None means the whole
     file. ``origin``/``origin_line`` name the manifest or truth file that listed it (for
-    error messages).
+    error messages). ``performer`` groups examples that share a performer or recording
+    (a manifest's ``actor`` column, a truth segment's document; None when unknown):
+    keyframe learning validates on held-out performers.
     """
 
     class_name: str
@@ -55,6 +57,7 @@ class ExampleSource:
     end: int | None = None
     origin: str | None = None
     origin_line: int | None = None
+    performer: str | None = None
 
     def sort_key(self) -> tuple:
         return (Path(self.path).name, self.path, self.start or 0, self.end or 0)
@@ -78,6 +81,7 @@ class TrainingExample:
     feature_names: list[str]
     feature_set: str
     fps: float
+    performer: str | None = None
 
     def record(self) -> dict:
         """The template's ``training`` entry for this example."""
@@ -148,8 +152,9 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
         if rel.is_absolute() or ".." in rel.parts:
             raise MtannoError(f"file {f!r} must be a relative path inside the data folder",
                               path=spath, line=lineno)
+        actor = (row.get("actor") or "").strip() or None
         out.append(ExampleSource(c, str(fdir / rel.with_suffix(".parquet")), origin=spath,
-                                 origin_line=lineno))
+                                 origin_line=lineno, performer=actor))
     if not out:
         if split is not None:
             raise MtannoError(f"no rows with split {split!r} (splits present: "
@@ -177,8 +182,32 @@ def sources_from_truth(truth: str | os.PathLike,
         more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
         raise MtannoError(f"no feature file for document(s) {', '.join(missing[:5])}{more} "
                           f"(give the documents' feature files or folders)", path=str(truth))
-    return [ExampleSource(s.label, str(by_doc[s.doc]), s.start, s.end, origin=str(truth))
-            for s in segments]
+    return [ExampleSource(s.label, str(by_doc[s.doc]), s.start, s.end, origin=str(truth),
+                          performer=s.doc) for s in segments]
+
+
+def collect_sources(training: Sequence[str | os.PathLike] = (), *,
+                    manifest: str | os.PathLike | None = None,
+                    features_dir: str | os.PathLike | None = None, split: str | None = None,
+                    truth: str | os.PathLike | None = None) -> list[ExampleSource]:
+    """Training examples named the three ways learn-mt and learn-keyframes accept (module
+    docstring): a manifest with its features folder (and split), a truth table with the
+    documents' feature files or folders, or class folders. Contradictory combinations are
+    errors saying which options go together."""
+    if manifest is not None and truth is not None:
+        raise MtannoError("--manifest and --truth exclude each other")
+    if manifest is not None:
+        if training:
+            raise MtannoError("no TRAINING arguments with --manifest (it lists the files)")
+        if features_dir is None:
+            raise MtannoError("--manifest needs --features-dir DIR")
+        return sources_from_manifest(manifest, features_dir=features_dir, split=split)
+    if features_dir is not None or split is not None:
+        raise MtannoError("--features-dir and --split go with --manifest")
+    if not training:
+        raise MtannoError("give TRAINING folders or files (or --manifest)")
+    return sources_from_truth(truth, training) if truth is not None else \
+        sources_from_tree(training)
 
 
 def group_by_class(sources: Iterable[ExampleSource], *,
@@ -231,7 +260,7 @@ def load_examples(sources: Iterable[ExampleSource]) -> list[TrainingExample]:
             class_name=src.class_name, X=np.ascontiguousarray(ff.X[:, start - 1:end]),
             file=src.path, document=ff.document, sha256=digest, start=start, end=end,
             feature_names=list(ff.names), feature_set=str(ff.meta.get("feature_set", "")),
-            fps=ff.fps))
+            fps=ff.fps, performer=src.performer))
     check_consistent(out)
     return out
 
