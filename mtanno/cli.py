@@ -1,7 +1,9 @@
 """Command line: a thin Click layer over the Python API.
 
-Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error.
-Errors a user can fix are printed as one line ``mtanno: path:line: what is wrong``.
+Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
+bad input, 130 interrupted (SIGINT or SIGTERM). Errors a user can fix are printed as one
+line ``mtanno: path:line: what is wrong``; an interruption as ``mtanno: interrupted
+(SIGINT)``.
 """
 
 from __future__ import annotations
@@ -18,8 +20,35 @@ from mtanno import __version__
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
 
+#: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
+EXIT_INTERRUPTED = 130
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+
+class _Main(click.Group):
+    """The ``mtanno`` group: records the command line for the provenance of outputs, and
+    turns an interruption (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
+    into one line and exit code 130 instead of Click's "Aborted!" and 1."""
+
+    def main(self, args=None, prog_name=None, **extra):
+        from mtanno.tables import set_command_line
+
+        set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
+        return super().main(args=args, prog_name=prog_name, **extra)
+
+    def invoke(self, ctx):
+        from mtanno.workers import Interrupted, interruptible
+
+        try:
+            with interruptible():
+                return super().invoke(ctx)
+        except KeyboardInterrupt as exc:
+            name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+            click.echo(f"mtanno: interrupted ({name}); finished outputs are complete, "
+                       "unfinished ones were not written", err=True)
+            sys.exit(EXIT_INTERRUPTED)
+
+
+@click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="mtanno")
 def main() -> None:
     """mtanno: find, retrieve and annotate human motions in mocap archives.
