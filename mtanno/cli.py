@@ -90,9 +90,11 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
     it: the ASF whose name begins the AMC's name (HDM_bd.asf for HDM_bd_squat1Reps_001_120.amc,
     02.asf for 02_05.amc), else the only ASF there.
 
-    Outputs newer than their input are skipped unless --force. Files that fail are reported
-    as `path:line: what is wrong` and the others are still written. Exit code: 0 all
-    written or up to date, 1 some files failed, 2 usage error.
+    An output is up to date, and skipped unless --force, when the provenance it records
+    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set and
+    the extractor version. Files that fail are reported as `path:line: what is wrong` and
+    the others are still written. Exit code: 0 all written or up to date, 1 some files
+    failed, 2 usage error, 130 interrupted (finished outputs stay, no partial file).
 
     Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
     """
@@ -131,10 +133,11 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
               help="ASF skeleton of an AMC file (default: found beside or above it).")
 @click.option("--skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or name) instead of the detected one.")
-@user_errors(1)
+@user_errors(2)
 def info_cmd(file, asf, skeleton):
     """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
-    or a feature file (.parquet: its metadata)."""
+    or a feature file (.parquet: its metadata). Exit code 2 for a file that cannot be
+    read."""
     path = Path(file)
     if path.suffix.lower() == ".parquet":
         from mtanno.store import read_features

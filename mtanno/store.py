@@ -179,6 +179,10 @@ def _check_meta(meta, spath: str) -> dict:
     if not isinstance(fs, str) or not fs:
         raise MtannoError(f"feature_set in the mtanno metadata must be a non-empty string, "
                           f"got {fs!r}", path=spath)
+    version = meta.get("feature_set_version", 1)
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise MtannoError(f"feature_set_version in the mtanno metadata must be an integer, "
+                          f"got {version!r}", path=spath)
     groups = meta.get("groups")
     if groups is not None and not (isinstance(groups, dict) and all(
             isinstance(v, list) and all(isinstance(n, str) for n in v) for v in groups.values())):

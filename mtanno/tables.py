@@ -7,7 +7,7 @@ index tables (``index info``) are all written by :func:`write_table` and read by
 
 * the format follows the file name's suffix: ``.csv``, ``.parquet`` or ``.jsonl`` (JSON
   Lines); any other suffix is an error; ``-`` is standard output (CSV) when writing and
-  standard input (CSV) when reading;
+  standard input (CSV) when reading; an existing FIFO or device is written as CSV;
 * CSV is UTF-8 with a header line, commas, ``\\n`` line ends, and quotes only where a
   value needs them (a comma, quote or line break inside); numbers are written in their
   shortest exact form; a missing value is an empty field (``null`` in JSON Lines);
@@ -72,7 +72,10 @@ def table_format(path: str | os.PathLike) -> str:
     suffix is an :class:`MtannoError`."""
     if str(path) == "-":
         return "csv"
-    suffix = Path(path).suffix.lower()
+    p = Path(path)
+    if p.exists() and not p.is_file() and not p.is_dir():
+        return "csv"  # a FIFO or a device (/dev/stdout): written in place, as CSV
+    suffix = p.suffix.lower()
     if suffix not in FORMATS:
         raise MtannoError(f"unknown table format {suffix or '(no suffix)'!r}: name the file "
                           f".csv, .parquet or .jsonl, or - for standard output",

@@ -132,7 +132,7 @@ def test_query_rejects_other_feature_set_and_empty_set(feats, tmp_path):
     r = run(["query", idx, "--example", tmp_path / "ak" / "other.parquet", "--features",
              "rknee_bent"])
     assert r.exit_code == 2
-    assert "example has feature set 'mr06-ak40' but the index holds 'mrc05'" in r.output
+    assert "feature set 'mr06-ak40' differs from 'mrc05' of the index" in r.output
     q = tmp_path / "q.json"
     q.write_text(json.dumps({"features": ["rknee_bent"], "steps": ["0", [], "0"]}))
     r = run(["query", idx, "--query", q])
