@@ -142,7 +142,7 @@ def test_query_rejects_other_feature_set_and_empty_set(feats, tmp_path):
     r = run(["query", idx, "--query", q])
     assert r.exit_code == 2 and "index holds 'mrc05'" in r.output
     r = run(["index", "add", idx, tmp_path / "ak"])
-    assert r.exit_code == 2 and "feature set 'mr06-ak40' differs from 'mrc05'" in r.output
+    assert r.exit_code == 1 and "feature set 'mr06-ak40' differs from 'mrc05'" in r.output
 
 
 def test_query_and_info_report_corrupt_index(feats, tmp_path):
