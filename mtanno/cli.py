@@ -108,9 +108,12 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
             items.extend(line.strip() for line in sys.stdin if line.strip())
         else:
             items.append(item)
+    from mtanno.output import make_folder
+
     jobs_list = plan_batch(items, outdir, asf=asf)
     if not jobs_list:
         raise MtannoError("no .amc or .bvh files found in the inputs")
+    make_folder(outdir)
     bar = tqdm(total=len(jobs_list), unit="file", disable=not show_progress(quiet),
                desc="features")
 

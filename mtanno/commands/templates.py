@@ -106,10 +106,11 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
                    else sources_from_tree(training))
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
-    from mtanno.output import check_outputs
+    from mtanno.output import check_outputs, make_folder
 
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth])
+    make_folder(out)
     t0 = time.perf_counter()
     written, failed, n_examples = [], [], 0
     reference = None

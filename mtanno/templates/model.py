@@ -142,6 +142,11 @@ class MotionTemplate:
         }
 
 
+#: Largest template weight accepted: a weight counts the frames aligned to a column, so a
+#: larger one is no learned template (and would blow up matching's column expansion).
+MAX_WEIGHT = 1e6
+
+
 def _validate(mt: MotionTemplate, path: str | None = None) -> None:
     def bad(msg: str) -> MtannoError:
         return MtannoError(msg, path=path)
@@ -169,9 +174,10 @@ def _validate(mt: MotionTemplate, path: str | None = None) -> None:
         r, c = np.argwhere((V < 0) | (V > 1))[0]
         raise bad(f"values row {r + 1} ({mt.feature_names[r]}) column {c + 1} is "
                   f"{V[r, c]!r}, outside [0, 1]")
-    if not np.isfinite(w).all() or (w <= 0).any():
-        c = int(np.argwhere(~np.isfinite(w) | (w <= 0))[0][0])
-        raise bad(f"weight {c + 1} is {w[c]!r}; weights must be positive and finite")
+    if not np.isfinite(w).all() or (w <= 0).any() or (w > MAX_WEIGHT).any():
+        c = int(np.argwhere(~np.isfinite(w) | (w <= 0) | (w > MAX_WEIGHT))[0][0])
+        raise bad(f"weight {c + 1} is {w[c]!r}; weights must be positive, finite and at "
+                  f"most {MAX_WEIGHT:g}")
     if mt.kind not in KINDS:
         raise bad(f"kind must be one of {', '.join(KINDS)}, got {mt.kind!r}")
     if not isinstance(mt.feature_set, str) or not mt.feature_set:
