@@ -414,6 +414,12 @@ def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], di
 # --------------------------------------------------------------------------- batches
 
 
+def template_files(mt_dir: str | os.PathLike) -> list[Path]:
+    """The template files of a folder (``*.json``, sorted), or the one file given."""
+    root = Path(mt_dir)
+    return sorted(root.glob("*.json")) if root.is_dir() else [root]
+
+
 def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA,
                       classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
     """The templates of a folder (``*.json``; or one template file), quantized with
@@ -423,8 +429,7 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
     from mtanno.store import FeatureLayout, sha256_file
     from mtanno.templates.model import load_template, quantize
 
-    root = Path(mt_dir)
-    paths = sorted(root.glob("*.json")) if root.is_dir() else [root]
+    paths = template_files(mt_dir)
     if not paths or not paths[0].exists():
         raise MtannoError("no templates (*.json) found", path=str(mt_dir))
     models: list[ClassModel] = []

@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from mtanno.annotate import load_class_models
+from mtanno.annotate import load_class_models, template_files
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
 from mtanno.store import check_layout, document_files
@@ -62,7 +62,7 @@ def annotate_cmd(features, mt_dir, outputs, config_path, tau, delta, variant, ma
         table_format(out)
     paths = feature_paths(features)
     check_outputs([f for out in outputs for f in output_files(out)],
-                  [mt_dir, config_path, *paths])
+                  [mt_dir, *template_files(mt_dir), config_path, *paths])
     config = load_class_config(config_path) if config_path else ClassConfig()
     if tau is not None:
         config.default_tau = check_tau(tau, what="--tau")
@@ -208,7 +208,8 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     if json_path == "-" and table_path == "-":
         raise MtannoError("--json - and -o - would both write to standard output")
     paths = feature_paths(features)
-    check_outputs([json_path, *output_files(table_path)], [mt_dir, truth_path, *paths])
+    check_outputs([json_path, *output_files(table_path)],
+                  [mt_dir, *template_files(mt_dir), truth_path, *paths])
     models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
     truth = read_truth(truth_path)
     documents, files, failed = [], [], 0

@@ -233,8 +233,6 @@ def load_template_for(index, path: str):
     return mt.values, mt.weights, list(mt.feature_names)
 
 
-
-
 @click.command("query")
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.option("--example", default=None, metavar="FILE.parquet|DOC",
@@ -268,7 +266,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, mode, mismat
     mtanno query INDEX --example FILE.parquet [--frames A:B] --features NAME,...
     mtanno query INDEX --query Q.json
 
-    Hits are printed as CSV: doc, start, end (1-based inclusive frames at 30 Hz), rank,
+    Hits are written as a table (CSV on standard output unless -o names a .csv, .parquet
+    or .jsonl file): doc, start, end (1-based inclusive frames at 30 Hz), rank,
     score (sum of segment length differences to the example, MRC05 §6.2; lower is better),
     mt_cost (with --rank-mt), boundaries (per group: first frame of each matched segment,
     then the last frame).
