@@ -170,18 +170,20 @@ def _write_jsonl(table: pa.Table, fh) -> None:
 def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Write a JSON document atomically (``-``: standard output); non-finite numbers are
     written as null, so every JSON reader accepts the file."""
-    def clean(x):
-        if isinstance(x, float) and not math.isfinite(x):
-            return None
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, (list, tuple)):
-            return [clean(v) for v in x]
-        return x
-
     from mtanno.output import write_text
 
-    write_text(path, json.dumps(clean(obj), indent=1, ensure_ascii=False) + "\n")
+    write_text(path, json.dumps(_clean(obj), indent=1, ensure_ascii=False) + "\n")
+
+
+def _clean(x: Any) -> Any:
+    """``x`` with non-finite floats replaced by None (JSON has no NaN or ∞)."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
 
 
 def write_table(path: str | os.PathLike, table: pa.Table, *,
@@ -196,20 +198,29 @@ def write_table(path: str | os.PathLike, table: pa.Table, *,
         sys.stdout.write(buf.getvalue())
         sys.stdout.flush()
         return
-    with atomic_path(path) as tmp:
-        if fmt == "parquet":
-            import pyarrow.parquet as pq
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
 
-            if provenance is not None:
-                table = table.replace_schema_metadata(
-                    {_META_KEY: json.dumps(provenance, sort_keys=True)})
+        if provenance is not None:
+            table = table.replace_schema_metadata(
+                {_META_KEY: json.dumps(_clean(provenance), sort_keys=True)})
+        with atomic_path(path) as tmp:
             pq.write_table(table, tmp)
-        else:
+        return
+    side = sidecar_path(path)
+    if side is None or provenance is None or (Path(path).exists() and not Path(path).is_file()):
+        with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+            (_write_csv if fmt == "csv" else _write_jsonl)(table, fh)
+        return
+    # the old sidecar goes before the new table is in place, the new one right after: an
+    # interruption between the two leaves a table without provenance, never a wrong one
+    with atomic_path(side) as stmp:
+        stmp.write_text(json.dumps(_clean(provenance), indent=1, ensure_ascii=False) + "\n",
+                        encoding="utf-8")
+        with atomic_path(path) as tmp:
             with open(tmp, "w", newline="", encoding="utf-8") as fh:
                 (_write_csv if fmt == "csv" else _write_jsonl)(table, fh)
-    side = sidecar_path(path)
-    if side is not None and provenance is not None and Path(path).is_file():
-        write_json(side, provenance)
+            side.unlink(missing_ok=True)
 
 
 # --------------------------------------------------------------------------- reading

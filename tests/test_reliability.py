@@ -160,6 +160,26 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_table_never_stands_beside_a_stale_provenance(tmp_path, monkeypatch):
+    import mtanno.output as output
+    from mtanno.tables import read_table, write_table
+
+    out = tmp_path / "t.csv"
+    write_table(out, pa.table({"a": [1]}), provenance={"run": 1})
+    real = os.replace
+
+    def interrupt_sidecar(src, dst):
+        if str(dst).endswith(".meta.json"):
+            raise KeyboardInterrupt
+        return real(src, dst)
+
+    monkeypatch.setattr(output.os, "replace", interrupt_sidecar)
+    with pytest.raises(KeyboardInterrupt):
+        write_table(out, pa.table({"a": [2]}), provenance={"run": 2})
+    assert read_table(out).rows == [{"a": "2"}]
+    assert not (tmp_path / "t.csv.meta.json").exists() and not temporaries(tmp_path)
+
+
 # --------------------------------------------------------------------- 9: compose
 
 
