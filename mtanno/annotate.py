@@ -17,12 +17,15 @@ import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_input
+
+if TYPE_CHECKING:
+    from mtanno.store import FeatureLayout
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -46,9 +49,42 @@ class ClassConfig:
     default_tau: float = DEFAULT_TAU
     tau: dict[str, float] = field(default_factory=dict)
     superclasses: dict[str, list[str]] = field(default_factory=dict)
+    path: str | None = None
 
     def tau_for(self, name: str) -> float:
         return self.tau.get(name, self.default_tau)
+
+    def check(self, classes: Sequence[str]) -> None:
+        """Refuse what would be silently ignored or give nonsense: a τ that is not a
+        number ≥ 0 (NaN labels nothing), and names in ``[tau]`` or ``[superclasses]`` that
+        are none of ``classes`` (the templates' classes) or of the superclasses."""
+        for name, value in [("default", self.default_tau), *self.tau.items()]:
+            check_tau(value, what=f"tau of {name}" if name != "default" else "tau",
+                      path=self.path)
+        known = set(classes)
+        labels = known | set(self.superclasses)
+        for sup, members in self.superclasses.items():
+            unknown = [m for m in members if m not in known]
+            if unknown:
+                raise MtannoError(f"superclass {sup!r} names class(es) without a template: "
+                                  f"{', '.join(unknown)} (classes: {', '.join(sorted(known))})",
+                                  path=self.path)
+        unknown = sorted(n for n in self.tau if n not in labels)
+        if unknown:
+            raise MtannoError(f"[tau] names unknown class(es) {', '.join(unknown)} (classes "
+                              f"and superclasses: {', '.join(sorted(labels))})", path=self.path)
+
+
+def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
+    """τ as a float; NaN, a negative value or a non-number is an :class:`MtannoError`
+    (∞ is allowed: every match counts)."""
+    try:
+        value = float(tau)
+    except (TypeError, ValueError):
+        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}", path=path) from None
+    if not value >= 0:
+        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}", path=path)
+    return value
 
 
 def load_class_config(path: str | os.PathLike) -> ClassConfig:
@@ -63,18 +99,17 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     """
     spath = str(path)
     try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MtannoError("class configuration not found", path=spath) from None
+        data = tomllib.loads(read_input(path, what="class configuration").decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MtannoError(f"not a valid TOML class configuration: {exc}", path=spath) from None
-    cfg = ClassConfig()
-    taus = dict(data.get("tau", {}))
-    try:
-        cfg.default_tau = float(taus.pop("default", DEFAULT_TAU))
-        cfg.tau = {str(k): float(v) for k, v in taus.items()}
-    except (TypeError, ValueError):
-        raise MtannoError("[tau] values must be numbers", path=spath) from None
+    cfg = ClassConfig(path=spath)
+    taus = data.get("tau", {})
+    if not isinstance(taus, dict):
+        raise MtannoError("[tau] must be a table of class = number", path=spath)
+    taus = dict(taus)
+    cfg.default_tau = check_tau(taus.pop("default", DEFAULT_TAU), what="[tau] default",
+                                path=spath)
+    cfg.tau = {str(k): check_tau(v, what=f"[tau] {k}", path=spath) for k, v in taus.items()}
     sup = data.get("superclasses", {})
     if not isinstance(sup, dict) or not all(isinstance(v, list) and v for v in sup.values()):
         raise MtannoError("[superclasses] must map names to non-empty lists of classes",
@@ -126,9 +161,10 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
     start = np.ascontiguousarray(start, dtype=np.int64)
     if delta.shape != start.shape or delta.ndim != 1:
         raise MtannoError("delta and start must be 1-D arrays of the same length")
+    tau = check_tau(tau)
     dbar = np.full(delta.shape[0], np.inf)
     if variant == "reference":
-        finite = np.flatnonzero(delta <= tau)
+        finite = np.flatnonzero(np.isfinite(delta) & (delta <= tau))
         order = finite[np.argsort(delta[finite], kind="stable")]
         cap = np.iinfo(np.int64).max if max_hits is None else int(max_hits)
         _fill_from_minima(delta, start, order, float(tau), cap, dbar)
@@ -220,7 +256,13 @@ class ClassModel:
     name: str
     values: np.ndarray
     weights: np.ndarray
+    path: str | None = None
+    sha256: str | None = None
     _prepared: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def record(self) -> dict:
+        """The provenance record of the class's template: class, file, SHA-256."""
+        return {"class": self.name, "path": self.path, "sha256": self.sha256}
 
     def matcher(self, variant: str = "reference"):
         from mtanno.templates.match import PreparedTemplate
@@ -294,19 +336,15 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     return segments_from_labels(doc, labels, dbars, extend=extend), labels, dbars
 
 
-def write_annotations(path: str | os.PathLike, rows: Sequence[Annotation],
-                      native: dict[str, np.ndarray] | None = None) -> None:
-    """Write an annotation table (CSV or Parquet by suffix), atomically.
+ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")
 
-    Columns: doc, start, end (1-based inclusive 30 Hz frames), label, cost, and
-    start_native, end_native (1-based native frames) when ``native`` maps each document to
-    its feature file's native_frame column.
-    """
+
+def annotation_table(rows: Sequence[Annotation], native: dict[str, np.ndarray] | None = None):
+    """The annotation table of ``rows`` as a :class:`pyarrow.Table`: doc, start, end
+    (1-based inclusive 30 Hz frames), label, cost (null where infinite), and start_native,
+    end_native (1-based native frames) when ``native`` maps each document to its feature
+    file's native_frame column."""
     import pyarrow as pa
-    import pyarrow.csv as pacsv
-    import pyarrow.parquet as pq
-
-    from mtanno.store import atomic_path
 
     cols: dict[str, list] = {"doc": [], "start": [], "end": [], "label": [], "cost": []}
     if native is not None:
@@ -321,43 +359,162 @@ def write_annotations(path: str | os.PathLike, rows: Sequence[Annotation],
             nf = native[r.doc]
             cols["start_native"].append(int(nf[r.start]))
             cols["end_native"].append(int(nf[r.end]))
-    table = pa.table({k: pa.array(v, type=pa.float64() if k == "cost" else None)
-                      for k, v in cols.items()}) if rows else pa.table(
-        {k: pa.array([], type=pa.float64() if k == "cost" else (
-            pa.string() if k in ("doc", "label") else pa.int64())) for k in cols})
-    suffix = Path(path).suffix.lower()
-    with atomic_path(path) as tmp:
-        if suffix == ".parquet":
-            pq.write_table(table, tmp)
-        elif suffix == ".csv":
-            pacsv.write_csv(table, tmp)
-        else:
-            raise MtannoError(f"annotation output must end in .csv or .parquet, not "
-                              f"'{suffix}'", path=str(path))
+    types = {"doc": pa.string(), "label": pa.string(), "cost": pa.float64()}
+    return pa.table({k: pa.array(v, type=types.get(k, pa.int64())) for k, v in cols.items()})
+
+
+def write_annotations(path: str | os.PathLike, rows: Sequence[Annotation],
+                      native: dict[str, np.ndarray] | None = None, *,
+                      provenance: dict | None = None) -> None:
+    """Write an annotation table (:func:`annotation_table`) atomically, in the format of
+    its suffix (``.csv``, ``.parquet``, ``.jsonl``; ``-`` for standard output), with its
+    provenance (:mod:`mtanno.tables`)."""
+    from mtanno.tables import write_table
+
+    write_table(path, annotation_table(rows, native), provenance=provenance)
 
 
 def read_annotations(path: str | os.PathLike) -> list[Annotation]:
-    """Read an annotation table written by :func:`write_annotations` (frames → 0-based)."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    import pyarrow.parquet as pq
+    """Read an annotation table written by :func:`write_annotations` (frames → 0-based).
 
-    spath = str(path)
-    try:
-        if Path(path).suffix.lower() == ".parquet":
-            table = pq.read_table(path)
+    Every row is checked: a doc and a label, integer frames 1 ≤ start ≤ end, a cost that is
+    a number or empty; a bad row is an error naming its line."""
+    return read_annotation_table(path)[0]
+
+
+def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], dict | None]:
+    """:func:`read_annotations` and the table's provenance (None when it has none)."""
+    from mtanno.tables import parse_int, parse_text, read_table
+    from mtanno.truth import MAX_FRAME
+
+    table = read_table(path, what="annotation table")
+    table.require(["doc", "start", "end", "label"])
+    out = []
+    for i, row in enumerate(table.rows):
+        doc, label = parse_text(table, i, "doc"), parse_text(table, i, "label")
+        start = parse_int(table, i, "start", minimum=1, maximum=MAX_FRAME)
+        end = parse_int(table, i, "end", minimum=1, maximum=MAX_FRAME)
+        if end < start:
+            raise table.error(i, f"start {start} is after end {end}")
+        cost = row.get("cost")
+        if cost is None:
+            cost = float("inf")
         else:
-            table = pacsv.read_csv(path)
-    except FileNotFoundError:
-        raise MtannoError("annotation file not found", path=spath) from None
-    except (pa.ArrowInvalid, OSError) as exc:
-        raise MtannoError(f"not a readable annotation table ({exc})", path=spath) from None
-    need = {"doc", "start", "end", "label"}
-    if not need <= set(table.column_names):
-        raise MtannoError(f"annotation table needs the columns {', '.join(sorted(need))}",
-                          path=spath)
-    d = table.to_pydict()
-    costs = d.get("cost", [None] * table.num_rows)
-    return [Annotation(str(doc), int(s) - 1, int(e) - 1, str(lab),
-                       float("inf") if c is None else float(c))
-            for doc, s, e, lab, c in zip(d["doc"], d["start"], d["end"], d["label"], costs)]
+            try:
+                cost = float(cost)
+            except (TypeError, ValueError):
+                raise table.error(i, f"cost must be a number, got {cost!r}") from None
+            if math.isnan(cost):
+                raise table.error(i, "cost is NaN")
+        out.append(Annotation(doc, start - 1, end - 1, label, cost))
+    return out, table.provenance
+
+
+# --------------------------------------------------------------------------- batches
+
+
+def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA,
+                      classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
+    """The templates of a folder (``*.json``; or one template file;
+    :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
+    :class:`ClassModel` records (with their file and SHA-256), and the feature layout
+    (set, names, rate) they all share. ``classes`` keeps only those."""
+    from mtanno.store import FeatureLayout, sha256_file
+    from mtanno.templates.model import load_template_folder, quantize
+
+    models: list[ClassModel] = []
+    templates = load_template_folder(mt_dir, classes=classes)
+    for mt in templates.values():
+        q = quantize(mt, delta)
+        model = ClassModel(mt.class_name, q.values, q.weights, path=mt.path,
+                           sha256=sha256_file(mt.path))
+        try:
+            model.matcher("reference")  # refuse a template the kernel cannot use, naming it
+        except MtannoError as exc:
+            raise MtannoError(exc.message, path=mt.path) from None
+        models.append(model)
+    first = next(iter(templates.values()))
+    return models, FeatureLayout(first.feature_set, tuple(first.feature_names),
+                                 float(first.fps), f"the templates in {mt_dir}")
+
+
+@dataclass
+class AnnotationBatch:
+    """What :func:`annotate_files` did: the segments of every document annotated, each
+    document's native frames and frame count, the files read (path, SHA-256) and the
+    failures (one message per file that could not be annotated)."""
+
+    rows: list[Annotation] = field(default_factory=list)
+    native: dict[str, np.ndarray] = field(default_factory=dict)
+    frames: dict[str, int] = field(default_factory=dict)
+    files: list[dict] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+
+
+def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes):
+    """One document of a batch: (document, rows, native frames, sha256) or the message of
+    its failure (a worker sends it back as text)."""
+    from mtanno.store import check_layout, read_features
+
+    try:
+        ff = read_features(path, sha256=True)
+        check_layout(ff, layout)
+        windows = None
+        if keyframes:
+            from mtanno.keyframes import class_windows
+
+            try:
+                windows = class_windows(ff.X, ff.names, keyframes, feature_set=layout.feature_set)
+            except MtannoError as exc:
+                raise MtannoError(exc.message, path=ff.path) from None
+        rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
+                                       windows=windows, dbar_variant=dbar_variant,
+                                       match_variant=match_variant)
+    except MtannoError as exc:
+        return str(exc)
+    return ff.document, rows, ff.native_frames, ff.sha256
+
+
+def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
+                   layout: FeatureLayout, config: ClassConfig | None = None,
+                   dbar_variant: str = "reference", match_variant: str = "reference",
+                   keyframes: dict | None = None, n_jobs: int = 1,
+                   progress=None) -> AnnotationBatch:
+    """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
+    (:class:`mtanno.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
+    queries (:mod:`mtanno.keyframes`): those classes are matched only inside their
+    candidate windows in each document (MBS09 §5), the others everywhere. A file that
+    cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
+    and the batch goes on. ``progress`` is called once per file with its path and its
+    failure message (None on success). Rows are sorted by document, start, end and
+    label."""
+    from mtanno.workers import WorkerPool
+
+    config = config or ClassConfig()
+    batch = AnnotationBatch()
+    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes)
+            for p in paths]
+
+    def collect(path, result):
+        if isinstance(result, str):
+            batch.failed.append(result)
+            if progress:
+                progress(path, result)
+            return
+        doc, rows, native, digest = result
+        batch.rows.extend(rows)
+        batch.native[doc] = native
+        batch.frames[doc] = int(native.shape[0])
+        batch.files.append({"path": str(path), "sha256": digest})
+        if progress:
+            progress(path, None)
+
+    if n_jobs > 1 and len(args) > 1:
+        with WorkerPool(n_jobs) as pool:
+            for a, result in zip(args, pool.map(_annotate_file, args)):
+                collect(a[0], result)
+    else:
+        for a in args:
+            collect(a[0], _annotate_file(*a))
+    batch.rows.sort(key=lambda r: (r.doc, r.start, r.end, r.label))
+    return batch

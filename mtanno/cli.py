@@ -1,12 +1,15 @@
 """Command line: a thin Click layer over the Python API.
 
-Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error.
-Errors a user can fix are printed as one line ``mtanno: path:line: what is wrong``.
+Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
+bad input, 130 interrupted (SIGINT or SIGTERM). Errors a user can fix are printed as one
+line ``mtanno: path:line: what is wrong``; an interruption as ``mtanno: interrupted
+(SIGINT)``.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
 import sys
 from pathlib import Path
@@ -18,8 +21,40 @@ from mtanno import __version__
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
 
+#: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
+EXIT_INTERRUPTED = 130
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+
+class _Main(click.Group):
+    """The ``mtanno`` group: records the command line for the provenance of outputs, and
+    turns an interruption (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
+    into one line and exit code 130 instead of Click's "Aborted!" and 1."""
+
+    def main(self, args=None, prog_name=None, **extra):
+        from mtanno.tables import set_command_line
+
+        set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
+        return super().main(args=args, prog_name=prog_name, **extra)
+
+    def invoke(self, ctx):
+        from mtanno.workers import Interrupted, interruptible, must_hard_exit
+
+        try:
+            with interruptible():
+                return super().invoke(ctx)
+        except KeyboardInterrupt as exc:
+            name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+            click.echo(f"mtanno: interrupted ({name}); finished outputs are complete, "
+                       "unfinished ones were not written", err=True)
+            if must_hard_exit() and sys.stdout is sys.__stdout__:  # not under CliRunner
+                # a stopped worker pool could hold up the interpreter's shutdown
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os._exit(EXIT_INTERRUPTED)
+            sys.exit(EXIT_INTERRUPTED)
+
+
+@click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="mtanno")
 def main() -> None:
     """mtanno: find, retrieve and annotate human motions in mocap archives.
@@ -61,9 +96,11 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
     it: the ASF whose name begins the AMC's name (HDM_bd.asf for HDM_bd_squat1Reps_001_120.amc,
     02.asf for 02_05.amc), else the only ASF there.
 
-    Outputs newer than their input are skipped unless --force. Files that fail are reported
-    as `path:line: what is wrong` and the others are still written. Exit code: 0 all
-    written or up to date, 1 some files failed, 2 usage error.
+    An output is up to date, and skipped unless --force, when the provenance it records
+    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set and
+    the extractor version. Files that fail are reported as `path:line: what is wrong` and
+    the others are still written. Exit code: 0 all written or up to date, 1 some files
+    failed, 2 usage error, 130 interrupted (finished outputs stay, no partial file).
 
     Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
     """
@@ -77,9 +114,12 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
             items.extend(line.strip() for line in sys.stdin if line.strip())
         else:
             items.append(item)
+    from mtanno.output import make_folder
+
     jobs_list = plan_batch(items, outdir, asf=asf)
     if not jobs_list:
         raise MtannoError("no .amc or .bvh files found in the inputs")
+    make_folder(outdir)
     bar = tqdm(total=len(jobs_list), unit="file", disable=not show_progress(quiet),
                desc="features")
 
@@ -102,10 +142,11 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
               help="ASF skeleton of an AMC file (default: found beside or above it).")
 @click.option("--skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or name) instead of the detected one.")
-@user_errors(1)
+@user_errors(2)
 def info_cmd(file, asf, skeleton):
     """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
-    or a feature file (.parquet: its metadata)."""
+    or a feature file (.parquet: its metadata). Exit code 2 for a file that cannot be
+    read."""
     path = Path(file)
     if path.suffix.lower() == ".parquet":
         from mtanno.store import read_features

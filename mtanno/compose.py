@@ -13,12 +13,12 @@ The ground truth lists every clip as a segment of 30 Hz frames: exactly the anal
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
 import random
 import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,26 +44,26 @@ class Clip:
 
 def read_manifest(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
                   actor: str | None = None, split: str | None = None) -> list[Clip]:
-    """Clips of a manifest CSV with columns ``file,class[,actor,split]`` (file relative to
-    ``root``, by default the manifest's folder), filtered by actor and split."""
-    spath = str(path)
+    """Clips of a manifest (:func:`mtanno.tables.read_manifest`: columns
+    ``file,class[,actor,split]``, file relative to ``root``, by default the manifest's
+    folder), filtered by actor and split. Every clip file must exist."""
+    from mtanno.tables import read_manifest as read_rows
+
+    table, rows = read_rows(path)
     root = Path(root) if root is not None else Path(path).parent
-    try:
-        rows = list(csv.DictReader(Path(path).read_text(encoding="utf-8-sig").splitlines()))
-    except FileNotFoundError:
-        raise MtannoError("manifest not found", path=spath) from None
-    if not rows or not {"file", "class"} <= set(rows[0]):
-        raise MtannoError("manifest needs the columns file and class", path=spath, line=1)
     out = []
     for row in rows:
-        if actor is not None and row.get("actor") != actor:
+        if actor is not None and row.actor != actor:
             continue
-        if split is not None and row.get("split") != split:
+        if split is not None and row.split != split:
             continue
-        out.append(Clip(root / row["file"], row["class"], row.get("actor", "")))
+        clip = root / row.file
+        if not clip.is_file():
+            raise MtannoError(f"clip file {clip} not found", path=table.path, line=row.line)
+        out.append(Clip(clip, row.label, row.actor))
     if not out:
         raise MtannoError(f"no clips in the manifest for actor={actor} split={split}",
-                          path=spath)
+                          path=table.path)
     return out
 
 
@@ -120,32 +120,51 @@ def reanchor(values: np.ndarray, cols: dict[str, int], *, angle_scale: float,
 def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: int = 10,
                       clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
                       asf: str | os.PathLike | None = None, prefix: str | None = None,
-                      shuffle: bool = True) -> tuple[list[Path], list[Segment]]:
+                      shuffle: bool = True, inputs: Sequence[str | os.PathLike] = (),
+                      ) -> tuple[list[Path], list[Segment]]:
     """Write ``n_docs`` composed AMC documents, their ASF and ``truth.csv`` into ``out_dir``.
 
     Each document takes ``clips_per_doc`` clips (default: all) in a random order drawn from
     ``random.Random(seed)``, so the same seed gives the same documents. ``pause`` native
     frames of stillness separate the clips. ``shuffle=False`` keeps the clips in the given
     order (the first ``clips_per_doc`` of them). Returns the document paths and the truth.
+    Every clip is read and checked before anything is written; no output may be one of the
+    clips, the ASF or the further ``inputs`` (the manifest, say).
     """
     if not clips:
         raise MtannoError("no clips to compose")
     from mtanno.io import find_asf
+    from mtanno.output import check_outputs, make_folder
 
+    # everything is read and checked before the first byte is written: a bad clip leaves
+    # no partial output folder
     asf_path = Path(asf) if asf is not None else find_asf(clips[0].path)
     skel = read_asf(asf_path)
     if list(skel.rig.axes[0]) != [2, 1, 0] or skel.rig.pre[0].tolist() != np.eye(3).tolist():
         raise MtannoError("compose needs an ASF root with axis XYZ and zero orientation",
                           path=str(asf_path))
+    for c in clips:
+        if not c.label:
+            raise MtannoError("a clip without a class label", path=str(c.path))
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(asf_path, out_dir / asf_path.name)
     prefix = prefix or asf_path.stem
+    planned = [out_dir / f"{prefix}_doc{d:02d}.amc" for d in range(1, n_docs + 1)]
+    planned += [out_dir / asf_path.name, out_dir / "truth.csv", out_dir / "truth.csv.meta.json",
+                out_dir / "compose.json"]
+    check_outputs(planned, [asf_path, *(c.path for c in clips), *inputs])
     rng = random.Random(seed)
     loaded = {}
     for c in clips:
         header, layout, values, fps = read_amc_values(c.path, skel)
         loaded[c.path] = (header, layout, values, fps)
+    first = loaded[clips[0].path]
+    for c in clips:
+        if loaded[c.path][1] != first[1] or loaded[c.path][3] != first[3]:
+            raise MtannoError("clips must share bone layout and frame rate (this one differs "
+                              f"from {clips[0].path})", path=str(c.path))
+    make_folder(out_dir)
+    with atomic_path(out_dir / asf_path.name) as tmp:
+        shutil.copyfile(asf_path, tmp)
     k = len(clips) if clips_per_doc is None else min(clips_per_doc, len(clips))
     docs, truth, plan = [], [], []
     for d in range(1, n_docs + 1):
@@ -160,9 +179,6 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
         spans = []  # (first, last native frame 0-based, label)
         for i in order:
             header, layout, values, fps = loaded[clips[i].path]
-            if layout != layout0 or fps != fps0:
-                raise MtannoError("clips of one document must share bone layout and frame "
-                                  "rate", path=str(clips[i].path))
             v = reanchor(values, cols, angle_scale=skel.angle_scale, anchor_xz=anchor_xz,
                          anchor_yaw=anchor_yaw)
             parts.append(v)
@@ -191,7 +207,10 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
         write_amc(path, header, layout0, np.concatenate(parts))
         docs.append(path)
         plan.append({"document": name, "clips": [str(clips[i].path) for i in order]})
-    write_truth(out_dir / "truth.csv", truth)
+    from mtanno.tables import provenance
+
+    write_truth(out_dir / "truth.csv", truth, provenance=provenance(
+        inputs=[asf_path, *inputs], seed=seed, pause=pause, documents=plan))
     with atomic_path(out_dir / "compose.json") as tmp:
         tmp.write_text(json.dumps({"seed": seed, "pause": pause, "asf": str(asf_path),
                                    "documents": plan}, indent=1))

@@ -50,10 +50,10 @@ def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
         raise MtannoError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from None
 
 
-def read_text_input(path: str | os.PathLike) -> bytes:
+def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
     """:func:`read_input` for a text format: also rejects an empty file and one with a NUL
     byte (binary), naming the line."""
-    raw = read_input(path)
+    raw = read_input(path, what=what)
     if not raw.strip():
         raise MtannoError("file is empty", path=str(path), line=1)
     nul = raw.find(b"\x00")

@@ -13,6 +13,8 @@ import numpy as np
 
 from mtanno.truth import Segment
 
+#: Schema name of the evaluation JSON (``mtanno evaluate --json``).
+EVALUATION_SCHEMA = "mtanno.evaluation/1"
 #: τ grid of the retrieval table (algorithms.md §8, MR06 Table 2).
 TAU_GRID = (0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1)
 
@@ -40,36 +42,70 @@ class PRF:
         return 2 * p * r / (p + r) if p + r else 0.0
 
     def as_dict(self) -> dict[str, float]:
-        return {"P": self.P, "R": self.R, "F": self.F}
+        """P, R, F and the counts: ``support`` (truth frames or segments), ``predicted``
+        (output frames or segments), ``correct`` (matched, numerator of R)."""
+        return {"P": self.P, "R": self.R, "F": self.F, "support": self.n_r,
+                "predicted": self.n_p, "correct": self.tp_r}
 
 
 def _frame_sets(segments: Iterable[Segment]) -> dict[tuple[str, str], np.ndarray]:
-    """(doc, label) → sorted unique frames covered (a frame may carry several labels)."""
-    acc: dict[tuple[str, str], list[np.ndarray]] = {}
+    """(doc, label) → the frames covered, as sorted disjoint [start, end] intervals (k × 2;
+    a frame may carry several labels, but counts once per label)."""
+    acc: dict[tuple[str, str], list[tuple[int, int]]] = {}
     for s in segments:
-        acc.setdefault((s.doc, s.label), []).append(np.arange(s.start, s.end + 1))
-    return {k: np.unique(np.concatenate(v)) for k, v in acc.items()}
+        acc.setdefault((s.doc, s.label), []).append((s.start, s.end))
+    out = {}
+    for key, spans in acc.items():
+        spans.sort()
+        merged = [list(spans[0])]
+        for a, b in spans[1:]:
+            if a <= merged[-1][1] + 1:
+                merged[-1][1] = max(merged[-1][1], b)
+            else:
+                merged.append([a, b])
+        out[key] = np.array(merged, dtype=np.int64)
+    return out
+
+
+def _covered(iv: np.ndarray) -> int:
+    return int((iv[:, 1] - iv[:, 0] + 1).sum()) if len(iv) else 0
+
+
+def _intersection(a: np.ndarray, b: np.ndarray) -> int:
+    """Frames in both of two sorted disjoint interval lists."""
+    i = j = total = 0
+    while i < len(a) and j < len(b):
+        lo, hi = max(a[i, 0], b[j, 0]), min(a[i, 1], b[j, 1])
+        if lo <= hi:
+            total += int(hi - lo + 1)
+        if a[i, 1] < b[j, 1]:
+            i += 1
+        else:
+            j += 1
+    return total
 
 
 def frame_level(truth: Sequence[Segment], output: Sequence[Segment]) -> tuple[PRF, dict[str, PRF]]:
     """P1/R1/F1 over all documents together and per class (MBS09 §7).
 
     M = {(frame, label)} of the truth, A = of the output; P1 = |M∩A|/|A|, R1 = |M∩A|/|M|.
+    Computed on merged frame intervals, so the cost does not grow with segment lengths.
     """
     M = _frame_sets(truth)
     A = _frame_sets(output)
     total = PRF()
     per: dict[str, PRF] = {}
+    empty = np.zeros((0, 2), np.int64)
     for key in set(M) | set(A):
-        m = M.get(key, np.zeros(0, np.int64))
-        a = A.get(key, np.zeros(0, np.int64))
-        inter = np.intersect1d(m, a, assume_unique=True).size
+        m = M.get(key, empty)
+        a = A.get(key, empty)
+        inter = _intersection(m, a)
         c = per.setdefault(key[1], PRF())
         for x in (c, total):
             x.tp_p += inter
             x.tp_r += inter
-            x.n_p += a.size
-            x.n_r += m.size
+            x.n_p += _covered(a)
+            x.n_r += _covered(m)
     return total, per
 
 
@@ -109,10 +145,27 @@ class Report:
     segment: PRF
     per_class_frame: dict[str, PRF] = field(default_factory=dict)
     per_class_segment: dict[str, PRF] = field(default_factory=dict)
+    documents: list[str] = field(default_factory=list)
+
+    def rows(self) -> list[dict]:
+        """One row per class, then ``overall``: P1 R1 F1 with frame support, P2 R2 F2 with
+        segment support (the evaluation table ``evaluate -o`` writes)."""
+        out = []
+        classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
+        for c, f, s in [*((c, self.per_class_frame.get(c, PRF()),
+                           self.per_class_segment.get(c, PRF())) for c in classes),
+                        ("overall", self.frame, self.segment)]:
+            out.append({"class": c, "P1": f.P, "R1": f.R, "F1": f.F, "frames": f.n_r,
+                        "P2": s.P, "R2": s.R, "F2": s.F, "segments": s.n_r})
+        return out
 
     def as_dict(self) -> dict:
+        """The report as JSON (``docs/annotation.md``): schema ``mtanno.evaluation/1``;
+        every P/R/F with its support counts (truth frames and segments per class)."""
         classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
         return {
+            "schema": EVALUATION_SCHEMA,
+            "documents": sorted(self.documents),
             "frame": self.frame.as_dict(),
             "segment": self.segment.as_dict(),
             "per_class": {c: {"frame": self.per_class_frame.get(c, PRF()).as_dict(),
@@ -122,16 +175,12 @@ class Report:
 
     def table(self) -> str:
         """A readable table: one row per class and the overall row."""
-        lines = [f"{'class':<32} {'P1':>6} {'R1':>6} {'F1':>6}   {'P2':>6} {'R2':>6} {'F2':>6}"]
-        classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
-        for c in classes:
-            f = self.per_class_frame.get(c, PRF())
-            s = self.per_class_segment.get(c, PRF())
-            lines.append(f"{c:<32} {f.P:6.3f} {f.R:6.3f} {f.F:6.3f}   {s.P:6.3f} {s.R:6.3f} "
-                         f"{s.F:6.3f}")
-        f, s = self.frame, self.segment
-        lines.append(f"{'overall':<32} {f.P:6.3f} {f.R:6.3f} {f.F:6.3f}   {s.P:6.3f} {s.R:6.3f} "
-                     f"{s.F:6.3f}")
+        lines = [f"{'class':<32} {'P1':>6} {'R1':>6} {'F1':>6} {'frames':>7}   {'P2':>6} "
+                 f"{'R2':>6} {'F2':>6} {'segs':>5}"]
+        for r in self.rows():
+            lines.append(f"{r['class']:<32} {r['P1']:6.3f} {r['R1']:6.3f} {r['F1']:6.3f} "
+                         f"{r['frames']:7d}   {r['P2']:6.3f} {r['R2']:6.3f} {r['F2']:6.3f} "
+                         f"{r['segments']:5d}")
         return "\n".join(lines)
 
 
@@ -142,9 +191,11 @@ def evaluate_annotations(truth: Sequence[Segment], output: Sequence[Segment],
         docs = set(documents)
         truth = [s for s in truth if s.doc in docs]
         output = [s for s in output if s.doc in docs]
+    else:
+        docs = {s.doc for s in truth} | {s.doc for s in output}
     f, fc = frame_level(truth, output)
     s, sc = segment_level(truth, output)
-    return Report(f, s, fc, sc)
+    return Report(f, s, fc, sc, sorted(docs))
 
 
 @dataclass
@@ -290,3 +341,22 @@ def retrieval_report(results: Sequence[ClassRetrieval]) -> str:
         cap = "  (hit cap reached)" if r.truncated else ""
         lines.append(f"{r.label:<30} {tk}  separation {r.separation:.2f}{cap}")
     return "\n".join(lines)
+
+
+def retrieval_table(results: Sequence[ClassRetrieval]):
+    """The retrieval table (``evaluate-retrieval -o``) as a :class:`pyarrow.Table`: one row
+    per class and τ with hits, relevant hits, occurrences, P, R, and per class its top-k
+    recall and separation quotient (repeated on each of its rows)."""
+    import pyarrow as pa
+
+    rows = []
+    for r in results:
+        for row in r.rows:
+            rows.append({"class": r.label, "tau": row.tau, "hits": row.hits,
+                         "relevant": row.relevant, "occurrences": row.occurrences,
+                         "P": row.P, "R": row.R,
+                         **{f"top{k}_recall": v for k, v in r.top_recall.items()},
+                         "separation": r.separation, "cap_reached": r.truncated})
+    if not rows:
+        return pa.table({c: pa.array([], pa.string()) for c in ("class",)})
+    return pa.Table.from_pylist(rows)

@@ -24,15 +24,17 @@ command line writes them 1-based.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.templates.match import DEFAULT_STEP_WEIGHTS, DEFAULT_STEPS, PreparedTemplate
 
-__all__ = ["MODES", "Hit", "HitList", "extract_hits", "retrieve"]
+__all__ = ["MODES", "Hit", "HitList", "RetrievalBatch", "extract_hits", "hit_table", "retrieve",
+           "retrieve_files", "write_hits"]
 
 MODES = ("retrieval", "classification")
 DEFAULT_MAX_HITS = 1000
@@ -136,7 +138,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
         raise MtannoError(f"delta and start must be 1-D arrays of equal length, got shapes "
                           f"{d.shape} and {a.shape}")
     n = d.shape[0]
-    cand = np.flatnonzero(d <= tau)  # NaN and inf never qualify
+    cand = np.flatnonzero(np.isfinite(d) & (d <= tau))  # NaN and inf never qualify
     if cand.size and not np.issubdtype(a.dtype, np.integer):
         raise MtannoError(f"start must hold integer frame indices, got dtype {a.dtype}")
     s_c = a[cand]
@@ -211,3 +213,77 @@ def retrieve(template_values: np.ndarray, weights: np.ndarray,
     out = HitList((t[3] for t in ranked[:max_hits]), cap=int(max_hits),
                   truncated=len(ranked) > max_hits or any(hl.truncated for hl in per_doc))
     return out
+
+
+HIT_COLUMNS = ("doc", "start", "end", "start_native", "end_native", "cost", "rank")
+
+
+def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
+    """The hit table (``docs/retrieval.md``) as a :class:`pyarrow.Table`: doc, start, end
+    (1-based inclusive 30 Hz frames), start_native, end_native (frames of the source motion
+    file, from each document's ``native`` frame column, indexed by ``Hit.doc_index``),
+    cost, rank (1 = cheapest)."""
+    import pyarrow as pa
+
+    cols: dict[str, list] = {c: [] for c in HIT_COLUMNS}
+    for rank, h in enumerate(hits, 1):
+        nat = native[h.doc_index]
+        for c, v in zip(HIT_COLUMNS, (str(h.doc), h.start + 1, h.end + 1, int(nat[h.start]),
+                                      int(nat[h.end]), float(h.cost), rank)):
+            cols[c].append(v)
+    types = {"doc": pa.string(), "cost": pa.float64()}
+    return pa.table({c: pa.array(v, type=types.get(c, pa.int64())) for c, v in cols.items()})
+
+
+def write_hits(path: str | os.PathLike, hits: Sequence[Hit], native: Sequence[np.ndarray], *,
+               provenance: dict | None = None) -> None:
+    """Write the hit table (:func:`hit_table`) in the format of ``path``'s suffix (``-``:
+    CSV on standard output), atomically and with its provenance (:mod:`mtanno.tables`)."""
+    from mtanno.tables import write_table
+
+    write_table(path, hit_table(hits, native), provenance=provenance)
+
+
+@dataclass
+class RetrievalBatch:
+    """What :func:`retrieve_files` found: the ranked hits, each good document's native
+    frame column (by ``Hit.doc_index``), the files read (path, SHA-256) and one message per
+    file that could not be used."""
+
+    hits: HitList
+    native: list[np.ndarray] = field(default_factory=list)
+    files: list[dict] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+
+
+def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
+                   paths: Sequence[str | os.PathLike], *, layout, tau: float,
+                   max_hits: int = DEFAULT_MAX_HITS, variant: str = "reference",
+                   progress: Callable[[str, str | None], None] | None = None) -> RetrievalBatch:
+    """:func:`retrieve` over feature files: each is read (:func:`mtanno.store.read_features`)
+    and checked against the template's ``layout`` (:func:`mtanno.store.check_layout`); a
+    file that fails is recorded in ``failed`` and the others are still searched.
+    ``progress`` is called once per file with its path and its failure (None on success)."""
+    from mtanno.store import check_layout, read_features
+
+    batch = RetrievalBatch(HitList())
+
+    def documents():
+        for p in paths:
+            try:
+                ff = read_features(p, sha256=True)
+                check_layout(ff, layout)
+            except MtannoError as exc:
+                batch.failed.append(str(exc))
+                if progress:
+                    progress(str(p), str(exc))
+                continue
+            batch.native.append(ff.native_frames)
+            batch.files.append({"path": str(p), "sha256": ff.sha256})
+            yield ff.document, ff.X
+            if progress:
+                progress(str(p), None)
+
+    batch.hits = retrieve(template_values, weights, documents(), tau=tau, max_hits=max_hits,
+                          variant=variant)
+    return batch

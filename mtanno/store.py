@@ -10,12 +10,10 @@ mtanno version).
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import os
-import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +22,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno.errors import MtannoError, read_input
+from mtanno.output import atomic_path
+
+__all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
+           "common_layout", "document_files", "feature_files", "read_feature_matrix",
+           "read_features", "sha256_file", "write_features"]
 
 FEATURES_SCHEMA = "mtanno.features/1"
 META_KEY = b"mtanno"
@@ -38,33 +41,9 @@ def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
-@contextlib.contextmanager
-def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path beside ``target``; rename it over ``target`` on success.
-
-    A crash or an exception leaves no partial ``target`` (the temporary file is removed).
-    A ``target`` that exists and is not a regular file (``/dev/null``, a FIFO) is yielded
-    itself and written in place: renaming over a device would replace it.
-    """
-    target = Path(target)
-    if target.exists() and not target.is_file():
-        yield target
-        return
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
 @dataclass
 class FeatureFile:
-    """A feature file read back: matrix, names, kept native frames and metadata.
+    """A feature file read back (and validated): matrix, names, kept native frames, metadata.
 
     Attributes
     ----------
@@ -96,7 +75,120 @@ class FeatureFile:
 
     @property
     def fps(self) -> float:
+        """Analysis frame rate (validated when the file was read)."""
         return float(self.meta["analysis_fps"])
+
+    @property
+    def feature_set(self) -> str:
+        return str(self.meta["feature_set"])
+
+    @property
+    def layout(self) -> FeatureLayout:
+        """What the file's features are (set, names, rate), for :func:`check_layout`."""
+        return FeatureLayout(self.feature_set, tuple(self.names), self.fps,
+                             f"feature file {self.path}")
+
+
+@dataclass(frozen=True)
+class FeatureLayout:
+    """Which features a matrix has: feature set, feature names in row order, frame rate.
+
+    Templates, indexes and feature files each have one; data can only be compared when
+    their layouts are equal (:func:`check_layout`). ``source`` names where the layout comes
+    from, for error messages (it is not compared).
+    """
+
+    feature_set: str
+    names: tuple[str, ...]
+    fps: float
+    source: str = ""
+
+    def key(self) -> tuple:
+        return (self.feature_set, self.names, self.fps)
+
+
+def check_layout(have: FeatureLayout | FeatureFile, want: FeatureLayout, *,
+                 path: str | None = None) -> None:
+    """The one compatibility check: ``have`` (a feature file, or any layout) must have the
+    features of ``want`` — same feature set, same feature names in the same order, same
+    frame rate. Otherwise one :class:`MtannoError` names ``path`` (the feature file's path
+    by default), the first difference and ``want.source``."""
+    if isinstance(have, FeatureFile):
+        path = path or have.path
+        have = have.layout
+    of = f" of {want.source}" if want.source else ""
+    if have.feature_set != want.feature_set:
+        raise MtannoError(f"feature set {have.feature_set!r} differs from "
+                          f"{want.feature_set!r}{of} (recompute with mtanno features "
+                          f"--feature-set, or use matching templates)", path=path)
+    if have.names != want.names:
+        k = next((i for i, (a, b) in enumerate(zip(have.names, want.names)) if a != b),
+                 min(len(have.names), len(want.names)))
+        here = repr(have.names[k]) if k < len(have.names) else "missing"
+        there = repr(want.names[k]) if k < len(want.names) else "missing"
+        how = ("the same features in another order" if sorted(have.names) == sorted(want.names)
+               else f"{len(have.names)} vs {len(want.names)} features")
+        raise MtannoError(f"feature {k + 1} is {here} here but {there}{of} ({how})",
+                          path=path)
+    if have.fps != want.fps:
+        raise MtannoError(f"frame rate {have.fps:g} Hz differs from {want.fps:g} Hz{of}",
+                          path=path)
+
+
+def common_layout(layouts: Sequence[FeatureLayout]) -> FeatureLayout:
+    """The layout most of ``layouts`` share, to check the others against: the most common
+    one; on a tie the one at the standard analysis rate (30 Hz) of a built-in feature set
+    with its own feature names, then the first. So in a batch with one odd file it is the
+    odd file that is named, not a good one."""
+    if not layouts:
+        raise MtannoError("no feature files")
+    counts: dict[tuple, int] = {}
+    first: dict[tuple, FeatureLayout] = {}
+    for lay in layouts:
+        counts[lay.key()] = counts.get(lay.key(), 0) + 1
+        first.setdefault(lay.key(), lay)
+
+    def standard(lay: FeatureLayout) -> bool:
+        from mtanno.features import FEATURE_SETS
+
+        fs = FEATURE_SETS.get(lay.feature_set)
+        return lay.fps == 30.0 and fs is not None and tuple(fs.names) == lay.names
+
+    order = list(first)
+    best = max(order, key=lambda k: (counts[k], standard(first[k]), -order.index(k)))
+    return first[best]
+
+
+def _check_meta(meta, spath: str) -> dict:
+    """Validate the ``mtanno`` metadata object of a feature file (written or read)."""
+    if not isinstance(meta, dict):
+        raise MtannoError(f"mtanno metadata must be a JSON object, got {type(meta).__name__}",
+                          path=spath)
+    if meta.get("schema") != FEATURES_SCHEMA:
+        raise MtannoError(f"unsupported feature file schema {meta.get('schema')!r} "
+                          f"(expected {FEATURES_SCHEMA})", path=spath)
+    if "analysis_fps" not in meta:
+        raise MtannoError("mtanno metadata lacks analysis_fps (the frame rate of the rows)",
+                          path=spath)
+    fps = meta["analysis_fps"]
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not np.isfinite(fps) \
+            or fps <= 0:
+        raise MtannoError(f"analysis_fps in the mtanno metadata must be a positive number, "
+                          f"got {fps!r}", path=spath)
+    fs = meta.get("feature_set")
+    if not isinstance(fs, str) or not fs:
+        raise MtannoError(f"feature_set in the mtanno metadata must be a non-empty string, "
+                          f"got {fs!r}", path=spath)
+    version = meta.get("feature_set_version", 1)
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise MtannoError(f"feature_set_version in the mtanno metadata must be an integer, "
+                          f"got {version!r}", path=spath)
+    groups = meta.get("groups")
+    if groups is not None and not (isinstance(groups, dict) and all(
+            isinstance(v, list) and all(isinstance(n, str) for n in v) for v in groups.values())):
+        raise MtannoError("groups in the mtanno metadata must map group names to lists of "
+                          "feature names", path=spath)
+    return meta
 
 
 def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tuple[str, ...],
@@ -104,16 +196,17 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     """Write a (features × frames) 0/1 matrix as a feature file, atomically.
 
     ``native_frames`` are 1-based; ``meta`` is stored as JSON under the key ``mtanno``
-    (``schema`` is filled in).
+    (``schema`` is filled in; ``analysis_fps`` and ``feature_set`` are required, as
+    :func:`read_features` requires them).
     """
     X = np.asarray(X)
     if X.ndim != 2 or X.shape[0] != len(names):
         raise MtannoError(f"feature matrix must be ({len(names)} × frames), got {X.shape}")
+    meta = _check_meta({"schema": FEATURES_SCHEMA, **meta}, str(path))
     cols = {"native_frame": pa.array(np.asarray(native_frames, dtype=np.int32))}
     for i, name in enumerate(names):
         cols[name] = pa.array(X[i].astype(bool))
     table = pa.table(cols)
-    meta = {"schema": FEATURES_SCHEMA, **meta}
     table = table.replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True)})
     with atomic_path(path) as tmp:
         pq.write_table(table, tmp, compression="zstd")
@@ -140,17 +233,47 @@ def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     return out
 
 
-def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFile:
-    """Read a feature file written by :func:`write_features` (or ``mtanno features``).
+def document_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """:func:`feature_files`, where no two files may name the same document (file stem):
+    for commands whose outputs are keyed by document name."""
+    out: list[Path] = []
+    names: dict[str, Path] = {}
+    seen: set[Path] = set()
+    for p in feature_files(inputs):
+        if p.resolve() in seen:  # the same file given twice (a folder and a file in it)
+            continue
+        seen.add(p.resolve())
+        if p.stem in names:
+            raise MtannoError(f"two feature files name the same document '{p.stem}': "
+                              f"{names[p.stem]} and {p}")
+        names[p.stem] = p
+        out.append(p)
+    return out
 
-    The file is read once; with ``sha256`` its hash is computed from the same bytes
+
+def _rows(mask: np.ndarray) -> str:
+    rows = np.flatnonzero(mask)[:3] + 1
+    more = " …" if mask.sum() > 3 else ""
+    return ", ".join(str(r) for r in rows) + more
+
+
+def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFile:
+    """Read and validate a feature file written by :func:`write_features` (or ``mtanno
+    features``): the one reader every command uses.
+
+    Everything later stages rely on is checked here, once, so a malformed file is one
+    :class:`MtannoError` naming it (and the batch it is part of can go on): the ``mtanno``
+    metadata is a JSON object of the right schema with a positive ``analysis_fps`` and a
+    ``feature_set``; ``native_frame`` is an integer column without nulls, ≥ 1 and never
+    decreasing; every feature column is boolean without nulls, names unique. The file is
+    read once; with ``sha256`` its hash is computed from the same bytes
     (``FeatureFile.sha256``), for indexes that record what they were built from.
     """
     spath = str(path)
     data = read_input(path, what="feature file")
     try:
         table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
-    except (pa.ArrowInvalid, OSError) as exc:
+    except (pa.ArrowException, OSError, ValueError, IndexError) as exc:
         raise MtannoError(f"not a readable Parquet feature file ({exc})", path=spath) from None
     raw = (table.schema.metadata or {}).get(META_KEY)
     if raw is None:
@@ -158,22 +281,41 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
                           "features?)", path=spath)
     try:
         meta = json.loads(raw)
-    except json.JSONDecodeError:
+    except (json.JSONDecodeError, UnicodeDecodeError):
         raise MtannoError("mtanno metadata is not valid JSON", path=spath) from None
-    if meta.get("schema") != FEATURES_SCHEMA:
-        raise MtannoError(f"unsupported feature file schema {meta.get('schema')!r} "
-                          f"(expected {FEATURES_SCHEMA})", path=spath)
+    meta = _check_meta(meta, spath)
     names = [c for c in table.column_names if c != "native_frame"]
     if "native_frame" not in table.column_names or not names:
         raise MtannoError("feature file lacks the native_frame column or feature columns",
                           path=spath)
+    if len(set(table.column_names)) != len(table.column_names):
+        dup = sorted({c for c in table.column_names if table.column_names.count(c) > 1})
+        raise MtannoError(f"column(s) {', '.join(dup)} appear twice", path=spath)
     X = np.empty((len(names), table.num_rows), dtype=np.uint8)
     for i, name in enumerate(names):
         col = table.column(name)
         if not pa.types.is_boolean(col.type):
             raise MtannoError(f"column '{name}' is {col.type}, not boolean", path=spath)
+        if col.null_count:
+            nulls = col.is_null().to_numpy(zero_copy_only=False)
+            raise MtannoError(f"column '{name}' has {col.null_count} null value(s) (rows "
+                              f"{_rows(nulls)}); features must be true or false", path=spath)
         X[i] = col.to_numpy(zero_copy_only=False)
-    native = table.column("native_frame").to_numpy().astype(np.int64)
+    nf = table.column("native_frame")
+    if not pa.types.is_integer(nf.type):
+        raise MtannoError(f"column 'native_frame' is {nf.type}, not integer", path=spath)
+    if nf.null_count:
+        nulls = nf.is_null().to_numpy(zero_copy_only=False)
+        raise MtannoError(f"column 'native_frame' has {nf.null_count} null value(s) (rows "
+                          f"{_rows(nulls)})", path=spath)
+    native = nf.to_numpy().astype(np.int64)
+    if native.size and native.min() < 1:
+        raise MtannoError(f"native_frame must be ≥ 1 (1-based frames of the motion file); "
+                          f"rows {_rows(native < 1)} are not", path=spath)
+    if native.size > 1 and np.any(np.diff(native) < 0):
+        raise MtannoError(f"native_frame decreases at row(s) {_rows(np.diff(native) < 0)}",
+                          path=spath)
+    meta["analysis_fps"] = float(meta["analysis_fps"])
     return FeatureFile(X=X, names=names, native_frames=native, meta=meta, path=spath,
                        sha256=hashlib.sha256(data).hexdigest() if sha256 else None)
 

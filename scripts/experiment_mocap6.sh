@@ -18,7 +18,6 @@ mkdir -p "$OUT"
 "$MTANNO" features "$SHARED/cmu_mocap6" --asf "$SHARED/cmu_02/02.asf" -o "$OUT/features" -q
 "$MTANNO" truth mocap6 "$SHARED/cmu_mocap6/labels.json" -o "$OUT/truth.csv" 2>/dev/null
 
-rm -f "$OUT/annotation_all.csv"
 for test in $DOCS; do
   train=()
   for d in $DOCS; do [ "$d" = "$test" ] || train+=("$OUT/features/$d.parquet"); done
@@ -29,8 +28,8 @@ for test in $DOCS; do
   "$MTANNO" annotate --mt "$r/mt" "$OUT/features/$test.parquet" -o "$r/annotation.csv" -q
   echo "-- annotate $test with templates from the other two"
   "$MTANNO" evaluate "$r/annotation.csv" --truth "$OUT/truth.csv" --json "$r/report.json"
-  if [ -f "$OUT/annotation_all.csv" ]; then tail -n +2 "$r/annotation.csv" >> "$OUT/annotation_all.csv"
-  else cp "$r/annotation.csv" "$OUT/annotation_all.csv"; fi
 done
 echo "-- all three rotations together"
-"$MTANNO" evaluate "$OUT/annotation_all.csv" --truth "$OUT/truth.csv" --json "$OUT/report_all.json"
+annotations=()
+for test in $DOCS; do annotations+=("$OUT/test_$test/annotation.csv"); done
+"$MTANNO" evaluate "${annotations[@]}" --truth "$OUT/truth.csv" --json "$OUT/report_all.json"

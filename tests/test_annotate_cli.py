@@ -42,7 +42,8 @@ def test_annotate_and_evaluate(pipeline):
     r = run("evaluate", d / "a.csv", "--truth", d / "docs" / "truth.csv", "--json", d / "rep.json")
     assert r.exit_code == 0, r.output
     rep = json.loads((d / "rep.json").read_text())
-    assert set(rep) == {"frame", "segment", "per_class"}
+    assert set(rep) == {"schema", "documents", "frame", "segment", "per_class", "provenance"}
+    assert rep["schema"] == "mtanno.evaluation/1" and len(rep["documents"]) == 3
     assert set(rep["per_class"]) == set(synthetic.CLASSES)
     # held-out synthetic actor: the procedurally animated classes are easy
     assert rep["frame"]["F"] > 0.7 and rep["segment"]["F"] > 0.8
@@ -75,6 +76,8 @@ def test_evaluate_retrieval(pipeline):
             d / "docs" / "truth.csv", "--json", d / "ret.json")
     assert r.exit_code == 0, r.output
     res = json.loads((d / "ret.json").read_text())
+    assert res["schema"] == "mtanno.retrieval-evaluation/1"
+    res = res["classes"]
     assert {c["class"] for c in res} == set(synthetic.CLASSES)
     for c in res:
         assert len(c["taus"]) == 10
@@ -99,7 +102,7 @@ def test_annotate_bad_inputs(pipeline, tmp_path):
     r = run("annotate", "--mt", d / "mt", tmp_path / "empty", "-o", tmp_path / "x.csv")
     assert r.exit_code == 2 and "no feature files" in r.output
     r = run("annotate", "--mt", d / "mt", doc, "-o", tmp_path / "x.txt")
-    assert r.exit_code == 2 and ".csv or .parquet" in r.output
+    assert r.exit_code == 2 and "unknown table format '.txt'" in r.output
     # a feature file of another feature set, and one at another frame rate
     ff = read_features(doc)
     other = tmp_path / "other.parquet"
@@ -107,14 +110,14 @@ def test_annotate_bad_inputs(pipeline, tmp_path):
     meta.pop("schema")
     write_features(other, ff.X, ff.names, ff.native_frames, meta)
     r = run("annotate", "--mt", d / "mt", other, "-o", tmp_path / "x.csv")
-    assert r.exit_code == 1 and f"{other}: feature file has feature set 'mrc05'" in r.output
+    assert r.exit_code == 1 and f"{other}: feature set 'mrc05' differs" in r.output
     assert not (tmp_path / "x.csv").exists() or "0 segments" in r.output
     slow = tmp_path / "slow.parquet"
     meta = dict(ff.meta, analysis_fps=25.0)
     meta.pop("schema")
     write_features(slow, ff.X, ff.names, ff.native_frames, meta)
     r = run("annotate", "--mt", d / "mt", slow, doc, "-o", tmp_path / "y.csv")
-    assert r.exit_code == 1 and "at 25.0 Hz but the templates at 30.0 Hz" in r.output
+    assert r.exit_code == 1 and "frame rate 25 Hz differs from 30 Hz of the templates" in r.output
     assert "1 failed" in r.output  # the other document was annotated
 
 
@@ -128,4 +131,4 @@ def test_evaluate_bad_inputs(pipeline, tmp_path):
     (tmp_path / "t.csv").write_text("doc,start,end,label\nx,5,2,j\n")
     r = run("annotate", "--mt", d / "mt", d / "docfeats", "-o", tmp_path / "b.csv", "-q")
     r = run("evaluate", tmp_path / "b.csv", "--truth", tmp_path / "t.csv")
-    assert r.exit_code == 2 and f"{tmp_path / 't.csv'}:2: bad frame range" in r.output
+    assert r.exit_code == 2 and f"{tmp_path / 't.csv'}:2: start 5 is after end 2" in r.output

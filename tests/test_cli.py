@@ -59,14 +59,50 @@ def test_features_file_args_stdin_and_skip(tree, tmp_path):
     assert "0 written" in r.output and "1 up to date" in r.output
     r = run(["features", str(f1), "-o", str(out), "--force"])
     assert "1 written" in r.output
-    # a newer input is recomputed
+    # a touched but unchanged input is still up to date (provenance, not time stamps) …
     t = time.time() + 5
     os.utime(f1, (t, t))
+    r = run(["features", str(f1), "-o", str(out)])
+    assert "1 up to date" in r.output
+    # … a changed one is recomputed
+    f1.write_text(f1.read_text() + "\n")
     r = run(["features", str(f1), "-o", str(out)])
     assert "1 written" in r.output
     # file names on stdin
     r = run(["features", "-", "-o", str(out)], input=f"{tree / 'a' / 'walk2.amc'}\n")
     assert r.exit_code == 0 and (out / "walk2.parquet").exists()
+
+
+def test_features_up_to_date_follows_the_recorded_provenance(tree, tmp_path):
+    """Issue 8 root cause 3: a changed ASF, skeleton map or feature set makes an output
+    stale even when the output is newer than every input."""
+    out = tmp_path / "out"
+    f1 = tree / "a" / "walk1.amc"
+    assert run(["features", str(f1), "-o", str(out), "-q"]).exit_code == 0
+    meta = read_features(out / "walk1.parquet").meta
+    for key in ("source_sha256", "skeleton_file_sha256", "skeleton_map_sha256",
+                "feature_table_sha256", "extractor_version", "rig_nodes"):
+        assert meta[key], key
+    assert "1 up to date" in run(["features", str(f1), "-o", str(out)]).output
+    # the ASF changes (bone lengths), its time stamp goes back: not up to date
+    asf = tree / "synth.asf"
+    old = asf.stat()
+    asf.write_text(asf.read_text().replace("length 0.45", "length 0.5", 1))
+    os.utime(asf, ns=(old.st_atime_ns, old.st_mtime_ns - 10**10))
+    assert "1 written" in run(["features", str(f1), "-o", str(out)]).output
+    assert "1 up to date" in run(["features", str(f1), "-o", str(out)]).output
+    # another feature set
+    assert "1 written" in run(["features", str(f1), "-o", str(out), "--feature-set",
+                                "mrc05"]).output
+    # a skeleton map given explicitly that differs from the recorded one
+    smap = tmp_path / "my.toml"
+    from mtanno.io.rigs import builtin_dir
+
+    text = (builtin_dir() / "cmu-asf.toml").read_text()
+    smap.write_text(text.replace('name = "cmu-asf"', 'name = "my-asf"'))
+    r = run(["features", str(f1), "-o", str(out), "--feature-set", "mrc05", "--skeleton",
+             str(smap)])
+    assert "1 written" in r.output, r.output
 
 
 def test_features_jobs_gives_same_output(tree, tmp_path):
@@ -135,8 +171,12 @@ def test_info_motion_and_feature_file(tree, tmp_path):
     run(["features", str(tree / "a" / "walk1.amc"), "-o", str(tmp_path / "o")])
     r = run(["info", str(tmp_path / "o" / "walk1.parquet")])
     assert r.exit_code == 0 and "mr06-ak40" in r.output
+    # bad input is exit code 2, as the README says (issue 8, root cause 12)
     r = run(["info", str(tree / "b" / "bad.amc")])
-    assert r.exit_code == 1 and r.output.startswith("mtanno: ") and "Traceback" not in r.output
+    assert r.exit_code == 2 and r.output.startswith("mtanno: ") and "Traceback" not in r.output
+    # a missing file is "not found", not "no ASF skeleton found" (root cause 11)
+    r = run(["info", str(tmp_path / "nope.amc")])
+    assert r.exit_code == 2 and r.output == f"mtanno: {tmp_path / 'nope.amc'}: motion file not found\n"
 
 
 def test_help_texts():

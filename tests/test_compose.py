@@ -79,12 +79,15 @@ def test_yaw_of_turned_matrix():
 
 def test_manifest_and_errors(tmp_path):
     (tmp_path / "clips.csv").write_text("file,class,actor,split\na.amc,jump,x,dev\nb.amc,kick,y,train\n")
+    (tmp_path / "a.amc").write_text("")
+    with pytest.raises(MtannoError, match=r"clips.csv:3: clip file .*b.amc not found"):
+        read_manifest(tmp_path / "clips.csv")
     got = read_manifest(tmp_path / "clips.csv", actor="x")
     assert got == [Clip(tmp_path / "a.amc", "jump", "x")]
     with pytest.raises(MtannoError, match="no clips"):
         read_manifest(tmp_path / "clips.csv", actor="z")
     (tmp_path / "bad.csv").write_text("name,label\n")
-    with pytest.raises(MtannoError, match="file and class"):
+    with pytest.raises(MtannoError, match="bad.csv:1: needs the columns file, class"):
         read_manifest(tmp_path / "bad.csv")
     with pytest.raises(MtannoError, match="no clips to compose"):
         compose_documents([], tmp_path / "o")
@@ -107,6 +110,7 @@ def test_compose_command(clips, tmp_path):
                                   "--docs", "2", "--seed", "4", "--pause", "3"])
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in (tmp_path / "docs").iterdir()) == [
-        "compose.json", "synth.asf", "synth_doc01.amc", "synth_doc02.amc", "truth.csv"]
+        "compose.json", "synth.asf", "synth_doc01.amc", "synth_doc02.amc", "truth.csv",
+        "truth.csv.meta.json"]
     r = CliRunner().invoke(main, ["features", str(tmp_path / "docs"), "-o", str(tmp_path / "f")])
     assert r.exit_code == 0, r.output

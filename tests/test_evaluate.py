@@ -47,7 +47,8 @@ def test_report_dict_and_table():
     truth = [S("d", 1, 10, "a")]
     r = evaluate_annotations(truth, [S("d", 1, 10, "a")])
     d = r.as_dict()
-    assert d["frame"] == {"P": 1.0, "R": 1.0, "F": 1.0} and d["segment"]["F"] == 1.0
+    assert {k: d["frame"][k] for k in "PRF"} == {"P": 1.0, "R": 1.0, "F": 1.0}
+    assert d["segment"]["F"] == 1.0 and d["schema"] == "mtanno.evaluation/1"
     assert d["per_class"]["a"]["frame"]["P"] == 1.0
     assert "overall" in r.table()
     empty = evaluate_annotations(truth, [])

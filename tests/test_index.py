@@ -255,6 +255,11 @@ def test_crash_during_update_leaves_old_index(feature_dir, tmp_path, monkeypatch
         add_documents(tmp_path / "idx", files[3:])
     monkeypatch.setattr(storage.os, "replace", real_replace)
     assert storage.read_manifest(tmp_path / "idx") == before
+
+    def entries():
+        return sorted(p.name for p in (tmp_path / "idx").iterdir() if p.name != ".lock")
+
+    assert entries() == ["gen-000001", "manifest.json"]  # nothing of the failed write is left
     assert [d.name for d in open_index(tmp_path / "idx").documents] == [f.stem for f in files[:3]]
 
     calls = []
@@ -267,16 +272,14 @@ def test_crash_during_update_leaves_old_index(feature_dir, tmp_path, monkeypatch
         return real_write(table, path)
 
     monkeypatch.setattr(storage, "_write_table", crash_midway)
-    with pytest.raises(OSError):
+    with pytest.raises(MtannoError, match="cannot write the index: disk full"):
         add_documents(tmp_path / "idx", files[3:])
     monkeypatch.setattr(storage, "_write_table", real_write)
     assert storage.read_manifest(tmp_path / "idx") == before
+    assert entries() == ["gen-000001", "manifest.json"]
     open_index(tmp_path / "idx")
-    # the next successful update cleans up the leftovers of the crashes
     add_documents(tmp_path / "idx", files[3:])
-    left = [p.name for p in (tmp_path / "idx").iterdir() if p.name != ".lock"]
-    # gen-000002 was renamed into place before the first crash, so this update is generation 3
-    assert sorted(left) == ["gen-000003", "manifest.json"]
+    assert entries() == ["gen-000002", "manifest.json"]
     build_index(files, tmp_path / "full")
     _same_index(tmp_path / "full", tmp_path / "idx")
 

@@ -103,7 +103,7 @@ def test_query_by_example_and_json(feats, tmp_path):
     (["--example", "{f}/squatA.parquet", "--features", "rknee_bent,nose"],
      "unknown feature 'nose' (feature set mrc05"),
     (["--example", "{f}/squatA.parquet"], "--example needs --features"),
-    (["--features", "rknee_bent"], "give either --example (with --features) or --query"),
+    (["--features", "rknee_bent"], "give one of --example (with --features), --query or --keyframes"),
     (["--example", "{f}/squatA.parquet", "--features", "rknee_bent", "--frames", "50:99"],
      "--frames 50:99 is not a range inside 1:60"),
     (["--example", "{f}/squatA.parquet", "--features", "rknee_bent", "--frames", "x"],
@@ -132,7 +132,7 @@ def test_query_rejects_other_feature_set_and_empty_set(feats, tmp_path):
     r = run(["query", idx, "--example", tmp_path / "ak" / "other.parquet", "--features",
              "rknee_bent"])
     assert r.exit_code == 2
-    assert "example has feature set 'mr06-ak40' but the index holds 'mrc05'" in r.output
+    assert "feature set 'mr06-ak40' differs from 'mrc05' of the index" in r.output
     q = tmp_path / "q.json"
     q.write_text(json.dumps({"features": ["rknee_bent"], "steps": ["0", [], "0"]}))
     r = run(["query", idx, "--query", q])
@@ -142,7 +142,7 @@ def test_query_rejects_other_feature_set_and_empty_set(feats, tmp_path):
     r = run(["query", idx, "--query", q])
     assert r.exit_code == 2 and "index holds 'mrc05'" in r.output
     r = run(["index", "add", idx, tmp_path / "ak"])
-    assert r.exit_code == 2 and "feature set 'mr06-ak40' differs from 'mrc05'" in r.output
+    assert r.exit_code == 1 and "feature set 'mr06-ak40' differs from 'mrc05'" in r.output
 
 
 def test_query_and_info_report_corrupt_index(feats, tmp_path):

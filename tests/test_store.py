@@ -17,7 +17,7 @@ from mtanno.store import atomic_path, read_feature_matrix, read_features, write_
 def test_round_trip(tmp_path):
     X = (np.random.default_rng(0).random((40, 17)) < 0.5).astype(np.uint8)
     p = tmp_path / "d" / "doc.parquet"
-    write_features(p, X, FEATURE_NAMES, np.arange(1, 69, 4), {"native_fps": 120.0,
+    write_features(p, X, FEATURE_NAMES, np.arange(1, 69, 4), {"native_fps": 120.0, "feature_set": "mr06-ak40",
                                                                "analysis_fps": 30.0})
     ff = read_features(p)
     assert np.array_equal(ff.X, X) and ff.X.dtype == np.uint8

@@ -104,7 +104,7 @@ def test_learn_mt_bad_input_exit_2(tree, tmp_path):
     man.write_text("file,kind\n")
     r = run(["learn-mt", "--manifest", str(man), "--features-dir", str(tree), "-o",
              str(tmp_path / "o")])
-    assert r.exit_code == 2 and f"{man}:1: manifest needs the columns" in r.output
+    assert r.exit_code == 2 and f"{man}:1: needs the columns file, class" in r.output
 
 
 @pytest.fixture
@@ -143,7 +143,11 @@ def test_mt_quantize_and_mirror(mt_file, tmp_path):
     r = run(["mt", "mirror", str(mt_file), "-o", str(m)])
     assert r.exit_code == 0 and load_template(m) == mirror(load_template(mt_file))
     r = run(["mt", "mirror", str(m), "-o", str(m), "--name", "pose"])
-    assert load_template(m).class_name == "pose"
+    # an output that is the input is refused before any work (issue 8, root cause 1)
+    assert r.exit_code == 2 and "would overwrite an input" in r.output
+    assert load_template(m) == mirror(load_template(mt_file))
+    r = run(["mt", "mirror", str(m), "-o", str(tmp_path / "p.json"), "--name", "pose"])
+    assert load_template(tmp_path / "p.json").class_name == "pose"
 
 
 def test_mt_bad_input_exit_2(tmp_path):

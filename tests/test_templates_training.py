@@ -88,8 +88,8 @@ def test_manifest_with_split_filter(tmp_path, tree):
 
 
 @pytest.mark.parametrize("text,message,line", [
-    ("file,label\na.amc,x\n", "columns file and class", 1),
-    ("file,class\na.amc,\n", "empty file or class", 2),
+    ("file,label\na.amc,x\n", "needs the columns file, class", 1),
+    ("file,class\na.amc,\n", "empty class", 2),
     ("file,class\n/abs/a.amc,x\n", "relative path", 2),
     ("file,class\n", "lists no files", None),
 ])
@@ -161,7 +161,7 @@ def test_truth_errors(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs,message", [
-    (dict(names=FEATURE_NAMES[:39]), "feature names differ"),
+    (dict(names=FEATURE_NAMES[:39]), "feature 40 is missing here"),
     (dict(fps=60.0), "60 Hz differs from 30 Hz"),
     (dict(feature_set="mrc05-31"), "feature set 'mrc05-31' differs"),
 ])

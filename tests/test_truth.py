@@ -35,8 +35,8 @@ def test_round_trip_and_fps_column(tmp_path):
 
 @pytest.mark.parametrize("text,msg,line", [
     ("doc,start,label\n", "needs the columns", 1),
-    ("doc,start,end,label\na,x,3,j\n", "must be numbers", 2),
-    ("doc,start,end,label\na,1,3,j\na,5,2,j\n", "bad frame range", 3),
+    ("doc,start,end,label\na,x,3,j\n", "start must be an integer", 2),
+    ("doc,start,end,label\na,1,3,j\na,5,2,j\n", "start 5 is after end 2", 3),
     ("doc,start,end,label\n,1,3,j\n", "empty doc", 2),
 ])
 def test_bad_tables(tmp_path, text, msg, line):

@@ -11,7 +11,8 @@ from mtanno.errors import MtannoError
 
 
 def user_errors(code: int):
-    """Turn MtannoError into a one-line message and exit ``code`` (no traceback)."""
+    """Turn MtannoError (and an OSError of the file system) into a one-line message and
+    exit ``code`` (no traceback)."""
 
     def deco(fn):
         @functools.wraps(fn)
@@ -20,6 +21,10 @@ def user_errors(code: int):
                 return fn(*args, **kwargs)
             except MtannoError as exc:
                 click.echo(f"mtanno: {exc}", err=True)
+                sys.exit(code)
+            except OSError as exc:  # the file system said no where no reader expected it
+                where = f"{exc.filename}: " if exc.filename else ""
+                click.echo(f"mtanno: {where}{exc.strerror or exc}", err=True)
                 sys.exit(code)
 
         return wrapper

@@ -2,88 +2,19 @@
 
 from __future__ import annotations
 
-import json
 import sys
-from pathlib import Path
 
 import click
 
+from mtanno.annotate import load_class_models
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
+from mtanno.store import check_layout, document_files
+from mtanno.templates.model import template_files
 
-
-def feature_paths(inputs) -> list[Path]:
-    """Feature files of the inputs (:func:`mtanno.store.feature_files`); two files may not
-    name the same document."""
-    from mtanno.store import feature_files
-
-    out = feature_files(inputs)
-    names: dict[str, Path] = {}
-    for p in out:
-        if p.stem in names:
-            raise MtannoError(f"two feature files name the same document '{p.stem}': "
-                              f"{names[p.stem]} and {p}")
-        names[p.stem] = p
-    return out
-
-
-def load_class_models(mt_dir: str, *, delta: float, classes: tuple[str, ...] = ()):
-    """Templates of a directory (``*.json``), quantized with ``delta``, as ClassModels,
-    plus the feature names, feature set and frame rate they all share."""
-    from mtanno.annotate import ClassModel
-    from mtanno.templates.model import load_template, quantize
-
-    paths = sorted(Path(mt_dir).glob("*.json")) if Path(mt_dir).is_dir() else [Path(mt_dir)]
-    if not paths or not paths[0].exists():
-        raise MtannoError("no templates (*.json) found", path=mt_dir)
-    models, ref = [], None
-    for p in paths:
-        mt = load_template(p)
-        if classes and mt.class_name not in classes:
-            continue
-        key = (list(mt.feature_names), mt.feature_set, float(mt.fps))
-        if ref is None:
-            ref = (key, p)
-        elif key != ref[0]:
-            raise MtannoError(f"template uses other features or frame rate than {ref[1]}",
-                              path=str(p))
-        q = quantize(mt, delta)
-        models.append(ClassModel(mt.class_name, q.values, q.weights))
-    if not models:
-        raise MtannoError(f"none of the classes {', '.join(classes)} has a template", path=mt_dir)
-    return models, ref[0]
-
-
-def check_features(ff, key) -> None:
-    """A feature file must have the templates' features (same names, order, set, rate)."""
-    names, feature_set, fps = key
-    if list(ff.names) != names or ff.meta.get("feature_set") != feature_set:
-        raise MtannoError(f"feature file has feature set '{ff.meta.get('feature_set')}' "
-                          f"({len(ff.names)} features) but the templates use "
-                          f"'{feature_set}' ({len(names)} features)", path=ff.path)
-    if float(ff.meta.get("analysis_fps", 0)) != fps:
-        raise MtannoError(f"feature file is at {ff.meta.get('analysis_fps')} Hz but the "
-                          f"templates at {fps} Hz", path=ff.path)
-
-
-def _annotate_one(args):
-    path, models, key, config, variant, match_variant, keyframes = args
-    from mtanno.annotate import annotate_document
-    from mtanno.keyframes import class_windows
-    from mtanno.store import read_features
-
-    ff = read_features(path)
-    check_features(ff, key)
-    windows = None
-    if keyframes:
-        try:
-            windows = class_windows(ff.X, ff.names, keyframes,
-                                    feature_set=ff.meta.get("feature_set"))
-        except MtannoError as exc:
-            raise MtannoError(exc.message, path=ff.path) from None
-    rows, _, _ = annotate_document(ff.document, ff.X, models, config=config, windows=windows,
-                                   dbar_variant=variant, match_variant=match_variant)
-    return ff.document, rows, ff.native_frames
+# The helpers below live in the API; these names stay importable from here.
+feature_paths = document_files
+check_features = check_layout
 
 
 @click.command("annotate")
@@ -91,7 +22,8 @@ def _annotate_one(args):
 @click.option("--mt", "mt_dir", required=True, type=click.Path(exists=True),
               help="Directory of class templates (CLASS.json) from learn-mt.")
 @click.option("-o", "--output", "outputs", multiple=True, required=True,
-              help="Annotation table, .csv or .parquet (repeat for both).")
+              help="Annotation table: .csv, .parquet or .jsonl, or - for CSV on standard "
+                   "output (repeat for several; docs/formats.md).")
 @click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
               help="Folder of keyframe queries (CLASS.json from learn-keyframes): a class's "
                    "template is matched only inside its candidate windows (MBS09 §5).")
@@ -123,148 +55,209 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
     windows found (widened by the query's extension); classes without a query are matched
     everywhere, with a note.
     """
-    from concurrent.futures import ProcessPoolExecutor
-
     from tqdm import tqdm
 
-    from mtanno.annotate import ClassConfig, load_class_config, write_annotations
+    from mtanno.annotate import (
+        ClassConfig,
+        annotate_files,
+        check_tau,
+        load_class_config,
+        write_annotations,
+    )
+    from mtanno.keyframes import keyframe_files, load_class_keyframes
+    from mtanno.output import check_outputs
+    from mtanno.tables import output_files, provenance, table_format
 
     for out in outputs:
-        if Path(out).suffix.lower() not in (".csv", ".parquet"):
-            raise MtannoError(f"output must end in .csv or .parquet: {out}")
+        table_format(out)
+    paths = feature_paths(features)
+    check_outputs([f for out in outputs for f in output_files(out)],
+                  [mt_dir, *template_files(mt_dir), config_path, *paths,
+                   *(keyframe_files(kf_dir) if kf_dir else [])])
     config = load_class_config(config_path) if config_path else ClassConfig()
     if tau is not None:
-        config.default_tau = tau
+        config.default_tau = check_tau(tau, what="--tau")
     models, key = load_class_models(mt_dir, delta=delta)
-    keyframes = _load_keyframes(kf_dir, models, key, quiet) if kf_dir else None
-    paths = feature_paths(features)
-    work = [(p, models, key, config, variant, match_variant, keyframes) for p in paths]
-    rows, native, failed = [], {}, 0
+    config.check([m.name for m in models])
+    keyframes, kf_files = {}, []
+    if kf_dir:
+        keyframes, kf_files, missing, extra = load_class_keyframes(
+            kf_dir, [m.name for m in models], feature_set=key.feature_set)
+        if not quiet and missing:
+            click.echo(f"annotate: note: no keyframe query for {', '.join(missing)}; matched "
+                       "everywhere", err=True)
+        if not quiet and extra:
+            click.echo("annotate: note: keyframe queries without a template ignored: "
+                       f"{', '.join(extra)}", err=True)
     bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")
 
-    def collect(result):
-        doc, r, nf = result
-        rows.extend(r)
-        native[doc] = nf
+    def progress(path, error):
         bar.update(1)
+        if error is not None:
+            bar.write(f"mtanno: {error}", file=sys.stderr)
 
-    if jobs > 1 and len(paths) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(_annotate_one, w) for w in work]
-            for fut in futures:
-                try:
-                    collect(fut.result())
-                except MtannoError as exc:
-                    failed += 1
-                    bar.write(f"mtanno: {exc}", file=sys.stderr)
-    else:
-        for w in work:
-            try:
-                collect(_annotate_one(w))
-            except MtannoError as exc:
-                failed += 1
-                bar.write(f"mtanno: {exc}", file=sys.stderr)
+    batch = annotate_files(paths, models, layout=key, config=config, dbar_variant=variant,
+                           match_variant=match_variant, keyframes=keyframes or None,
+                           n_jobs=jobs, progress=progress)
     bar.close()
-    rows.sort(key=lambda a: (a.doc, a.start, a.end, a.label))
+    prov = provenance(inputs=batch.files, templates=[m.record() for m in models],
+                      tau=config.default_tau, tau_per_class=config.tau or None,
+                      superclasses=config.superclasses or None, delta=delta,
+                      variant=variant, match=match_variant, feature_set=key.feature_set,
+                      keyframes=kf_files or None, documents=batch.frames)
     for out in outputs:
-        write_annotations(out, rows, native)
+        write_annotations(out, batch.rows, batch.native, provenance=prov)
+    failed = len(batch.failed)
     if not quiet:
-        click.echo(f"annotate: {len(paths) - failed} documents, {len(rows)} segments, "
+        click.echo(f"annotate: {len(paths) - failed} documents, {len(batch.rows)} segments, "
                    f"{len(models)} classes, {failed} failed -> {', '.join(outputs)}", err=True)
     sys.exit(1 if failed else 0)
 
 
-def _load_keyframes(kf_dir, models, key, quiet):
-    """Keyframe queries of the template classes; notes (stderr) for classes without one
-    and queries without a template."""
-    from mtanno.keyframes import load_keyframe_folder
-
-    queries = load_keyframe_folder(kf_dir)
-    names = [m.name for m in models]
-    for cls, q in queries.items():
-        if q.feature_set != key[1]:
-            raise MtannoError(f"keyframes of class '{cls}' are for feature set "
-                              f"'{q.feature_set}' but the templates use '{key[1]}'", path=kf_dir)
-    missing = [n for n in names if n not in queries]
-    extra = sorted(set(queries) - set(names))
-    if not quiet and missing:
-        click.echo(f"annotate: note: no keyframe query for {', '.join(missing)}; matched "
-                   "everywhere", err=True)
-    if not quiet and extra:
-        click.echo(f"annotate: note: keyframe queries without a template ignored: "
-                   f"{', '.join(extra)}", err=True)
-    return {n: queries[n] for n in names if n in queries}
-
-
 @click.command("evaluate")
-@click.argument("annotations", type=click.Path(exists=True, dir_okay=False))
-@click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
+@click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
+                type=click.Path(dir_okay=False, allow_dash=True))
+@click.option("--truth", "truth_path", required=True,
+              type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth table (doc,start,end,label[,fps]).")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
-              help="Also write the report as JSON.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True),
+              default=None, help="Also write the report as JSON (schema mtanno.evaluation/1; "
+                                 "- for standard output).")
+@click.option("-o", "--output", "table_path", type=click.Path(dir_okay=False, allow_dash=True),
+              default=None, help="Also write the per-class table (.csv, .parquet, .jsonl, "
+                                 "or - for CSV on standard output).")
 @click.option("--all-docs", is_flag=True,
               help="Count truth documents that have no annotation rows (default: only "
                    "documents present in ANNOTATIONS or listed with --doc).")
 @click.option("--doc", "docs", multiple=True, help="Evaluate only these documents.")
 @user_errors(2)
-def evaluate_cmd(annotations, truth_path, json_path, all_docs, docs):
-    """Frame- and segment-level precision, recall and F-measure of an annotation table
-    against ground truth, overall and per class (MBS09 §7)."""
-    from mtanno.annotate import read_annotations
-    from mtanno.evaluate import evaluate_annotations
-    from mtanno.store import atomic_path
-    from mtanno.truth import Segment, read_truth
+def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs):
+    """Frame- and segment-level precision, recall and F-measure of annotation tables
+    against ground truth, overall and per class, with support counts (MBS09 §7).
 
+    ANNOTATIONS are annotation tables (from `mtanno annotate`; - reads CSV from standard
+    input), e.g. the outputs of a run split over several machines; a document may appear
+    in only one of them. When the annotations record their documents' lengths, a truth
+    segment past the end of its document is an error.
+    """
+    from mtanno.annotate import read_annotation_table
+    from mtanno.evaluate import evaluate_annotations
+    from mtanno.output import check_outputs
+    from mtanno.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.truth import Segment, check_within, read_truth
+
+    if table_path is not None:
+        table_format(table_path)
+    inputs = [*annotations, truth_path]
+    if sum(str(i) == "-" for i in inputs) > 1:
+        raise MtannoError("standard input (-) can be read only once")
+    check_outputs([json_path, *output_files(table_path)], inputs)
+    if json_path == "-" and table_path == "-":
+        raise MtannoError("--json - and -o - would both write to standard output")
     truth = read_truth(truth_path)
-    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in read_annotations(annotations)]
+    out: list[Segment] = []
+    where: dict[str, str] = {}
+    frames: dict[str, int] = {}
+    for path in annotations:
+        rows, prov = read_annotation_table(path)
+        mine = {a.doc for a in rows}
+        for d in sorted(mine):
+            if d in where:
+                raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
+                                  "document's annotation once", path=str(path))
+            where[d] = str(path)
+        out.extend(Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows)
+        recorded = (prov or {}).get("documents")
+        if isinstance(recorded, dict):
+            frames.update({str(k): int(v) for k, v in recorded.items()
+                           if isinstance(v, int) and not isinstance(v, bool)})
+    check_within(truth, frames, path=truth_path)
     if docs:
+        known = {s.doc for s in truth} | {s.doc for s in out}
+        unknown = [d for d in docs if d not in known]
+        if unknown:
+            raise MtannoError(f"--doc {unknown[0]} is in neither the truth nor the annotations")
         documents = set(docs)
     elif all_docs:
         documents = None
     else:
         documents = {s.doc for s in out} or {s.doc for s in truth}
     report = evaluate_annotations(truth, out, documents=documents)
-    click.echo(report.table())
+    if json_path != "-" and table_path != "-":
+        click.echo(report.table())
+    prov = provenance(inputs=inputs, truth=str(truth_path))
     if json_path:
-        with atomic_path(json_path) as tmp:
-            tmp.write_text(json.dumps(report.as_dict(), indent=1))
+        write_json(json_path, {**report.as_dict(), "provenance": prov})
+    if table_path:
+        import pyarrow as pa
+
+        write_table(table_path, pa.Table.from_pylist(report.rows()), provenance=prov)
 
 
 @click.command("evaluate-retrieval")
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
 @click.option("--mt", "mt_dir", required=True, type=click.Path(exists=True),
               help="Directory of class templates (CLASS.json) or one template.")
-@click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
+@click.option("--truth", "truth_path", required=True,
+              type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth of the documents (doc,start,end,label[,fps]).")
 @click.option("--delta", type=float, default=0.1, show_default=True,
               help="Quantization delta of the templates (MR06 retrieval: 0.1).")
 @click.option("--max-hits", default=2000, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")
 @click.option("--class", "classes", multiple=True, help="Only these classes.")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False), default=None,
-              help="Also write the results as JSON.")
+@click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True),
+              default=None, help="Also write the results as JSON (schema "
+                                 "mtanno.retrieval-evaluation/1; - for standard output).")
+@click.option("-o", "--output", "table_path", type=click.Path(dir_okay=False, allow_dash=True),
+              default=None, help="Also write the table, one row per class and tau (.csv, "
+                                 ".parquet, .jsonl, or - for CSV on standard output).")
 @user_errors(2)
-def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path):
+def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path,
+                           table_path):
     """Retrieval quality per class (MR06 Tables 2 and 4): hits |H|, relevant hits |H+|,
     precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
-    quotient, each template retrieved in all FEATURES documents."""
-    from mtanno.evaluate import retrieval_evaluation, retrieval_report
-    from mtanno.store import atomic_path, read_features
-    from mtanno.truth import read_truth
+    quotient, each template retrieved in all FEATURES documents. A feature file that
+    cannot be used is reported and left out (exit code 1)."""
+    from mtanno.evaluate import retrieval_evaluation, retrieval_report, retrieval_table
+    from mtanno.output import check_outputs
+    from mtanno.store import read_features
+    from mtanno.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.truth import check_within, read_truth
 
+    if table_path is not None:
+        table_format(table_path)
+    if json_path == "-" and table_path == "-":
+        raise MtannoError("--json - and -o - would both write to standard output")
+    paths = feature_paths(features)
+    check_outputs([json_path, *output_files(table_path)],
+                  [mt_dir, *template_files(mt_dir), truth_path, *paths])
     models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
-    documents = []
-    for p in feature_paths(features):
-        ff = read_features(p)
-        check_features(ff, key)
-        documents.append((ff.document, ff.X))
     truth = read_truth(truth_path)
+    documents, files, failed = [], [], 0
+    for p in paths:
+        try:
+            ff = read_features(p, sha256=True)
+            check_features(ff, key)
+        except MtannoError as exc:
+            failed += 1
+            click.echo(f"mtanno: {exc}", err=True)
+            continue
+        documents.append((ff.document, ff.X))
+        files.append({"path": str(p), "sha256": ff.sha256})
+    check_within(truth, {name: X.shape[1] for name, X in documents}, path=truth_path)
     results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
                                     max_hits=max_hits) for m in models]
-    click.echo(retrieval_report(results))
+    if json_path != "-" and table_path != "-":
+        click.echo(retrieval_report(results))
+    prov = provenance(inputs=[*files, truth_path], templates=[m.record() for m in models],
+                      delta=delta, max_hits=max_hits, feature_set=key.feature_set)
     if json_path:
-        with atomic_path(json_path) as tmp:
-            tmp.write_text(json.dumps([r.as_dict() for r in results], indent=1))
+        write_json(json_path, {"schema": "mtanno.retrieval-evaluation/1",
+                               "classes": [r.as_dict() for r in results], "provenance": prov})
+    if table_path:
+        write_table(table_path, retrieval_table(results), provenance=prov)
+    sys.exit(1 if failed else 0)
 
 
 @click.command("compose")
@@ -301,7 +294,8 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
 
     clips = read_manifest(manifest, root=root, actor=actor, split=split)
     docs, truth = compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
-                                    seed=seed, pause=pause, asf=asf, shuffle=not in_order)
+                                    seed=seed, pause=pause, asf=asf, shuffle=not in_order,
+                                    inputs=[manifest])
     click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> {out_dir}",
                err=True)
 
@@ -313,14 +307,19 @@ def truth_group():
 
 @truth_group.command("mocap6")
 @click.argument("labels", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Truth table: .csv, .parquet or .jsonl, or - for CSV on standard output.")
 @user_errors(2)
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
+    from mtanno.output import check_outputs
+    from mtanno.tables import output_files, provenance, table_format
     from mtanno.truth import truth_from_mocap6, write_truth
 
+    table_format(output)
+    check_outputs(output_files(output), [labels])
     segs = truth_from_mocap6(labels)
-    write_truth(output, segs)
+    write_truth(output, segs, provenance=provenance(inputs=[labels]))
     click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
 
 

@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import sys
 from dataclasses import replace
@@ -63,12 +61,21 @@ def _summary(index) -> str:
 @click.option("-q", "--quiet", is_flag=True, help="No summary line.")
 @user_errors(2)
 def build_cmd(features, out, groups, quiet):
-    """Index feature files (or directories of them) into OUTPUT."""
+    """Index feature files (or directories of them) into OUTPUT. A file that cannot be
+    read or has other features than most is reported and left out (exit code 1)."""
     from mtanno.index import build_index
 
-    index = build_index(features, out, groups=_groups_option(groups))
+    failures: list[str] = []
+    index = build_index(features, out, groups=_groups_option(groups), failures=failures)
+    _report(failures)
     if not quiet:
-        click.echo(f"index: {_summary(index)} -> {out}", err=True)
+        click.echo(f"index: {_summary(index)}, {len(failures)} failed -> {out}", err=True)
+    sys.exit(1 if failures else 0)
+
+
+def _report(failures: list[str]) -> None:
+    for message in failures:
+        click.echo(f"mtanno: {message}", err=True)
 
 
 @index_group.command("add")
@@ -78,12 +85,17 @@ def build_cmd(features, out, groups, quiet):
 @user_errors(2)
 def add_cmd(index_dir, features, quiet):
     """Add feature files to INDEX (a document already indexed is replaced if its file
-    changed). Only the new files are read."""
+    changed). Only the new files are read; one that cannot be read or lacks the index's
+    features is reported and left out (exit code 1)."""
     from mtanno.index import add_documents
 
-    index, report = add_documents(index_dir, features)
+    failures: list[str] = []
+    index, report = add_documents(index_dir, features, failures=failures)
+    _report(failures)
     if not quiet:
-        click.echo(f"index add: {report.line()}; {_summary(index)}", err=True)
+        click.echo(f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}",
+                   err=True)
+    sys.exit(1 if failures else 0)
 
 
 @index_group.command("remove")
@@ -120,16 +132,31 @@ def info_rows(index) -> list[dict]:
 @index_group.command("info")
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object instead.")
+@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Write the per-group table (.csv, .parquet, .jsonl, or - for CSV on "
+                   "standard output) instead of the text.")
 @user_errors(2)
-def info_cmd(index_dir, as_json):
+def info_cmd(index_dir, as_json, output):
     """Describe INDEX: documents, frames, and per group segments, lists and sizes."""
-    from mtanno.index import open_index
-    from mtanno.index.storage import read_manifest
+    import pyarrow as pa
 
+    from mtanno.index import open_index
+    from mtanno.index.storage import index_files, read_manifest
+    from mtanno.output import check_outputs
+    from mtanno.tables import output_files, provenance, table_format, write_table
+
+    if output is not None:
+        table_format(output)
     index = open_index(index_dir)
     manifest = read_manifest(index.root)
     total = sum(e["bytes"] for e in manifest["files"].values())
     rows = info_rows(index)
+    if output is not None:
+        check_outputs(output_files(output), index_files(index.root))
+        write_table(output, pa.Table.from_pylist(rows), provenance=provenance(
+            inputs=[index.root / "manifest.json"], index=str(index_dir),
+            generation=index.generation, feature_set=index.feature_set))
+        return
     if as_json:
         click.echo(json.dumps({"index": str(index_dir), "generation": index.generation,
                                "feature_set": index.feature_set, "documents": len(index.documents),
@@ -170,15 +197,15 @@ def _parse_frames(text: str | None, n: int) -> tuple[int, int] | None:
 
 def _example(index, example: str):
     """(matrix, names, label) of an example: a feature file, or an indexed document name."""
-    from mtanno.index.core import read_feature_doc
+    from mtanno.index.core import doc_layout, read_feature_doc
+    from mtanno.store import FeatureLayout, check_layout
 
     p = Path(example)
     if p.is_file():
         doc = read_feature_doc(p)
-        fs = doc.meta.get("feature_set")
-        if fs != index.feature_set:
-            raise MtannoError(f"example has feature set '{fs}' but the index holds "
-                              f"'{index.feature_set}'", path=str(p))
+        check_layout(doc_layout(doc), FeatureLayout(index.feature_set, tuple(index.features),
+                                                    float(index.fps), f"the index {index.root}"),
+                     path=str(p))
         return doc.X, doc.names, str(p)
     if example in {d.name for d in index.documents}:
         covered = {f for g in index.groups.values() for f in g.features}
@@ -206,21 +233,6 @@ def load_template_for(index, path: str):
     return mt.values, mt.weights, list(mt.feature_names)
 
 
-def _write_output(output: str | None, text: str) -> None:
-    """Standard output for None or ``-``; a file is replaced atomically (a device or FIFO
-    is written in place, see :func:`mtanno.store.atomic_path`)."""
-    from mtanno.store import atomic_path
-
-    if output is None or output == "-":
-        sys.stdout.write(text)
-        return
-    with atomic_path(Path(output)) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
-_CSV_COLUMNS = ["doc", "start", "end", "rank", "score", "mt_cost", "boundaries"]
-
-
 @click.command("query")
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.option("--example", default=None, metavar="FILE.parquet|DOC",
@@ -232,6 +244,12 @@ _CSV_COLUMNS = ["doc", "start", "end", "rank", "score", "mt_cost", "boundaries"]
                    "Table 1 names such as Fl7).")
 @click.option("--query", "query_file", default=None, type=click.Path(dir_okay=False),
               metavar="Q.json", help="JSON query file (docs/index.md).")
+@click.option("--keyframes", "kf_file", default=None, type=click.Path(dir_okay=False),
+              metavar="KF.json", help="Keyframe query (learn-keyframes, docs/keyframes.md): "
+                                      "hits are the spans of its keyframe chains.")
+@click.option("--windows", is_flag=True,
+              help="With --keyframes: write the candidate windows (hits widened by the "
+                   "query's extension, merged) that annotate matches templates in.")
 @click.option("--mode", type=click.Choice(["exact", "fuzzy", "adaptive"]), default=None,
               help="Hit type (default: adaptive, or the query file's mode).")
 @click.option("--mismatches", type=click.IntRange(min=0), default=None, metavar="M",
@@ -240,30 +258,51 @@ _CSV_COLUMNS = ["doc", "start", "end", "rank", "score", "mt_cost", "boundaries"]
               metavar="MT.json", help="Rank the hits by this motion template's cost.")
 @click.option("--top", type=click.IntRange(min=1), default=None, metavar="N",
               help="Print only the N best hits.")
-@click.option("-o", "--output", default=None, type=click.Path(dir_okay=False),
-              metavar="HITS.csv", help="Write the hits here instead of standard output.")
+@click.option("-o", "--output", default="-", show_default=True,
+              type=click.Path(dir_okay=False, allow_dash=True), metavar="HITS",
+              help="Hit table: .csv, .parquet or .jsonl (with provenance, docs/formats.md), "
+                   "or - for CSV on standard output.")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line on standard error.")
 @user_errors(2)
-def query_cmd(index_dir, example, frames, feature_list, query_file, mode, mismatches, rank_mt,
-              top, output, quiet):
-    """Find motions in INDEX (MRC05 §5–6): by example or with a JSON query file.
+def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, windows, mode,
+              mismatches, rank_mt, top, output, quiet):
+    """Find motions in INDEX (MRC05 §5–6): by example, with a JSON query file, or with a
+    keyframe query (MBS09 §5).
 
     \b
     mtanno query INDEX --example FILE.parquet [--frames A:B] --features NAME,...
     mtanno query INDEX --query Q.json
+    mtanno query INDEX --keyframes KF.json [--windows]
 
-    Hits are printed as CSV: doc, start, end (1-based inclusive frames at 30 Hz), rank,
+    Hits are written as a table (CSV on standard output unless -o names a .csv, .parquet
+    or .jsonl file): doc, start, end (1-based inclusive frames at 30 Hz), rank,
     score (sum of segment length differences to the example, MRC05 §6.2; lower is better),
     mt_cost (with --rank-mt), boundaries (per group: first frame of each matched segment,
-    then the last frame).
+    then the last frame; for keyframes, the frames of the earliest keyframe chain in the
+    hit, then the hit's last frame).
     """
     import time
 
     from mtanno.index import example_query, load_query, open_index, rank_by_template, search
-    from mtanno.index.query import resolve_features, warm_up
-    if (example is None) == (query_file is None):
-        raise MtannoError("give either --example (with --features) or --query")
+    from mtanno.index.query import hit_table, resolve_features, warm_up
+    from mtanno.index.storage import index_files
+    from mtanno.output import check_outputs
+    from mtanno.tables import file_record, output_files, provenance, table_format, write_table
+
+    if sum(x is not None for x in (example, query_file, kf_file)) != 1:
+        raise MtannoError("give one of --example (with --features), --query or --keyframes")
+    if windows and kf_file is None:
+        raise MtannoError("--windows goes with --keyframes")
+    table_format(output)
     index = open_index(index_dir)
+    inputs = [*index_files(index.root), example, query_file, kf_file, rank_mt]
+    check_outputs(output_files(output), [i for i in inputs if i is not None and Path(i).exists()])
+    if kf_file is not None:
+        if frames or feature_list or mode or mismatches is not None:
+            raise MtannoError("--frames, --features, --mode and --mismatches do not go with "
+                              "--keyframes")
+        return _keyframe_query(index, kf_file, windows=windows, rank_mt=rank_mt, top=top,
+                               output=output, quiet=quiet)
     if example is not None:
         if not feature_list:
             raise MtannoError("--example needs --features NAME,...")
@@ -289,20 +328,54 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, mode, mismat
     rows = hits.rows(index)
     if top is not None:
         rows = rows[:top]
-    columns = [c for c in _CSV_COLUMNS if c != "mt_cost" or rank_mt is not None]
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        r = dict(r)
-        if r["score"] is not None:
-            r["score"] = f"{r['score']:g}"
-        w.writerow(r)
-    _write_output(output, buf.getvalue())
+    write_table(output, hit_table(rows, with_mt=rank_mt is not None), provenance=provenance(
+        inputs=[file_record(i) for i in (example, query_file) if i is not None
+                and Path(i).is_file()] + [{"path": str(index.root / "manifest.json"),
+                                          "generation": index.generation}],
+        templates=[file_record(rank_mt)] if rank_mt else (), mode=query.mode,
+        mismatches=query.mismatches, frames=frames, features=feature_list,
+        example=example, top=top, feature_set=index.feature_set))
     if not quiet:
         segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
         click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
-                   f"segments: {segs})" + (f" -> {output}" if output else ""), err=True)
+                   f"segments: {segs})" + (f" -> {output}" if output != "-" else ""), err=True)
+
+
+def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):
+    """``query --keyframes``: search, optionally rank by a template, write the table."""
+    import time
+
+    from mtanno.index import rank_by_template
+    from mtanno.index.query import hit_table
+    from mtanno.keyframes import load_keyframes, search_index
+    from mtanno.keyframes.search import warm_up
+    from mtanno.tables import file_record, provenance, write_table
+
+    q = load_keyframes(kf_file)
+    try:
+        warm_up()
+        t0 = time.perf_counter()
+        kh = search_index(index, q)
+        elapsed = time.perf_counter() - t0
+    except MtannoError as exc:
+        raise MtannoError(exc.message, path=kf_file) from None
+    hits = kh.as_hits(windows=windows)
+    if rank_mt is not None:
+        values, weights, mt_names = load_template_for(index, rank_mt)
+        hits = rank_by_template(index, hits, values, weights, mt_names)
+    rows = hits.rows(index)
+    if top is not None:
+        rows = rows[:top]
+    write_table(output, hit_table(rows, with_mt=rank_mt is not None), provenance=provenance(
+        inputs=[file_record(kf_file), {"path": str(index.root / "manifest.json"),
+                                       "generation": index.generation}],
+        templates=[file_record(rank_mt)] if rank_mt else (), keyframes=str(kf_file),
+        windows=windows, top=top, feature_set=index.feature_set))
+    if not quiet:
+        what = "candidate windows" if windows else "hits"
+        click.echo(f"query: {len(hits)} {what} in {elapsed * 1000:.2f} ms (keyframes: "
+                   f"{q.n} of class {q.class_name}; {kh.frames} frames in hits)"
+                   + (f" -> {output}" if output != "-" else ""), err=True)
 
 
 COMMANDS = [index_group, query_cmd]

@@ -91,6 +91,11 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
                               split=split, truth=truth)
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
+    from mtanno.output import check_outputs, make_folder
+
+    check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
+                  [*(s.path for s in sources), manifest, truth])
+    make_folder(out)
     t0 = time.perf_counter()
     written, failed, n_examples = [], [], 0
     reference = None
@@ -212,8 +217,10 @@ def mt_mirror_cmd(template, output, name):
     swapped, so a template learned from left-handed examples finds the right-handed
     motion, without new training data.
     """
+    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, mirror, save_template
 
+    check_outputs([output], [template])
     mt = mirror(load_template(template), name=name)
     save_template(output, mt)
     click.echo(f"mt mirror: {mt.class_name} -> {output}", err=True)
@@ -233,8 +240,10 @@ def mt_quantize_cmd(template, delta, output):
 
     The output records δ; matching uses a quantized template as it is.
     """
+    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, quantize, save_template
 
+    check_outputs([output], [template])
     mt = quantize(load_template(template), delta)
     save_template(output, mt)
     wild = int(np.sum(mt.values == 0.5))

@@ -88,6 +88,15 @@ class FeatureSet:
         return tuple((i, ids[f.mirror]) for i, f in enumerate(self.features)
                      if f.mirror is not None and i < ids[f.mirror])
 
+    @property
+    def digest(self) -> str:
+        """SHA-256 of the feature table (every row's definition and parameters): feature
+        files record it, so outputs of a changed table are not taken as up to date."""
+        import hashlib
+
+        return hashlib.sha256(repr((self.name, self.version, self.features)).encode())\
+            .hexdigest()
+
     def index(self, name: str) -> int:
         """0-based row of a feature given by name, id (``F07``), reference name or, for the
         31-set, its MRC05 Table 1 name (``Fl7`` or ``Fℓ7``)."""

@@ -9,9 +9,7 @@ files that fail.
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +27,11 @@ from mtanno.features import (
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
 from mtanno.store import sha256_file, write_features
+
+#: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
+#: from the feature tables; raised when a change alters features. Feature files record it,
+#: and outputs of another version are not up to date.
+EXTRACTOR_VERSION = 1
 
 
 def _feature_set(feature_set: str | FeatureSet) -> FeatureSet:
@@ -77,8 +80,12 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
                          "for analysis frame k = 0, 1, ... (column native_frame)",
         "skeleton_map": motion.smap.name,
         "skeleton_map_file": motion.smap.path,
+        "skeleton_map_sha256": motion.smap.digest,
+        "rig_nodes": list(motion.rig.names),
         "feature_set": fs.name,
         "feature_set_version": fs.version,
+        "feature_table_sha256": fs.digest,
+        "extractor_version": EXTRACTOR_VERSION,
         "feature_ids": [f.id for f in fs.features],
         "groups": {g: [fs.names[i] for i in rows] for g, rows in fs.groups.items()},
         "mtanno_version": __version__,
@@ -134,7 +141,8 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
 
     A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
     ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
-    Raises :class:`MtannoError` for a missing input or two inputs with the same output.
+    Raises :class:`MtannoError` for a missing input, two inputs with the same output, or
+    an output that is one of the inputs (:func:`mtanno.output.check_outputs`).
     """
     outdir = Path(outdir)
     jobs: list[Job] = []
@@ -156,12 +164,16 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
         seen[j.dst] = j.src
         if asf is not None and j.src.suffix.lower() == ".amc":
             j.asf = Path(asf)
-    unique = {j.dst: j for j in jobs}
-    return list(unique.values())
+    unique = list({j.dst: j for j in jobs}.values())
+    from mtanno.output import check_outputs
+
+    check_outputs([j.dst for j in unique],
+                  [*(j.src for j in unique), *({j.asf for j in unique} - {None})])
+    return unique
 
 
-def _stored_feature_set(path: Path) -> str | None:
-    """The ``feature_set`` in a feature file's metadata (None if unreadable)."""
+def _stored_meta(path: Path) -> dict | None:
+    """The ``mtanno`` metadata of an existing output (None if it cannot be read)."""
     import json
 
     import pyarrow.parquet as pq
@@ -170,20 +182,45 @@ def _stored_feature_set(path: Path) -> str | None:
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
-        return json.loads(raw).get("feature_set") if raw else None
-    except (OSError, ValueError):
+        meta = json.loads(raw) if raw else None
+    except (OSError, ValueError, TypeError):
         return None
+    return meta if isinstance(meta, dict) else None
 
 
-def _up_to_date(job: Job, feature_set: str = FEATURE_SET) -> bool:
-    if not job.dst.exists():
+def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
+               skeleton: str | os.PathLike | None = None) -> bool:
+    """True if ``job.dst`` holds the features this job would compute now, judged by the
+    provenance the output records: the same motion file (SHA-256), the same skeleton file
+    (the ASF that would be used, SHA-256), the same skeleton map (the one that would be
+    chosen for the recorded rig, by content), the same feature set and table, and the same
+    extractor version. Modification times are not used: a touched but unchanged input is
+    still up to date, a changed ASF with an old time stamp is not."""
+    from mtanno.io.rigs import select_map
+
+    meta = _stored_meta(job.dst) if job.dst.is_file() else None
+    if meta is None:
         return False
-    newest = job.src.stat().st_mtime
-    if job.asf is not None and job.asf.exists():
-        newest = max(newest, job.asf.stat().st_mtime)
-    if job.dst.stat().st_mtime <= newest:
+    fs = _feature_set(feature_set)
+    if (meta.get("feature_set"), meta.get("feature_set_version"),
+            meta.get("feature_table_sha256"), meta.get("extractor_version")) != \
+            (fs.name, fs.version, fs.digest, EXTRACTOR_VERSION):
         return False
-    return _stored_feature_set(job.dst) == feature_set
+    try:
+        if meta.get("source_sha256") != sha256_file(job.src):
+            return False
+        asf = job.asf
+        if asf is None and job.src.suffix.lower() == ".amc":
+            asf = find_asf(job.src)
+        if (None if asf is None else sha256_file(asf)) != meta.get("skeleton_file_sha256"):
+            return False
+        nodes = meta.get("rig_nodes")
+        if not isinstance(nodes, list):
+            return False
+        smap = select_map(str(meta.get("rig")), [str(n) for n in nodes], skeleton)
+    except (OSError, MtannoError):
+        return False
+    return smap.digest == meta.get("skeleton_map_sha256")
 
 
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET) -> Outcome:
@@ -193,6 +230,8 @@ def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET) -> 
         return Outcome(job, "written", frames=int(X.shape[1]))
     except MtannoError as exc:
         return Outcome(job, "failed", str(exc))
+    except OSError as exc:  # a file system error not caught where it happened
+        return Outcome(job, "failed", f"{exc.filename or job.src}: {exc.strerror or exc}")
     except Exception as exc:  # a bug, reported per file so the batch goes on
         return Outcome(job, "failed", f"{job.src}: internal error: {type(exc).__name__}: {exc}")
 
@@ -203,15 +242,17 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
               feature_set: str = FEATURE_SET) -> Summary:
     """Extract features for every job; failures are recorded, the batch goes on.
 
-    ``n_jobs`` > 1 runs documents in that many processes. Outputs newer than their inputs
-    and of the same ``feature_set`` are skipped unless ``force``. ``progress`` is called
-    once per finished job.
+    ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.workers.WorkerPool`:
+    they stop with this process). Outputs that are up to date (:func:`up_to_date`) are
+    skipped unless ``force``. ``progress`` is called once per finished job.
     """
+    from mtanno.workers import WorkerPool
+
     feature_set = get_feature_set(feature_set).name
     summary = Summary()
     todo = []
     for j in jobs:
-        if not force and _up_to_date(j, feature_set):
+        if not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton):
             o = Outcome(j, "skipped")
             summary.outcomes.append(o)
             if progress:
@@ -225,14 +266,8 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
             if progress:
                 progress(o)
         return summary
-    ctx = None
-    if sys.platform != "win32":
-        import multiprocessing
-
-        ctx = multiprocessing.get_context("fork")
-    with ProcessPoolExecutor(max_workers=n_jobs, mp_context=ctx) as pool:
-        for o in pool.map(_run_one, todo, [skeleton] * len(todo),
-                          [feature_set] * len(todo), chunksize=4):
+    with WorkerPool(n_jobs) as pool:
+        for o in pool.map(_run_one, [(j, skeleton, feature_set) for j in todo], chunksize=4):
             summary.outcomes.append(o)
             if progress:
                 progress(o)

@@ -69,34 +69,51 @@ def _existing_entries(index: Index) -> dict:
 
 
 def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None,
-                *, groups: GroupsArg = None) -> Index:
+                *, groups: GroupsArg = None, failures: list[str] | None = None) -> Index:
     """Index feature files (files or directories searched for ``*.parquet``).
 
     ``groups``: None for the feature set's groups (lower/upper/mix), a list of some of their
     names, or a mapping group → feature names. All files must have the same feature set;
     document names (file stems) must be unique. Writes the index to ``out_dir`` (a new or
     empty directory, or an existing index, which is replaced atomically) unless it is None.
+    With ``failures``, a file that cannot be read or does not fit the others is left out
+    and its message appended there (a batch goes on past it); without, it is raised.
     """
     paths = collect_feature_files(feature_files)
     if not paths:
         raise MtannoError("no feature files given")
-    docs = read_feature_docs(paths)
-    check_compatible(docs)
+    root = None if out_dir is None else Path(out_dir)
+    if root is not None:
+        _check_target(root, paths)
+    docs = check_compatible(read_feature_docs(paths, failures=failures), failures=failures)
+    if not docs:
+        raise MtannoError("no feature file could be indexed")
     first = docs[0]
     gs = resolve_groups(first.names, _default_groups(first), groups)
     index = assemble(first.meta.get("feature_set", "custom"),
                      int(first.meta.get("feature_set_version", 1)), first.names,
                      float(first.meta.get("analysis_fps", 30.0)), gs, _entries(docs, gs))
-    if out_dir is None:
+    if root is None:
         return index
-    root = Path(out_dir)
+    with write_lock(root):
+        return write_index(index, root)
+
+
+def _check_target(root: Path, paths: Sequence[Path]) -> None:
+    """An index is written into a new or empty folder, or over an index; never into a
+    folder holding anything else, nor where an input file is."""
+    from mtanno.output import check_outputs
+
     if root.exists() and not root.is_dir():
         raise MtannoError("index path exists and is not a directory", path=str(root))
     if root.is_dir() and any(p.name != ".lock" for p in root.iterdir()) and not is_index_dir(root):
         raise MtannoError("directory is not empty and holds no index; choose a new directory",
                           path=str(root))
-    with write_lock(root):
-        return write_index(index, root)
+    check_outputs([root], paths)
+    inside = [p for p in paths if root.resolve() in p.resolve().parents]
+    if inside:
+        raise MtannoError(f"input {inside[0]} lies inside the index folder; the index would "
+                          "replace it", path=str(root))
 
 
 def open_index(path: str | os.PathLike) -> Index:
@@ -119,17 +136,22 @@ class UpdateReport:
 
 
 def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os.PathLike],
-                  ) -> tuple[Index, UpdateReport]:
+                  *, failures: list[str] | None = None) -> tuple[Index, UpdateReport]:
     """Add feature files to the index in ``index_dir``, in place and atomically. A document
     whose name is already indexed is replaced if its feature file changed (by SHA-256) and
-    left alone otherwise. Only the new files are read."""
+    left alone otherwise. Only the new files are read. With ``failures``, a file that
+    cannot be read or does not have the index's features is left out and its message
+    appended there; without, it is raised."""
+    from mtanno.store import FeatureLayout
+
     root = Path(index_dir)
     paths = collect_feature_files(feature_files)
     with write_lock(root):
         index = read_index(root)
-        docs = read_feature_docs(paths)
-        check_compatible(docs, feature_set=index.feature_set, features=index.features,
-                         fps=index.fps)
+        layout = FeatureLayout(index.feature_set, tuple(index.features), float(index.fps),
+                               f"the index {root}")
+        docs = check_compatible(read_feature_docs(paths, failures=failures), layout=layout,
+                                failures=failures)
         gs = {g: gi.features for g, gi in index.groups.items()}
         entries = _existing_entries(index)
         report = UpdateReport()

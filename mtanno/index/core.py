@@ -27,7 +27,13 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.store import feature_files, read_features
+from mtanno.store import (
+    FeatureLayout,
+    check_layout,
+    common_layout,
+    feature_files,
+    read_features,
+)
 
 #: Most features a group may have (codes are int64).
 MAX_GROUP_FEATURES = 62
@@ -204,12 +210,27 @@ def read_feature_doc(path: str | os.PathLike) -> FeatureDoc:
     return FeatureDoc(ff.document, ff.sha256, ff.X, ff.names, ff.meta, ff.path)
 
 
-def read_feature_docs(paths: Sequence[str | os.PathLike]) -> list[FeatureDoc]:
-    """Read many feature files, in threads (Parquet decoding releases the GIL)."""
+def read_feature_docs(paths: Sequence[str | os.PathLike], *,
+                      failures: list[str] | None = None) -> list[FeatureDoc]:
+    """Read many feature files, in threads (Parquet decoding releases the GIL). With
+    ``failures``, a file that cannot be read is left out and its message appended there;
+    without, it is raised."""
+    def one(p):
+        try:
+            return read_feature_doc(p)
+        except MtannoError as exc:
+            if failures is None:
+                raise
+            return str(exc)
+
     if len(paths) < 8:
-        return [read_feature_doc(p) for p in paths]
-    with ThreadPoolExecutor(max_workers=min(8, os.cpu_count() or 1)) as pool:
-        return list(pool.map(read_feature_doc, paths))
+        got = [one(p) for p in paths]
+    else:
+        with ThreadPoolExecutor(max_workers=min(8, os.cpu_count() or 1)) as pool:
+            got = list(pool.map(one, paths))
+    if failures is not None:
+        failures.extend(g for g in got if isinstance(g, str))
+    return [g for g in got if not isinstance(g, str)]
 
 
 def collect_feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
@@ -323,29 +344,38 @@ def resolve_groups(feature_names: Sequence[str], default: Mapping[str, Sequence[
     return out
 
 
-def check_compatible(docs: Sequence[FeatureDoc], *, feature_set: str | None = None,
-                     features: Sequence[str] | None = None, fps: float | None = None) -> None:
-    """All feature files must share feature set, feature names and frame rate (and match
-    the given ones, e.g. an existing index's); document names must be unique."""
+def doc_layout(d: FeatureDoc) -> FeatureLayout:
+    """The feature layout (set, names, rate) of a feature file read for indexing."""
+    return FeatureLayout(str(d.meta["feature_set"]), tuple(d.names),
+                         float(d.meta["analysis_fps"]), f"feature file {d.path}")
+
+
+def check_compatible(docs: Sequence[FeatureDoc], *, layout: FeatureLayout | None = None,
+                     failures: list[str] | None = None) -> list[FeatureDoc]:
+    """The documents that can go into one index: all with the same feature layout (that of
+    ``layout``, e.g. an existing index's, or else the layout most of them share, see
+    :func:`mtanno.store.common_layout`, so an odd file is the one named) and unique names.
+    With ``failures``, a document that does not fit is left out and its message appended;
+    without, the first one is raised. Returns the documents kept."""
+    if not docs:
+        return []
+    want = layout or common_layout([doc_layout(d) for d in docs])
     seen: dict[str, str] = {}
+    kept = []
     for d in docs:
-        fs = d.meta.get("feature_set")
-        if feature_set is None:
-            feature_set, features, fps = fs, d.names, float(d.meta.get("analysis_fps", 30.0))
-        if fs != feature_set:
-            raise MtannoError(f"feature set {fs!r} differs from {feature_set!r} (an index holds "
-                              "one feature set; recompute with mtanno features --feature-set)",
-                              path=d.path)
-        if list(d.names) != list(features):
-            raise MtannoError("feature columns differ from the other files of feature set "
-                              f"{feature_set}", path=d.path)
-        if float(d.meta.get("analysis_fps", 30.0)) != fps:
-            raise MtannoError(f"frame rate {d.meta.get('analysis_fps')} differs from {fps:g}",
-                              path=d.path)
-        if d.name in seen:
-            raise MtannoError(f"document name '{d.name}' appears twice: {seen[d.name]} and "
-                              f"{d.path}")
+        try:
+            check_layout(doc_layout(d), want, path=d.path)
+            if d.name in seen:
+                raise MtannoError(f"document name '{d.name}' appears twice: {seen[d.name]} "
+                                  f"and {d.path}", path=d.path)
+        except MtannoError as exc:
+            if failures is None:
+                raise
+            failures.append(str(exc))
+            continue
         seen[d.name] = d.path
+        kept.append(d)
+    return kept
 
 
 def doc_segments(X: np.ndarray, names: Sequence[str], groups: Mapping[str, Sequence[str]],

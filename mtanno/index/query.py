@@ -539,14 +539,39 @@ def parse_query(spec: dict, index: Index, *, path: str | None = None) -> Query:
 
 def load_query(path: str | os.PathLike, index: Index) -> Query:
     """Read a JSON query file (see :func:`parse_query`)."""
+    from mtanno.errors import read_text_input
+
     p = Path(path)
     try:
-        spec = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MtannoError("query file not found", path=str(p)) from None
+        spec = json.loads(read_text_input(p).decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise MtannoError("not a UTF-8 text file", path=str(p)) from None
     except json.JSONDecodeError as exc:
         raise MtannoError(f"invalid JSON ({exc.msg})", path=str(p), line=exc.lineno) from None
     return parse_query(spec, index, path=str(p))
+
+
+QUERY_HIT_COLUMNS = ("doc", "start", "end", "rank", "score", "mt_cost", "boundaries")
+
+
+def hit_table(rows: Sequence[dict], *, with_mt: bool = False):
+    """The query hit table (``docs/index.md``) of :meth:`Hits.rows` as a
+    :class:`pyarrow.Table`: doc, start, end, rank, score (an integer column when every
+    score is whole), mt_cost (only ``with_mt``), boundaries."""
+    import pyarrow as pa
+
+    cols = [c for c in QUERY_HIT_COLUMNS if c != "mt_cost" or with_mt]
+    scores = [r.get("score") for r in rows]
+    whole = all(s is None or float(s).is_integer() for s in scores)
+    types = {"doc": pa.string(), "boundaries": pa.string(), "mt_cost": pa.float64(),
+             "score": pa.int64() if whole else pa.float64()}
+    data = {}
+    for c in cols:
+        values = [r.get(c) for r in rows]
+        if c == "score" and whole:
+            values = [None if v is None else int(v) for v in values]
+        data[c] = pa.array(values, type=types.get(c, pa.int64()))
+    return pa.table(data)
 
 
 def warm_up() -> None:

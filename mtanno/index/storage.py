@@ -35,8 +35,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno import __version__
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_input
 from mtanno.index.core import Document, GroupIndex, Index
+from mtanno.output import current_umask
 
 INDEX_FORMAT = "mtanno.index/1"
 MANIFEST = "manifest.json"
@@ -51,8 +52,12 @@ class CorruptIndex(MtannoError):
 @contextlib.contextmanager
 def write_lock(root: Path) -> Iterator[None]:
     """Exclusive writer lock on ``root/.lock`` (advisory; a dead process releases it)."""
-    root.mkdir(parents=True, exist_ok=True)
-    fh = open(root / ".lock", "a+")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        fh = open(root / ".lock", "a+")
+    except OSError as exc:
+        raise MtannoError(f"cannot write the index here: {exc.strerror or exc}",
+                          path=str(root)) from None
     try:
         try:
             import fcntl
@@ -153,7 +158,7 @@ def read_manifest(root: Path) -> dict:
                                path=str(root))
         raise MtannoError("not an index directory (no manifest.json)", path=str(root))
     try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
+        manifest = json.loads(read_input(path, what="index manifest").decode("utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError):
         raise CorruptIndex("corrupt index: manifest.json is not valid JSON", path=str(path)) from None
     if not isinstance(manifest, dict) or manifest.get("format") != INDEX_FORMAT:
@@ -163,6 +168,31 @@ def read_manifest(root: Path) -> dict:
     for key in ("directory", "files", "groups", "documents", "feature_set", "features"):
         if key not in manifest:
             raise CorruptIndex(f"corrupt index: manifest.json lacks '{key}'", path=str(path))
+    shapes = {"directory": str, "files": dict, "groups": dict, "documents": list,
+              "feature_set": str, "features": list}
+    for key, kind in shapes.items():
+        if not isinstance(manifest[key], kind):
+            raise CorruptIndex(f"corrupt index: '{key}' in manifest.json must be a "
+                               f"{kind.__name__}", path=str(path))
+    for key, kind in (("generation", int), ("feature_set_version", int)):
+        v = manifest.get(key, 0)
+        if isinstance(v, bool) or not isinstance(v, kind) or v < 0:
+            raise CorruptIndex(f"corrupt index: '{key}' in manifest.json must be an integer "
+                               f"≥ 0, got {v!r}", path=str(path))
+    fr = manifest.get("frame_rate", 30.0)
+    if isinstance(fr, bool) or not isinstance(fr, (int, float)) or not fr > 0 \
+            or fr == float("inf"):
+        raise CorruptIndex(f"corrupt index: 'frame_rate' in manifest.json must be a positive "
+                           f"number, got {fr!r}", path=str(path))
+    d = manifest["directory"]
+    if "/" in d or "\\" in d or d in (".", "..") or not d.startswith(_GEN_PREFIX):
+        raise CorruptIndex(f"corrupt index: 'directory' in manifest.json is {d!r}",
+                           path=str(path))
+    if not all(isinstance(e, dict) for e in manifest["files"].values()) or not all(
+            isinstance(e, dict) and isinstance(e.get("name"), str)
+            for e in manifest["documents"]):
+        raise CorruptIndex("corrupt index: malformed 'files' or 'documents' in manifest.json",
+                           path=str(path))
     return manifest
 
 
@@ -252,6 +282,14 @@ def write_index(index: Index, root: str | os.PathLike) -> Index:
     atomically; remove older generations afterwards. The caller holds :func:`write_lock`.
     Returns the index with ``root`` and ``generation`` set."""
     root = Path(root)
+    try:
+        return _write_index(index, root)
+    except OSError as exc:
+        raise MtannoError(f"cannot write the index: {exc.strerror or exc}",
+                          path=str(exc.filename or root)) from None
+
+
+def _write_index(index: Index, root: Path) -> Index:
     root.mkdir(parents=True, exist_ok=True)
     old_gen = 0
     if (root / MANIFEST).is_file():
@@ -262,6 +300,8 @@ def write_index(index: Index, root: str | os.PathLike) -> Index:
     gen = max([old_gen, *existing]) + 1
     final = root / f"{_GEN_PREFIX}{gen:06d}"
     tmp = Path(tempfile.mkdtemp(prefix=f"{_TMP_PREFIX}{final.name}-", dir=root))
+    os.chmod(tmp, 0o777 & ~current_umask())  # mkdtemp's 0700 would hide a shared index
+    mtmp, switched = None, False
     try:
         files = {}
         for name, table in _tables(index).items():
@@ -271,16 +311,23 @@ def write_index(index: Index, root: str | os.PathLike) -> Index:
         _fsync_dir(root)
         manifest = manifest_of(index, gen, files)
         fd, mtmp = tempfile.mkstemp(prefix=f"{_TMP_PREFIX}manifest-", dir=root)
+        os.fchmod(fd, 0o666 & ~current_umask())
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(manifest, fh, indent=1)
             fh.write("\n")
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(mtmp, root / MANIFEST)
+        mtmp, switched = None, True
         _fsync_dir(root)
-    finally:
+    finally:  # after a failure or an interruption: nothing of this write is left
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+        if mtmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(mtmp)
+        if not switched and final.exists():
+            shutil.rmtree(final, ignore_errors=True)
     for p in root.iterdir():  # older generations and leftovers of interrupted writes
         if p.name != final.name and p.name.startswith((_GEN_PREFIX, _TMP_PREFIX)):
             if p.is_dir():
@@ -290,6 +337,18 @@ def write_index(index: Index, root: str | os.PathLike) -> Index:
                     p.unlink()
     index.root, index.generation = root, gen
     return index
+
+
+def index_files(root: str | os.PathLike) -> list[Path]:
+    """The files of the index in ``root`` as it is now (manifest and current generation),
+    for :func:`mtanno.output.check_outputs`; empty when there is no readable manifest."""
+    root = Path(root)
+    try:
+        manifest = read_manifest(root)
+    except MtannoError:
+        return []
+    gen = root / manifest["directory"]
+    return [root / MANIFEST, *(gen / name for name in manifest["files"])]
 
 
 def is_index_dir(root: Path) -> bool:

@@ -93,6 +93,9 @@ def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = No
     """Parse a motion file into its rig and per-frame channels (no kinematics yet)."""
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix in MOCAP_SUFFIXES and not path.is_file():
+        raise MtannoError("motion file not found" if not path.exists() else
+                          "not a file", path=str(path))
     if suffix == ".amc":
         from mtanno.io.amc import read_amc
 

@@ -76,8 +76,24 @@ class SkeletonMap:
 
     def fits(self, rig: Rig) -> bool:
         """True if the map is for this file format and the rig has every detect node."""
-        names = set(rig.names)
-        return self.format == rig.kind and all(n in names for n in self.detect)
+        return self.fits_nodes(rig.kind, rig.names)
+
+    def fits_nodes(self, kind: str, names) -> bool:
+        """:meth:`fits` for a rig given by its kind and node names."""
+        names = set(names)
+        return self.format == kind and all(n in names for n in self.detect)
+
+    @property
+    def digest(self) -> str:
+        """SHA-256 of what the map says (not where it is): feature files record it, so
+        their features are recomputed when the map that made them changes."""
+        import hashlib
+        import json
+
+        body = {"name": self.name, "format": self.format, "joints": self.joints,
+                "detect": list(self.detect), "heading": [self.heading_node,
+                                                         list(self.heading_axis)]}
+        return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()
 
     def coverage(self, rig: Rig) -> dict[str, str | None]:
         """Canonical joint → rig node name, or None where the map or the rig lacks it."""
@@ -185,6 +201,12 @@ def available_maps() -> list[SkeletonMap]:
 
 def find_map(rig: Rig, override: str | os.PathLike | None = None) -> SkeletonMap:
     """The skeleton map for ``rig``: ``override`` (a file or a map name) or the first fit."""
+    return select_map(rig.kind, rig.names, override, source=rig.source)
+
+
+def select_map(kind: str, names, override: str | os.PathLike | None = None, *,
+               source: str | None = None) -> SkeletonMap:
+    """:func:`find_map` for a rig given by its kind (``asf``/``bvh``) and node names."""
     if override is not None:
         p = Path(override)
         if p.suffix == ".toml" or p.exists():
@@ -195,8 +217,8 @@ def find_map(rig: Rig, override: str | os.PathLike | None = None) -> SkeletonMap
         raise MtannoError(f"no skeleton map named '{override}' (known: "
                           f"{', '.join(m.name for m in available_maps())})")
     for m in available_maps():
-        if m.fits(rig):
+        if m.fits_nodes(kind, names):
             return m
-    raise MtannoError(f"no skeleton map fits this {rig.kind.upper()} rig (nodes: "
-                      f"{', '.join(rig.names[:8])}, ...); add one to {user_dir()} or "
-                      f"pass --skeleton MAP.toml", path=rig.source)
+    raise MtannoError(f"no skeleton map fits this {kind.upper()} rig (nodes: "
+                      f"{', '.join(list(names)[:8])}, ...); add one to {user_dir()} or "
+                      f"pass --skeleton MAP.toml", path=source)

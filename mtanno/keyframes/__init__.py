@@ -21,6 +21,8 @@ from mtanno.keyframes.model import (
     Keyframe,
     KeyframeQuery,
     format_query,
+    keyframe_files,
+    load_class_keyframes,
     load_keyframe_folder,
     load_keyframes,
     save_keyframes,
@@ -37,6 +39,7 @@ from mtanno.keyframes.search import (
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeHits", "KeyframeQuery", "chain_hits",
-    "class_windows", "document_windows", "format_query", "load_keyframe_folder", "load_keyframes",
+    "class_windows", "document_windows", "format_query", "keyframe_files", "load_class_keyframes",
+    "load_keyframe_folder", "load_keyframes",
     "save_keyframes", "search_documents", "search_index", "stiffness_bounds",
 ]

@@ -51,8 +51,8 @@ from mtanno.errors import MtannoError, read_input
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "format_query",
-    "load_keyframes", "load_keyframe_folder", "save_keyframes", "stiffness_bounds",
-    "tolerant_patterns",
+    "keyframe_files", "load_class_keyframes", "load_keyframes", "load_keyframe_folder",
+    "save_keyframes", "stiffness_bounds", "tolerant_patterns",
 ]
 
 SCHEMA = "mtanno.keyframes/1"
@@ -492,25 +492,58 @@ def load_keyframes(path: str | os.PathLike) -> KeyframeQuery:
     return parse_keyframes(d, text=text, path=spath)
 
 
-def load_keyframe_folder(folder: str | os.PathLike) -> dict[str, KeyframeQuery]:
-    """Class name → query of every ``*.json`` in ``folder`` (or of one file). Two files
-    of one class are an error."""
+def _load_folder(folder: str | os.PathLike) -> list[tuple[Path, KeyframeQuery]]:
     p = Path(folder)
     if not p.exists():
         raise MtannoError("keyframe folder or file not found", path=str(p))
-    paths = sorted(p.glob("*.json")) if p.is_dir() else [p]
+    paths = keyframe_files(p)
     if not paths:
         raise MtannoError("no keyframe files (*.json) in this folder", path=str(p))
-    out: dict[str, KeyframeQuery] = {}
+    out: list[tuple[Path, KeyframeQuery]] = []
     seen: dict[str, Path] = {}
     for f in paths:
         q = load_keyframes(f)
-        if q.class_name in out:
-            raise MtannoError(f"class '{q.class_name}' has two keyframe files: {seen[q.class_name]} "
-                              f"and {f}")
-        out[q.class_name] = q
+        if q.class_name in seen:
+            raise MtannoError(f"class '{q.class_name}' has two keyframe files: "
+                              f"{seen[q.class_name]} and {f}")
         seen[q.class_name] = f
+        out.append((f, q))
     return out
+
+
+def load_keyframe_folder(folder: str | os.PathLike) -> dict[str, KeyframeQuery]:
+    """Class name → query of every ``*.json`` in ``folder`` (or of one file). Two files
+    of one class are an error."""
+    return {q.class_name: q for _, q in _load_folder(folder)}
+
+
+def keyframe_files(folder: str | os.PathLike) -> list[Path]:
+    """The keyframe files of a folder (``*.json``, sorted), or the one file given."""
+    p = Path(folder)
+    return sorted(p.glob("*.json")) if p.is_dir() else [p]
+
+
+def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
+                         feature_set: str) -> tuple[dict[str, KeyframeQuery], list[dict],
+                                                    list[str], list[str]]:
+    """The keyframe queries of a folder for annotating ``classes``: (class → query for the
+    classes that have one; the files read with their SHA-256, for provenance; classes
+    without a query; queries of classes not among ``classes``). Queries must be for
+    ``feature_set``."""
+    from mtanno.store import sha256_file
+
+    queries, files = {}, []
+    for f, q in _load_folder(folder):
+        if q.feature_set != feature_set:
+            raise MtannoError(f"keyframes of class '{q.class_name}' are for feature set "
+                              f"'{q.feature_set}' but the templates use '{feature_set}'",
+                              path=str(f))
+        queries[q.class_name] = q
+        if q.class_name in classes:
+            files.append({"path": str(f), "sha256": sha256_file(f), "class": q.class_name})
+    missing = [c for c in classes if c not in queries]
+    extra = sorted(set(queries) - set(classes))
+    return {c: queries[c] for c in classes if c in queries}, files, missing, extra
 
 
 def dumps(q: KeyframeQuery) -> str:

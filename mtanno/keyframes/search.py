@@ -185,6 +185,20 @@ class KeyframeHits:
         """Frames covered by the hits."""
         return int((self.end - self.start + 1).sum())
 
+    def as_hits(self, *, windows: bool = False):
+        """The hits as :class:`mtanno.index.query.Hits` (document order, no score), so
+        they are written, cut and ranked like the index's other query modes: the
+        boundaries of a hit are the frames of its earliest chain (group ``keyframes``).
+        ``windows``: the candidate windows instead (no boundaries)."""
+        from mtanno.index.query import Hits
+
+        if windows:
+            d, s, e = self.windows()
+            return Hits(d, s, e, np.full(len(d), np.nan))
+        bounds = np.concatenate([self.chains, (self.end + 1)[:, None]], axis=1)
+        return Hits(self.doc, self.start, self.end, np.full(len(self.doc), np.nan),
+                    {"keyframes": bounds})
+
 
 def widen(doc: np.ndarray, start: np.ndarray, end: np.ndarray, left: int, right: int,
           lengths: np.ndarray) -> Intervals:
@@ -339,3 +353,13 @@ def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, Keyfra
         _, s, e = hits.windows()
         out[cls] = [(int(a), int(b)) for a, b in zip(s, e)]
     return out
+
+
+def warm_up() -> None:
+    """Load the compiled interval kernels (numba's on-disk cache) once, so that timings
+    taken afterwards measure searches alone."""
+    from mtanno.keyframes.model import Gap, Keyframe
+
+    q = KeyframeQuery("w", "custom", {"g": ("a",)}, [Keyframe("g", "1", 1), Keyframe("g", "0", 2)],
+                      [Gap(0, 2)], 2)
+    search_documents([("w", np.array([[1, 1, 0, 0]], np.uint8))], ["a"], q)

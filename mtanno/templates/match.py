@@ -255,6 +255,11 @@ def _dtw_general(doc, offsets, masks, vals, table, di, dj, sel, add, divisor, de
 # input checks and template preparation
 
 
+#: Most template columns (after the reference variant's expansion by the weights) matching
+#: takes: more is no real template and would exhaust memory.
+MAX_TEMPLATE_COLUMNS = 1_000_000
+
+
 def _check_template(values, weights) -> tuple[np.ndarray, np.ndarray]:
     try:
         V = np.asarray(values, dtype=np.float64)
@@ -335,7 +340,13 @@ class PreparedTemplate:
         if variant == "reference":
             # expand (features.md App. A): column i repeated max(1, round(w_i)) times, round
             # half away from zero (weights are non-negative), each copy of weight w_i / r_i
-            reps = np.maximum(1, np.floor(w + 0.5)).astype(np.int64)
+            reps = np.maximum(1.0, np.floor(w + 0.5))
+            if reps.sum() > MAX_TEMPLATE_COLUMNS:
+                raise MtannoError(f"template weights (largest {w.max():.3g}) expand it to "
+                                  f"{reps.sum():.3g} columns, more than the "
+                                  f"{MAX_TEMPLATE_COLUMNS} matching takes; weights that large "
+                                  "are not meaningful")
+            reps = reps.astype(np.int64)
             V = np.repeat(V, reps, axis=1)
             w = np.repeat(w / reps, reps)
         K = V.shape[1]

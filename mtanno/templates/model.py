@@ -81,6 +81,8 @@ class MotionTemplate:
         Final maximum normalised alignment cost of learning (the "spread").
     history:
         Per-iteration costs: ``{"max": [...], "mean": [...]}``.
+    path:
+        The file it was read from (:func:`load_template`), not stored in it.
     """
 
     class_name: str
@@ -97,6 +99,7 @@ class MotionTemplate:
     iterations: int = 0
     final_cost: float = 0.0
     history: dict = field(default_factory=dict)
+    path: str | None = field(default=None, compare=False)
 
     schema = SCHEMA
 
@@ -143,6 +146,11 @@ class MotionTemplate:
         }
 
 
+#: Largest template weight accepted: a weight counts the frames aligned to a column, so a
+#: larger one is no learned template (and would blow up matching's column expansion).
+MAX_WEIGHT = 1e6
+
+
 def _validate(mt: MotionTemplate, path: str | None = None) -> None:
     def bad(msg: str) -> MtannoError:
         return MtannoError(msg, path=path)
@@ -170,9 +178,10 @@ def _validate(mt: MotionTemplate, path: str | None = None) -> None:
         r, c = np.argwhere((V < 0) | (V > 1))[0]
         raise bad(f"values row {r + 1} ({mt.feature_names[r]}) column {c + 1} is "
                   f"{V[r, c]!r}, outside [0, 1]")
-    if not np.isfinite(w).all() or (w <= 0).any():
-        c = int(np.argwhere(~np.isfinite(w) | (w <= 0))[0][0])
-        raise bad(f"weight {c + 1} is {w[c]!r}; weights must be positive and finite")
+    if not np.isfinite(w).all() or (w <= 0).any() or (w > MAX_WEIGHT).any():
+        c = int(np.argwhere(~np.isfinite(w) | (w <= 0) | (w > MAX_WEIGHT))[0][0])
+        raise bad(f"weight {c + 1} is {w[c]!r}; weights must be positive, finite and at "
+                  f"most {MAX_WEIGHT:g}")
     if mt.kind not in KINDS:
         raise bad(f"kind must be one of {', '.join(KINDS)}, got {mt.kind!r}")
     if not isinstance(mt.feature_set, str) or not mt.feature_set:
@@ -350,6 +359,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     mt.iterations = d.get("iterations", 0)
     mt.final_cost = d.get("final_cost", 0.0)
     mt.history = d.get("history", {})
+    mt.path = spath
     _validate(mt, spath)
     mt.fps = float(mt.fps)
     mt.final_cost = float(mt.final_cost)
@@ -429,38 +439,42 @@ def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
                    params=params, history={k: list(v) for k, v in mt.history.items()})
 
 
+def template_files(folder: str | os.PathLike) -> list[Path]:
+    """The template files of a folder (``*.json``, sorted), or the one file given."""
+    root = Path(folder)
+    return sorted(root.glob("*.json")) if root.is_dir() else [root]
+
+
 def load_template_folder(path: str | os.PathLike, *,
-                         classes: Sequence[str] | None = None) -> dict[str, MotionTemplate]:
+                         classes: Sequence[str] = ()) -> dict[str, MotionTemplate]:
     """Class name → template of every ``*.json`` in a folder (or of one template file),
     sorted by class name; with ``classes`` only those (each must have a template). All
-    templates must share feature names, feature set and frame rate; two files of one class
-    are an error."""
-    p = Path(path)
-    if not p.exists():
-        raise MtannoError("template folder or file not found", path=str(p))
-    paths = sorted(p.glob("*.json")) if p.is_dir() else [p]
-    if not paths:
-        raise MtannoError("no templates (*.json) found", path=str(p))
+    templates must share feature set, names and frame rate (a difference is an error
+    naming the file); two files of one class are an error."""
+    from mtanno.store import FeatureLayout, check_layout
+
+    files = template_files(path)
+    if not files or not files[0].exists():
+        raise MtannoError("no templates (*.json) found", path=str(path))
     out: dict[str, MotionTemplate] = {}
-    where: dict[str, Path] = {}
-    first: tuple | None = None
-    for f in paths:
+    layout = None
+    for f in files:
         mt = load_template(f)
-        key = (list(mt.feature_names), mt.feature_set, float(mt.fps))
-        if first is None:
-            first = (key, f)
-        elif key != first[0]:
-            raise MtannoError(f"template uses other features or frame rate than {first[1]}",
-                              path=str(f))
+        if classes and mt.class_name not in classes:
+            continue
+        lay = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
+                            f"template {f}")
+        if layout is None:
+            layout = lay
+        elif lay.key() != layout.key():
+            check_layout(lay, layout, path=str(f))
         if mt.class_name in out:
-            raise MtannoError(f"class '{mt.class_name}' has two templates: "
-                              f"{where[mt.class_name]} and {f}")
+            raise MtannoError(f"a second template of class {mt.class_name!r} (the first: "
+                              f"{out[mt.class_name].path})", path=str(f))
         out[mt.class_name] = mt
-        where[mt.class_name] = f
-    if classes:
-        missing = [c for c in classes if c not in out]
-        if missing:
-            raise MtannoError(f"no template for class(es) {', '.join(missing)} (templates: "
-                              f"{', '.join(sorted(out))})", path=str(p))
-        out = {c: out[c] for c in classes}
+    missing = [c for c in classes if c not in out]
+    if missing:
+        raise MtannoError(f"no template for class(es) {', '.join(missing)}", path=str(path))
+    if not out:
+        raise MtannoError("no templates to use", path=str(path))
     return dict(sorted(out.items()))

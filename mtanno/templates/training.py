@@ -21,8 +21,6 @@ example is the reference whose template MT learning returns, MR06 §4.1).
 
 from __future__ import annotations
 
-import csv
-import io
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -120,41 +118,26 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     The feature file of a row is ``features_dir / file`` with the suffix replaced by
     ``.parquet``. With ``split``, only rows whose ``split`` column equals it are used.
     """
-    spath = str(manifest)
-    try:
-        text = Path(manifest).read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise MtannoError("manifest not found", path=spath) from None
-    except (UnicodeDecodeError, IsADirectoryError):
-        raise MtannoError("not a UTF-8 CSV file", path=spath) from None
-    reader = csv.DictReader(io.StringIO(text))
-    cols = reader.fieldnames or []
-    if not {"file", "class"} <= set(cols):
-        raise MtannoError(f"manifest needs the columns file and class (found "
-                          f"{', '.join(cols) or 'none'})", path=spath, line=1)
-    if split is not None and "split" not in cols:
+    from mtanno.tables import read_manifest
+
+    table, rows = read_manifest(manifest)
+    spath = table.path
+    if split is not None and "split" not in table.columns:
         raise MtannoError("manifest has no split column to filter by --split", path=spath,
-                          line=1)
+                          line=table.header_line)
     fdir = Path(features_dir)
     if not fdir.is_dir():
         raise MtannoError("features folder not found", path=str(fdir))
     out: list[ExampleSource] = []
     seen_splits: set[str] = set()
-    for lineno, row in enumerate(reader, 2):
-        f, c = (row.get("file") or "").strip(), (row.get("class") or "").strip()
-        if not f or not c:
-            raise MtannoError("empty file or class", path=spath, line=lineno)
+    for row in rows:
         if split is not None:
-            seen_splits.add((row.get("split") or "").strip())
-            if (row.get("split") or "").strip() != split:
+            seen_splits.add(row.split)
+            if row.split != split:
                 continue
-        rel = Path(f)
-        if rel.is_absolute() or ".." in rel.parts:
-            raise MtannoError(f"file {f!r} must be a relative path inside the data folder",
-                              path=spath, line=lineno)
-        actor = (row.get("actor") or "").strip() or None
-        out.append(ExampleSource(c, str(fdir / rel.with_suffix(".parquet")), origin=spath,
-                                 origin_line=lineno, performer=actor))
+        out.append(ExampleSource(row.label, str(fdir / Path(row.file).with_suffix(".parquet")),
+                                 origin=spath, origin_line=row.line,
+                                 performer=row.actor or None))
     if not out:
         if split is not None:
             raise MtannoError(f"no rows with split {split!r} (splits present: "
@@ -271,17 +254,12 @@ def check_consistent(examples: Sequence[TrainingExample], *,
     frame rate; otherwise an error names the first file that differs."""
     if not examples:
         return
-    ref = like if like is not None else examples[0]
+    from mtanno.store import FeatureLayout, check_layout, common_layout
+
+    def layout(ex: TrainingExample) -> FeatureLayout:
+        return FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),
+                             f"feature file {ex.file}")
+
+    ref = layout(like) if like is not None else common_layout([layout(e) for e in examples])
     for ex in examples:
-        if ex.feature_set != ref.feature_set:
-            raise MtannoError(f"feature set {ex.feature_set!r} differs from "
-                              f"{ref.feature_set!r} of {ref.file}", path=ex.file)
-        if ex.feature_names != ref.feature_names:
-            diff = [a for a, b in zip(ex.feature_names, ref.feature_names) if a != b]
-            detail = (f"first difference {diff[0]!r}" if diff else
-                      f"{len(ex.feature_names)} vs {len(ref.feature_names)} features")
-            raise MtannoError(f"feature names differ from those of {ref.file} ({detail})",
-                              path=ex.file)
-        if ex.fps != ref.fps:
-            raise MtannoError(f"analysis frame rate {ex.fps:g} Hz differs from {ref.fps:g} Hz "
-                              f"of {ref.file}", path=ex.file)
+        check_layout(layout(ex), ref, path=ex.file)

@@ -1,0 +1,230 @@
+"""Writing outputs safely: atomic replacement, the umask, temporary files, and inputs.
+
+Every file mtanno writes goes through :func:`atomic_path`, so a command that fails, is
+interrupted or is killed never leaves half a file under the output's name:
+
+* the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``,
+  and renamed over the target (``os.replace``, atomic on POSIX) only when complete;
+* the temporary file is removed when writing fails or is interrupted (Ctrl-C, SIGTERM: see
+  :mod:`mtanno.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
+  the next write into the same folder removes the temporary files of writers that are no
+  longer alive (same host, process gone);
+* the file gets the permissions an ordinary ``open`` would give it (0666 less the umask),
+  not the 0600 of a temporary file, so a shared archive stays readable;
+* an unwritable location is one :class:`~mtanno.errors.MtannoError` naming the path.
+
+:func:`check_outputs` is called by every command before any work: an output that is one of
+the command's inputs, or would replace one (same resolved path, or the same file through a
+hard link or symbolic link: same device and inode), is refused.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import socket
+import tempfile
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from mtanno.errors import MtannoError
+
+__all__ = ["atomic_path", "check_outputs", "current_umask", "remove_stale_temporaries",
+           "write_text"]
+
+#: Suffix of every temporary file :func:`atomic_path` creates.
+TMP_SUFFIX = ".tmp"
+
+
+def _host_tag() -> str:
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:40] or "host"
+
+
+_HOST = _host_tag()
+# .NAME.HOST-PID.RANDOM.tmp (RANDOM: tempfile's eight characters)
+_TMP_RE = re.compile(r"^\..+\.(?P<host>[A-Za-z0-9-]+?)-(?P<pid>\d+)\.[a-z0-9_]+\.tmp$")
+_CLEANED: set[str] = set()
+
+
+def current_umask() -> int:
+    """The process's umask (read from ``/proc`` where possible: setting and restoring it
+    would race with other threads creating files)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _alive(pid: int) -> bool:
+    """True if a process ``pid`` exists on this host and is not a zombie."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def remove_stale_temporaries(folder: str | os.PathLike, *, force: bool = False) -> list[Path]:
+    """Remove the temporary files of dead writers in ``folder`` (see module docstring).
+
+    Only files named as :func:`atomic_path` names them, created on this host by a process
+    that no longer exists, are removed; each folder is looked at once per process unless
+    ``force``. Returns the files removed.
+    """
+    folder = Path(folder)
+    key = str(folder.resolve())
+    if key in _CLEANED and not force:
+        return []
+    _CLEANED.add(key)
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return []
+    for entry in entries:
+        m = _TMP_RE.match(entry.name)
+        if m is None or m["host"] != _HOST:
+            continue
+        pid = int(m["pid"])
+        if pid == os.getpid() or _alive(pid):
+            continue
+        with contextlib.suppress(OSError):
+            if entry.is_file(follow_symlinks=False):
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+    return removed
+
+
+def _write_error(target: Path, exc: OSError) -> MtannoError:
+    what = exc.strerror or str(exc)
+    if isinstance(exc, (NotADirectoryError, FileExistsError)) and exc.filename \
+            and Path(exc.filename) != target:
+        what = f"{exc.filename} is not a folder"
+    return MtannoError(f"cannot write here: {what}", path=str(target))
+
+
+def make_folder(folder: str | os.PathLike) -> Path:
+    """Create an output folder (and its parents) with the umask's permissions; an existing
+    file in the way or an unwritable location is a :class:`MtannoError` naming it."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise MtannoError("output folder exists and is not a folder", path=str(folder))
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _write_error(folder, exc) from None
+    return folder
+
+
+@contextlib.contextmanager
+def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Path]:
+    """Yield a temporary path beside ``target``; rename it over ``target`` on success.
+
+    A failure or interruption inside the block removes the temporary file and leaves
+    ``target`` as it was. The new file's permissions are ``mode`` less the umask. A
+    ``target`` that exists and is not a regular file (``/dev/null``, a FIFO) is yielded
+    itself and written in place: renaming over a device would replace it. Errors of the
+    file system (unwritable folder, a file where a folder should be, disk full) are raised
+    as :class:`MtannoError` naming ``target``.
+    """
+    target = Path(target)
+    if target.is_dir():
+        raise MtannoError("output is a folder, not a file", path=str(target))
+    if target.exists() and not target.is_file():
+        yield target
+        return
+    make_folder(target.parent)
+    remove_stale_temporaries(target.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{_HOST}-{os.getpid()}.",
+                                   suffix=TMP_SUFFIX, dir=target.parent)
+    except OSError as exc:
+        raise _write_error(target, exc) from None
+    try:
+        try:
+            os.fchmod(fd, mode & ~current_umask())
+        finally:
+            os.close(fd)
+        yield Path(tmp)
+        os.replace(tmp, target)
+    except OSError as exc:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise _write_error(target, exc) from None
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text(target: str | os.PathLike, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``target`` atomically, or to standard output for ``-``."""
+    if str(target) == "-":
+        import sys
+
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return
+    with atomic_path(target) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino)
+
+
+def check_outputs(outputs: Iterable[str | os.PathLike | None],
+                  inputs: Iterable[str | os.PathLike | None]) -> None:
+    """Refuse outputs that are, or would replace, one of the inputs; and an output named
+    twice. Compared by resolved path (symbolic links followed) and by device and inode
+    (hard links), so ``-o r.parquet`` cannot overwrite the input ``r.parquet`` under any of
+    its names. ``None`` and ``-`` (standard input/output) are skipped.
+
+    Call it before any work: the command then fails at once, with one line, and writes
+    nothing.
+    """
+    by_path: dict[str, str] = {}
+    by_inode: dict[tuple[int, int], str] = {}
+    for item in inputs:
+        if item is None or str(item) == "-":
+            continue
+        p = Path(item)
+        by_path.setdefault(str(p.resolve()), str(item))
+        ident = _identity(p)
+        if ident is not None and p.is_file():
+            by_inode.setdefault(ident, str(item))
+    seen: dict[str, str] = {}
+    for item in outputs:
+        if item is None or str(item) == "-":
+            continue
+        p = Path(item)
+        rp = str(p.resolve())
+        if rp in seen:
+            raise MtannoError(f"the same output is named twice ({seen[rp]} and {item})",
+                              path=str(item))
+        seen[rp] = str(item)
+        hit = by_path.get(rp)
+        if hit is None:
+            ident = _identity(p)
+            hit = by_inode.get(ident) if ident is not None else None
+        if hit is not None:
+            same = "" if hit == str(item) else f" ({hit})"
+            raise MtannoError(f"output would overwrite an input of this command{same}; "
+                              "choose another output name", path=str(item))

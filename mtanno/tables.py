@@ -1,0 +1,460 @@
+"""Tables in and out: the one I/O convention of every command (``docs/formats.md``).
+
+Hit tables (``retrieve``, ``query``), annotation tables (``annotate``), truth tables
+(``truth``, ``compose``), evaluation tables (``evaluate``, ``evaluate-retrieval``) and
+index tables (``index info``) are all written by :func:`write_table` and read by
+:func:`read_table`:
+
+* the format follows the file name's suffix: ``.csv``, ``.parquet`` or ``.jsonl`` (JSON
+  Lines); any other suffix is an error; ``-`` is standard output (CSV) when writing and
+  standard input (CSV) when reading; an existing FIFO or device is written as CSV;
+* CSV is UTF-8 with a header line, commas, ``\\n`` line ends, and quotes only where a
+  value needs them (a comma, quote or line break inside); numbers are written in their
+  shortest exact form; a missing value is an empty field (``null`` in JSON Lines);
+* every table file carries its provenance (:func:`provenance`: mtanno version, command
+  line, inputs with SHA-256, templates, τ, δ, feature set …): in the Parquet schema
+  metadata under the key ``mtanno``, and for CSV and JSON Lines in a JSON sidecar
+  ``FILE.meta.json`` beside ``FILE`` (``hits.csv`` → ``hits.csv.meta.json``), so the table
+  itself stays a plain table any tool reads. Standard output carries none.
+
+Files are written atomically (:func:`mtanno.output.atomic_path`).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import io
+import json
+import math
+import os
+import sys
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+
+from mtanno.errors import MtannoError, read_input
+from mtanno.output import atomic_path
+
+__all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line",
+           "file_record", "output_files", "provenance", "read_manifest", "read_provenance",
+           "read_table", "set_command_line", "sidecar_path", "table_format", "write_json",
+           "write_table"]
+
+#: Table formats by file suffix.
+FORMATS = {".csv": "csv", ".parquet": "parquet", ".jsonl": "jsonl"}
+#: Schema name of the provenance object.
+PROVENANCE_SCHEMA = "mtanno.provenance/1"
+#: Appended to a CSV or JSON Lines file's name to name its provenance sidecar.
+SIDECAR_SUFFIX = ".meta.json"
+_META_KEY = b"mtanno"
+
+_COMMAND_LINE: list[str] | None = None
+
+
+def set_command_line(argv: Sequence[str]) -> None:
+    """Record the command line that outputs will name in their provenance (the command
+    line layer calls this; API users may)."""
+    global _COMMAND_LINE
+    _COMMAND_LINE = [str(a) for a in argv]
+
+
+def command_line() -> list[str]:
+    """The recorded command line, else this process's ``sys.argv``."""
+    return list(_COMMAND_LINE) if _COMMAND_LINE is not None else list(sys.argv)
+
+
+def table_format(path: str | os.PathLike) -> str:
+    """``"csv"``, ``"parquet"`` or ``"jsonl"`` for a table file name (``-``: CSV); any other
+    suffix is an :class:`MtannoError`."""
+    if str(path) == "-":
+        return "csv"
+    p = Path(path)
+    if p.exists() and not p.is_file() and not p.is_dir():
+        return "csv"  # a FIFO or a device (/dev/stdout): written in place, as CSV
+    suffix = p.suffix.lower()
+    if suffix not in FORMATS:
+        raise MtannoError(f"unknown table format {suffix or '(no suffix)'!r}: name the file "
+                          f".csv, .parquet or .jsonl, or - for standard output",
+                          path=str(path))
+    return FORMATS[suffix]
+
+
+def sidecar_path(path: str | os.PathLike) -> Path | None:
+    """The provenance sidecar of a CSV or JSON Lines table file (None for Parquet and -)."""
+    if str(path) == "-" or table_format(path) == "parquet":
+        return None
+    return Path(str(path) + SIDECAR_SUFFIX)
+
+
+def output_files(path: str | os.PathLike | None) -> list[str]:
+    """Every file that writing the table ``path`` creates (the table and its sidecar), for
+    :func:`mtanno.output.check_outputs`."""
+    if path is None or str(path) == "-":
+        return []
+    side = sidecar_path(path)
+    return [str(path)] + ([str(side)] if side is not None else [])
+
+
+def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
+    """``{"path": ..., "sha256": ...}`` of an input file (hashed unless given)."""
+    if sha256 is None:
+        from mtanno.store import sha256_file
+
+        try:
+            sha256 = sha256_file(path)
+        except OSError:
+            sha256 = None
+    return {"path": str(path), "sha256": sha256}
+
+
+def provenance(*, inputs: Iterable[dict | str | os.PathLike] = (),
+               templates: Iterable[dict] = (), **params: Any) -> dict:
+    """The provenance object of an output table: schema, mtanno version, command line, UTC
+    time, ``inputs`` (file records, see :func:`file_record`; paths are hashed),
+    ``templates`` (class, path, SHA-256) and the parameters that shaped the table (τ, δ,
+    feature set, …, given as keywords; None values are left out)."""
+    from mtanno import __version__
+
+    recs = [i if isinstance(i, dict) else file_record(i) for i in inputs]
+    out = {"schema": PROVENANCE_SCHEMA, "mtanno_version": __version__,
+           "command": command_line(),
+           "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+           "inputs": recs}
+    templates = list(templates)
+    if templates:
+        out["templates"] = templates
+    out.update({k: v for k, v in params.items() if v is not None})
+    return out
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ("" if math.isnan(value) else
+                                                          ("inf" if value > 0 else "-inf"))
+    return str(value)
+
+
+def _json_value(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _write_csv(table: pa.Table, fh) -> None:
+    w = csv.writer(fh, lineterminator="\n", quoting=csv.QUOTE_MINIMAL)
+    w.writerow(table.column_names)
+    cols = [table.column(i).to_pylist() for i in range(table.num_columns)]
+    for row in zip(*cols):
+        w.writerow([_cell(v) for v in row])
+
+
+def _write_jsonl(table: pa.Table, fh) -> None:
+    names = table.column_names
+    cols = [table.column(i).to_pylist() for i in range(table.num_columns)]
+    for row in zip(*cols):
+        fh.write(json.dumps({n: _json_value(v) for n, v in zip(names, row)},
+                            ensure_ascii=False, allow_nan=False) + "\n")
+
+
+def write_json(path: str | os.PathLike, obj: Any) -> None:
+    """Write a JSON document atomically (``-``: standard output); non-finite numbers are
+    written as null, so every JSON reader accepts the file."""
+    from mtanno.output import write_text
+
+    write_text(path, json.dumps(_clean(obj), indent=1, ensure_ascii=False) + "\n")
+
+
+def _clean(x: Any) -> Any:
+    """``x`` with non-finite floats replaced by None (JSON has no NaN or ∞)."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+def write_table(path: str | os.PathLike, table: pa.Table, *,
+                provenance: dict | None = None) -> None:
+    """Write ``table`` to ``path`` in the format its suffix names (module docstring), with
+    its provenance (Parquet metadata, or the ``FILE.meta.json`` sidecar); ``-`` writes CSV
+    to standard output."""
+    fmt = table_format(path)
+    if str(path) == "-":
+        buf = io.StringIO()
+        _write_csv(table, buf)
+        sys.stdout.write(buf.getvalue())
+        sys.stdout.flush()
+        return
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+
+        if provenance is not None:
+            table = table.replace_schema_metadata(
+                {_META_KEY: json.dumps(_clean(provenance), sort_keys=True)})
+        with atomic_path(path) as tmp:
+            pq.write_table(table, tmp)
+        return
+    side = sidecar_path(path)
+    if side is None or provenance is None or (Path(path).exists() and not Path(path).is_file()):
+        with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+            (_write_csv if fmt == "csv" else _write_jsonl)(table, fh)
+        return
+    # the old sidecar goes before the new table is in place, the new one right after: an
+    # interruption between the two leaves a table without provenance, never a wrong one
+    with atomic_path(side) as stmp:
+        stmp.write_text(json.dumps(_clean(provenance), indent=1, ensure_ascii=False) + "\n",
+                        encoding="utf-8")
+        with atomic_path(path) as tmp:
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
+                (_write_csv if fmt == "csv" else _write_jsonl)(table, fh)
+            side.unlink(missing_ok=True)
+
+
+# --------------------------------------------------------------------------- reading
+
+
+@dataclass
+class Table:
+    """A table read by :func:`read_table`: rows as dicts of column → value (strings for
+    CSV; None for a missing value), with where each row came from."""
+
+    path: str
+    columns: list[str]
+    rows: list[dict]
+    lines: list[int | None] = field(default_factory=list)
+    provenance: dict | None = None
+    header_line: int | None = None
+
+    def error(self, i: int, message: str) -> MtannoError:
+        """An error about row ``i`` (0-based): ``path:line: message`` for CSV and JSON
+        Lines, ``path: row N: message`` for Parquet."""
+        line = self.lines[i] if i < len(self.lines) else None
+        if line is None:
+            return MtannoError(f"row {i + 1}: {message}", path=self.path)
+        return MtannoError(message, path=self.path, line=line)
+
+    def require(self, columns: Iterable[str]) -> None:
+        """Every one of ``columns`` must be present."""
+        need = list(columns)
+        missing = [c for c in need if c not in self.columns]
+        if missing:
+            raise MtannoError(f"needs the columns {', '.join(need)} (missing "
+                              f"{', '.join(missing)}; found {', '.join(self.columns) or 'none'})",
+                              path=self.path, line=self.header_line)
+
+
+def _text(raw: bytes, spath: str) -> str:
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise MtannoError("binary data (NUL byte) in a text file", path=spath,
+                          line=raw[:nul].count(b"\n") + 1)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise MtannoError("not a UTF-8 text file", path=spath,
+                          line=raw[:exc.start].count(b"\n") + 1) from None
+
+
+def _read_csv(text: str, spath: str) -> Table:
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        header = next(reader, None)
+        while header is not None and not any(h.strip() for h in header):
+            header = next(reader, None)
+        if header is None:
+            raise MtannoError("file is empty (no header line)", path=spath, line=1)
+        header = [h.strip() for h in header]
+        hline = reader.line_num
+        if len(set(header)) != len(header) or "" in header:
+            raise MtannoError("header names a column twice or has an empty name",
+                              path=spath, line=hline)
+        rows, lines = [], []
+        for rec in reader:
+            if not rec or not any(c.strip() for c in rec):
+                continue  # blank line
+            if len(rec) != len(header):
+                raise MtannoError(f"{len(rec)} fields, but the header has {len(header)}",
+                                  path=spath, line=reader.line_num)
+            rows.append({h: (v if v != "" else None) for h, v in zip(header, rec)})
+            lines.append(reader.line_num)
+    except csv.Error as exc:
+        raise MtannoError(f"malformed CSV: {exc}", path=spath, line=reader.line_num) from None
+    return Table(spath, header, rows, lines, header_line=hline)
+
+
+def _read_jsonl(text: str, spath: str) -> Table:
+    rows, lines, columns = [], [], []
+    for n, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            obj = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise MtannoError(f"malformed JSON ({exc.msg})", path=spath, line=n) from None
+        if not isinstance(obj, dict):
+            raise MtannoError("each line must be a JSON object", path=spath, line=n)
+        for k in obj:
+            if k not in columns:
+                columns.append(k)
+        rows.append(obj)
+        lines.append(n)
+    return Table(spath, columns, rows, lines)
+
+
+def _read_parquet(raw: bytes, spath: str) -> Table:
+    import pyarrow.parquet as pq
+
+    try:
+        t = pq.ParquetFile(pa.BufferReader(raw), pre_buffer=False).read(use_threads=False)
+    except (pa.ArrowException, OSError, ValueError, IndexError) as exc:
+        raise MtannoError(f"not a readable Parquet table ({exc})", path=spath) from None
+    meta = (t.schema.metadata or {}).get(_META_KEY)
+    prov = None
+    if meta is not None:
+        try:
+            prov = json.loads(meta)
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            prov = None
+    try:
+        rows = t.to_pylist()
+    except (pa.ArrowException, ValueError) as exc:
+        raise MtannoError(f"not a readable Parquet table ({exc})", path=spath) from None
+    return Table(spath, list(t.column_names), rows, [None] * len(rows),
+                 prov if isinstance(prov, dict) else None)
+
+
+def read_provenance(path: str | os.PathLike) -> dict | None:
+    """The provenance sidecar of a CSV or JSON Lines table, if there is a readable one."""
+    side = sidecar_path(path)
+    if side is None or not side.is_file():
+        return None
+    try:
+        obj = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return obj if isinstance(obj, dict) else None
+
+
+def read_table(path: str | os.PathLike, *, what: str = "table") -> Table:
+    """Read a table in the format its suffix names (``-``: CSV from standard input), with
+    its provenance when it has one. A file that cannot be read as such a table is one
+    :class:`MtannoError` naming it (and the line, where there is one)."""
+    spath = str(path)
+    fmt = table_format(path)
+    if spath == "-":
+        raw = sys.stdin.buffer.read() if hasattr(sys.stdin, "buffer") else \
+            sys.stdin.read().encode("utf-8")
+        spath = "<stdin>"
+    else:
+        raw = read_input(path, what=what)
+    if fmt == "parquet":
+        return _read_parquet(raw, spath)
+    text = _text(raw, spath)
+    if not text.strip():
+        raise MtannoError(f"{what} is empty", path=spath, line=1)
+    table = _read_csv(text, spath) if fmt == "csv" else _read_jsonl(text, spath)
+    if spath != "<stdin>":
+        table.provenance = read_provenance(path)
+    return table
+
+
+def parse_int(table: Table, i: int, column: str, *, minimum: int | None = None,
+              maximum: int | None = None) -> int:
+    """Row ``i``'s ``column`` as an integer (``"12"``, ``12`` or ``12.0``), in range."""
+    value = table.rows[i].get(column)
+    try:
+        if isinstance(value, bool):
+            raise ValueError
+        if isinstance(value, str):
+            value = value.strip()
+            number = int(value) if value.lstrip("+-").isdigit() else float(value)
+        else:
+            number = value
+        if isinstance(number, float):
+            if not math.isfinite(number) or number != int(number):
+                raise ValueError
+            number = int(number)
+        if not isinstance(number, int):
+            raise ValueError
+    except (TypeError, ValueError, OverflowError):
+        raise table.error(i, f"{column} must be an integer, got {value!r}") from None
+    if minimum is not None and number < minimum:
+        raise table.error(i, f"{column} must be ≥ {minimum}, got {number}")
+    if maximum is not None and number > maximum:
+        raise table.error(i, f"{column} {number} is too large (at most {maximum})")
+    return number
+
+
+def parse_float(table: Table, i: int, column: str, *, default: float | None = None,
+                positive: bool = False) -> float:
+    """Row ``i``'s ``column`` as a finite number (``default`` when missing)."""
+    value = table.rows[i].get(column)
+    if value is None and default is not None:
+        return default
+    try:
+        if isinstance(value, bool):
+            raise ValueError
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise table.error(i, f"{column} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise table.error(i, f"{column} must be a finite number, got {value!r}")
+    if positive and number <= 0:
+        raise table.error(i, f"{column} must be a positive number, got {value!r}")
+    return number
+
+
+def parse_text(table: Table, i: int, column: str) -> str:
+    """Row ``i``'s ``column`` as a non-empty string."""
+    value = table.rows[i].get(column)
+    if value is None or (isinstance(value, str) and not value.strip()):
+        raise table.error(i, f"empty {column}")
+    return str(value).strip()
+
+
+# --------------------------------------------------------------------------- manifests
+
+
+@dataclass(frozen=True)
+class ManifestRow:
+    """One row of a clip manifest: ``file`` (relative path), ``class`` and the optional
+    ``actor`` and ``split`` columns, with the line it was read from."""
+
+    file: str
+    label: str
+    actor: str
+    split: str
+    line: int | None
+
+
+def read_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
+    """Read a clip manifest (columns ``file,class[,actor,split,...]``, e.g. HDM05's
+    ``clips.csv``): the one manifest reader of ``learn-mt`` and ``compose``. Every row
+    needs a file (a relative path inside the data folder) and a class."""
+    table = read_table(path, what="manifest")
+    table.require(["file", "class"])
+    out = []
+    for i, row in enumerate(table.rows):
+        f = parse_text(table, i, "file")
+        label = parse_text(table, i, "class")
+        rel = Path(f)
+        if rel.is_absolute() or ".." in rel.parts:
+            raise table.error(i, f"file {f!r} must be a relative path inside the data folder")
+        out.append(ManifestRow(f, label, str(row.get("actor") or "").strip(),
+                               str(row.get("split") or "").strip(), table.lines[i]))
+    if not out:
+        raise MtannoError("manifest lists no files", path=table.path)
+    return table, out

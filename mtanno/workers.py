@@ -1,0 +1,204 @@
+"""Worker processes and signals: the one policy of every command that runs in parallel.
+
+* **SIGTERM is handled like SIGINT.** Inside :func:`interruptible` (the command line wraps
+  every command in it) SIGTERM raises :class:`Interrupted`, a :class:`KeyboardInterrupt`,
+  so the same code runs for both: temporary files are removed
+  (:func:`mtanno.output.atomic_path`), workers are stopped, and the command line prints one
+  line and exits 130.
+* **Workers never outlive the parent.** A :class:`WorkerPool` worker asks the Linux kernel
+  for SIGTERM when its parent dies (``prctl(PR_SET_PDEATHSIG)`` through :mod:`ctypes`) and,
+  as a fallback on every system, watches the parent's pid from a thread: when the parent
+  is gone (killed with SIGKILL, say), the worker stops within a fraction of a second.
+* **Workers ignore SIGINT.** Ctrl-C reaches the whole process group; the parent decides:
+  it stops its workers (SIGTERM, then SIGKILL for one that does not end) and unwinds.
+* **A worker that gets SIGTERM** unwinds the task it is running (so its temporary files are
+  removed) and exits; an idle worker exits at once. Nothing is reported back and no
+  traceback is printed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+__all__ = ["Interrupted", "WorkerPool", "interruptible", "must_hard_exit"]
+
+#: How often a worker checks that its parent is alive (seconds).
+WATCHDOG_INTERVAL = 0.2
+#: How long a stopped worker may take to unwind before it is killed (seconds).
+STOP_GRACE = 0.5
+
+_PR_SET_PDEATHSIG = 1
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM received: unwind like Ctrl-C. ``signum`` says which."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        return signal.Signals(self.signum).name
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def interruptible() -> Iterator[None]:
+    """While inside, SIGTERM (like SIGINT) raises :class:`Interrupted` in the main thread.
+
+    Outside the main thread (where Python cannot install handlers) nothing changes. The
+    previous handlers are restored on exit.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old_term = signal.signal(signal.SIGTERM, _raise_interrupted)
+    old_int = signal.signal(signal.SIGINT, _raise_interrupted)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
+        signal.signal(signal.SIGINT, old_int)
+
+
+# ----------------------------------------------------------------------------- in a worker
+
+_IN_TASK = False
+
+
+def _set_parent_death_signal(signum: int) -> bool:
+    """Ask the kernel to send ``signum`` when the parent dies (Linux only)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, signum, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _worker_sigterm(signum, frame):
+    if _IN_TASK:
+        raise Interrupted(signum)  # unwind the task (temporary files removed), then exit
+    os._exit(128 + signum)
+
+
+def _watchdog(parent: int) -> None:
+    while True:
+        time.sleep(WATCHDOG_INTERVAL)
+        if os.getppid() != parent:
+            with contextlib.suppress(OSError):
+                os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(STOP_GRACE)
+            os._exit(128 + signal.SIGTERM)
+
+
+def _init_worker(parent: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_sigterm)
+    _set_parent_death_signal(signal.SIGTERM)
+    if os.getppid() != parent:  # the parent died before the kernel was asked
+        os._exit(128 + signal.SIGTERM)
+    threading.Thread(target=_watchdog, args=(parent,), name="mtanno-watchdog",
+                     daemon=True).start()
+
+
+def _run_task(fn: Callable[..., Any], args: tuple) -> Any:
+    global _IN_TASK
+    _IN_TASK = True
+    try:
+        return fn(*args)
+    except KeyboardInterrupt:
+        os._exit(128 + signal.SIGTERM)
+    finally:
+        _IN_TASK = False
+
+
+# ----------------------------------------------------------------------------- in the parent
+
+
+_ABANDONED = False
+
+
+def must_hard_exit() -> bool:
+    """True after a :class:`WorkerPool` was stopped: the caller should end the process with
+    :func:`os._exit` (after flushing its output) instead of a normal interpreter shutdown,
+    which could wait forever for the pool's manager thread (see :meth:`WorkerPool.stop`)."""
+    return _ABANDONED
+
+
+class WorkerPool:
+    """A process pool whose workers follow the policy of this module.
+
+    Use it as a context manager: leaving the block normally waits for the workers; leaving
+    it with an exception (an interruption, say) stops them at once and waits until they
+    are gone, so no worker outlives the command.
+    """
+
+    def __init__(self, n_jobs: int):
+        ctx = None
+        if sys.platform != "win32":
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("fork")  # no re-import of numba per worker
+        self.n_jobs = int(n_jobs)
+        self._pool = ProcessPoolExecutor(max_workers=self.n_jobs, mp_context=ctx,
+                                         initializer=_init_worker, initargs=(os.getpid(),))
+
+    def map(self, fn: Callable[..., Any], args: Iterable[Sequence[Any]], *,
+            chunksize: int = 1) -> Iterator[Any]:
+        """``fn(*a)`` for every ``a`` of ``args`` in the workers; results in input order.
+        ``fn`` must be a module-level function (it is sent to the workers by name)."""
+        items = [tuple(a) for a in args]
+        return self._pool.map(_run_task, [fn] * len(items), items, chunksize=chunksize)
+
+    def submit(self, fn: Callable[..., Any], *args: Any):
+        """Run ``fn(*args)`` in a worker; returns a :class:`concurrent.futures.Future`."""
+        return self._pool.submit(_run_task, fn, args)
+
+    def stop(self) -> None:
+        """Stop every worker now (SIGTERM, then SIGKILL after :data:`STOP_GRACE`) and wait
+        until they are gone.
+
+        A worker killed while it was sending a result can leave half a message in the
+        result pipe, and the executor's manager thread then waits for the rest forever
+        (interpreter shutdown joins that thread). So a stopped pool marks the process as
+        one that must leave with :func:`os._exit` once it has cleaned up
+        (:func:`must_hard_exit`)."""
+        global _ABANDONED
+        _ABANDONED = True
+        procs = list((getattr(self._pool, "_processes", None) or {}).values())
+        with contextlib.suppress(Exception):
+            self._pool.shutdown(wait=False, cancel_futures=True)
+        for p in procs:
+            with contextlib.suppress(Exception):
+                p.terminate()
+        deadline = time.monotonic() + STOP_GRACE
+        for p in procs:
+            with contextlib.suppress(Exception):
+                p.join(max(0.0, deadline - time.monotonic()))
+                if p.is_alive():
+                    p.kill()
+                    p.join()
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self._pool.shutdown(wait=True)
+        else:
+            self.stop()
