@@ -17,7 +17,7 @@ import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numba
 import numpy as np
@@ -147,7 +147,8 @@ def _fill_from_minima(delta, start, order, tau, max_hits, dbar):
 
 
 def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
-                   variant: str = "reference", max_hits: int | None = None) -> np.ndarray:
+                   variant: str = "reference", max_hits: int | None = None,
+                   out: np.ndarray | None = None) -> np.ndarray:
     """Δ̄ from a distance curve Δ and start frames (algorithms.md §7 step 2; MBS09 §4).
 
     ``variant="reference"`` (default, what the reference implementation does): repeatedly
@@ -155,14 +156,21 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
     [a_ℓ, ℓ] that are still ∞ with Δ(ℓ), and exclude that range from further picks;
     ``max_hits`` caps the picks (the reference used 2000). ``variant="paper"`` (MBS09 as
     written): for every local minimum ℓ of Δ below τ, Δ̄(k) = min(Δ̄(k), Δ(ℓ)) on [a_ℓ, ℓ].
-    Frames are 0-based; Δ = ∞ where no match ends.
+    Frames are 0-based; Δ = ∞ where no match ends. ``out`` (float64, Δ's length) receives
+    Δ̄ instead of a new array (a batch reuses one buffer).
     """
     delta = np.ascontiguousarray(delta, dtype=np.float64)
     start = np.ascontiguousarray(start, dtype=np.int64)
     if delta.shape != start.shape or delta.ndim != 1:
         raise MtannoError("delta and start must be 1-D arrays of the same length")
     tau = check_tau(tau)
-    dbar = np.full(delta.shape[0], np.inf)
+    if out is None:
+        dbar = np.full(delta.shape[0], np.inf)
+    else:
+        if out.shape != delta.shape or out.dtype != np.float64:
+            raise MtannoError("out must be a float64 array of Δ's length")
+        dbar = out
+        dbar.fill(np.inf)
     if variant == "reference":
         finite = np.flatnonzero(np.isfinite(delta) & (delta <= tau))
         order = finite[np.argsort(delta[finite], kind="stable")]
@@ -194,9 +202,9 @@ def _extend(dbar, s, t):
     return r, u
 
 
-@dataclass(frozen=True)
-class Annotation:
-    """One output segment: 0-based inclusive frames at 30 Hz."""
+class Annotation(NamedTuple):
+    """One output segment: 0-based inclusive frames at 30 Hz (a named tuple: documents of
+    hours give thousands, made in a few microseconds each)."""
 
     doc: str
     start: int
@@ -214,34 +222,71 @@ def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return labels, dmin
 
 
+@numba.njit(cache=True)
+def _label_runs(dbars, extend, out_p, out_s, out_t, out_cost):
+    """Segments of a Δ̄ matrix (labels × frames): each frame's label is the smallest Δ̄
+    (ties → smaller label, none where all are ∞); maximal runs of one label, extended
+    while Δ̄ of the label does not rise (when ``extend``), merged per label where they
+    overlap, with the smallest Δ̄ inside. Writes (label, start, end, cost) sorted by label
+    and start; returns their number."""
+    P, L = dbars.shape
+    n = 0
+    prev = -2
+    s0 = 0
+    for j in range(L + 1):
+        lab = -1
+        if j < L:
+            best = np.inf
+            for p in range(P):
+                if dbars[p, j] < best:
+                    best = dbars[p, j]
+                    lab = p
+        if j == L or lab != prev:
+            if j > 0 and prev >= 0:
+                s, t = s0, j - 1
+                if extend:
+                    s, t = _extend(dbars[prev], s, t)
+                out_p[n] = prev
+                out_s[n] = s
+                out_t[n] = t
+                n += 1
+            prev = lab
+            s0 = j
+    order = np.argsort(out_p[:n] * (L + 1) + out_s[:n])
+    sp = out_p[:n][order]
+    ss = out_s[:n][order]
+    st = out_t[:n][order]
+    m = 0
+    for i in range(n):
+        if m > 0 and out_p[m - 1] == sp[i] and ss[i] <= out_t[m - 1]:  # overlapping: merge
+            if st[i] > out_t[m - 1]:
+                out_t[m - 1] = st[i]
+        else:
+            out_p[m] = sp[i]
+            out_s[m] = ss[i]
+            out_t[m] = st[i]
+            m += 1
+    for i in range(m):
+        c = np.inf
+        for j in range(out_s[i], out_t[i] + 1):
+            if dbars[out_p[i], j] < c:
+                c = dbars[out_p[i], j]
+        out_cost[i] = c
+    return m
+
+
 def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
                          extend: bool = True) -> list[Annotation]:
     """Maximal runs of one label, extended (optional) and merged per label (§7 step 4)."""
-    labels, _ = label_frames(dbars)
-    n = labels.shape[0]
-    runs: dict[int, list[list[int]]] = {}
-    if n:
-        change = np.flatnonzero(np.diff(labels)) + 1
-        bounds = np.concatenate(([0], change, [n]))
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            p = int(labels[a])
-            if p < 0:
-                continue
-            s, t = int(a), int(b) - 1
-            if extend:
-                s, t = _extend(dbars[p], s, t)
-            runs.setdefault(p, []).append([s, t])
-    out = []
-    for p, segs in runs.items():
-        segs.sort()
-        merged = [segs[0]]
-        for s, t in segs[1:]:
-            if s <= merged[-1][1]:  # overlapping: merge
-                merged[-1][1] = max(merged[-1][1], t)
-            else:
-                merged.append([s, t])
-        for s, t in merged:
-            out.append(Annotation(doc, s, t, names[p], float(dbars[p, s:t + 1].min())))
+    dbars = np.ascontiguousarray(dbars, dtype=np.float64)
+    L = dbars.shape[1]
+    out_p = np.empty(L + 1, np.int64)
+    out_s = np.empty(L + 1, np.int64)
+    out_t = np.empty(L + 1, np.int64)
+    cost = np.empty(L + 1)
+    m = _label_runs(dbars, bool(extend), out_p, out_s, out_t, cost)
+    out = [Annotation(doc, s, t, names[p], c) for p, s, t, c in
+           zip(out_p[:m].tolist(), out_s[:m].tolist(), out_t[:m].tolist(), cost[:m].tolist())]
     out.sort(key=lambda a: (a.start, a.end, a.label))
     return out
 
@@ -279,28 +324,49 @@ def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
     """Δ_p and start frames of every class over one document (X: features × frames).
 
     ``windows`` (from a keyframe stage) restricts a class to candidate windows
-    [first, last] (0-based inclusive): Δ_p is computed inside each window (windows are
-    matched as separate documents) and is ∞ elsewhere (MBS09 §5). Classes without an
-    entry are matched everywhere.
+    [first, last] (0-based inclusive; clipped to the document, overlapping ones merged):
+    Δ_p is computed inside each window (windows are matched as separate documents) and is
+    ∞ elsewhere (MBS09 §5). Classes without an entry are matched everywhere. The document
+    is bit-packed once for all classes.
     """
+    from mtanno.templates.match import pack_document
+
     L = X.shape[1]
     out = []
+    packed = pack_document(X, X.shape[0]) if classes else None
     for c in classes:
-        matcher = c.matcher(match_variant)
-        if windows is not None and c.name in windows:
-            delta = np.full(L, np.inf)
-            start = np.full(L, -1, dtype=np.int64)
-            spans = [(max(0, int(a)), min(L - 1, int(b))) for a, b in windows[c.name]]
-            spans = [(a, b) for a, b in spans if b >= a]
-            results = matcher.match_documents([X[:, a:b + 1] for a, b in spans])
-            for (a, b), (d, s) in zip(spans, results):
-                better = d < delta[a:b + 1]
-                delta[a:b + 1][better] = d[better]
-                start[a:b + 1][better] = s[better] + a
-        else:
-            delta, start = matcher.match(X)
-        out.append((np.asarray(delta, dtype=np.float64), np.asarray(start, dtype=np.int64)))
+        delta, start = np.empty(L), np.empty(L, np.int64)
+        _class_delta(X, packed, c, windows, match_variant, delta, start)
+        out.append((delta, start))
     return out
+
+
+def _class_delta(X, packed, c: ClassModel, windows, match_variant, delta, start) -> None:
+    """Δ and starts of one class into ``delta``/``start`` (in its windows, if it has)."""
+    matcher = c.matcher(match_variant)
+    if matcher.f != X.shape[0]:
+        raise MtannoError(f"document has {X.shape[0]} features but template '{c.name}' "
+                          f"{matcher.f}")
+    L = X.shape[1]
+    if windows is not None and c.name in windows:
+        starts, ends = _merged_spans(windows[c.name], L)
+        matcher.match_spans(packed, starts, ends, out=(delta, start))
+    else:
+        matcher.run(packed, np.array([0, L], dtype=np.int64), out=(delta, start))
+
+
+def _merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
+    """Windows clipped to [0, L − 1], sorted, overlapping ones merged."""
+    merged: list[list[int]] = []
+    for a, b in sorted((max(0, int(a)), min(L - 1, int(b))) for a, b in spans):
+        if b < a:
+            continue
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    arr = np.array(merged, dtype=np.int64).reshape(-1, 2)
+    return arr[:, 0], arr[:, 1]
 
 
 def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
@@ -324,15 +390,26 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
         lab = member_of.get(n, n)
         if lab not in labels:
             labels.append(lab)
+    from mtanno.templates.match import pack_document
+
     L = X.shape[1]
     dbars = np.full((len(labels), L), np.inf)
-    for c, (delta, start) in zip(classes, class_deltas(X, classes, windows=windows,
-                                                       match_variant=match_variant)):
+    packed = pack_document(X, X.shape[0])
+    # one Δ and one Δ̄ buffer for all classes: documents can be hours long
+    delta, start, tmp = np.empty(L), np.empty(L, np.int64), np.empty(L)
+    alone = {lab: sum(member_of.get(n, n) == lab for n in names) == 1 for lab in labels}
+    for c in classes:
+        _class_delta(X, packed, c, windows, match_variant, delta, start)
         lab = member_of.get(c.name, c.name)
         tau = config.tau.get(c.name, config.tau_for(lab))
-        d = modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits)
         k = labels.index(lab)
-        np.minimum(dbars[k], d, out=dbars[k])
+        if alone[lab]:
+            modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits,
+                           out=dbars[k])
+        else:
+            modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits,
+                           out=tmp)
+            np.minimum(dbars[k], tmp, out=dbars[k])
     return segments_from_labels(doc, labels, dbars, extend=extend), labels, dbars
 
 

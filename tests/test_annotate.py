@@ -39,6 +39,57 @@ def naive_dbar(delta, start, tau, max_hits=None):
     return np.array(dbar)
 
 
+def naive_segments(doc, names, dbars, extend=True):
+    """Literal reading of §7 steps 3–4: per-frame argmin label, maximal runs, extension
+    while Δ̄ does not rise, merge of overlapping runs of a label, smallest Δ̄ inside."""
+    P, L = dbars.shape
+    labels = []
+    for j in range(L):
+        col = [dbars[p, j] for p in range(P)]
+        m = min(col)
+        labels.append(col.index(m) if np.isfinite(m) else -1)
+    runs = {}
+    j = 0
+    while j < L:
+        k = j
+        while k + 1 < L and labels[k + 1] == labels[j]:
+            k += 1
+        p = labels[j]
+        if p >= 0:
+            s, t = j, k
+            if extend:
+                while s > 0 and dbars[p, s - 1] <= dbars[p, s]:
+                    s -= 1
+                while t + 1 < L and dbars[p, t + 1] <= dbars[p, t]:
+                    t += 1
+            runs.setdefault(p, []).append([s, t])
+        j = k + 1
+    out = []
+    for p, segs in runs.items():
+        segs.sort()
+        merged = [segs[0]]
+        for s, t in segs[1:]:
+            if s <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], t)
+            else:
+                merged.append([s, t])
+        out += [Annotation(doc, s, t, names[p], float(min(dbars[p, s:t + 1])))
+                for s, t in merged]
+    return sorted(out, key=lambda a: (a.start, a.end, a.label))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_segments_match_naive(seed):
+    rng = np.random.default_rng(seed)
+    P, L = int(rng.integers(1, 5)), int(rng.integers(0, 80))
+    dbars = np.round(rng.random((P, L)) * 0.2, 2)  # rounding makes ties and plateaus
+    dbars[rng.random((P, L)) < 0.4] = INF
+    names = [f"c{i}" for i in range(P)]
+    for extend in (True, False):
+        assert segments_from_labels("d", names, dbars, extend=extend) == \
+            naive_segments("d", names, dbars, extend)
+
+
 def test_reference_dbar_hand_made():
     delta = np.array([INF, INF, 0.10, 0.05, 0.08, 0.20, 0.04, 0.12])
     start = np.array([-1, -1, 0, 1, 2, 3, 5, 6])
@@ -156,3 +207,9 @@ def test_class_deltas_with_candidate_windows():
         assert np.array_equal(dw[a:b + 1], d)
         assert np.array_equal(sw[a:b + 1][np.isfinite(d)], s[np.isfinite(d)] + a)
     assert np.isinf(dw[51:90]).all() and np.isinf(dw[4:10]).all()
+
+
+def test_segments_without_jit():
+    from nojit import run_without_jit
+
+    run_without_jit("test_annotate", "test_segments_match_naive", *[(s,) for s in range(8)])

@@ -13,6 +13,7 @@ kernels of this file only (numba's cache does not see changes across files).
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 
 @numba.njit(cache=True)
@@ -127,3 +128,42 @@ def mark_clips(start, end, clip_of_frame, clip_end, out):
             c = clip_of_frame[t]
             out[c] = 1
             t = clip_end[c]
+
+
+@numba.njit(cache=True)
+def _popcount(x):
+    """Set bits of a uint64 (SWAR)."""
+    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return np.int64((x * np.uint64(0x0101010101010101)) >> np.uint64(56))
+
+
+@numba.njit(cache=True)
+def keyframe_runs(words, mask, value, tolerance, out_start, out_end):
+    """Maximal runs of frames matching a keyframe, from bit-packed frames (frames × words,
+    bit i % 64 of word i // 64 = feature row i): a frame matches if at most ``tolerance``
+    of the bits in ``mask`` differ from ``value``. Writes (start, end) pairs, end
+    inclusive; returns their number. One pass over the frames."""
+    L, W = words.shape
+    cnt = 0
+    inside = False
+    for j in range(L + 1):
+        ok = False
+        if j < L:
+            bad = 0
+            for q in range(W):
+                d = (words[j, q] ^ value[q]) & mask[q]
+                if d:
+                    bad += _popcount(d) if tolerance else 1
+                    if bad > tolerance:
+                        break
+            ok = bad <= tolerance
+        if ok and not inside:
+            out_start[cnt] = j
+            inside = True
+        elif not ok and inside:
+            out_end[cnt] = j - 1
+            cnt += 1
+            inside = False
+    return cnt

@@ -26,7 +26,7 @@ its document and merge (:meth:`KeyframeHits.windows`). Frames are 0-based in cod
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -145,10 +145,10 @@ class KeyframeHits:
     doc, start, end:
         One entry per hit (a maximal run of frames covered by chain spans), sorted;
         frames 0-based inclusive.
-    chains:
-        (hits × n) frames of the earliest chain in each hit.
     query:
         The query searched.
+    levels:
+        B_1 … B_n, the frames of each level that lie on a complete chain.
     """
 
     names: tuple[str, ...]
@@ -156,8 +156,17 @@ class KeyframeHits:
     doc: np.ndarray
     start: np.ndarray
     end: np.ndarray
-    chains: np.ndarray
     query: KeyframeQuery
+    levels: list = field(default_factory=list, repr=False)
+    _chains: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def chains(self) -> np.ndarray:
+        """(hits × n) frames of the earliest chain in each hit (computed on first use)."""
+        if self._chains is None:
+            self._chains = first_chains(self.levels, _gaps(self.query),
+                                        (self.doc, self.start, self.end))
+        return self._chains
 
     def __len__(self) -> int:
         return len(self.doc)
@@ -226,7 +235,7 @@ def _run(query: KeyframeQuery, levels: list[Intervals], names, lengths) -> Keyfr
     else:
         hits = _union([_pair_spans(B[j], B[j + 1], lo, hi) for j, (lo, hi) in enumerate(gaps)])
     return KeyframeHits(tuple(names), np.asarray(lengths, np.int64), hits[0], hits[1], hits[2],
-                        first_chains(B, gaps, hits), query)
+                        query, B)
 
 
 # --------------------------------------------------------------------------- with an index
@@ -274,38 +283,40 @@ def search_index(index, query: KeyframeQuery) -> KeyframeHits:
 
 # --------------------------------------------------------------------------- direct scan
 
-def _runs(match: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(starts, ends) of the maximal runs of True in a boolean vector."""
-    m = np.concatenate(([False], match, [False]))
-    change = np.flatnonzero(m[1:] != m[:-1])
-    return change[0::2].astype(np.int64), change[1::2].astype(np.int64) - 1
-
-
 class _Scanner:
-    """Matches keyframes against feature matrices with named rows (a direct scan)."""
+    """Matches a query's keyframes against bit-packed feature frames (a direct scan): each
+    keyframe is a (mask, value) pair over the packed words of the feature rows, matched by
+    one kernel pass over the frames (:func:`mtanno.keyframes._kernels.keyframe_runs`)."""
 
     def __init__(self, query: KeyframeQuery, names: Sequence[str]):
         check_features_known(query, names, feature_set=None, what="feature file")
         pos = {n: i for i, n in enumerate(names)}
-        self.rows, self.vals, self.tol = [], [], []
+        self.n_features = len(names)
+        W = (len(names) + 63) // 64
+        self.masks, self.values, self.tol = [], [], []
         for kf in query.keyframes:
             feats = query.groups[kf.group]
-            fixed = [(pos[feats[k]], c == "1") for k, c in enumerate(kf.vector) if c != "*"]
-            self.rows.append(np.array([r for r, _ in fixed], np.int64))
-            self.vals.append(np.array([v for _, v in fixed], np.uint8)[:, None])
-            self.tol.append(kf.mismatches)
+            m = np.zeros(W, np.uint64)
+            v = np.zeros(W, np.uint64)
+            for k, c in enumerate(kf.vector):
+                if c != "*":
+                    r = pos[feats[k]]
+                    m[r // 64] |= np.uint64(1) << np.uint64(r % 64)
+                    if c == "1":
+                        v[r // 64] |= np.uint64(1) << np.uint64(r % 64)
+            self.masks.append(m)
+            self.values.append(v)
+            self.tol.append(int(kf.mismatches))
 
-    def levels(self, X: np.ndarray, d: int) -> list[Intervals]:
+    def levels(self, packed: np.ndarray, d: int) -> list[Intervals]:
+        """Interval lists of every keyframe in one packed document (number ``d``)."""
+        L = packed.shape[0]
         out = []
-        for rows, vals, tol in zip(self.rows, self.vals, self.tol):
-            if not len(rows):
-                match = np.ones(X.shape[1], bool)
-            elif tol:
-                match = (X[rows] != vals).sum(axis=0) <= tol
-            else:
-                match = (X[rows] == vals).all(axis=0)
-            s, e = _runs(match)
-            out.append((np.full(len(s), d, np.int64), s, e))
+        s = np.empty(L + 1, np.int64)
+        e = np.empty(L + 1, np.int64)
+        for m, v, tol in zip(self.masks, self.values, self.tol):
+            k = _kernels.keyframe_runs(packed, m, v, tol, s, e)
+            out.append((np.full(k, d, np.int64), s[:k].copy(), e[:k].copy()))
         return out
 
 
@@ -319,13 +330,15 @@ def search_documents(documents: Iterable[tuple[str, np.ndarray]], names: Sequenc
     scan = _Scanner(query, names)
     doc_names, lengths = [], []
     per_level: list[list[Intervals]] = [[] for _ in range(query.n)]
+    from mtanno.templates.match import pack_document
+
     for d, (name, X) in enumerate(documents):
         X = np.asarray(X)
         if X.ndim != 2 or X.shape[0] != len(names):
             raise MtannoError(f"document '{name}': matrix must be ({len(names)} × frames)")
         doc_names.append(name)
         lengths.append(X.shape[1])
-        for j, lv in enumerate(scan.levels(X, d)):
+        for j, lv in enumerate(scan.levels(pack_document(X, len(names)), d)):
             per_level[j].append(lv)
     levels = [tuple(np.concatenate([p[k] for p in parts]) if parts else np.zeros(0, np.int64)
                     for k in range(3)) for parts in per_level]
@@ -343,13 +356,21 @@ def document_windows(X: np.ndarray, names: Sequence[str], query: KeyframeQuery,
 
 
 def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, KeyframeQuery], *,
-                  feature_set: str | None = None) -> dict[str, list[tuple[int, int]]]:
+                  feature_set: str | None = None, packed: np.ndarray | None = None,
+                  ) -> dict[str, list[tuple[int, int]]]:
     """Candidate windows of every class that has a query, in one document (the
     ``windows`` argument of :func:`mtanno.annotate.annotate_document`); classes without
-    a query are absent, i.e. matched everywhere."""
+    a query are absent, i.e. matched everywhere. ``packed``: the document already
+    bit-packed (:func:`mtanno.templates.match.pack_document`), to reuse it."""
+    from mtanno.templates.match import pack_document
+
+    if packed is None:
+        packed = pack_document(X, len(names))
     out = {}
     for cls, q in queries.items():
-        hits = search_documents([("doc", X)], names, q, feature_set=feature_set)
+        check_features_known(q, names, feature_set=feature_set, what="feature file")
+        levels = _Scanner(q, names).levels(packed, 0)
+        hits = _run(q, levels, ["doc"], [X.shape[1]])
         _, s, e = hits.windows()
         out[cls] = [(int(a), int(b)) for a, b in zip(s, e)]
     return out

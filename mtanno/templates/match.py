@@ -96,15 +96,18 @@ def _pack_frames(X, out):
 
 
 @numba.njit(cache=True)
-def _dtw_default_steps(doc, offsets, masks, vals, table, sel, add, divisor, delta, start):
+def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add, divisor, delta,
+                       start):
     """Streaming subsequence DTW, steps (1,1), (1,2), (2,1), f ≤ 64 (one word per frame).
 
-    ``doc`` (L,) packed frames of all documents, ``offsets`` their boundaries; ``masks``,
+    ``doc`` (L,) packed frames; documents (or spans of one document) are the ranges
+    [starts[d], ends[d]) — frames outside every range are left untouched; ``masks``,
     ``vals`` (K,) packed template columns; ``table[k, m]`` the local cost of column k for m
     disagreements. A candidate step s is ranked by D(pred) + sel[s]·c and, when chosen, gives
     D(pred) + add[s]·c (reference: sel = 0, i.e. the smallest predecessor wins; paper:
     sel = add); ties go to the first step. Writes Δ = D(K, ℓ)/divisor and the 0-based start
-    frame (relative to the document) into ``delta`` and ``start``.
+    frame into ``delta`` and ``start`` (relative to its range, or an index into ``doc`` when
+    ``absolute``).
 
     Two document frames j, j+1 are done per pass over the rows: cell (k, j+1) takes its
     predecessors (k-1, j) and (k-2, j) from registers and shares the load of (k-1, j-1) with
@@ -128,9 +131,10 @@ def _dtw_default_steps(doc, offsets, masks, vals, table, sel, add, divisor, delt
     e0, e1, e2 = sel[0], sel[1], sel[2]
     a0, a1, a2 = add[0], add[1], add[2]
     by_pred = e0 == 0.0 and e1 == 0.0 and e2 == 0.0
-    for d in range(offsets.shape[0] - 1):
-        b = offsets[d]
-        n = offsets[d + 1] - b
+    for d in range(starts.shape[0]):
+        b = starts[d]
+        n = ends[d] - b
+        shift = b if absolute else 0
         D1[:] = inf
         D2[:] = inf
         S1[:] = -1.0
@@ -191,16 +195,19 @@ def _dtw_default_steps(doc, offsets, masks, vals, table, sel, add, divisor, delt
                 dm1, sm1 = d0, sv
                 q, qs = p0, s0
             delta[b + j] = Dc[K + 1] / divisor
-            start[b + j] = np.int64(Sc[K + 1])
+            sj = np.int64(Sc[K + 1])
+            start[b + j] = sj + shift if sj >= 0 else sj
             if j + 1 < n:
                 delta[b + j + 1] = Dn[K + 1] / divisor
-                start[b + j + 1] = np.int64(Sn[K + 1])
+                sj = np.int64(Sn[K + 1])
+                start[b + j + 1] = sj + shift if sj >= 0 else sj
             Dc, Dn, D2, D1 = D2, D1, Dc, Dn
             Sc, Sn, S2, S1 = S2, S1, Sc, Sn
 
 
 @numba.njit(cache=True)
-def _dtw_general(doc, offsets, masks, vals, table, di, dj, sel, add, divisor, delta, start):
+def _dtw_general(doc, starts, ends, absolute, masks, vals, table, di, dj, sel, add, divisor, delta,
+                 start):
     """Streaming subsequence DTW for any steps (di[s], dj[s]) and any number of words per frame.
 
     Same contract as :func:`_dtw_default_steps`, with ``doc`` (L, W) and ``masks``, ``vals``
@@ -215,9 +222,10 @@ def _dtw_general(doc, offsets, masks, vals, table, di, dj, sel, add, divisor, de
     inf = np.inf
     D = np.empty((R, K))
     S = np.empty((R, K), np.int64)
-    for d in range(offsets.shape[0] - 1):
-        b = offsets[d]
-        n = offsets[d + 1] - b
+    for d in range(starts.shape[0]):
+        b = starts[d]
+        n = ends[d] - b
+        shift = b if absolute else 0
         D[:] = inf
         S[:] = -1
         for j in range(n):
@@ -248,7 +256,8 @@ def _dtw_general(doc, offsets, masks, vals, table, di, dj, sel, add, divisor, de
                 D[slot, k] = val
                 S[slot, k] = bs if val < inf else -1
             delta[b + j] = D[slot, K - 1] / divisor
-            start[b + j] = S[slot, K - 1]
+            sj = S[slot, K - 1]
+            start[b + j] = sj + shift if sj >= 0 else sj
 
 
 # ---------------------------------------------------------------------------------------------
@@ -390,18 +399,59 @@ class PreparedTemplate:
         delta, start = self.run(packed, offsets)
         return [(delta[b:e], start[b:e]) for b, e in zip(offsets[:-1], offsets[1:])]
 
-    def run(self, packed: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Kernel call on packed frames (L, words) with document boundaries ``offsets``."""
+    def match_spans(self, packed: np.ndarray, starts: np.ndarray, ends: np.ndarray, *,
+                    out: tuple[np.ndarray, np.ndarray] | None = None,
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, start) over a whole packed document (:func:`pack_document`) of which only
+        the disjoint spans [starts[i], ends[i]] (0-based inclusive) are matched, each as a
+        document of its own; starts are frames of the whole document; Δ = ∞ and start = −1
+        elsewhere. One kernel call for all spans, nothing copied (MBS09 §5: templates
+        matched only inside keyframe windows). ``out``: (delta, start) arrays of length L
+        to write into instead of new ones."""
         L = packed.shape[0]
-        delta = np.empty(L, dtype=np.float64)
-        start = np.empty(L, dtype=np.int64)
-        if self.fast:
-            _dtw_default_steps(packed[:, 0], offsets, self.masks[:, 0], self.vals[:, 0],
-                               self.table, self.sel, self.add, self.divisor, delta, start)
-        else:
-            _dtw_general(packed, offsets, self.masks, self.vals, self.table, self.di, self.dj,
-                         self.sel, self.add, self.divisor, delta, start)
+        delta, start = _outputs(out, L)
+        delta.fill(np.inf)
+        start.fill(-1)
+        self._kernel(packed, np.asarray(starts, np.int64), np.asarray(ends, np.int64) + 1,
+                     True, delta, start)
         return delta, start
+
+    def run(self, packed: np.ndarray, offsets: np.ndarray, *,
+            out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Kernel call on packed frames (L, words) with document boundaries ``offsets``
+        (into ``out`` = (delta, start) when given)."""
+        delta, start = _outputs(out, packed.shape[0])
+        self._kernel(packed, offsets[:-1], offsets[1:], False, delta, start)
+        return delta, start
+
+    def _kernel(self, packed, starts, ends, absolute, delta, start) -> None:
+        if self.fast:
+            _dtw_default_steps(packed[:, 0], starts, ends, absolute, self.masks[:, 0],
+                               self.vals[:, 0], self.table, self.sel, self.add, self.divisor,
+                               delta, start)
+        else:
+            _dtw_general(packed, starts, ends, absolute, self.masks, self.vals, self.table,
+                         self.di, self.dj, self.sel, self.add, self.divisor, delta, start)
+
+
+def _outputs(out, L: int) -> tuple[np.ndarray, np.ndarray]:
+    if out is None:
+        return np.empty(L, dtype=np.float64), np.empty(L, dtype=np.int64)
+    delta, start = out
+    if delta.shape != (L,) or delta.dtype != np.float64 or start.shape != (L,) \
+            or start.dtype != np.int64:
+        raise MtannoError(f"out must be (float64, int64) arrays of the document's {L} frames")
+    return delta, start
+
+
+def pack_document(X: np.ndarray, n_features: int) -> np.ndarray:
+    """A (features × frames) 0/1 document checked and bit-packed once (frames × words),
+    for :meth:`PreparedTemplate.run` / :meth:`PreparedTemplate.match_spans` of several
+    templates with ``n_features`` rows."""
+    A = _check_document(X, n_features)
+    packed = np.empty((A.shape[1], (n_features + 63) // 64), dtype=np.uint64)
+    _pack_frames(A, packed)
+    return packed
 
 
 def match_template(values: np.ndarray, weights: np.ndarray, X: np.ndarray, *,
