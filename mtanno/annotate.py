@@ -519,23 +519,29 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
 class AnnotationBatch:
     """What :func:`annotate_files` did: the segments of every document annotated, each
     document's native frames and frame count, the files read (path, SHA-256) and the
-    failures (one message per file that could not be annotated)."""
+    failures (one message per file that could not be annotated); ``seconds`` is the time
+    spent annotating (keyframe search, matching, labels; not reading), summed over the
+    documents."""
 
     rows: list[Annotation] = field(default_factory=list)
     native: dict[str, np.ndarray] = field(default_factory=dict)
     frames: dict[str, int] = field(default_factory=dict)
     files: list[dict] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
+    seconds: float = 0.0
 
 
 def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes):
     """One document of a batch: (document, rows, native frames, sha256) or the message of
     its failure (a worker sends it back as text)."""
+    import time
+
     from mtanno.store import check_layout, read_features
 
     try:
         ff = read_features(path, sha256=True)
         check_layout(ff, layout)
+        t0 = time.perf_counter()
         windows = None
         if keyframes:
             from mtanno.keyframes import class_windows
@@ -549,7 +555,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                        match_variant=match_variant)
     except MtannoError as exc:
         return str(exc)
-    return ff.document, rows, ff.native_frames, ff.sha256
+    return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0
 
 
 def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
@@ -578,7 +584,8 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
             if progress:
                 progress(path, result)
             return
-        doc, rows, native, digest = result
+        doc, rows, native, digest, seconds = result
+        batch.seconds += seconds
         batch.rows.extend(rows)
         batch.native[doc] = native
         batch.frames[doc] = int(native.shape[0])

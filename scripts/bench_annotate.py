@@ -1,11 +1,15 @@
 """Benchmark of annotation: wall time for 60 minutes at 30 Hz with the 11 HDM05 classes,
 and peak memory for a 10-hour document (issue 3 targets: < 5 s on 2 cores including I/O;
-< 1 GB).
+< 1 GB); and annotation with keyframe preselection against annotation without it on the
+same 60 minutes (issue 7 target: at least 5× faster, features excluded).
 
 The long documents are real features: one composed document of all 44 actor-mm clips
-(``mtanno compose --in-order``) tiled to the wanted length. Templates are learned from the
-train split (bd, bk, dg). Timings are of the whole command ``mtanno annotate`` (process
-start-up, reading the feature file, matching, writing the table), median of ``--repeats``.
+(``mtanno compose --in-order``) tiled to the wanted length. Templates and GA keyframe queries are
+learned from the train split (bd, bk, dg). Timings are of the whole command ``mtanno
+annotate`` (process start-up, reading the feature file, matching, writing the table),
+median of ``--repeats``; the keyframe comparison also times the annotation itself in one
+process (:func:`mtanno.annotate.annotate_document` on the document already read; with
+keyframes including their search, :func:`mtanno.keyframes.class_windows`), median of 7.
 
     .venv/bin/python scripts/bench_annotate.py [--repeats 3] [--out .cache/bench/annotate]
 """
@@ -59,6 +63,54 @@ def timed(args: list[str], repeats: int) -> tuple[float, float]:
     return statistics.median(walls), rss
 
 
+def keyframes(out: Path, clips: Path, repeats: int) -> None:
+    """Annotation of the 60-minute document with and without GA keyframes (issue 7)."""
+    from mtanno.annotate import annotate_document, load_class_models
+    from mtanno.keyframes import class_windows, load_keyframe_folder
+    from mtanno.store import read_features
+
+    kf = out / "kf"
+    if not kf.is_dir():
+        run(["learn-keyframes", "--mt", str(out / "mt"), "--manifest", str(clips),
+             "--features-dir", str(out / "features"), "--split", "train", "-o", str(kf),
+             "--jobs", "2", "-q"])
+    doc = out / "doc_60min.parquet"
+    ff = read_features(doc)
+    models, _ = load_class_models(out / "mt")
+    queries = load_keyframe_folder(kf)
+    annotate_document("w", ff.X[:, :3000], models)  # compiled kernels loaded before timing
+    class_windows(ff.X[:, :3000], ff.names, queries)
+
+    def plain():
+        annotate_document(ff.document, ff.X, models)
+
+    def with_keyframes():
+        w = class_windows(ff.X, ff.names, queries)
+        annotate_document(ff.document, ff.X, models, windows=w)
+
+    def median(fn):
+        ts = []
+        for _ in range(7):
+            t = time.perf_counter()
+            fn()
+            ts.append(time.perf_counter() - t)
+        return statistics.median(ts)
+
+    t0, t1 = median(plain), median(with_keyframes)
+    scan = median(lambda: class_windows(ff.X, ff.names, queries))
+    w = class_windows(ff.X, ff.names, queries)
+    L = ff.X.shape[1]
+    cover = {c: sum(b - a + 1 for a, b in v) / L for c, v in w.items()}
+    print(f"annotation of 60 min in one process, 11 classes: without keyframes {t0 * 1000:.0f} "
+          f"ms, with GA keyframes {t1 * 1000:.0f} ms (of which keyframe search "
+          f"{scan * 1000:.1f} ms) -> {t0 / t1:.1f}x faster (target 5x); windows cover "
+          f"{np.mean(list(cover.values())):.0%} of the frames per class on average")
+    for name, extra in (("without", []), ("with", ["--keyframes", str(kf)])):
+        wall, _ = timed(["annotate", "--mt", str(out / "mt"), *extra, str(doc), "-o",
+                         str(out / f"ann_kf_{name}.csv"), "-q"], repeats)
+        print(f"  whole command {name} keyframes: {wall:.2f} s wall (median of {repeats})")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -86,6 +138,7 @@ def main() -> int:
         print(f"annotate {minutes} min at 30 Hz ({minutes * 1800} frames), --jobs {jobs}: "
               f"{wall:.2f} s wall (median of {args.repeats}, whole command incl. I/O; "
               f"target < 5 s)")
+    keyframes(out, clips, args.repeats)
     doc = tiled(src, out / "doc_600min.parquet", 600 * 60 * 30)
     t = time.perf_counter()
     proc = subprocess.run(["/usr/bin/time", "-f", "%M"] + MTANNO + [

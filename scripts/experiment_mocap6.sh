@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# CMU mocap6 annotation experiment (issue 3): three long real recordings of one performer,
-# every frame labelled with 12 exercise classes. For each rotation, templates are learned
-# from the labelled segments of two documents and the third is annotated (no keyframes);
-# P/R/F per rotation and over all three annotated documents together.
+# CMU mocap6 annotation experiment (issues 3 and 7): three long real recordings of one
+# performer, every frame labelled with 12 exercise classes. For each rotation, templates
+# and keyframe queries (ga, hard, heuristic) are learned from the labelled segments of two
+# documents and the third is annotated, without keyframes and with each kind; P/R/F over
+# all three annotated documents together, side by side.
 #
 #   scripts/experiment_mocap6.sh [OUT]      (default: out/mocap6)
 set -euo pipefail
@@ -18,6 +19,7 @@ mkdir -p "$OUT"
 "$MTANNO" features "$SHARED/cmu_mocap6" --asf "$SHARED/cmu_02/02.asf" -o "$OUT/features" -q
 "$MTANNO" truth mocap6 "$SHARED/cmu_mocap6/labels.json" -o "$OUT/truth.csv" 2>/dev/null
 
+RUNS="none ga hard heuristic"
 for test in $DOCS; do
   train=()
   for d in $DOCS; do [ "$d" = "$test" ] || train+=("$OUT/features/$d.parquet"); done
@@ -25,11 +27,41 @@ for test in $DOCS; do
   mkdir -p "$r"
   awk -F, -v t="$test" 'NR == 1 || $1 != t' "$OUT/truth.csv" > "$r/train_truth.csv"
   "$MTANNO" learn-mt --truth "$r/train_truth.csv" "${train[@]}" -o "$r/mt" -q
-  "$MTANNO" annotate --mt "$r/mt" "$OUT/features/$test.parquet" -o "$r/annotation.csv" -q
-  echo "-- annotate $test with templates from the other two"
-  "$MTANNO" evaluate "$r/annotation.csv" --truth "$OUT/truth.csv" --json "$r/report.json"
+  for run in $RUNS; do
+    extra=()
+    if [ "$run" != none ]; then
+      "$MTANNO" learn-keyframes --mt "$r/mt" --truth "$r/train_truth.csv" "${train[@]}" \
+        --method "$run" -o "$r/kf_$run" --jobs 2 -q
+      extra=(--keyframes "$r/kf_$run")
+    fi
+    "$MTANNO" annotate --mt "$r/mt" "${extra[@]}" "$OUT/features/$test.parquet" \
+      -o "$r/annotation_$run.csv" 2> "$r/annotate_$run.log"
+  done
+  echo "-- annotate $test with templates from the other two (no keyframes)"
+  "$MTANNO" evaluate "$r/annotation_none.csv" --truth "$OUT/truth.csv" --json "$r/report.json"
 done
 echo "-- all three rotations together"
-annotations=()
-for test in $DOCS; do annotations+=("$OUT/test_$test/annotation.csv"); done
-"$MTANNO" evaluate "${annotations[@]}" --truth "$OUT/truth.csv" --json "$OUT/report_all.json"
+for run in $RUNS; do
+  annotations=()
+  for test in $DOCS; do annotations+=("$OUT/test_$test/annotation_$run.csv"); done
+  "$MTANNO" evaluate "${annotations[@]}" --truth "$OUT/truth.csv" --json "$OUT/report_$run.json" \
+    > "$OUT/report_$run.txt"
+done
+cp "$OUT/report_none.json" "$OUT/report_all.json"
+cat "$OUT/report_none.txt"
+"$here/.venv/bin/python" - "$OUT" $DOCS <<'PY'
+import json, re, sys
+out, docs = sys.argv[1], sys.argv[2:]
+names = {"none": "no keyframes", "ga": "GA keyframes", "hard": "hard-template keyframes",
+         "heuristic": "heuristic keyframes"}
+print("| annotation (all three rotations) | P1 | R1 | F1 | P2 | R2 | F2 | seconds |")
+print("|---|---|---|---|---|---|---|---|")
+for run, name in names.items():
+    r = json.load(open(f"{out}/report_{run}.json"))
+    secs = sum(float(re.search(r"([0-9.]+) s of annotation",
+                               open(f"{out}/test_{d}/annotate_{run}.log").read()).group(1))
+               for d in docs)
+    f, g = r["frame"], r["segment"]
+    print(f"| {name} | {f['P']:.3f} | {f['R']:.3f} | {f['F']:.3f} | {g['P']:.3f} | "
+          f"{g['R']:.3f} | {g['F']:.3f} | {secs:.3f} |")
+PY

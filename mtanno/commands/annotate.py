@@ -109,8 +109,10 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
         write_annotations(out, batch.rows, batch.native, provenance=prov)
     failed = len(batch.failed)
     if not quiet:
+        kf = f", keyframes for {len(keyframes)}" if keyframes else ""
         click.echo(f"annotate: {len(paths) - failed} documents, {len(batch.rows)} segments, "
-                   f"{len(models)} classes, {failed} failed -> {', '.join(outputs)}", err=True)
+                   f"{len(models)} classes{kf}, {failed} failed, {batch.seconds:.2f} s of "
+                   f"annotation -> {', '.join(outputs)}", err=True)
     sys.exit(1 if failed else 0)
 
 

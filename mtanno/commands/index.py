@@ -283,11 +283,11 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     """
     import time
 
-    from mtanno.index import example_query, load_query, open_index, rank_by_template, search
-    from mtanno.index.query import hit_table, resolve_features, warm_up
+    from mtanno.index import example_query, load_query, open_index, search
+    from mtanno.index.query import resolve_features, warm_up
     from mtanno.index.storage import index_files
     from mtanno.output import check_outputs
-    from mtanno.tables import file_record, output_files, provenance, table_format, write_table
+    from mtanno.tables import output_files, table_format
 
     if sum(x is not None for x in (example, query_file, kf_file)) != 1:
         raise MtannoError("give one of --example (with --features), --query or --keyframes")
@@ -322,6 +322,23 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     t0 = time.perf_counter()
     hits = search(index, query)
     elapsed = time.perf_counter() - t0
+    _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top,
+                inputs=[i for i in (example, query_file) if i is not None and Path(i).is_file()],
+                mode=query.mode, mismatches=query.mismatches, frames=frames,
+                features=feature_list, example=example)
+    if not quiet:
+        segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
+        click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
+                   f"segments: {segs})" + (f" -> {output}" if output != "-" else ""), err=True)
+
+
+def _write_hits(index, hits, *, output, rank_mt, top, inputs, **record) -> None:
+    """Rank the hits by a template (``--rank-mt``), cut them (``--top``) and write the hit
+    table with its provenance (the query's inputs, the index generation, ``record``)."""
+    from mtanno.index import rank_by_template
+    from mtanno.index.query import hit_table
+    from mtanno.tables import file_record, provenance, write_table
+
     if rank_mt is not None:
         values, weights, mt_names = load_template_for(index, rank_mt)
         hits = rank_by_template(index, hits, values, weights, mt_names)
@@ -329,27 +346,18 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     if top is not None:
         rows = rows[:top]
     write_table(output, hit_table(rows, with_mt=rank_mt is not None), provenance=provenance(
-        inputs=[file_record(i) for i in (example, query_file) if i is not None
-                and Path(i).is_file()] + [{"path": str(index.root / "manifest.json"),
-                                          "generation": index.generation}],
-        templates=[file_record(rank_mt)] if rank_mt else (), mode=query.mode,
-        mismatches=query.mismatches, frames=frames, features=feature_list,
-        example=example, top=top, feature_set=index.feature_set))
-    if not quiet:
-        segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
-        click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
-                   f"segments: {segs})" + (f" -> {output}" if output != "-" else ""), err=True)
+        inputs=[file_record(i) for i in inputs] + [{"path": str(index.root / "manifest.json"),
+                                                    "generation": index.generation}],
+        templates=[file_record(rank_mt)] if rank_mt else (), top=top,
+        feature_set=index.feature_set, **record))
 
 
 def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):
     """``query --keyframes``: search, optionally rank by a template, write the table."""
     import time
 
-    from mtanno.index import rank_by_template
-    from mtanno.index.query import hit_table
     from mtanno.keyframes import load_keyframes, search_index
     from mtanno.keyframes.search import warm_up
-    from mtanno.tables import file_record, provenance, write_table
 
     q = load_keyframes(kf_file)
     try:
@@ -360,17 +368,8 @@ def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):
     except MtannoError as exc:
         raise MtannoError(exc.message, path=kf_file) from None
     hits = kh.as_hits(windows=windows)
-    if rank_mt is not None:
-        values, weights, mt_names = load_template_for(index, rank_mt)
-        hits = rank_by_template(index, hits, values, weights, mt_names)
-    rows = hits.rows(index)
-    if top is not None:
-        rows = rows[:top]
-    write_table(output, hit_table(rows, with_mt=rank_mt is not None), provenance=provenance(
-        inputs=[file_record(kf_file), {"path": str(index.root / "manifest.json"),
-                                       "generation": index.generation}],
-        templates=[file_record(rank_mt)] if rank_mt else (), keyframes=str(kf_file),
-        windows=windows, top=top, feature_set=index.feature_set))
+    _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top, inputs=[kf_file],
+                keyframes=str(kf_file), windows=windows)
     if not quiet:
         what = "candidate windows" if windows else "hits"
         click.echo(f"query: {len(hits)} {what} in {elapsed * 1000:.2f} ms (keyframes: "
