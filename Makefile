@@ -48,6 +48,7 @@ bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the pe
 	$(BIN)/python scripts/bench_match.py
 	$(BIN)/python scripts/bench_annotate.py
 	$(BIN)/python scripts/bench_index.py
+	$(BIN)/python scripts/bench_keyframes.py
 
 lint: $(BIN)/mtanno
 	$(BIN)/ruff check mtanno tests scripts

@@ -125,7 +125,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     if not quiet:
         for cls, q in written:
             f = q.provenance["fitness"]
-            click.echo(f"  {cls:<32s} {q.n} keyframes  training P {f['P']:.3f} R {f['R']:.3f} "
+            kfs = f"{q.n} keyframe{'s' if q.n != 1 else ' '}"
+            click.echo(f"  {cls:<32s} {kfs}  training P {f['P']:.3f} R {f['R']:.3f} "
                        f"F2 {f['F']:.3f}", err=True)
         skipped = sorted(set(groups) - set(todo))
         note = f", {len(skipped)} without template skipped" if skipped else ""

@@ -650,7 +650,7 @@ def format_query(q: KeyframeQuery, *, path: str | None = None) -> str:
 def _ext_text(q: KeyframeQuery) -> str:
     e = q.extension
     if e.left is not None:
-        return "explicit"
+        return "explicit widths"
     off = f" + {e.offset}" if e.offset else ""
     return f"{e.factor}·(q1−1){off} and {e.factor}·(K−qn){off}"
 
