@@ -209,7 +209,10 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     table = pa.table(cols)
     table = table.replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True)})
     with atomic_path(path) as tmp:
-        pq.write_table(table, tmp, compression="zstd")
+        # no column statistics or dictionaries: readers take whole 0/1 columns, and both
+        # cost time per file (archives of short clips are written thousands at a time)
+        pq.write_table(table, tmp, compression="zstd", write_statistics=False,
+                       use_dictionary=False)
 
 
 def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:

@@ -11,6 +11,7 @@ Three named feature sets (:data:`FEATURE_SETS`, selected by :func:`get_feature_s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -69,6 +70,9 @@ class FeatureSet:
         The rows, in column order.
     groups:
         Index group name → 0-based rows.
+
+    ``names``, ``mirror_pairs`` and ``digest`` are computed once (a batch asks for them per
+    file).
     """
 
     name: str
@@ -76,19 +80,19 @@ class FeatureSet:
     features: tuple
     groups: dict[str, tuple[int, ...]] = field(hash=False)
 
-    @property
+    @cached_property
     def names(self) -> tuple[str, ...]:
         """Feature (column) names in order."""
         return tuple(f.name for f in self.features)
 
-    @property
+    @cached_property
     def mirror_pairs(self) -> tuple[tuple[int, int], ...]:
         """Left/right pairs as (row, row), each pair once."""
         ids = {f.id: i for i, f in enumerate(self.features)}
         return tuple((i, ids[f.mirror]) for i, f in enumerate(self.features)
                      if f.mirror is not None and i < ids[f.mirror])
 
-    @property
+    @cached_property
     def digest(self) -> str:
         """SHA-256 of the feature table (every row's definition and parameters): feature
         files record it, so outputs of a changed table are not taken as up to date."""

@@ -70,7 +70,7 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
         "source": str(src),
         "source_sha256": sha256_file(src),
         "skeleton_file": None if asf is None else str(asf),
-        "skeleton_file_sha256": None if asf is None else sha256_file(asf),
+        "skeleton_file_sha256": None if asf is None else _skeleton_digest(Path(asf)),
         "rig": motion.rig.kind,
         "native_fps": motion.fps,
         "native_frames": motion.n_frames,
@@ -93,6 +93,23 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
     if dst is not None:
         write_features(dst, X, fs.names, native, meta)
     return X, meta
+
+
+_DIGESTS: dict[tuple, str] = {}
+
+
+def _skeleton_digest(path: Path) -> str:
+    """SHA-256 of a skeleton file, hashed once per batch: every AMC of an actor names the
+    same ASF. Keyed by (path, size, modification time, inode), so a changed file is hashed
+    again."""
+    st = path.stat()
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+    digest = _DIGESTS.get(key)
+    if digest is None:
+        if len(_DIGESTS) > 256:
+            _DIGESTS.clear()
+        digest = _DIGESTS[key] = sha256_file(path)
+    return digest
 
 
 @dataclass
@@ -212,7 +229,8 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
         asf = job.asf
         if asf is None and job.src.suffix.lower() == ".amc":
             asf = find_asf(job.src)
-        if (None if asf is None else sha256_file(asf)) != meta.get("skeleton_file_sha256"):
+        if (None if asf is None else _skeleton_digest(Path(asf))) != \
+                meta.get("skeleton_file_sha256"):
             return False
         nodes = meta.get("rig_nodes")
         if not isinstance(nodes, list):
