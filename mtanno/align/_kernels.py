@@ -21,7 +21,7 @@ unreachable) is kept for the backtracking.
 Local costs: ``kind`` 0 is the pose distance — the mean over joints of the Euclidean
 distance between two rows of ``PA`` (n × 3J) and ``PB`` (m × 3J) holding normalised joint
 positions x, y, z per joint; ``kind`` 1 is the Hamming distance of the feature codes ``CA``,
-``CB`` (int64 bit sets) times ``scale`` (1 / number of features) plus ``tie`` times the
+``CB`` (int64 bit sets) divided by ``nfeat`` (the number of features) plus ``tie`` times the
 difference of ``PA[a, 0]`` and ``PB[b, 0]`` (the frames' relative positions in their
 segments).
 
@@ -60,10 +60,10 @@ def _popcount(x):
 
 
 @numba.njit(cache=True, inline="always")
-def _cost(kind, PA, PB, CA, CB, scale, tie, a, b):
+def _cost(kind, PA, PB, CA, CB, nfeat, tie, a, b):
     """Local cost of cell (a, b) (module docstring)."""
     if kind == CODES:
-        return _popcount(CA[a] ^ CB[b]) * scale + tie * abs(PA[a, 0] - PB[b, 0])
+        return _popcount(CA[a] ^ CB[b]) / nfeat + tie * abs(PA[a, 0] - PB[b, 0])
     d = PA.shape[1]
     s = 0.0
     for k in range(0, d, 3):
@@ -75,7 +75,7 @@ def _cost(kind, PA, PB, CA, CB, scale, tie, a, b):
 
 
 @numba.njit(cache=True)
-def dtw_area(lo, hi, offsets, wa, wb, kind, PA, PB, CA, CB, scale, tie, steps):
+def dtw_area(lo, hi, offsets, wa, wb, kind, PA, PB, CA, CB, nfeat, tie, steps):
     """DTW over the area (module docstring); writes the chosen step of every computed cell
     into ``steps`` (length offsets[-1]) and returns D(n − 1, hi[n − 1]) (+∞ when that cell
     is not reached). Needs non-empty rows."""
@@ -93,7 +93,7 @@ def dtw_area(lo, hi, offsets, wa, wb, kind, PA, PB, CA, CB, scale, tie, steps):
         h = hi[a]
         off = offsets[a]
         for b in range(l, h + 1):
-            c = _cost(kind, PA, PB, CA, CB, scale, tie, a, b)
+            c = _cost(kind, PA, PB, CA, CB, nfeat, tie, a, b)
             wd = max(wa[a], wb[b])
             if a == 0 and b == 0:
                 cur[0] = c * wd

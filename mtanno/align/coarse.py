@@ -143,7 +143,7 @@ def select_features(names: Sequence[str], groups: Mapping[str, Sequence[str]], *
         chosen = tuple(groups[group])
     else:
         raise MtannoError(f"unknown group '{group}' (groups of this feature set: "
-                          f"{', '.join([*groups, ALL])})")
+                          f"{', '.join([*groups, ALL, POSE])})")
     if len(chosen) > MAX_GROUP_FEATURES:
         raise MtannoError(f"{len(chosen)} features chosen; alignment takes at most "
                           f"{MAX_GROUP_FEATURES}")

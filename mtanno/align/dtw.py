@@ -151,7 +151,7 @@ def _weights(w, n: int, what: str) -> np.ndarray:
     return w
 
 
-def _run(kind: int, PA, PB, CA, CB, scale: float, tie: float, n: int, m: int,
+def _run(kind: int, PA, PB, CA, CB, nfeat: float, tie: float, n: int, m: int,
          area: Area | None, wa, wb) -> WarpingPath:
     if n < 1 or m < 1:
         raise MtannoError(f"cannot align an empty motion ({n} and {m} frames)")
@@ -171,7 +171,7 @@ def _run(kind: int, PA, PB, CA, CB, scale: float, tie: float, n: int, m: int,
     wa = _weights(wa, n, "weights_a")
     wb = _weights(wb, m, "weights_b")
     steps = np.empty(cells, dtype=np.uint8)
-    total = float(_k.dtw_area(lo, hi, offsets, wa, wb, kind, PA, PB, CA, CB, scale, tie,
+    total = float(_k.dtw_area(lo, hi, offsets, wa, wb, kind, PA, PB, CA, CB, nfeat, tie,
                               steps))
     if not np.isfinite(total):  # a valid area always has a path; costs were not finite
         raise MtannoError("the local costs are not finite (NaN or infinite positions?)")
@@ -213,7 +213,7 @@ def warp_poses(PA: np.ndarray, PB: np.ndarray, *, area: Area | None = None) -> W
         raise MtannoError(f"the motions have {A.shape[1] // 3} and {B.shape[1] // 3} joints; "
                           "poses can only be compared joint by joint")
     z = np.zeros(1, dtype=np.int64)
-    return _run(_k.POSE, A, B, z, z, 0.0, 0.0, A.shape[0], B.shape[0], area, None, None)
+    return _run(_k.POSE, A, B, z, z, 1.0, 0.0, A.shape[0], B.shape[0], area, None, None)
 
 
 def warp_codes(CA: np.ndarray, CB: np.ndarray, *, n_features: int, area: Area | None = None,
@@ -257,7 +257,7 @@ def warp_codes(CA: np.ndarray, CB: np.ndarray, *, n_features: int, area: Area | 
             raise MtannoError("phases must have one value per code")
         if not (np.isfinite(tie) and tie >= 0):
             raise MtannoError(f"tie must be a finite non-negative weight, got {tie!r}")
-    return _run(_k.CODES, PA, PB, A, B, 1.0 / n_features, float(tie), A.shape[0], B.shape[0],
+    return _run(_k.CODES, PA, PB, A, B, float(n_features), float(tie), A.shape[0], B.shape[0],
                 area, weights_a, weights_b)
 
 

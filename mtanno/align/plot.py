@@ -20,7 +20,8 @@ from mtanno.align.core import Alignment
 from mtanno.align.dtw import WarpingPath
 from mtanno.errors import MtannoError
 
-__all__ = ["PLOT_SUFFIXES", "plot_alignment", "require_matplotlib", "save_alignment_plot"]
+__all__ = ["PLOT_SUFFIXES", "check_plot_path", "plot_alignment", "require_matplotlib",
+           "save_alignment_plot"]
 
 #: File types :func:`save_alignment_plot` writes, by suffix.
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -34,6 +35,17 @@ def require_matplotlib() -> Any:
         raise MtannoError("plots need matplotlib, which is not installed: pip install "
                           "'mtanno[plot]' (or pip install matplotlib)") from None
     return matplotlib
+
+
+def check_plot_path(path: str | os.PathLike) -> str:
+    """The file type (``png``, ``pdf``, ``svg``) of a plot output, checked before any work:
+    an unknown suffix or a missing matplotlib is one :class:`MtannoError`."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in PLOT_SUFFIXES:
+        raise MtannoError(f"unknown plot file type {suffix or '(no suffix)'!r}: name it "
+                          f"{', '.join(PLOT_SUFFIXES)}", path=str(path))
+    require_matplotlib()
+    return suffix[1:]
 
 
 def plot_alignment(al: Alignment, *, ax: Any = None, compare: WarpingPath | None = None,
@@ -82,11 +94,7 @@ def save_alignment_plot(path: str | os.PathLike, al: Alignment, *,
                         compare: WarpingPath | None = None, dpi: int = 120) -> None:
     """Draw ``al`` (:func:`plot_alignment`) into the file ``path`` (.png, .pdf or .svg),
     atomically, without a display (Agg backend)."""
-    suffix = Path(path).suffix.lower()
-    if suffix not in PLOT_SUFFIXES:
-        raise MtannoError(f"unknown plot file type {suffix or '(no suffix)'!r}: name it "
-                          f"{', '.join(PLOT_SUFFIXES)}", path=str(path))
-    require_matplotlib()
+    kind = check_plot_path(path)
     from matplotlib.figure import Figure
 
     from mtanno.output import atomic_path
@@ -96,4 +104,4 @@ def save_alignment_plot(path: str | os.PathLike, al: Alignment, *,
     plot_alignment(al, ax=ax, compare=compare)
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=suffix[1:])
+        fig.savefig(tmp, dpi=dpi, format=kind)
