@@ -53,10 +53,16 @@ def random_codes(rng, n, n_features):
     return np.array(out, dtype=np.int64)
 
 
+def same_total(got: float, want: float) -> bool:
+    # the compiled kernels may fuse a multiply and an add (one rounding instead of two)
+    return abs(got - want) <= 1e-12 * max(1.0, abs(want))
+
+
 def check_against_oracle(seed: int) -> None:
     """Kernels = oracles on one random case: pose DTW and code DTW (with phases and tie),
     over the full matrix and over the area of a coarse alignment, and stage 1 with segment
-    weights. Also called with the JIT off (tests/test_align_nojit.py)."""
+    weights: the same paths, the same totals up to rounding. Also called with the JIT off
+    (tests/test_align_nojit.py)."""
     rng = np.random.default_rng(seed)
     n, m = int(rng.integers(1, 14)), int(rng.integers(1, 14))
     nf = int(rng.integers(1, 6))
@@ -69,7 +75,7 @@ def check_against_oracle(seed: int) -> None:
                             len(sa), len(sb), wa=[float(x) for x in sa.length],
                             wb=[float(x) for x in sb.length])
     assert list(zip(coarse.pairs.a.tolist(), coarse.pairs.b.tolist())) == want
-    assert coarse.pairs.total == total
+    assert same_total(coarse.pairs.total, total)
     # the area
     cells = area_naive(list(zip(sa.start.tolist(), sa.end.tolist())),
                        list(zip(sb.start.tolist(), sb.end.tolist())), want, band, n, m)
@@ -85,13 +91,13 @@ def check_against_oracle(seed: int) -> None:
     for area, restrict in ((None, None), (coarse.area, cells)):
         p = warp_poses(PA, PB, area=area)
         want, total = dtw_naive(lambda a, b: pose_cost_naive(PA, PB, a, b), n, m, restrict)
-        assert list(zip(p.a.tolist(), p.b.tolist())) == want and p.total == total
+        assert list(zip(p.a.tolist(), p.b.tolist())) == want and same_total(p.total, total)
         assert p.cells == (n * m if area is None else len(cells))
         np.testing.assert_allclose(local_costs(p, poses=(PA, PB)).sum(), total, rtol=1e-12)
         q = warp_codes(CA, CB, n_features=nf, area=area, phases=phases, tie=tie)
         want, total = dtw_naive(lambda a, b: code_cost_naive(CA, CB, a, b, nf, phases, tie),
                                 n, m, restrict)
-        assert list(zip(q.a.tolist(), q.b.tolist())) == want and q.total == total
+        assert list(zip(q.a.tolist(), q.b.tolist())) == want and same_total(q.total, total)
 
 
 @settings(max_examples=120, deadline=None)
@@ -110,7 +116,7 @@ def test_larger_cases_equal_the_oracles():
         cells = {(a, b) for a in range(n) for b in range(int(area.lo[a]), int(area.hi[a]) + 1)}
         p = warp_poses(PA, PB, area=area)
         want, total = dtw_naive(lambda a, b, P=PA, Q=PB: pose_cost_naive(P, Q, a, b), n, m, cells)
-        assert list(zip(p.a.tolist(), p.b.tolist())) == want and p.total == total
+        assert list(zip(p.a.tolist(), p.b.tolist())) == want and same_total(p.total, total)
 
 
 def test_segments_and_phases():

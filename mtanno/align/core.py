@@ -20,24 +20,16 @@ import pyarrow as pa
 
 from mtanno.align.coarse import CoarseAlignment, coarse_alignment, select_features
 from mtanno.align.dtw import FEATURE_TIE, Area, WarpingPath, local_costs, warp_codes, warp_poses
+from mtanno.align.options import COST_UNITS, COSTS, DEFAULT_BAND, DEFAULT_COST
 from mtanno.align.poses import Performance, load_performance, normalize_poses
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_SET, FeatureSet
 from mtanno.index.core import frame_codes
 from mtanno.store import check_layout
 
-__all__ = ["COSTS", "DEFAULT_BAND", "DEFAULT_COST", "Alignment", "align", "align_files",
-           "alignment_table", "write_alignment"]
+__all__ = ["Alignment", "align", "align_files", "alignment_table", "summary",
+           "write_alignment"]
 
-#: Local costs of stage 2.
-COSTS = ("positions", "features")
-#: Default local cost.
-DEFAULT_COST = "positions"
-#: Default widening of the matched segment rectangles, in analysis frames (30 Hz).
-DEFAULT_BAND = 4
-#: Unit of each cost.
-COST_UNITS = {"positions": "leg lengths (mean joint distance)",
-              "features": "fraction of differing features"}
 
 
 @dataclass(frozen=True)

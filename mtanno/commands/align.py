@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import click
 
-from mtanno.align.core import COSTS, DEFAULT_BAND, DEFAULT_COST
+from mtanno.align.options import COSTS, DEFAULT_BAND, DEFAULT_COST
 from mtanno.commands._common import user_errors
 
 
