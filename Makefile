@@ -49,6 +49,7 @@ bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the pe
 	$(BIN)/python scripts/bench_annotate.py
 	$(BIN)/python scripts/bench_index.py
 	$(BIN)/python scripts/bench_keyframes.py
+	$(BIN)/python scripts/bench_align.py
 
 lint: $(BIN)/mtanno
 	$(BIN)/ruff check mtanno tests scripts
