@@ -29,6 +29,8 @@ __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "ch
            "read_features", "sha256_file", "write_features"]
 
 FEATURES_SCHEMA = "mtanno.features/1"
+#: Feature files of documents with at least this many frames are zstd-compressed.
+COMPRESS_FROM_FRAMES = 1024
 META_KEY = b"mtanno"
 
 
@@ -208,11 +210,16 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
         cols[name] = pa.array(X[i].astype(bool))
     table = pa.table(cols)
     table = table.replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True)})
+    # No column statistics or dictionaries (readers take whole 0/1 columns); zstd only for
+    # documents long enough to gain from it: a clip of a few seconds compresses by a few
+    # percent, and the codec's per-column set-up was most of its writing time (archives of
+    # short clips are written thousands at a time).
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink, write_statistics=False, use_dictionary=False,
+                   compression="zstd" if X.shape[1] >= COMPRESS_FROM_FRAMES else "none")
+    data = sink.getvalue()
     with atomic_path(path) as tmp:
-        # no column statistics or dictionaries: readers take whole 0/1 columns, and both
-        # cost time per file (archives of short clips are written thousands at a time)
-        pq.write_table(table, tmp, compression="zstd", write_statistics=False,
-                       use_dictionary=False)
+        Path(tmp).write_bytes(data.to_pybytes())
 
 
 def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
