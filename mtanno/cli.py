@@ -81,9 +81,12 @@ def main() -> None:
               help="ak40: the 40 annotation features (MR06 + F40); mrc05: the 31 features "
                    "of MRC05 (reference bugs fixed, docs/index.md); mrc05-reference: as the "
                    "reference implementation computes them.")
+@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
+              help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
+                   "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet):
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
     annotation features, or the 31 MRC05 features with --feature-set mrc05.
 
@@ -97,8 +100,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
     02.asf for 02_05.amc), else the only ASF there.
 
     An output is up to date, and skipped unless --force, when the provenance it records
-    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set and
-    the extractor version. Files that fail are reported as `path:line: what is wrong` and
+    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
+    up axis and the extractor version. Files that fail are reported as `path:line: what is wrong` and
     the others are still written. Exit code: 0 all written or up to date, 1 some files
     failed, 2 usage error, 130 interrupted (finished outputs stay, no partial file).
 
@@ -129,7 +132,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
     summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                        progress=progress, feature_set=feature_set)
+                        progress=progress, feature_set=feature_set, up=up)
     bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)
