@@ -26,8 +26,8 @@ EXIT_INTERRUPTED = 130
 
 
 class _Main(click.Group):
-    """The ``mtanno`` group: records the command line for the provenance of outputs, and
-    turns an interruption (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
+    """The ``mtanno`` group: records the command line for the provenance of outputs, says
+    when numba compiles the kernels (:mod:`mtanno.jitnote`), and turns an interruption (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
     into one line and exit code 130 instead of Click's "Aborted!" and 1."""
 
     def main(self, args=None, prog_name=None, **extra):
@@ -37,8 +37,10 @@ class _Main(click.Group):
         return super().main(args=args, prog_name=prog_name, **extra)
 
     def invoke(self, ctx):
+        from mtanno.jitnote import install_compile_note
         from mtanno.workers import Interrupted, interruptible, must_hard_exit
 
+        install_compile_note()  # one line on stderr if kernels must be compiled first
         try:
             with interruptible():
                 return super().invoke(ctx)
