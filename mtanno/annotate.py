@@ -535,23 +535,39 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
     :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
     :class:`ClassModel` records (with their file and SHA-256), and the feature layout
     (set, names, rate) they all share. ``classes`` keeps only those."""
-    from mtanno.store import FeatureLayout, sha256_file
-    from mtanno.templates.model import load_template_folder, quantize
+    from mtanno.templates.model import load_template_folder
 
+    return class_models(load_template_folder(mt_dir, classes=classes), delta=delta,
+                        where=f"the templates in {mt_dir}")
+
+
+def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
+                 where: str = "the templates") -> tuple[list[ClassModel], FeatureLayout]:
+    """:class:`ClassModel` records of loaded templates (class name →
+    :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
+    learned in memory), quantized with ``delta``, and the feature layout they share
+    (``where`` names them in messages)."""
+    from mtanno.store import FeatureLayout, check_layout, sha256_file
+    from mtanno.templates.model import quantize
+
+    if not templates:
+        raise MtannoError("no class templates to annotate with")
     models: list[ClassModel] = []
-    templates = load_template_folder(mt_dir, classes=classes)
     for mt in templates.values():
         q = quantize(mt, delta)
         model = ClassModel(mt.class_name, q.values, q.weights, path=mt.path,
-                           sha256=sha256_file(mt.path))
+                           sha256=sha256_file(mt.path) if mt.path else None)
         try:
             model.matcher("reference")  # refuse a template the kernel cannot use, naming it
         except MtannoError as exc:
             raise MtannoError(exc.message, path=mt.path) from None
         models.append(model)
     first = next(iter(templates.values()))
-    return models, FeatureLayout(first.feature_set, tuple(first.feature_names),
-                                 float(first.fps), f"the templates in {mt_dir}")
+    layout = FeatureLayout(first.feature_set, tuple(first.feature_names), float(first.fps), where)
+    for mt in templates.values():  # templates made in memory were not checked by a reader
+        check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
+                                   f"template {mt.class_name}"), layout, path=mt.path)
+    return models, layout
 
 
 @dataclass

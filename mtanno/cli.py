@@ -27,7 +27,8 @@ EXIT_INTERRUPTED = 130
 
 class _Main(click.Group):
     """The ``mtanno`` group: records the command line for the provenance of outputs, says
-    when numba compiles the kernels (:mod:`mtanno.jitnote`), and turns an interruption (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
+    when numba compiles the kernels (:mod:`mtanno.jitnote`), and turns an interruption
+    (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
     into one line and exit code 130 instead of Click's "Aborted!" and 1."""
 
     def main(self, args=None, prog_name=None, **extra):
