@@ -148,16 +148,30 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
               help="ASF skeleton of an AMC file (default: found beside or above it).")
 @click.option("--skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or name) instead of the detected one.")
+@click.option("--features", "list_features", is_flag=True,
+              help="Feature file: list its features (id, name, index group) instead.")
 @user_errors(2)
-def info_cmd(file, asf, skeleton):
+def info_cmd(file, asf, skeleton, list_features):
     """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
-    or a feature file (.parquet: its metadata). Exit code 2 for a file that cannot be
-    read."""
+    or a feature file (.parquet: its metadata; --features lists its features with ids and
+    groups, the names `mtanno show` and `mtanno query --features` take). Exit code 2 for a
+    file that cannot be read."""
     path = Path(file)
+    if list_features and path.suffix.lower() != ".parquet":
+        raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
         from mtanno.store import read_features
 
         ff = read_features(path)
+        if list_features:
+            from mtanno.inspect import feature_rows
+
+            rows = feature_rows(ff)
+            width = max(len(r["name"]) for r in rows)
+            click.echo(f"{'id':<4} {'name':<{width}}  group")
+            for r in rows:
+                click.echo(f"{r['id']:<4} {r['name']:<{width}}  {r['group']}")
+            return
         m = ff.meta
         click.echo(f"feature file   {path}")
         click.echo(f"document       {ff.document}")

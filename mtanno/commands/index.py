@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import user_errors
+from mtanno.commands._common import parse_frames, user_errors
 from mtanno.errors import MtannoError
 
 
@@ -180,21 +180,6 @@ def info_cmd(index_dir, as_json, output):
                    f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}")
 
 
-def _parse_frames(text: str | None, n: int) -> tuple[int, int] | None:
-    """'A:B' (1-based, inclusive; either side may be empty) → 0-based (a, b)."""
-    if text is None:
-        return None
-    a, sep, b = text.partition(":")
-    try:
-        lo = int(a) if a.strip() else 1
-        hi = int(b) if b.strip() else n
-    except ValueError:
-        raise MtannoError(f"--frames must be A:B with 1-based frame numbers, got '{text}'") from None
-    if not sep or lo < 1 or hi < lo or hi > n:
-        raise MtannoError(f"--frames {text} is not a range inside 1:{n}")
-    return lo - 1, hi - 1
-
-
 def _example(index, example: str):
     """(matrix, names, label) of an example: a feature file, or an indexed document name."""
     from mtanno.index.core import doc_layout, read_feature_doc
@@ -322,7 +307,7 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
             raise MtannoError("--example needs --features NAME,...")
         X, names, _ = _example(index, example)
         feats = resolve_features(index, feature_list.split(","))
-        rng = _parse_frames(frames, X.shape[1])
+        rng = parse_frames(frames, X.shape[1])
         query = example_query(index, X, names, feats, frames=rng, mode=mode or "adaptive",
                               mismatches=mismatches or 0,
                               min_segment=min_segment or DEFAULT_MIN_SEGMENT)

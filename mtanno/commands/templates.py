@@ -262,4 +262,28 @@ def mt_quantize_cmd(template, delta, output):
                f"entries are wildcards -> {output}", err=True)
 
 
+@mt_group.command("plot", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Picture file: .png, .svg or .pdf.")
+@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+              help="Quantize first with this δ (0: only unanimous entries stay 0 or 1).")
+@user_errors(2)
+def mt_plot_cmd(template, output, delta):
+    """Draw a motion template as a heat map (MR06 Fig. 4): one row per feature, one
+    column per template column, black 0, white 1, grey in between (wildcards 0.5).
+    Needs matplotlib (pip install 'mtanno[plot]')."""
+    from mtanno.output import check_outputs
+    from mtanno.plot import plot_template, require_matplotlib, save_figure
+    from mtanno.templates.model import load_template, quantize
+
+    require_matplotlib()
+    check_outputs([output], [template])
+    mt = load_template(template)
+    if delta is not None:
+        mt = quantize(mt, delta)
+    save_figure(plot_template(mt), output)
+    click.echo(f"mt plot: {mt.class_name} -> {output}", err=True)
+
+
 COMMANDS = [learn_mt_cmd, mt_group]
