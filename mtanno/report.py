@@ -267,6 +267,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
         present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
         _legend(ax, present, colours)
+        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
         ax.set_title(d)
         w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation", d)
     if templates:
@@ -293,14 +294,17 @@ def _legend(ax, labels, colours) -> None:
 def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
                    tau: float | None) -> None:
     from mtanno.annotate import DEFAULT_DELTA, class_deltas, class_models
-    from mtanno.plot import plot_delta
+    from mtanno.plot import label_colours, plot_delta
 
     models, _ = class_models(templates, delta=DEFAULT_DELTA)
+    colours = label_colours(sorted(m.name for m in models))
     for d, X in features.items():
         ax = None
         for m, (delta, _) in zip(models, class_deltas(X, models)):
             ax = plot_delta(delta, label=m.name, tau=tau, ax=ax)
+            [line for line in ax.lines if line.get_label() == m.name][0].set_color(
+                colours[m.name])
         ax.set_title(f"{d}: Δ of every class")
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
-        ax.figure.set_size_inches(12, 3.5)
+        ax.figure.set_size_inches(12, max(3.5, 1.0 + 0.16 * len(models)))
         w.figure(ax, f"delta_{_safe(d)}", "Distance curves Δ per class", d)
