@@ -16,7 +16,8 @@ import multiprocessing
 import sys
 from typing import TextIO
 
-NOTE = ("mtanno: note: compiling the numba kernels (first run after installing or upgrading, "
+#: The note (not an ``mtanno:`` line: those are errors, one per bad input).
+NOTE = ("note: compiling mtanno's numba kernels (first run after installing or upgrading, "
         "up to a minute; later runs use the cache)")
 
 _installed: CompileNote | None = None

@@ -48,7 +48,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     from mtanno.store import document_files, read_features
     from mtanno.tables import provenance
     from mtanno.templates.model import load_template_folder, template_files
-    from mtanno.truth import read_truth
+    from mtanno.truth import check_within, read_truth
 
     require_matplotlib()
     if features and not mt_dir:
@@ -70,6 +70,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
         if recorded_tau is None and isinstance((prov or {}).get("tau"), (int, float)):
             recorded_tau = float(prov["tau"])
     truth = read_truth(truth_path)
+    check_within(truth, frames, path=truth_path)
     templates = load_template_folder(mt_dir) if mt_dir else None
     feats = {}
     for p in paths:
