@@ -526,6 +526,31 @@ def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], di
     return out, table.provenance
 
 
+def read_annotation_tables(paths: Sequence[str | os.PathLike]
+                           ) -> tuple[list[Annotation], dict[str, int], list[dict]]:
+    """The rows of several annotation tables (a run split over machines, say), each
+    document in one of them only (else an error naming both files); the documents' frame
+    counts their provenance records (``annotate`` records them) and the provenances."""
+    rows: list[Annotation] = []
+    frames: dict[str, int] = {}
+    provs: list[dict] = []
+    where: dict[str, str] = {}
+    for path in paths:
+        part, prov = read_annotation_table(path)
+        for d in sorted({a.doc for a in part}):
+            if d in where:
+                raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
+                                  "document's annotation once", path=str(path))
+            where[d] = str(path)
+        rows.extend(part)
+        provs.append(prov or {})
+        recorded = (prov or {}).get("documents")
+        if isinstance(recorded, dict):
+            frames.update({str(k): int(v) for k, v in recorded.items()
+                           if isinstance(v, int) and not isinstance(v, bool)})
+    return rows, frames, provs
+
+
 # --------------------------------------------------------------------------- batches
 
 

@@ -148,7 +148,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     in only one of them. When the annotations record their documents' lengths, a truth
     segment past the end of its document is an error.
     """
-    from mtanno.annotate import read_annotation_table
+    from mtanno.annotate import read_annotation_tables
     from mtanno.evaluate import evaluate_annotations
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
@@ -163,22 +163,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     if json_path == "-" and table_path == "-":
         raise MtannoError("--json - and -o - would both write to standard output")
     truth = read_truth(truth_path)
-    out: list[Segment] = []
-    where: dict[str, str] = {}
-    frames: dict[str, int] = {}
-    for path in annotations:
-        rows, prov = read_annotation_table(path)
-        mine = {a.doc for a in rows}
-        for d in sorted(mine):
-            if d in where:
-                raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
-                                  "document's annotation once", path=str(path))
-            where[d] = str(path)
-        out.extend(Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows)
-        recorded = (prov or {}).get("documents")
-        if isinstance(recorded, dict):
-            frames.update({str(k): int(v) for k, v in recorded.items()
-                           if isinstance(v, int) and not isinstance(v, bool)})
+    rows, frames, _ = read_annotation_tables(annotations)
+    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
     check_within(truth, frames, path=truth_path)
     if docs:
         known = {s.doc for s in truth} | {s.doc for s in out}

@@ -41,7 +41,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
     with --single-label; overlapping rows are resolved by segment cost (the page says so).
     """
-    from mtanno.annotate import DEFAULT_TAU, read_annotation_table
+    from mtanno.annotate import DEFAULT_TAU, read_annotation_tables
     from mtanno.output import check_outputs
     from mtanno.plot import require_matplotlib
     from mtanno.report import write_report
@@ -56,19 +56,9 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     paths = document_files(features) if features else []
     check_outputs([out_dir], [*annotations, truth_path, *paths,
                               *(template_files(mt_dir) if mt_dir else [])])
-    rows, frames, where, recorded_tau = [], {}, {}, None
-    for path in annotations:
-        part, prov = read_annotation_table(path)
-        for d in sorted({a.doc for a in part}):
-            if d in where:
-                raise MtannoError(f"document {d!r} is annotated in {where[d]} too", path=path)
-            where[d] = path
-        rows += part
-        recorded = (prov or {}).get("documents")
-        if isinstance(recorded, dict):
-            frames.update({str(k): int(v) for k, v in recorded.items() if isinstance(v, int)})
-        if recorded_tau is None and isinstance((prov or {}).get("tau"), (int, float)):
-            recorded_tau = float(prov["tau"])
+    rows, frames, provs = read_annotation_tables(annotations)
+    recorded_tau = next((float(p["tau"]) for p in provs
+                         if isinstance(p.get("tau"), (int, float))), None)
     truth = read_truth(truth_path)
     check_within(truth, frames, path=truth_path)
     templates = load_template_folder(mt_dir) if mt_dir else None
