@@ -95,9 +95,8 @@ def plot_delta(delta: np.ndarray, *, label: str | None = None, tau: float | None
     ax = _axes(ax, (10, 3))
     y = np.where(np.isfinite(delta), delta, np.nan)
     ax.plot(np.arange(1, len(y) + 1), y, label=label, linewidth=1)
-    if tau is not None and not any(getattr(line, "_mtanno_tau", False) for line in ax.lines):
-        line = ax.axhline(tau, color="k", linestyle=":", linewidth=1, label=f"τ = {tau:g}")
-        line._mtanno_tau = True
+    if tau is not None and not any(line.get_label() == f"τ = {tau:g}" for line in ax.lines):
+        ax.axhline(tau, color="k", linestyle=":", linewidth=1, label=f"τ = {tau:g}")
     ax.set_xlabel("frame (30 Hz)")
     ax.set_ylabel("Δ")
     return ax

@@ -36,10 +36,10 @@ def test_plot_delta_draws_delta_with_gaps_and_tau():
     x, y = ax.lines[0].get_data()
     assert x.tolist() == [1, 2, 3, 4, 5]
     assert np.array_equal(y, [np.nan, 0.3, 0.1, np.nan, 0.05], equal_nan=True)
-    taus = [line for line in ax.lines if getattr(line, "_mtanno_tau", False)]
+    taus = [line for line in ax.lines if line.get_label() == "τ = 0.13"]
     assert len(taus) == 1 and taus[0].get_ydata()[0] == 0.13  # drawn once
-    assert [line.get_label() for line in ax.lines if not getattr(line, "_mtanno_tau", 0)] \
-        == ["squat", "kick"]
+    assert [line.get_label() for line in ax.lines] == ["squat", "τ = 0.13", "kick"]
+    assert np.array_equal(ax.lines[2].get_ydata(), 2 * y, equal_nan=True)
 
 
 def test_plot_template_features_confusion_timeline():
