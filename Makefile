@@ -18,7 +18,7 @@ install: $(BIN)/mtanno  ## create .venv and install mtanno with its test extras
 test: $(BIN)/mtanno  ## run the whole test suite (real-data tests skip when ../shared is absent)
 	$(BIN)/python -m pytest -q
 
-demo: $(BIN)/mtanno  ## features → learn-mt → compose → annotate → evaluate (HDM05, or synthetic data)
+demo: $(BIN)/mtanno  ## features → learn-mt → compose → annotate → evaluate → report (HDM05, or synthetic data)
 	@if [ -f "$(SHARED)/hdm05_cut/clips.csv" ]; then \
 	  echo "demo: HDM05 — templates from actors bd, bk, dg; 10 documents composed from actor mm"; \
 	  DATA="$(SHARED)/hdm05_cut"; ACTOR=mm; \
@@ -33,7 +33,10 @@ demo: $(BIN)/mtanno  ## features → learn-mt → compose → annotate → evalu
 	$$M compose "$$DATA/clips.csv" --actor $$ACTOR --docs 10 --seed 1 -o $$D/docs; \
 	$$M features $$D/docs -o $$D/doc_features --jobs 2 -q; \
 	$$M annotate --mt $$D/mt $$D/doc_features -o $$D/annotation.csv -o $$D/annotation.parquet --jobs 2; \
-	$$M evaluate $$D/annotation.csv --truth $$D/docs/truth.csv --json $$D/report.json
+	$$M evaluate $$D/annotation.csv --truth $$D/docs/truth.csv --json $$D/report.json; \
+	$$M report $$D/annotation.csv --truth $$D/docs/truth.csv --mt $$D/mt --features $$D/doc_features \
+	  -o $$D/report -q; \
+	echo "demo: report of this run -> $$D/report/index.html (open it in a browser)"
 
 experiment-hdm05: $(BIN)/mtanno  ## the HDM05 annotation experiment (scripts/experiment_hdm05.sh)
 	scripts/experiment_hdm05.sh $(OUT)/hdm05

@@ -291,6 +291,37 @@ def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
     return out
 
 
+def single_label_segments(doc: str, names: Sequence[str], dbars: np.ndarray,
+                          rows: Sequence[Annotation]) -> list[Annotation]:
+    """Resolve overlapping segments into a partition (``annotate --single-label``).
+
+    Every frame covered by one or more of ``rows`` (the segments of one document, possibly
+    overlapping after the extension of algorithms.md §7 step 4) keeps the label, among the
+    segments covering it, with the smallest Δ̄ there (ties → the smaller label index, as in
+    step 3); frames no segment covers stay unlabelled. The result is the maximal runs of
+    one label: no two segments share a frame. ``cost`` is the smallest Δ̄ of the label
+    inside its run. Frames are 0-based at 30 Hz.
+    """
+    dbars = np.asarray(dbars, dtype=np.float64)
+    P, L = dbars.shape
+    index = {n: k for k, n in enumerate(names)}
+    cover = np.zeros((P, L), dtype=bool)
+    for r in rows:
+        cover[index[r.label], r.start:r.end + 1] = True
+    # covered frames rank by Δ̄ (∞ after every finite value), uncovered ones never win
+    key = np.where(cover, np.nan_to_num(dbars, posinf=np.finfo(np.float64).max), np.inf)
+    label = np.argmin(key, axis=0)
+    label[~cover.any(axis=0)] = -1
+    out: list[Annotation] = []
+    change = np.flatnonzero(np.diff(label)) + 1
+    for s, e in zip(np.r_[0, change], np.r_[change, L]):
+        p = int(label[s])
+        if p >= 0:
+            out.append(Annotation(doc, int(s), int(e) - 1, names[p],
+                                  float(dbars[p, s:e].min())))
+    return out
+
+
 @dataclass
 class ClassModel:
     """A class as the annotator needs it: name, quantized template values and weights.
@@ -374,11 +405,16 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                       windows: dict[str, list[tuple[int, int]]] | None = None,
                       dbar_variant: str = "reference", match_variant: str = "reference",
                       max_hits: int | None = None, extend: bool = True,
+                      single_label: bool = False,
                       ) -> tuple[list[Annotation], list[str], np.ndarray]:
     """Annotate one document (MBS09 §4–5): returns (segments, label names, Δ̄ matrix).
 
     Labels are the classes, or the superclasses of ``config`` joining them (classes not in
     a superclass keep their name); Δ̄ of a label is the frame-wise minimum of its classes'.
+    Segments of different labels may overlap (the reference output); with
+    ``single_label`` overlaps are resolved frame by frame to the label with the smallest
+    Δ̄ (:func:`single_label_segments`), so the segments form a partition of the labelled
+    frames.
     """
     config = config or ClassConfig()
     if not classes:
@@ -410,7 +446,10 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
             modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits,
                            out=tmp)
             np.minimum(dbars[k], tmp, out=dbars[k])
-    return segments_from_labels(doc, labels, dbars, extend=extend), labels, dbars
+    rows = segments_from_labels(doc, labels, dbars, extend=extend)
+    if single_label:
+        rows = single_label_segments(doc, labels, dbars, rows)
+    return rows, labels, dbars
 
 
 ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")
@@ -487,6 +526,31 @@ def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], di
     return out, table.provenance
 
 
+def read_annotation_tables(paths: Sequence[str | os.PathLike]
+                           ) -> tuple[list[Annotation], dict[str, int], list[dict]]:
+    """The rows of several annotation tables (a run split over machines, say), each
+    document in one of them only (else an error naming both files); the documents' frame
+    counts their provenance records (``annotate`` records them) and the provenances."""
+    rows: list[Annotation] = []
+    frames: dict[str, int] = {}
+    provs: list[dict] = []
+    where: dict[str, str] = {}
+    for path in paths:
+        part, prov = read_annotation_table(path)
+        for d in sorted({a.doc for a in part}):
+            if d in where:
+                raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
+                                  "document's annotation once", path=str(path))
+            where[d] = str(path)
+        rows.extend(part)
+        provs.append(prov or {})
+        recorded = (prov or {}).get("documents")
+        if isinstance(recorded, dict):
+            frames.update({str(k): int(v) for k, v in recorded.items()
+                           if isinstance(v, int) and not isinstance(v, bool)})
+    return rows, frames, provs
+
+
 # --------------------------------------------------------------------------- batches
 
 
@@ -496,23 +560,39 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
     :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
     :class:`ClassModel` records (with their file and SHA-256), and the feature layout
     (set, names, rate) they all share. ``classes`` keeps only those."""
-    from mtanno.store import FeatureLayout, sha256_file
-    from mtanno.templates.model import load_template_folder, quantize
+    from mtanno.templates.model import load_template_folder
 
+    return class_models(load_template_folder(mt_dir, classes=classes), delta=delta,
+                        where=f"the templates in {mt_dir}")
+
+
+def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
+                 where: str = "the templates") -> tuple[list[ClassModel], FeatureLayout]:
+    """:class:`ClassModel` records of loaded templates (class name →
+    :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
+    learned in memory), quantized with ``delta``, and the feature layout they share
+    (``where`` names them in messages)."""
+    from mtanno.store import FeatureLayout, check_layout, sha256_file
+    from mtanno.templates.model import quantize
+
+    if not templates:
+        raise MtannoError("no class templates to annotate with")
     models: list[ClassModel] = []
-    templates = load_template_folder(mt_dir, classes=classes)
     for mt in templates.values():
         q = quantize(mt, delta)
         model = ClassModel(mt.class_name, q.values, q.weights, path=mt.path,
-                           sha256=sha256_file(mt.path))
+                           sha256=sha256_file(mt.path) if mt.path else None)
         try:
             model.matcher("reference")  # refuse a template the kernel cannot use, naming it
         except MtannoError as exc:
             raise MtannoError(exc.message, path=mt.path) from None
         models.append(model)
     first = next(iter(templates.values()))
-    return models, FeatureLayout(first.feature_set, tuple(first.feature_names),
-                                 float(first.fps), f"the templates in {mt_dir}")
+    layout = FeatureLayout(first.feature_set, tuple(first.feature_names), float(first.fps), where)
+    for mt in templates.values():  # templates made in memory were not checked by a reader
+        check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
+                                   f"template {mt.class_name}"), layout, path=mt.path)
+    return models, layout
 
 
 @dataclass
@@ -531,7 +611,8 @@ class AnnotationBatch:
     seconds: float = 0.0
 
 
-def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes):
+def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes,
+                   single_label=False):
     """One document of a batch: (document, rows, native frames, sha256) or the message of
     its failure (a worker sends it back as text)."""
     import time
@@ -552,7 +633,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                 raise MtannoError(exc.message, path=ff.path) from None
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
                                        windows=windows, dbar_variant=dbar_variant,
-                                       match_variant=match_variant)
+                                       match_variant=match_variant, single_label=single_label)
     except MtannoError as exc:
         return str(exc)
     return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0
@@ -562,21 +643,22 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
                    layout: FeatureLayout, config: ClassConfig | None = None,
                    dbar_variant: str = "reference", match_variant: str = "reference",
                    keyframes: dict | None = None, n_jobs: int = 1,
-                   progress=None) -> AnnotationBatch:
+                   progress=None, single_label: bool = False) -> AnnotationBatch:
     """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
     (:class:`mtanno.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
     queries (:mod:`mtanno.keyframes`): those classes are matched only inside their
     candidate windows in each document (MBS09 §5), the others everywhere. A file that
     cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
     and the batch goes on. ``progress`` is called once per file with its path and its
-    failure message (None on success). Rows are sorted by document, start, end and
+    failure message (None on success). ``single_label`` resolves overlapping segments
+    (:func:`single_label_segments`). Rows are sorted by document, start, end and
     label."""
     from mtanno.workers import WorkerPool
 
     config = config or ClassConfig()
     batch = AnnotationBatch()
-    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes)
-            for p in paths]
+    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
+             single_label) for p in paths]
 
     def collect(path, result):
         if isinstance(result, str):

@@ -26,8 +26,9 @@ EXIT_INTERRUPTED = 130
 
 
 class _Main(click.Group):
-    """The ``mtanno`` group: records the command line for the provenance of outputs, and
-    turns an interruption (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
+    """The ``mtanno`` group: records the command line for the provenance of outputs, says
+    when numba compiles the kernels (:mod:`mtanno.jitnote`), and turns an interruption
+    (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
     into one line and exit code 130 instead of Click's "Aborted!" and 1."""
 
     def main(self, args=None, prog_name=None, **extra):
@@ -37,8 +38,10 @@ class _Main(click.Group):
         return super().main(args=args, prog_name=prog_name, **extra)
 
     def invoke(self, ctx):
+        from mtanno.jitnote import install_compile_note
         from mtanno.workers import Interrupted, interruptible, must_hard_exit
 
+        install_compile_note()  # one line on stderr if kernels must be compiled first
         try:
             with interruptible():
                 return super().invoke(ctx)
@@ -81,9 +84,12 @@ def main() -> None:
               help="ak40: the 40 annotation features (MR06 + F40); mrc05: the 31 features "
                    "of MRC05 (reference bugs fixed, docs/index.md); mrc05-reference: as the "
                    "reference implementation computes them.")
+@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
+              help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
+                   "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet):
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
     annotation features, or the 31 MRC05 features with --feature-set mrc05.
 
@@ -97,8 +103,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
     02.asf for 02_05.amc), else the only ASF there.
 
     An output is up to date, and skipped unless --force, when the provenance it records
-    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set and
-    the extractor version. Files that fail are reported as `path:line: what is wrong` and
+    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
+    up axis and the extractor version. Files that fail are reported as `path:line: what is wrong` and
     the others are still written. Exit code: 0 all written or up to date, 1 some files
     failed, 2 usage error, 130 interrupted (finished outputs stay, no partial file).
 
@@ -129,7 +135,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
     summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                        progress=progress, feature_set=feature_set)
+                        progress=progress, feature_set=feature_set, up=up)
     bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)
@@ -142,16 +148,30 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, quiet)
               help="ASF skeleton of an AMC file (default: found beside or above it).")
 @click.option("--skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or name) instead of the detected one.")
+@click.option("--features", "list_features", is_flag=True,
+              help="Feature file: list its features (id, name, index group) instead.")
 @user_errors(2)
-def info_cmd(file, asf, skeleton):
+def info_cmd(file, asf, skeleton, list_features):
     """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
-    or a feature file (.parquet: its metadata). Exit code 2 for a file that cannot be
-    read."""
+    or a feature file (.parquet: its metadata; --features lists its features with ids and
+    groups, the names `mtanno show` and `mtanno query --features` take). Exit code 2 for a
+    file that cannot be read."""
     path = Path(file)
+    if list_features and path.suffix.lower() != ".parquet":
+        raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
         from mtanno.store import read_features
 
         ff = read_features(path)
+        if list_features:
+            from mtanno.inspect import feature_rows
+
+            rows = feature_rows(ff)
+            width = max(len(r["name"]) for r in rows)
+            click.echo(f"{'id':<4} {'name':<{width}}  group")
+            for r in rows:
+                click.echo(f"{r['id']:<4} {r['name']:<{width}}  {r['group']}")
+            return
         m = ff.meta
         click.echo(f"feature file   {path}")
         click.echo(f"document       {ff.document}")

@@ -13,6 +13,7 @@ from mtanno.annotate import (
     modified_delta,
     read_annotations,
     segments_from_labels,
+    single_label_segments,
     write_annotations,
 )
 from mtanno.errors import MtannoError
@@ -88,6 +89,45 @@ def test_segments_match_naive(seed):
     for extend in (True, False):
         assert segments_from_labels("d", names, dbars, extend=extend) == \
             naive_segments("d", names, dbars, extend)
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_single_label_is_a_partition_by_smallest_dbar(seed):
+    """--single-label: no frame in two segments, the frames labelled are exactly those of
+    the overlapping output, and each frame's label has the smallest Δ̄ among the labels
+    whose overlapping segments cover it."""
+    rng = np.random.default_rng(seed)
+    P, L = int(rng.integers(1, 5)), int(rng.integers(1, 80))
+    dbars = np.round(rng.random((P, L)) * 0.2, 2)
+    dbars[rng.random((P, L)) < 0.4] = INF
+    names = [f"c{i}" for i in range(P)]
+    rows = segments_from_labels("d", names, dbars)
+    single = single_label_segments("d", names, dbars, rows)
+    owner = np.full(L, -1)
+    for a in single:
+        assert (owner[a.start:a.end + 1] == -1).all()  # a partition: no shared frame
+        owner[a.start:a.end + 1] = names.index(a.label)
+        assert a.cost == dbars[names.index(a.label), a.start:a.end + 1].min()
+    covered = np.zeros((P, L), bool)
+    for a in rows:
+        covered[names.index(a.label), a.start:a.end + 1] = True
+    assert np.array_equal(owner >= 0, covered.any(axis=0))
+    for j in np.flatnonzero(owner >= 0):
+        cands = [p for p in range(P) if covered[p, j]]
+        best = min(cands, key=lambda p: (dbars[p, j], p))
+        assert owner[j] == best
+    for a, b in zip(single, single[1:]):  # maximal runs
+        assert a.end < b.start and (a.end + 1 < b.start or a.label != b.label)
+
+
+def test_single_label_resolves_hand_made_overlap():
+    a = np.array([0.05, 0.04, 0.03, 0.02, 0.03, 0.04, 0.05])
+    b = np.array([INF, INF, INF, INF, 0.01, 0.01, INF])
+    rows = segments_from_labels("d", ["a", "b"], np.vstack([a, b]))
+    assert [(r.label, r.start, r.end) for r in rows] == [("a", 0, 6), ("b", 4, 5)]
+    single = single_label_segments("d", ["a", "b"], np.vstack([a, b]), rows)
+    assert [(r.label, r.start, r.end, r.cost) for r in single] == [
+        ("a", 0, 3, 0.02), ("b", 4, 5, 0.01), ("a", 6, 6, 0.05)]
 
 
 def test_reference_dbar_hand_made():

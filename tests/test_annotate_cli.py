@@ -57,6 +57,35 @@ def test_annotate_and_evaluate(pipeline):
     assert all(e >= s for s, e in zip(t["start_native"], t["end_native"]))
 
 
+def test_annotate_single_label_partition(pipeline):
+    """The default output overlaps; --single-label gives one label per frame, covering the
+    same frames, and records the option in its provenance."""
+    import csv
+
+    d = pipeline
+    r = run("annotate", "--mt", d / "mt", d / "docfeats", "-o", d / "multi.csv", "-q")
+    assert r.exit_code == 0, r.output
+    r = run("annotate", "--mt", d / "mt", d / "docfeats", "-o", d / "single.csv", "-q",
+            "--single-label")
+    assert r.exit_code == 0, r.output
+
+    def frames(path):
+        out = {}
+        for row in csv.DictReader(path.open()):
+            for f in range(int(row["start"]), int(row["end"]) + 1):
+                out.setdefault((row["doc"], f), []).append(row["label"])
+        return out
+
+    multi, single = frames(d / "multi.csv"), frames(d / "single.csv")
+    assert any(len(v) > 1 for v in multi.values())  # the reference output overlaps here
+    assert all(len(v) == 1 for v in single.values())
+    assert set(single) == set(multi)
+    assert all(single[k][0] in multi[k] for k in single)
+    prov = json.loads((d / "single.csv.meta.json").read_text())
+    assert prov["single_label"] is True
+    assert "single_label" not in json.loads((d / "multi.csv.meta.json").read_text())
+
+
 def test_annotate_paper_variant_and_classes_config(pipeline):
     d = pipeline
     cfg = d / "classes.toml"

@@ -198,3 +198,44 @@ def test_user_skeleton_folder_follows_xdg(monkeypatch, tmp_path):
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     assert user_dir() == tmp_path / "home" / ".config" / "mtanno" / "skeletons"
     assert (builtin_dir() / "cmu-asf.toml").is_file()
+
+
+def _z_up_copy(world, clip, folder):
+    """A copy of a synthetic clip turned so that Z is up: the ASF root orientation turns
+    the skeleton by +90° about X, the root translations (x, y, z) become (x, −z, y)."""
+    folder.mkdir()
+    asf = (world.clips / "SYN_a.asf").read_text()
+    assert "orientation 0 0 0" in asf
+    (folder / "SYN_a.asf").write_text(asf.replace("orientation 0 0 0", "orientation 90 0 0"))
+    lines = []
+    for line in clip.read_text().splitlines():
+        if line.startswith("root "):
+            v = [float(x) for x in line.split()[1:]]
+            v[0:3] = [v[0], -v[2], v[1]]
+            line = "root " + " ".join(f"{x:.6f}" for x in v)
+        lines.append(line)
+    (folder / clip.name).write_text("\n".join(lines) + "\n")
+    return folder / clip.name
+
+
+@pytest.mark.parametrize("cls", ["kickLFront", "jumpingJack"])
+def test_features_up_z_on_a_rotated_clip(world, tmp_path, cls):
+    """--up z on a Z-up copy of a clip gives the features of the Y-up original; read as
+    Y up (the default) the copy gives other features; the up axis is provenance."""
+    clip = world.clips / cls / f"SYN_a_{cls}_001.amc"
+    want = read_features(world.feats / cls / f"SYN_a_{cls}_001.parquet")
+    rotated = _z_up_copy(world, clip, tmp_path / "rot")
+    r = run(["features", str(rotated), "-o", str(tmp_path / "z"), "--up", "z", "-q"])
+    assert r.exit_code == 0, r.output
+    got = read_features(tmp_path / "z" / f"{rotated.stem}.parquet")
+    assert np.array_equal(got.X, want.X) and got.names == want.names
+    assert got.meta["up"] == "z" and want.meta["up"] == "y"
+    r = run(["features", str(rotated), "-o", str(tmp_path / "y"), "-q"])
+    assert r.exit_code == 0, r.output
+    assert not np.array_equal(read_features(tmp_path / "y" / f"{rotated.stem}.parquet").X,
+                              want.X)
+    # the up axis is part of "up to date": the same output with --up y is recomputed
+    r = run(["features", str(rotated), "-o", str(tmp_path / "z"), "--up", "y"])
+    assert "1 written" in r.output
+    r = run(["features", str(rotated), "-o", str(tmp_path / "z"), "--up", "x"])
+    assert r.exit_code == 2 and "'x' is not one of 'y', 'z'" in r.output

@@ -74,18 +74,23 @@ def test_query_by_example_and_json(feats, tmp_path):
     r = run(["query", idx, "--example", feats / "squatA.parquet", "--features",
              "rknee_bent,Fl8"])
     assert r.exit_code == 0, r.output
-    assert r.stdout.splitlines()[0] == "doc,start,end,rank,score,boundaries"
+    assert r.stdout.splitlines()[0] == \
+        "doc,start,end,rank,score,span_start,span_end,boundaries"
     assert r.stderr.startswith("query: ") and "ms (adaptive; query segments: lower 3)" in r.stderr
     rows = _csv(r.stdout)
     assert rows[0]["doc"] == "squatA" and rows[0]["score"] == "0"
     assert {"squatA", "squatB"} <= {r["doc"] for r in rows}
     top = next(r for r in rows if r["doc"] == "squatB")
-    # squatB: knees bent on frames 26–50 (1-based); the run before starts at frame 1
-    assert top["start"] == "1" and top["boundaries"] == "lower=1 26 51 70"
+    # squatB: knees bent on frames 26–50 (1-based); the run before starts at frame 1 (the
+    # untrimmed span), the hit keeps as many frames of the runs before and after the bent
+    # knees as squatA has (20 and 20)
+    assert (top["span_start"], top["span_end"]) == ("1", "70")
+    assert top["start"] == "6" and top["end"] == "70"
+    assert top["boundaries"] == "lower=6 26 51 70"
     # by document name, a frame range, to a file
     out = tmp_path / "hits.csv"
     r = run(["query", idx, "--example", "squatA", "--frames", "15:45", "--features",
-             "rknee_bent,lknee_bent", "-o", out, "--top", "1", "-q"])
+             "rknee_bent,lknee_bent", "-o", out, "--top", "1", "-q", "--min-segment", "1"])
     assert r.exit_code == 0 and r.output == ""
     assert [x["doc"] for x in _csv(out.read_text())] == ["squatA"]
     q = tmp_path / "q.json"
@@ -173,12 +178,20 @@ def test_query_rank_by_template(feats, tmp_path):
                         np.array([5.0] * 14), feature_set="mrc05", quantized=True, delta=0.1)
     save_template(tmp_path / "squat.json", mt)
     r = run(["query", idx, "--example", "squatA", "--features", "rknee_bent,lknee_bent",
-             "--rank-mt", tmp_path / "squat.json", "-q"])
+             "--rank-mt", tmp_path / "squat.json"])
     assert r.exit_code == 0, r.output
     rows = _csv(r.stdout)
-    assert list(rows[0]) == ["doc", "start", "end", "rank", "score", "mt_cost", "boundaries"]
-    costs = [float(x["mt_cost"]) for x in rows]
+    assert list(rows[0]) == ["doc", "start", "end", "rank", "score", "mt_cost", "span_start",
+                             "span_end", "boundaries"]
+    costs = [float(x["mt_cost"]) for x in rows if x["mt_cost"]]
     assert costs == sorted(costs) and costs[0] == 0.0
+    # hits too short for the template have no cost, come last, and a note counts them
+    unfit = [x for x in rows if not x["mt_cost"]]
+    assert all(not x["mt_cost"] for x in rows[len(costs):])
+    if unfit:
+        assert (f"cannot fit {len(unfit)} of {len(rows)} hits" in r.stderr), r.stderr
+    else:
+        assert "cannot fit" not in r.stderr
     assert {rows[0]["doc"], rows[1]["doc"]} == {"squatA", "squatB"}
     bad = MotionTemplate("x", ["rknee_bent"], np.zeros((1, 3)), np.ones(3), feature_set="mr06-ak40")
     save_template(tmp_path / "ak.json", bad)
@@ -205,3 +218,21 @@ def test_query_output_to_fifo_is_not_replaced(feats, tmp_path):
     reader.join(timeout=30)
     assert r.exit_code == 0 and got and got[0].startswith("doc,start,end")
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
+def test_query_rank_mt_says_when_the_template_cannot_fit(feats, tmp_path):
+    from mtanno.templates.model import MotionTemplate, save_template
+
+    idx = tmp_path / "idx"
+    run(["index", feats, "-o", idx, "-q"])
+    # 200 columns: no hit of these short documents can hold a match
+    mt = MotionTemplate("long", ["rknee_bent", "lknee_bent"], np.ones((2, 200)), np.ones(200),
+                        feature_set="mrc05", quantized=True, delta=0.1)
+    save_template(tmp_path / "long.json", mt)
+    r = run(["query", idx, "--example", "squatA", "--features", "rknee_bent,lknee_bent",
+             "--rank-mt", tmp_path / "long.json"])
+    assert r.exit_code == 0, r.output
+    rows = _csv(r.stdout)
+    assert rows and all(x["mt_cost"] == "" for x in rows)
+    assert (f"query: note: the template (200 columns) cannot fit {len(rows)} of {len(rows)} "
+            "hits") in r.stderr

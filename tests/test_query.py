@@ -5,6 +5,7 @@ JSON query files."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -43,8 +44,11 @@ def brute_fixed(seqs, sets, mismatches=0, allowed=None):
     return hits
 
 
-def brute_adaptive(seqs, sets):
-    """(doc, boundaries) of every adaptive fuzzy hit, written from MRC05 §5.2 directly."""
+def brute_adaptive(seqs, sets, lengths=None, max_gap=0):
+    """(doc, boundaries) of every adaptive fuzzy hit, written from MRC05 §5.2 directly;
+    with ``max_gap`` > 0, the runs of consecutive sets may be separated by a transition:
+    segments in neither set, at most ``max_gap`` frames in all (``lengths``: segment
+    lengths per document)."""
     hits = []
     for d, w in enumerate(seqs):
         M = len(w)
@@ -52,7 +56,12 @@ def brute_adaptive(seqs, sets):
             if w[k1] not in sets[0] or (k1 > 0 and w[k1 - 1] in sets[0]):
                 continue
             e, bounds, ok = k1, [], True
-            for V in sets:
+            for i, V in enumerate(sets):
+                gap = 0
+                while (i > 0 and max_gap > 0 and e < M and w[e] not in V
+                       and w[e] not in sets[i - 1] and gap + lengths[d][e] <= max_gap):
+                    gap += lengths[d][e]
+                    e += 1
                 if e >= M or w[e] not in V:
                     ok = False
                     break
@@ -170,6 +179,80 @@ def test_adaptive_equals_brute_force(data):
     assert got == brute_adaptive(seqs, mem)
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_adaptive_with_transitions_equals_brute_force(data):
+    """min_segment N: runs of consecutive query sets may be N − 1 frames apart, the frames
+    between them in neither set (a transition); found once each, from any position."""
+    docs = data.draw(documents())
+    idx = _index(docs)
+    seqs = _seqs(idx)
+    g = idx.groups["g"]
+    lengths = [g.segments(d)[1].tolist() for d in range(len(idx.documents))]
+    L = data.draw(st.integers(1, 5))
+    sets = (_query_from_doc(data.draw, seqs, L) if data.draw(st.booleans()) else None) \
+        or data.draw(st.lists(fuzzy_sets(), min_size=L, max_size=L))
+    min_segment = data.draw(st.integers(1, 6))
+    norm = GroupQuery("g", tuple(sets)).normalized()
+    mem = [_members(s, N_BITS) for s in norm.sets]
+    hits = run_group(idx, norm, mode="adaptive", min_segment=min_segment)
+    off = g.doc_offsets
+    got = [(int(d), tuple(int(x) - int(off[d]) for x in r)) for d, r in zip(hits.doc, hits.rows)]
+    assert got == brute_adaptive(seqs, mem, lengths, min_segment - 1)
+
+
+def test_transitions_in_documents_and_example():
+    """One knee bends a frame before the other: with min_segment 1 (MRC05) the example's
+    one-frame transient is a query segment of its own and a document without it is missed;
+    with min_segment 3 both documents are found."""
+    def doc(cols):
+        return np.array(cols, np.uint8).T
+
+    r = [0, 0]
+    ex = doc([r] * 5 + [[1, 0]] + [[1, 1]] * 10 + [r] * 5)           # transient 10
+    other = doc([r] * 6 + [[0, 1]] * 2 + [[1, 1]] * 9 + [[1, 0]] + [r] * 4)  # 01 ×2, 10
+    far = doc([r] * 6 + [[0, 1]] * 3 + [[1, 1]] * 9 + [r] * 4)        # 3-frame transition
+    idx = index_from_matrices({"ex": ex, "other": other, "far": far}, ["rk", "lk"],
+                              {"g": ["rk", "lk"]})
+    strict = example_query(idx, ex, ["rk", "lk"], ["rk", "lk"])
+    assert len(strict.parts[0].sets) == 4
+    assert [idx.documents[d].name for d in search(idx, strict).doc] == ["ex"]
+    q = example_query(idx, ex, ["rk", "lk"], ["rk", "lk"], min_segment=3)
+    assert q.min_segment == 3 and q.parts[0].lengths == (6, 10, 5)  # transient joins the 00
+    hits = search(idx, q)
+    assert sorted(idx.documents[d].name for d in hits.doc) == ["ex", "other"]
+    assert "far" in [idx.documents[d].name for d in
+                     search(idx, replace(q, min_segment=4)).doc]
+
+
+def test_drop_short_segments():
+    from mtanno.index.query import drop_short_segments
+
+    def drop(lengths, values, n):
+        return drop_short_segments(np.array(lengths), np.array(values), n)
+
+    assert drop([7, 1, 23, 4], [0, 2, 3, 0], 3) == ([8, 23, 4], [0, 3, 0])
+    # a leading transient goes to the segment after it; equal neighbours are joined
+    assert drop([1, 5, 2, 5], [1, 0, 1, 0], 3) == ([13], [0])
+    assert drop([2, 1, 2], [0, 1, 2], 3) == ([5], [0])  # none long enough: the longest stays
+    assert drop([2, 1, 2], [0, 1, 2], 1) == ([2, 1, 2], [0, 1, 2])
+
+
+def test_hits_are_trimmed_to_the_example_context():
+    """A kick at frames 53–68 inside a long idle document: the adaptive runs reach from
+    frame 1 to the end, the hit keeps as many idle frames as the example has around it."""
+    ex = np.array([[0] * 4 + [1] * 16 + [0] * 3], np.uint8)
+    long = np.zeros((1, 185), np.uint8)
+    long[0, 52:68] = 1
+    idx = index_from_matrices({"ex": ex, "long": long}, ["k"], {"g": ["k"]})
+    q = example_query(idx, ex, ["k"], ["k"])
+    hits = search(idx, q)
+    row = next(r for r in hits.rows(idx) if r["doc"] == "long")
+    assert (row["span_start"], row["span_end"]) == (1, 185)
+    assert (row["start"], row["end"]) == (53 - 4, 68 + 3)
+    assert row["boundaries"] == "g=49 53 69 71"
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.lists(fuzzy_sets(), min_size=1, max_size=6))
 def test_normalisation_merges_intersecting_neighbours(sets):
@@ -262,8 +345,10 @@ def test_ranking_by_segment_lengths():
     assert [idx.documents[d].name for d in hits.doc] == ["b", "c", "a"]
     assert hits.score.tolist() == [1 + 1 + 1, 3 + 0 + 3, 1 + 10 + 1]
     rows = hits.rows(idx)
-    assert rows[0] == {"doc": "b", "start": 1, "end": 19, "rank": 1, "score": 3.0,
-                       "boundaries": "g=1 6 15 19"}
+    # the hit keeps at most 4 frames of the first and last run (the query's lengths); the
+    # score and span_start/span_end are those of the untrimmed runs
+    assert rows[0] == {"doc": "b", "start": 2, "end": 18, "rank": 1, "score": 3.0,
+                       "span_start": 1, "span_end": 19, "boundaries": "g=2 6 15 18"}
 
 
 def test_example_query_fixes_chosen_bits():
@@ -278,9 +363,11 @@ def test_example_query_fixes_chosen_bits():
     assert ph.group == "h" and [s.patterns for s in ph.sets] == [((1, 0),), ((1, 1),)]
     assert ph.lengths == (2, 3)
     hits = search(idx, q)
-    # adaptive runs are maximal: the a = 0 and c = 0 runs reach back to frame 0
-    assert len(hits) == 1 and hits.start[0] == 0 and hits.end[0] == 5
-    assert hits.bounds["g"].tolist() == [[0, 2, 5, 6]] and hits.bounds["h"].tolist() == [[0, 3, 6]]
+    # adaptive runs are maximal: the a = 0 and c = 0 runs reach back to frame 0 (the span);
+    # the hit keeps as many frames of them as the example has (1 of g's, 2 of h's)
+    assert len(hits) == 1 and hits.start[0] == 1 and hits.end[0] == 5
+    assert hits.span_start[0] == 0 and hits.span_end[0] == 5
+    assert hits.bounds["g"].tolist() == [[1, 2, 5, 6]] and hits.bounds["h"].tolist() == [[1, 3, 6]]
     with pytest.raises(MtannoError, match="unknown feature 'zz'"):
         example_query(idx, X, ["a", "b", "c"], ["zz"])
     with pytest.raises(MtannoError, match="outside"):
@@ -390,3 +477,5 @@ def test_rank_by_template_orders_hits_by_cost():
         delta, _ = match_template(values, weights, X)
         assert cost == (np.min(delta) if np.isfinite(delta).any() else np.inf)
     assert names[0] == "b" and names[-1] == "c" and np.isinf(ranked.cost[-1])
+    assert ranked.unfit == 1 and hits.unfit == 0
+    assert [r.get("mt_cost") for r in ranked.rows(idx)][-1] is None

@@ -80,6 +80,34 @@ def test_learn_mt_truth(tmp_path):
     a = load_template(out / "a.json")
     assert [t["frames"] for t in a.training] == [[1, 10], [5, 14]]
     assert load_template(out / "b.json").length == 12
+    # few examples: one warning per class, naming it
+    assert "learn-mt: warning: class a is learned from 2 examples only" in r.output
+    assert "learn-mt: warning: class b is learned from 1 example only" in r.output
+    assert "ignored" not in r.output
+
+
+def test_learn_mt_truth_of_more_documents(tmp_path):
+    """The truth table names documents that are not given: their rows are ignored and the
+    documents named once; only the given document's segments are learned from."""
+    rng = np.random.default_rng(1)
+    for d in ("d1", "d2", "d3"):
+        write_doc(tmp_path / "docs" / f"{d}.parquet",
+                  (rng.random((40, 50)) < 0.3).astype(np.uint8))
+    truth = tmp_path / "truth.csv"
+    truth.write_text("doc,start,end,label\nd1,1,10,a\nd1,20,31,a\nd2,5,14,a\nd3,1,9,a\n"
+                     "x9,1,5,a\nx9,8,12,b\nx8,1,4,b\n")
+    out = tmp_path / "mts"
+    r = run(["learn-mt", "--truth", str(truth), str(tmp_path / "docs"), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert r.output.count("ignored") == 1
+    assert ("learn-mt: note: the truth table's segments of 2 document(s) without a feature "
+            "file among the inputs are ignored: x8, x9") in r.output
+    assert sorted(p.name for p in out.iterdir()) == ["a.json"]
+    assert len(load_template(out / "a.json").training) == 4
+    assert "warning" not in r.output  # 4 examples are enough
+    r = run(["learn-mt", "--truth", str(truth), str(tmp_path / "docs" / "d1.parquet"), "-o",
+             str(tmp_path / "m2"), "-q"])
+    assert r.exit_code == 0 and "ignored" not in r.output  # -q: no note
 
 
 @pytest.mark.parametrize("args,message", [

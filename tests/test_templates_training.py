@@ -144,8 +144,8 @@ def test_truth_errors(tmp_path):
     docs = tmp_path / "docs"
     write_doc(docs / "docA.parquet", rand_X(1, 20))
     truth = tmp_path / "truth.csv"
-    truth.write_text("doc,start,end,label\ndocA,2,10,squat\ndocZ,1,5,squat\n")
-    with pytest.raises(MtannoError, match="no feature file for document.*docZ"):
+    truth.write_text("doc,start,end,label\ndocZ,1,5,squat\ndocY,1,5,squat\n")
+    with pytest.raises(MtannoError, match="no feature file for document.*docY, docZ"):
         sources_from_truth(truth, [docs])
     truth.write_text("doc,start,end,label\ndocA,15,25,squat\n")
     with pytest.raises(MtannoError, match="outside its frames 1..20"):
@@ -158,6 +158,24 @@ def test_truth_errors(tmp_path):
     truth.write_text("doc,start,end,label\n")
     with pytest.raises(MtannoError, match="no segments"):
         sources_from_truth(truth, [docs])
+
+
+def test_truth_rows_of_other_documents_are_ignored(tmp_path):
+    """Issue 9: a truth table covering more documents than given is used for those given;
+    the others are named once."""
+    docs = tmp_path / "docs"
+    write_doc(docs / "docA.parquet", rand_X(1, 20))
+    truth = tmp_path / "truth.csv"
+    truth.write_text("doc,start,end,label\ndocA,2,10,squat\ndocZ,1,5,squat\n"
+                     "docZ,6,9,jump\ndocB,1,3,jump\n")
+    ignored: list[str] = []
+    srcs = sources_from_truth(truth, [docs], ignored=ignored)
+    assert [(s.class_name, s.start, s.end) for s in srcs] == [("squat", 2, 10)]
+    assert ignored == ["docB", "docZ"]
+    from mtanno.templates.training import ignored_documents_note
+
+    assert ignored_documents_note(ignored).endswith("are ignored: docB, docZ")
+    assert ignored_documents_note([]) is None
 
 
 @pytest.mark.parametrize("kwargs,message", [

@@ -37,18 +37,23 @@ check_features = check_layout
               show_default=True, help="Modified-distance variant (algorithms.md §7).")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True, help="Matching cost variant (§3.4).")
+@click.option("--single-label", is_flag=True,
+              help="One label per frame: where segments overlap, each frame keeps the class "
+                   "with the smallest modified distance, so the rows form a partition (for "
+                   "confusion matrices). Default: the overlapping reference output.")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (documents in parallel).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
 def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, variant,
-                 match_variant, jobs, quiet):
+                 match_variant, single_label, jobs, quiet):
     """Label every frame of documents with motion classes (MBS09 §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
     every document; frames get the class whose modified distance is smallest (below tau),
     and the labelled runs are extended. Output rows: doc, start, end (1-based inclusive
-    frames at 30 Hz), label, cost, start_native, end_native; rows may overlap.
+    frames at 30 Hz), label, cost, start_native, end_native; rows may overlap, unless
+    --single-label.
 
     With --keyframes, each class that has a keyframe query is first searched for its key
     poses (a fast scan of the features), and its template is matched only inside the
@@ -98,13 +103,14 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
 
     batch = annotate_files(paths, models, layout=key, config=config, dbar_variant=variant,
                            match_variant=match_variant, keyframes=keyframes or None,
-                           n_jobs=jobs, progress=progress)
+                           n_jobs=jobs, progress=progress, single_label=single_label)
     bar.close()
     prov = provenance(inputs=batch.files, templates=[m.record() for m in models],
                       tau=config.default_tau, tau_per_class=config.tau or None,
                       superclasses=config.superclasses or None, delta=delta,
                       variant=variant, match=match_variant, feature_set=key.feature_set,
-                      keyframes=kf_files or None, documents=batch.frames)
+                      keyframes=kf_files or None, single_label=single_label or None,
+                      documents=batch.frames)
     for out in outputs:
         write_annotations(out, batch.rows, batch.native, provenance=prov)
     failed = len(batch.failed)
@@ -142,7 +148,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     in only one of them. When the annotations record their documents' lengths, a truth
     segment past the end of its document is an error.
     """
-    from mtanno.annotate import read_annotation_table
+    from mtanno.annotate import read_annotation_tables
     from mtanno.evaluate import evaluate_annotations
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
@@ -157,22 +163,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     if json_path == "-" and table_path == "-":
         raise MtannoError("--json - and -o - would both write to standard output")
     truth = read_truth(truth_path)
-    out: list[Segment] = []
-    where: dict[str, str] = {}
-    frames: dict[str, int] = {}
-    for path in annotations:
-        rows, prov = read_annotation_table(path)
-        mine = {a.doc for a in rows}
-        for d in sorted(mine):
-            if d in where:
-                raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
-                                  "document's annotation once", path=str(path))
-            where[d] = str(path)
-        out.extend(Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows)
-        recorded = (prov or {}).get("documents")
-        if isinstance(recorded, dict):
-            frames.update({str(k): int(v) for k, v in recorded.items()
-                           if isinstance(v, int) and not isinstance(v, bool)})
+    rows, frames, _ = read_annotation_tables(annotations)
+    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
     check_within(truth, frames, path=truth_path)
     if docs:
         known = {s.doc for s in truth} | {s.doc for s in out}

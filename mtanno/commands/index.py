@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import user_errors
+from mtanno.commands._common import parse_frames, user_errors
 from mtanno.errors import MtannoError
 
 
@@ -180,21 +180,6 @@ def info_cmd(index_dir, as_json, output):
                    f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}")
 
 
-def _parse_frames(text: str | None, n: int) -> tuple[int, int] | None:
-    """'A:B' (1-based, inclusive; either side may be empty) → 0-based (a, b)."""
-    if text is None:
-        return None
-    a, sep, b = text.partition(":")
-    try:
-        lo = int(a) if a.strip() else 1
-        hi = int(b) if b.strip() else n
-    except ValueError:
-        raise MtannoError(f"--frames must be A:B with 1-based frame numbers, got '{text}'") from None
-    if not sep or lo < 1 or hi < lo or hi > n:
-        raise MtannoError(f"--frames {text} is not a range inside 1:{n}")
-    return lo - 1, hi - 1
-
-
 def _example(index, example: str):
     """(matrix, names, label) of an example: a feature file, or an indexed document name."""
     from mtanno.index.core import doc_layout, read_feature_doc
@@ -254,6 +239,12 @@ def load_template_for(index, path: str):
               help="Hit type (default: adaptive, or the query file's mode).")
 @click.option("--mismatches", type=click.IntRange(min=0), default=None, metavar="M",
               help="Allow up to M query segments to disagree (exact and fuzzy modes).")
+@click.option("--min-segment", "min_segment", type=click.IntRange(min=1), default=None,
+              metavar="N", help="Shortest phase in frames at 30 Hz: shorter example segments "
+              "are transitions, not query segments, and documents may pass through other "
+              "vectors for up to N-1 frames between two query segments (adaptive mode). "
+              "[default: 3 with --example; the query file's min_segment, else 1, with "
+              "--query]")
 @click.option("--rank-mt", "rank_mt", default=None, type=click.Path(dir_okay=False),
               metavar="MT.json", help="Rank the hits by this motion template's cost.")
 @click.option("--top", type=click.IntRange(min=1), default=None, metavar="N",
@@ -265,7 +256,7 @@ def load_template_for(index, path: str):
 @click.option("-q", "--quiet", is_flag=True, help="No summary line on standard error.")
 @user_errors(2)
 def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, windows, mode,
-              mismatches, rank_mt, top, output, quiet):
+              mismatches, min_segment, rank_mt, top, output, quiet):
     """Find motions in INDEX (MRC05 §5–6): by example, with a JSON query file, or with a
     keyframe query (MBS09 §5).
 
@@ -277,14 +268,22 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     Hits are written as a table (CSV on standard output unless -o names a .csv, .parquet
     or .jsonl file): doc, start, end (1-based inclusive frames at 30 Hz), rank,
     score (sum of segment length differences to the example, MRC05 §6.2; lower is better),
-    mt_cost (with --rank-mt), boundaries (per group: first frame of each matched segment,
-    then the last frame; for keyframes, the frames of the earliest keyframe chain in the
-    hit, then the hit's last frame).
+    mt_cost (with --rank-mt; empty where the template cannot fit the hit, which a note
+    counts), span_start, span_end (queries with segment lengths: the hit before trimming),
+    boundaries (per group: first frame of each matched segment, then the last frame; for
+    keyframes, the frames of the earliest keyframe chain in the hit, then the hit's last
+    frame).
+
+    A query by example ignores transients: example segments shorter than --min-segment
+    frames are not query segments, and documents may pass through short transitions
+    between query segments. Its hits are trimmed: they keep at most as many frames of the
+    poses before and after the motion (the first and last query segments) as the example
+    has; span_start and span_end give the untrimmed hit.
     """
     import time
 
     from mtanno.index import example_query, load_query, open_index, search
-    from mtanno.index.query import resolve_features, warm_up
+    from mtanno.index.query import DEFAULT_MIN_SEGMENT, resolve_features, warm_up
     from mtanno.index.storage import index_files
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, table_format
@@ -298,9 +297,9 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     inputs = [*index_files(index.root), example, query_file, kf_file, rank_mt]
     check_outputs(output_files(output), [i for i in inputs if i is not None and Path(i).exists()])
     if kf_file is not None:
-        if frames or feature_list or mode or mismatches is not None:
-            raise MtannoError("--frames, --features, --mode and --mismatches do not go with "
-                              "--keyframes")
+        if frames or feature_list or mode or mismatches is not None or min_segment:
+            raise MtannoError("--frames, --features, --mode, --mismatches and --min-segment "
+                              "do not go with --keyframes")
         return _keyframe_query(index, kf_file, windows=windows, rank_mt=rank_mt, top=top,
                                output=output, quiet=quiet)
     if example is not None:
@@ -308,33 +307,36 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
             raise MtannoError("--example needs --features NAME,...")
         X, names, _ = _example(index, example)
         feats = resolve_features(index, feature_list.split(","))
-        rng = _parse_frames(frames, X.shape[1])
+        rng = parse_frames(frames, X.shape[1])
         query = example_query(index, X, names, feats, frames=rng, mode=mode or "adaptive",
-                              mismatches=mismatches or 0)
+                              mismatches=mismatches or 0,
+                              min_segment=min_segment or DEFAULT_MIN_SEGMENT)
     else:
         if frames or feature_list:
             raise MtannoError("--frames and --features go with --example, not --query")
         query = load_query(query_file, index)
-        if mode is not None or mismatches is not None:
+        if mode is not None or mismatches is not None or min_segment is not None:
             query = replace(query, mode=mode or query.mode,
-                            mismatches=query.mismatches if mismatches is None else mismatches)
+                            mismatches=query.mismatches if mismatches is None else mismatches,
+                            min_segment=min_segment or query.min_segment)
     warm_up()  # load the compiled kernels first: the time printed is the query's own
     t0 = time.perf_counter()
     hits = search(index, query)
     elapsed = time.perf_counter() - t0
     _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top,
                 inputs=[i for i in (example, query_file) if i is not None and Path(i).is_file()],
-                mode=query.mode, mismatches=query.mismatches, frames=frames,
-                features=feature_list, example=example)
+                mode=query.mode, mismatches=query.mismatches, min_segment=query.min_segment,
+                frames=frames, features=feature_list, example=example, quiet=quiet)
     if not quiet:
         segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
         click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
                    f"segments: {segs})" + (f" -> {output}" if output != "-" else ""), err=True)
 
 
-def _write_hits(index, hits, *, output, rank_mt, top, inputs, **record) -> None:
-    """Rank the hits by a template (``--rank-mt``), cut them (``--top``) and write the hit
-    table with its provenance (the query's inputs, the index generation, ``record``)."""
+def _write_hits(index, hits, *, output, rank_mt, top, inputs, quiet=False, **record) -> None:
+    """Rank the hits by a template (``--rank-mt``; a note counts the hits it cannot fit),
+    cut them (``--top``) and write the hit table with its provenance (the query's inputs,
+    the index generation, ``record``)."""
     from mtanno.index import rank_by_template
     from mtanno.index.query import hit_table
     from mtanno.tables import file_record, provenance, write_table
@@ -342,10 +344,15 @@ def _write_hits(index, hits, *, output, rank_mt, top, inputs, **record) -> None:
     if rank_mt is not None:
         values, weights, mt_names = load_template_for(index, rank_mt)
         hits = rank_by_template(index, hits, values, weights, mt_names)
+        if hits.unfit and not quiet:
+            click.echo(f"query: note: the template ({values.shape[1]} columns) cannot fit "
+                       f"{hits.unfit} of {len(hits)} hits (too few frames for its steps); "
+                       "they have no mt_cost and are ranked last", err=True)
     rows = hits.rows(index)
     if top is not None:
         rows = rows[:top]
-    write_table(output, hit_table(rows, with_mt=rank_mt is not None), provenance=provenance(
+    write_table(output, hit_table(rows, with_mt=rank_mt is not None,
+                                  with_span=hits.span_start is not None), provenance=provenance(
         inputs=[file_record(i) for i in inputs] + [{"path": str(index.root / "manifest.json"),
                                                     "generation": index.generation}],
         templates=[file_record(rank_mt)] if rank_mt else (), top=top,
@@ -369,7 +376,7 @@ def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):
         raise MtannoError(exc.message, path=kf_file) from None
     hits = kh.as_hits(windows=windows)
     _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top, inputs=[kf_file],
-                keyframes=str(kf_file), windows=windows)
+                keyframes=str(kf_file), windows=windows, quiet=quiet)
     if not quiet:
         what = "candidate windows" if windows else "hits"
         click.echo(f"query: {len(hits)} {what} in {elapsed * 1000:.2f} ms (keyframes: "

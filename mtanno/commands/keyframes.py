@@ -75,10 +75,19 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     from mtanno.keyframes.ga import GAParams
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
     from mtanno.templates.model import load_template_folder
-    from mtanno.templates.training import collect_sources, group_by_class, load_examples
+    from mtanno.templates.training import (
+        collect_sources,
+        group_by_class,
+        ignored_documents_note,
+        load_examples,
+    )
 
+    ignored: list[str] = []
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth)
+                              split=split, truth=truth, ignored=ignored)
+    note = ignored_documents_note(ignored)
+    if note and not quiet:
+        click.echo(f"learn-keyframes: {note}", err=True)
     groups = group_by_class(sources, classes=list(classes) or None)
     templates = load_template_folder(mt_dir)
     all_groups = group_by_class(sources)

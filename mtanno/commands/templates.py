@@ -68,6 +68,8 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
                                    TRAINING feature files (files or folders), each cut
                                    out as an example of its label
 
+    With --truth, segments of documents that are not among TRAINING are ignored (a note
+    names those documents). A class learned from fewer than 3 examples gets a warning.
     Examples of a class are used in file-name order (segments by start frame); the
     template returned is the one learned with the first example as reference. Writes
     OUTDIR/CLASS.json (schema mtanno.template/1: values, weights, training files with
@@ -83,12 +85,18 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     from mtanno.templates.training import (
         check_consistent,
         collect_sources,
+        few_examples_warning,
         group_by_class,
+        ignored_documents_note,
         load_examples,
     )
 
+    ignored: list[str] = []
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth)
+                              split=split, truth=truth, ignored=ignored)
+    note = ignored_documents_note(ignored)
+    if note and not quiet:
+        click.echo(f"learn-mt: {note}", err=True)
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     from mtanno.output import check_outputs, make_folder
@@ -111,6 +119,9 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
             mt = learn_template(examples, class_name=class_name, hard=hard,
                                 iter_max=iterations, thresh=thresh)
             save_template(target, mt)
+            warning = few_examples_warning(class_name, len(examples))
+            if warning:
+                bar.write(f"learn-mt: {warning}", file=sys.stderr)
         except MtannoError as exc:
             failed.append(class_name)
             bar.write(f"mtanno: class {class_name}: {exc}", file=sys.stderr)
@@ -249,6 +260,30 @@ def mt_quantize_cmd(template, delta, output):
     wild = int(np.sum(mt.values == 0.5))
     click.echo(f"mt quantize: {mt.class_name}, δ = {delta:g}, {wild} of {mt.values.size} "
                f"entries are wildcards -> {output}", err=True)
+
+
+@mt_group.command("plot", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Picture file: .png, .svg or .pdf.")
+@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+              help="Quantize first with this δ (0: only unanimous entries stay 0 or 1).")
+@user_errors(2)
+def mt_plot_cmd(template, output, delta):
+    """Draw a motion template as a heat map (MR06 Fig. 4): one row per feature, one
+    column per template column, black 0, white 1, grey in between (wildcards 0.5).
+    Needs matplotlib (pip install 'mtanno[plot]')."""
+    from mtanno.output import check_outputs
+    from mtanno.plot import plot_template, require_matplotlib, save_figure
+    from mtanno.templates.model import load_template, quantize
+
+    require_matplotlib()
+    check_outputs([output], [template])
+    mt = load_template(template)
+    if delta is not None:
+        mt = quantize(mt, delta)
+    save_figure(plot_template(mt), output)
+    click.echo(f"mt plot: {mt.class_name} -> {output}", err=True)
 
 
 COMMANDS = [learn_mt_cmd, mt_group]

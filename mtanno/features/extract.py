@@ -34,17 +34,35 @@ from mtanno.store import sha256_file, write_features
 EXTRACTOR_VERSION = 1
 
 
+#: The world axes a motion file may have pointing up (``features --up``); features are
+#: defined for Y up (algorithms.md §1), Z-up data is turned first.
+UP_AXES = ("y", "z")
+
+
 def _feature_set(feature_set: str | FeatureSet) -> FeatureSet:
     return feature_set if isinstance(feature_set, FeatureSet) else get_feature_set(feature_set)
 
 
+def to_y_up(points: np.ndarray, up: str = "y") -> np.ndarray:
+    """World coordinates (…, 3) of data whose up axis is ``up`` ("y" or "z") turned so that
+    Y is up: for Z up, (x, y, z) → (x, z, −y), a rotation of −90° about X (right-handed
+    frames stay right-handed, so left and right are kept)."""
+    if up not in UP_AXES:
+        raise MtannoError(f"up axis must be one of {', '.join(UP_AXES)}, got {up!r}")
+    if up == "y":
+        return points
+    return np.stack([points[..., 0], points[..., 2], -points[..., 1]], axis=-1)
+
+
 def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
-                         feature_set: str | FeatureSet = FEATURE_SET,
+                         feature_set: str | FeatureSet = FEATURE_SET, up: str = "y",
                          ) -> tuple[np.ndarray, np.ndarray]:
     """(features × analysis frames) uint8 features and the 1-based native frame of each
-    column; ``feature_set`` names the table (default the 40 annotation features)."""
+    column; ``feature_set`` names the table (default the 40 annotation features); ``up``
+    is the motion's up axis (:func:`to_y_up`)."""
     fs = _feature_set(feature_set)
-    X, keep = compute_features(canonical_positions(motion), motion.heading, motion.fps,
+    X, keep = compute_features(to_y_up(canonical_positions(motion), up),
+                               to_y_up(motion.heading, up), motion.fps,
                                target_fps=target_fps, features=fs.features)
     return X, keep + 1
 
@@ -52,19 +70,21 @@ def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
 def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *,
                  asf: str | os.PathLike | None = None,
                  skeleton: str | os.PathLike | None = None,
-                 feature_set: str | FeatureSet = FEATURE_SET) -> tuple[np.ndarray, dict]:
+                 feature_set: str | FeatureSet = FEATURE_SET,
+                 up: str = "y") -> tuple[np.ndarray, dict]:
     """Compute the features of one motion file; write them to ``dst`` if given.
 
     ``feature_set``: ``mr06-ak40`` (alias ``ak40``, default), ``mrc05`` or
-    ``mrc05-reference``; its name is stored in the metadata. Returns the (features × frames)
-    matrix and the metadata stored with it.
+    ``mrc05-reference``; its name is stored in the metadata. ``up``: the file's up axis,
+    "y" (default) or "z" (:func:`to_y_up`), stored in the metadata. Returns the
+    (features × frames) matrix and the metadata stored with it.
     """
     fs = _feature_set(feature_set)
     src = Path(src)
     if src.suffix.lower() == ".amc" and asf is None:
         asf = find_asf(src)
     motion = read_motion(src, asf=asf, skeleton=skeleton)
-    X, native = features_from_motion(motion, feature_set=fs)
+    X, native = features_from_motion(motion, feature_set=fs, up=up)
     meta = {
         "document": src.stem,
         "source": str(src),
@@ -82,6 +102,7 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
         "skeleton_map_file": motion.smap.path,
         "skeleton_map_sha256": motion.smap.digest,
         "rig_nodes": list(motion.rig.names),
+        "up": up,
         "feature_set": fs.name,
         "feature_set_version": fs.version,
         "feature_table_sha256": fs.digest,
@@ -206,12 +227,12 @@ def _stored_meta(path: Path) -> dict | None:
 
 
 def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
-               skeleton: str | os.PathLike | None = None) -> bool:
+               skeleton: str | os.PathLike | None = None, up: str = "y") -> bool:
     """True if ``job.dst`` holds the features this job would compute now, judged by the
     provenance the output records: the same motion file (SHA-256), the same skeleton file
     (the ASF that would be used, SHA-256), the same skeleton map (the one that would be
-    chosen for the recorded rig, by content), the same feature set and table, and the same
-    extractor version. Modification times are not used: a touched but unchanged input is
+    chosen for the recorded rig, by content), the same feature set and table, the same up
+    axis and the same extractor version. Modification times are not used: a touched but unchanged input is
     still up to date, a changed ASF with an old time stamp is not."""
     from mtanno.io.rigs import select_map
 
@@ -221,7 +242,7 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
     fs = _feature_set(feature_set)
     if (meta.get("feature_set"), meta.get("feature_set_version"),
             meta.get("feature_table_sha256"), meta.get("extractor_version")) != \
-            (fs.name, fs.version, fs.digest, EXTRACTOR_VERSION):
+            (fs.name, fs.version, fs.digest, EXTRACTOR_VERSION) or meta.get("up", "y") != up:
         return False
     try:
         if meta.get("source_sha256") != sha256_file(job.src):
@@ -241,10 +262,11 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
     return smap.digest == meta.get("skeleton_map_sha256")
 
 
-def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET) -> Outcome:
+def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
+             up: str = "y") -> Outcome:
     try:
         X, _ = extract_file(job.src, job.dst, asf=job.asf, skeleton=skeleton,
-                            feature_set=feature_set)
+                            feature_set=feature_set, up=up)
         return Outcome(job, "written", frames=int(X.shape[1]))
     except MtannoError as exc:
         return Outcome(job, "failed", str(exc))
@@ -257,8 +279,10 @@ def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET) -> 
 def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
               skeleton: str | None = None,
               progress: Callable[[Outcome], None] | None = None,
-              feature_set: str = FEATURE_SET) -> Summary:
+              feature_set: str = FEATURE_SET, up: str = "y") -> Summary:
     """Extract features for every job; failures are recorded, the batch goes on.
+
+    ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`).
 
     ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.workers.WorkerPool`:
     they stop with this process). Outputs that are up to date (:func:`up_to_date`) are
@@ -267,10 +291,11 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     from mtanno.workers import WorkerPool
 
     feature_set = get_feature_set(feature_set).name
+    to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work
     summary = Summary()
     todo = []
     for j in jobs:
-        if not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton):
+        if not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up):
             o = Outcome(j, "skipped")
             summary.outcomes.append(o)
             if progress:
@@ -278,14 +303,15 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
         else:
             todo.append(j)
     if n_jobs <= 1 or len(todo) <= 1:
-        results: Iterable[Outcome] = (_run_one(j, skeleton, feature_set) for j in todo)
+        results: Iterable[Outcome] = (_run_one(j, skeleton, feature_set, up) for j in todo)
         for o in results:
             summary.outcomes.append(o)
             if progress:
                 progress(o)
         return summary
     with WorkerPool(n_jobs) as pool:
-        for o in pool.map(_run_one, [(j, skeleton, feature_set) for j in todo], chunksize=4):
+        for o in pool.map(_run_one, [(j, skeleton, feature_set, up) for j in todo],
+                          chunksize=4):
             summary.outcomes.append(o)
             if progress:
                 progress(o)

@@ -62,15 +62,20 @@ def fixed_hits(src, src_lists, src_lists_off, offsets, postings, member, seg_lis
 
 
 @numba.njit(cache=True)
-def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, doc_offsets, out):
+def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, seg_len, doc_offsets,
+                  max_gap, out):
     """Adaptive fuzzy hits (MRC05 §5.2): first rows k1 of maximal runs of V_1-segments
-    followed directly by a maximal run of V_2-segments, …, V_L-segments, in one document.
+    followed by a maximal run of V_2-segments, …, V_L-segments, in one document.
 
+    Between the run of V_i and the run of V_{i+1} the document may pass through segments in
+    neither set for at most ``max_gap`` frames in all (a transition; ``seg_len`` gives each
+    row's length in frames); ``max_gap = 0`` is MRC05's rule, runs directly adjacent.
     Candidates are the rows of L(V_j) (``lists`` = list ids of position j) that start a
     maximal V_j run; from each the chain is walked backwards to V_1 and forwards to V_L.
-    Adjacent sets are disjoint (the caller merges intersecting neighbours), so each hit is
-    found exactly once, from its own V_j run. Writes first rows into ``out`` (unsorted) and
-    returns their number.
+    Adjacent sets are disjoint (the caller merges intersecting neighbours) and a transition
+    holds no segment of its two sets, so the walk is the same in both directions and each
+    hit is found exactly once, from its own V_j run. Writes first rows into ``out``
+    (unsorted) and returns their number.
     """
     n_pos = member.shape[0]
     cnt = 0
@@ -86,7 +91,12 @@ def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, doc_of
             ok = True
             b = p
             for i in range(j - 1, -1, -1):
-                if b - 1 < lo or not member[i, seg_list[b - 1]]:
+                gap = 0
+                while (b - 1 >= lo and gap <= max_gap and not member[i, seg_list[b - 1]]
+                       and not member[i + 1, seg_list[b - 1]]):
+                    gap += seg_len[b - 1]
+                    b -= 1
+                if gap > max_gap or b - 1 < lo or not member[i, seg_list[b - 1]]:
                     ok = False
                     break
                 b -= 1
@@ -98,7 +108,12 @@ def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, doc_of
             while e < hi and member[j, seg_list[e]]:
                 e += 1
             for i in range(j + 1, n_pos):
-                if e >= hi or not member[i, seg_list[e]]:
+                gap = 0
+                while (e < hi and gap <= max_gap and not member[i - 1, seg_list[e]]
+                       and not member[i, seg_list[e]]):
+                    gap += seg_len[e]
+                    e += 1
+                if gap > max_gap or e >= hi or not member[i, seg_list[e]]:
                     ok = False
                     break
                 while e < hi and member[i, seg_list[e]]:
@@ -112,12 +127,16 @@ def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, doc_of
 @numba.njit(cache=True)
 def adaptive_bounds(firsts, member, seg_list, seg_doc, doc_offsets, out):
     """Coarsened segment boundaries of adaptive hits: ``out[h, i]`` = first row of the run
-    matched to V_i, ``out[h, L]`` = one past the last row of the V_L run (maximal)."""
+    matched to V_i, ``out[h, L]`` = one past the last row of the V_L run (maximal). A
+    transition between two runs (:func:`adaptive_hits`) is skipped: its rows count with
+    the run before it."""
     n_pos = member.shape[0]
     for h in range(firsts.shape[0]):
         e = firsts[h]
         hi = doc_offsets[seg_doc[e] + 1]
         for i in range(n_pos):
+            while i > 0 and e < hi and not member[i, seg_list[e]]:
+                e += 1
             out[h, i] = e
             while e < hi and member[i, seg_list[e]]:
                 e += 1

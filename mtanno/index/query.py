@@ -20,7 +20,16 @@ Hits on a document with F-feature sequence w_1 … w_M (its F-segments, MRC05 §
 * ``adaptive``: the document's segmentation is coarsened into maximal runs of V_1-segments,
   V_2-segments, …; a hit is the first segment of a maximal V_1 run followed directly by
   runs of V_2 … V_L; the hit reports the coarsened boundaries (MRC05 §5.2, the example
-  after eq. 11).
+  after eq. 11). With ``min_segment = N > 1`` the runs need not be adjacent: between two
+  consecutive runs the document may pass through other vectors for at most N − 1 frames
+  (a *transition*: one knee bending a frame before the other), and query by example turns
+  example segments shorter than N frames into such transitions too (:func:`example_query`).
+
+Hits of queries with segment lengths (query by example) are *trimmed*: the first and last
+query segments are the poses before and after the motion, and a hit keeps at most as many
+frames of them as the example has, so idle time around a motion does not inflate the hit;
+the untrimmed span stays in :attr:`Hits.span_start` / :attr:`Hits.span_end`, and the
+ranking score is computed on the untrimmed runs.
 
 Queries over several groups are answered per group and intersected on frames: a hit is a
 combination of one hit per group in the same document whose frame ranges overlap, reported
@@ -139,17 +148,24 @@ class GroupQuery:
 
 @dataclass(frozen=True)
 class Query:
-    """A query: one :class:`GroupQuery` per group, the mode and the number of mismatches."""
+    """A query: one :class:`GroupQuery` per group, the mode, the number of mismatches and,
+    for the adaptive mode, the shortest run in frames that counts as a phase of the motion
+    (``min_segment``; shorter runs between two phases are transitions, module docstring;
+    1 is MRC05's rule)."""
 
     parts: tuple[GroupQuery, ...]
     mode: str = "adaptive"
     mismatches: int = 0
+    min_segment: int = 1
 
     def __post_init__(self):
         if self.mode not in MODES:
             raise MtannoError(f"unknown query mode '{self.mode}' (one of {', '.join(MODES)})")
         if self.mismatches < 0:
             raise MtannoError("mismatches must be ≥ 0")
+        if not isinstance(self.min_segment, int) or self.min_segment < 1:
+            raise MtannoError(f"min_segment must be a whole number of frames ≥ 1, got "
+                              f"{self.min_segment!r}")
         if self.mismatches and self.mode == "adaptive":
             raise MtannoError("mismatches work with the exact and fuzzy modes, not adaptive")
         if not self.parts:
@@ -185,7 +201,9 @@ class Hits:
     ``doc`` document numbers, ``start``/``end`` frames (0-based, end inclusive), ``score``
     the segment-length score (NaN without query lengths; lower is better), ``bounds``
     group → (hits × (L_g+1)) frame boundaries of the matched segments of that group (start
-    frame of each, then end + 1), ``cost`` template costs when ranked by an MT."""
+    frame of each, then end + 1), ``cost`` template costs when ranked by an MT (∞ where the
+    template cannot fit the hit), ``span_start``/``span_end`` the untrimmed frames of hits
+    that were trimmed (module docstring; None when the query has no segment lengths)."""
 
     doc: np.ndarray
     start: np.ndarray
@@ -193,19 +211,30 @@ class Hits:
     score: np.ndarray
     bounds: dict[str, np.ndarray] = field(default_factory=dict)
     cost: np.ndarray | None = None
+    span_start: np.ndarray | None = None
+    span_end: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.doc)
 
     def take(self, order: np.ndarray) -> Hits:
+        def pick(a):
+            return None if a is None else a[order]
+
         return Hits(self.doc[order], self.start[order], self.end[order], self.score[order],
-                    {g: b[order] for g, b in self.bounds.items()},
-                    None if self.cost is None else self.cost[order])
+                    {g: b[order] for g, b in self.bounds.items()}, pick(self.cost),
+                    pick(self.span_start), pick(self.span_end))
+
+    @property
+    def unfit(self) -> int:
+        """Number of hits a ranking template could not fit (cost ∞); 0 when not ranked."""
+        return 0 if self.cost is None else int(np.isinf(self.cost).sum())
 
     def rows(self, index: Index) -> list[dict]:
         """One dict per hit for output files: doc name, 1-based inclusive frames, rank,
-        score, boundaries (``group=b1 b2 … end`` with 1-based frames; the last number is the
-        group's last matched frame)."""
+        score, mt_cost (when ranked; None where the template cannot fit), span_start and
+        span_end (untrimmed frames, when hits are trimmed), boundaries (``group=b1 b2 … end``
+        with 1-based frames; the last number is the group's last matched frame)."""
         out = []
         for i in range(len(self)):
             parts = []
@@ -216,7 +245,10 @@ class Hits:
                    "end": int(self.end[i]) + 1, "rank": i + 1,
                    "score": None if np.isnan(self.score[i]) else float(self.score[i])}
             if self.cost is not None:
-                row["mt_cost"] = float(self.cost[i])
+                row["mt_cost"] = float(self.cost[i]) if np.isfinite(self.cost[i]) else None
+            if self.span_start is not None:
+                row["span_start"] = int(self.span_start[i]) + 1
+                row["span_end"] = int(self.span_end[i]) + 1
             row["boundaries"] = "; ".join(parts)
             out.append(row)
         return out
@@ -240,8 +272,10 @@ def _csr(member: np.ndarray, positions: Sequence[int]) -> tuple[np.ndarray, np.n
 
 
 def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatches: int = 0,
-              ) -> GroupHits:
-    """All hits of one (normalized) group query; see the module docstring."""
+              min_segment: int = 1) -> GroupHits:
+    """All hits of one (normalized) group query; see the module docstring (``min_segment``
+    in frames at the index's rate: transitions of up to ``min_segment − 1`` frames between
+    the runs of an adaptive hit)."""
     if gq.group not in index.groups:
         raise MtannoError(f"unknown group '{gq.group}' (index groups: {', '.join(index.groups)})")
     g = index.groups[gq.group]
@@ -267,7 +301,7 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
         lists = np.flatnonzero(member[j]).astype(np.int64)
         out = np.empty(int(sizes[j]), dtype=np.int64)
         n = _kernels.adaptive_hits(j, lists, g.list_offsets, g.postings, member, g.seg_list,
-                                   g.doc, g.doc_offsets, out)
+                                   g.doc, g.length, g.doc_offsets, int(min_segment) - 1, out)
         firsts = np.sort(out[:n])
         rows = np.empty((n, L + 1), dtype=np.int64)
         _kernels.adaptive_bounds(firsts, member, g.seg_list, g.doc, g.doc_offsets, rows)
@@ -306,6 +340,20 @@ def _length_score(bounds: np.ndarray, lengths: Sequence[int] | None) -> np.ndarr
     return np.abs(hit_len - np.asarray(lengths, dtype=np.int64)[None, :]).sum(axis=1).astype(float)
 
 
+def _trim(gh: GroupHits, lengths: Sequence[int] | None):
+    """(start, end, bounds) of a group's hits with the first and last matched run cut to at
+    most the query's first and last segment length (module docstring); unchanged without
+    lengths or with one segment."""
+    if lengths is None or len(lengths) < 2:
+        return gh.start, gh.end, gh.bounds
+    start = np.maximum(gh.start, gh.bounds[:, 1] - int(lengths[0]))
+    end = np.minimum(gh.end, gh.bounds[:, -2] + int(lengths[-1]) - 1)
+    bounds = gh.bounds.copy()
+    bounds[:, 0] = start
+    bounds[:, -1] = end + 1
+    return start, end, bounds
+
+
 def _intersect(a_doc, a_start, a_end, gh: GroupHits):
     """Pairs of overlapping hits (combined so far × next group), with the common frames."""
     cap = max(16, 2 * (len(a_doc) + len(gh)))
@@ -320,28 +368,38 @@ def _intersect(a_doc, a_start, a_end, gh: GroupHits):
 
 def search(index: Index, query: Query) -> Hits:
     """Answer ``query`` on ``index``: per group, then intersected on frames, then ranked by
-    the segment-length heuristic (MRC05 §6.2) or, without query lengths, in document order."""
+    the segment-length heuristic (MRC05 §6.2) or, without query lengths, in document order.
+    Hits of queries with segment lengths are trimmed (module docstring); their untrimmed
+    frames are the hits' ``span_start``/``span_end``."""
     parts = [p.normalized() for p in query.parts]
     parts = [p for p in parts if not p.trivial] or parts[:1]
     if len(parts) == 1 and parts[0].trivial:
         raise MtannoError("query constrains no feature (every set allows every vector)")
-    ghits = [run_group(index, p, mode=query.mode, mismatches=query.mismatches) for p in parts]
+    ghits = [run_group(index, p, mode=query.mode, mismatches=query.mismatches,
+                       min_segment=query.min_segment) for p in parts]
+    trimmed = [_trim(gh, p.lengths) for p, gh in zip(parts, ghits)]
     first = ghits[0]
-    doc, start, end = first.doc, first.start, first.end
+    doc, (start, end, _) = first.doc, trimmed[0]
+    span_s, span_e = first.start, first.end
     picks = [np.arange(len(first))]
-    for gh in ghits[1:]:
-        ia, ib = _intersect(doc, start, end, gh)
+    for gh, (g_start, g_end, _) in zip(ghits[1:], trimmed[1:]):
+        ia, ib = _intersect(doc, start, end, replace(gh, start=g_start, end=g_end))
         doc = doc[ia]
-        start = np.maximum(start[ia], gh.start[ib])
-        end = np.minimum(end[ia], gh.end[ib])
+        start = np.maximum(start[ia], g_start[ib])
+        end = np.minimum(end[ia], g_end[ib])
+        span_s = np.maximum(span_s[ia], gh.start[ib])
+        span_e = np.minimum(span_e[ia], gh.end[ib])
         picks = [p[ia] for p in picks] + [ib]
         order = np.lexsort((end, start, doc))
-        doc, start, end = doc[order], start[order], end[order]
+        doc, start, end, span_s, span_e = (a[order] for a in (doc, start, end, span_s, span_e))
         picks = [p[order] for p in picks]
     score = np.zeros(len(doc))
-    for p, gh, pick in zip(parts, ghits, picks):
+    for p, gh, pick in zip(parts, ghits, picks):  # MRC05's score: the runs as matched
         score += _length_score(gh.bounds[pick], p.lengths)
-    hits = Hits(doc, start, end, score, {gh.group: gh.bounds[pick] for gh, pick in zip(ghits, picks)})
+    with_span = any(p.lengths is not None and len(p.sets) > 1 for p in parts)
+    hits = Hits(doc, start, end, score,
+                {gh.group: b[pick] for gh, (_, _, b), pick in zip(ghits, trimmed, picks)},
+                span_start=span_s if with_span else None, span_end=span_e if with_span else None)
     if len(ghits) > 1:  # identical frame ranges from different combinations: keep the best
         order = np.lexsort((np.nan_to_num(score, nan=np.inf), end, start, doc))
         hits = hits.take(order)
@@ -357,8 +415,9 @@ def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.n
     """Re-rank hits by the cost of a quantized motion template on each hit's frames only
     (MRC05 §6.2, "finer ranking … on the few hits"; algorithms.md §3.4): cost = min Δ over
     the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
-    template. ``values`` (f × K, 0/1/0.5), ``weights`` (K,), ``features`` the template's
-    feature names (rebuilt from the index's groups)."""
+    template (such hits are ranked last; :attr:`Hits.unfit` counts them). ``values``
+    (f × K, 0/1/0.5), ``weights`` (K,), ``features`` the template's feature names (rebuilt
+    from the index's groups)."""
     from mtanno.templates.match import match_documents
 
     names = list(features)
@@ -394,14 +453,53 @@ def _projection(index: Index, features: Sequence[str]) -> dict[str, list[tuple[i
     return {g: out[g] for g in index.groups if g in out}
 
 
+#: Default shortest phase of a query by example, in frames at 30 Hz (100 ms): runs of one
+#: or two frames — one knee bending a frame before the other — are transitions.
+DEFAULT_MIN_SEGMENT = 3
+
+
+def drop_short_segments(lengths: np.ndarray, values: np.ndarray, min_segment: int
+                        ) -> tuple[list[int], list[int]]:
+    """An example's segmentation without its transients: segments shorter than
+    ``min_segment`` frames are dropped and their frames given to the segment before them
+    (the one after, at the start), then neighbours with equal vectors are joined. When no
+    segment is long enough the longest one (the first of equal ones) stays. Returns
+    (lengths, values)."""
+    keep = [int(n) >= min_segment for n in lengths]
+    if not any(keep):
+        keep[int(np.argmax(lengths))] = True
+    out_len: list[int] = []
+    out_val: list[int] = []
+    carry = 0
+    for n, v, k in zip(lengths.tolist(), values.tolist(), keep):
+        if not k:
+            if out_len:
+                out_len[-1] += n
+            else:
+                carry += n
+            continue
+        if out_val and out_val[-1] == v:
+            out_len[-1] += n
+        else:
+            out_len.append(n + carry)
+            out_val.append(v)
+        carry = 0
+    return out_len, out_val
+
+
 def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: Sequence[str], *,
                   frames: tuple[int, int] | None = None, mode: str = "adaptive",
-                  mismatches: int = 0) -> Query:
+                  mismatches: int = 0, min_segment: int = 1) -> Query:
     """Query by example (MRC05 §6.2, algorithms.md §4): the example's segmentation over the
     chosen features, per group, becomes a sequence of fuzzy sets that fix the chosen bits
     and leave the group's other features free; segment lengths (frames) go along for the
     ranking. ``X`` is the example's (features × frames) matrix with row ``names`` (the
-    index's feature set), ``frames`` an optional 0-based inclusive range."""
+    index's feature set), ``frames`` an optional 0-based inclusive range.
+
+    ``min_segment`` (frames; :data:`DEFAULT_MIN_SEGMENT` on the command line): example
+    segments shorter than it are transitions, not query segments
+    (:func:`drop_short_segments`), and the query lets documents pass through transitions
+    of up to ``min_segment − 1`` frames between its segments (adaptive mode)."""
     features = [index.features[_feature_pos(index, f)] for f in features]
     pos = {n: i for i, n in enumerate(names)}
     missing = [f for f in features if f not in pos]
@@ -418,9 +516,10 @@ def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: S
         for i, bit in chosen:
             codes |= X[pos[features[i]], a:b + 1].astype(np.int64) << bit
         _, lengths, vals = segment(codes)
+        lengths, vals = drop_short_segments(lengths, vals, min_segment)
         sets = tuple(FuzzySet(((mask, int(v)),)) for v in vals)
         parts.append(GroupQuery(g, sets, tuple(int(x) for x in lengths)))
-    return Query(tuple(parts), mode, mismatches)
+    return Query(tuple(parts), mode, mismatches, min_segment)
 
 
 def _feature_pos(index: Index, name: str) -> int:
@@ -446,7 +545,7 @@ def resolve_features(index: Index, names: Iterable[str]) -> list[str]:
 
 
 _JSON_KEYS = {"feature_set", "features", "steps", "lengths", "mode", "mismatches",
-              "allowed_mismatches", "comment"}
+              "allowed_mismatches", "min_segment", "comment"}
 
 
 def _pattern(text: str, n: int, where: str) -> list[str | None]:
@@ -465,6 +564,8 @@ def parse_query(spec: dict, index: Index, *, path: str | None = None) -> Query:
          "lengths": [10, 20, 5, 10],            (optional, frames, for ranking)
          "mode": "adaptive",                     (optional: exact | fuzzy | adaptive)
          "mismatches": 0, "allowed_mismatches": [3],   (optional, 1-based steps)
+         "min_segment": 3,                       (optional, frames; default 1: transitions
+                                                  between the steps' runs, adaptive mode)
          "feature_set": "mrc05"}                 (optional, checked against the index)
 
     A step is a pattern (one 0/1/* per chosen feature) or a list of patterns (their union).
@@ -515,6 +616,9 @@ def parse_query(spec: dict, index: Index, *, path: str | None = None) -> Query:
             raise err(f"'allowed_mismatches' must list step numbers 1..{len(steps)}")
         allowed = tuple(i + 1 in allowed_pos for i in range(len(steps)))
     mode = spec.get("mode", "adaptive")
+    min_segment = spec.get("min_segment", 1)
+    if not isinstance(min_segment, int) or isinstance(min_segment, bool) or min_segment < 1:
+        raise err("'min_segment' must be a whole number of frames ≥ 1")
     parts = []
     for g, chosen in proj.items():
         sets = []
@@ -532,7 +636,7 @@ def parse_query(spec: dict, index: Index, *, path: str | None = None) -> Query:
         parts.append(GroupQuery(g, tuple(sets), None if lengths is None else tuple(lengths),
                                 allowed))
     try:
-        return Query(tuple(parts), mode, mism)
+        return Query(tuple(parts), mode, mism, min_segment)
     except MtannoError as exc:
         raise err(exc.message) from None
 
@@ -551,16 +655,19 @@ def load_query(path: str | os.PathLike, index: Index) -> Query:
     return parse_query(spec, index, path=str(p))
 
 
-QUERY_HIT_COLUMNS = ("doc", "start", "end", "rank", "score", "mt_cost", "boundaries")
+QUERY_HIT_COLUMNS = ("doc", "start", "end", "rank", "score", "mt_cost", "span_start",
+                     "span_end", "boundaries")
 
 
-def hit_table(rows: Sequence[dict], *, with_mt: bool = False):
+def hit_table(rows: Sequence[dict], *, with_mt: bool = False, with_span: bool = False):
     """The query hit table (``docs/index.md``) of :meth:`Hits.rows` as a
     :class:`pyarrow.Table`: doc, start, end, rank, score (an integer column when every
-    score is whole), mt_cost (only ``with_mt``), boundaries."""
+    score is whole), mt_cost (only ``with_mt``; null where the template cannot fit),
+    span_start, span_end (only ``with_span``: untrimmed frames), boundaries."""
     import pyarrow as pa
 
-    cols = [c for c in QUERY_HIT_COLUMNS if c != "mt_cost" or with_mt]
+    optional = {"mt_cost": with_mt, "span_start": with_span, "span_end": with_span}
+    cols = [c for c in QUERY_HIT_COLUMNS if optional.get(c, True)]
     scores = [r.get("score") for r in rows]
     whole = all(s is None or float(s).is_integer() for s in scores)
     types = {"doc": pa.string(), "boundaries": pa.string(), "mt_cost": pa.float64(),

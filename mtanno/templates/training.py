@@ -33,8 +33,9 @@ from mtanno.store import feature_files, read_features, sha256_file
 from mtanno.truth import read_truth
 
 __all__ = [
-    "ExampleSource", "TrainingExample", "check_consistent", "collect_sources", "group_by_class",
-    "load_examples", "sources_from_manifest", "sources_from_tree", "sources_from_truth",
+    "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
+    "few_examples_warning", "group_by_class", "ignored_documents_note", "load_examples",
+    "sources_from_manifest", "sources_from_tree", "sources_from_truth",
 ]
 
 
@@ -146,11 +147,39 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     return out
 
 
-def sources_from_truth(truth: str | os.PathLike,
-                       features: Iterable[str | os.PathLike]) -> list[ExampleSource]:
+#: Fewer examples than this make a template that has seen too little variation (MR06 §4
+#: learns from 7–26); learn-mt warns for such classes.
+MIN_EXAMPLES = 3
+
+
+def few_examples_warning(class_name: str, n: int) -> str | None:
+    """The warning for a class learned from fewer than :data:`MIN_EXAMPLES` examples (None
+    when there are enough)."""
+    if n >= MIN_EXAMPLES:
+        return None
+    return (f"warning: class {class_name} is learned from {n} example{'s' if n != 1 else ''} "
+            f"only; a template needs at least {MIN_EXAMPLES} to average over the variation "
+            "of a motion (MR06 §4.1)")
+
+
+def ignored_documents_note(ignored: Sequence[str]) -> str | None:
+    """One note naming the truth table's documents that had no feature file among the
+    inputs (None when there are none)."""
+    if not ignored:
+        return None
+    more = f" and {len(ignored) - 10} more" if len(ignored) > 10 else ""
+    return (f"note: the truth table's segments of {len(ignored)} document(s) without a feature "
+            f"file among the inputs are ignored: {', '.join(ignored[:10])}{more}")
+
+
+def sources_from_truth(truth: str | os.PathLike, features: Iterable[str | os.PathLike], *,
+                       ignored: list[str] | None = None) -> list[ExampleSource]:
     """One example per labelled segment of a truth table, cut from the feature file of
     its document (documents are named by feature file stem; ``features`` are files or
-    folders searched recursively)."""
+    folders searched recursively). Segments of documents without a feature file are
+    skipped (a truth table usually covers more documents than one run uses); their
+    document names are appended to ``ignored`` (sorted) when it is given. No feature file
+    for any document is an error."""
     segments = read_truth(truth)
     if not segments:
         raise MtannoError("truth table has no segments", path=str(truth))
@@ -161,22 +190,26 @@ def sources_from_truth(truth: str | os.PathLike,
             raise MtannoError(f"two feature files for document {f.stem!r}: {prev} and {f}")
         by_doc[f.stem] = f
     missing = sorted({s.doc for s in segments if s.doc not in by_doc})
-    if missing:
+    if len(missing) == len({s.doc for s in segments}):
         more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
         raise MtannoError(f"no feature file for document(s) {', '.join(missing[:5])}{more} "
                           f"(give the documents' feature files or folders)", path=str(truth))
+    if ignored is not None:
+        ignored.extend(missing)
     return [ExampleSource(s.label, str(by_doc[s.doc]), s.start, s.end, origin=str(truth),
-                          performer=s.doc) for s in segments]
+                          performer=s.doc) for s in segments if s.doc in by_doc]
 
 
 def collect_sources(training: Sequence[str | os.PathLike] = (), *,
                     manifest: str | os.PathLike | None = None,
                     features_dir: str | os.PathLike | None = None, split: str | None = None,
-                    truth: str | os.PathLike | None = None) -> list[ExampleSource]:
+                    truth: str | os.PathLike | None = None,
+                    ignored: list[str] | None = None) -> list[ExampleSource]:
     """Training examples named the three ways learn-mt and learn-keyframes accept (module
     docstring): a manifest with its features folder (and split), a truth table with the
-    documents' feature files or folders, or class folders. Contradictory combinations are
-    errors saying which options go together."""
+    documents' feature files or folders (``ignored`` receives the truth's documents
+    without one, :func:`sources_from_truth`), or class folders. Contradictory combinations
+    are errors saying which options go together."""
     if manifest is not None and truth is not None:
         raise MtannoError("--manifest and --truth exclude each other")
     if manifest is not None:
@@ -189,7 +222,7 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
         raise MtannoError("--features-dir and --split go with --manifest")
     if not training:
         raise MtannoError("give TRAINING folders or files (or --manifest)")
-    return sources_from_truth(truth, training) if truth is not None else \
+    return sources_from_truth(truth, training, ignored=ignored) if truth is not None else \
         sources_from_tree(training)
 
 

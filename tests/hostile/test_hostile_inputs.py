@@ -49,19 +49,19 @@ class Case:
 
 #: Well-formed feature files whose features differ from the others' (set, rate, order).
 INCOMPATIBLE = ("other_set", "at_120_hz", "reordered")
-FEATURE_COMMANDS = ["info", "retrieve", "annotate", "index", "index add", "query --example",
-                    "learn-mt", "evaluate-retrieval"]
+FEATURE_COMMANDS = ["info", "show", "retrieve", "annotate", "index", "index add",
+                    "query --example", "learn-mt", "evaluate-retrieval"]
 
 
 @pytest.mark.parametrize("command,kind", [
     (c, k) for c in FEATURE_COMMANDS for k in FEATURE_FILES
-    if not (c == "info" and k in INCOMPATIBLE)])  # well-formed files are fine on their own
+    if not (c in ("info", "show") and k in INCOMPATIBLE)])  # well-formed: fine on their own
 def test_broken_feature_file(world, tmp_path, kind, command):
     c = Case(world, tmp_path, FEATURE_FILES[kind])
     out = tmp_path / "out"
     w, bad, good = world, c.bad, c.good
-    if command == "info":
-        c.check(cli("info", bad), codes=(2,))
+    if command in ("info", "show"):
+        c.check(cli(command, bad), codes=(2,))
     elif command == "retrieve":
         c.check(cli("retrieve", "--mt", w.template, good, bad, "-o", out / "h.csv",
                     "--tau", "0.5"), codes=(1,))
@@ -134,8 +134,11 @@ def test_broken_query_file(world, tmp_path, kind):
 
 
 @pytest.mark.parametrize("kind", list(TRUTH_TABLES))
-@pytest.mark.parametrize("command", ["evaluate", "evaluate-retrieval", "learn-mt --truth"])
+@pytest.mark.parametrize("command", ["evaluate", "evaluate-retrieval", "learn-mt --truth",
+                                     "report"])
 def test_broken_truth_table(world, tmp_path, kind, command):
+    if command == "report":
+        pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
     c = Case(world, tmp_path, TRUTH_TABLES[kind])
     w, out = world, tmp_path / "out"
     args = {
@@ -143,6 +146,7 @@ def test_broken_truth_table(world, tmp_path, kind, command):
         "evaluate-retrieval": ["evaluate-retrieval", w.doc_files[0], "--mt", w.mt, "--truth",
                                c.bad],
         "learn-mt --truth": ["learn-mt", "--truth", c.bad, w.doc_files[0], "-o", out],
+        "report": ["report", w.annotation, "--truth", c.bad, "-o", out],
     }[command]
     r = cli(*args)
     if kind == "past the end" and command == "learn-mt --truth":
@@ -153,11 +157,16 @@ def test_broken_truth_table(world, tmp_path, kind, command):
 
 
 @pytest.mark.parametrize("kind", list(ANNOTATION_TABLES))
-def test_broken_annotation_table(world, tmp_path, kind):
+@pytest.mark.parametrize("command", ["evaluate", "report"])
+def test_broken_annotation_table(world, tmp_path, kind, command):
     c = Case(world, tmp_path, ANNOTATION_TABLES[kind])
-    c.check(cli("evaluate", c.bad, "--truth", world.truth, "--json", tmp_path / "r.json"),
-            codes=(2,))
-    assert not (tmp_path / "r.json").exists()
+    out = tmp_path / "out"
+    if command == "evaluate":
+        c.check(cli("evaluate", c.bad, "--truth", world.truth, "--json", out), codes=(2,))
+    else:
+        pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
+        c.check(cli("report", c.bad, "--truth", world.truth, "-o", out), codes=(2,))
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("kind", list(MANIFESTS))

@@ -1,0 +1,144 @@
+"""The short way in: six functions for a notebook, re-exported by :mod:`mtanno`.
+
+Each is a thin wrapper over the stage's own API (named in its docstring), with the
+defaults of the command line::
+
+    import mtanno
+    X = mtanno.compute_features(mtanno.read_motion("HDM_bd_squat1Reps_001_120.amc"))
+    mts = mtanno.learn_templates(manifest="clips.csv", features_dir="feats/", split="train")
+    result = mtanno.annotate_documents("docfeats/", mts)          # or mtanno.load_templates("mts/")
+    print(mtanno.evaluate_annotation(result, truth="docs/truth.csv").table())
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
+
+from mtanno.errors import MtannoError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from mtanno.annotate import AnnotationBatch, ClassConfig
+    from mtanno.evaluate import Report
+    from mtanno.io.skeleton import Motion
+    from mtanno.templates.model import MotionTemplate
+    from mtanno.truth import Segment
+
+__all__ = ["annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
+           "load_templates", "read_motion"]
+
+PathLike = str | os.PathLike
+
+
+def read_motion(path: PathLike, *, asf: PathLike | None = None,
+                skeleton: PathLike | None = None) -> Motion:
+    """A motion file (ASF/AMC or BVH) with world positions of every node
+    (:func:`mtanno.io.read_motion`; algorithms.md §1). An AMC file's ASF is found beside
+    it unless ``asf`` is given."""
+    from mtanno.io import read_motion as _read
+
+    return _read(path, asf=asf, skeleton=skeleton)
+
+
+def compute_features(motion: Motion | PathLike, *, feature_set: str = "ak40",
+                     up: str = "y") -> np.ndarray:
+    """The (features × frames) 0/1 matrix (uint8) of a motion at 30 Hz: the 40 relational
+    features of MR06 Table 6 + F40 (``feature_set="ak40"``) or the 31 of MRC05
+    (``"mrc05"``); row names in :func:`mtanno.features.get_feature_set`. ``motion`` is a
+    :class:`~mtanno.io.skeleton.Motion` or a motion file; ``up`` its up axis ("y" or "z").
+    (:func:`mtanno.features.extract.features_from_motion`.)"""
+    from mtanno.features.extract import features_from_motion
+
+    if not hasattr(motion, "positions"):
+        motion = read_motion(motion)
+    X, _ = features_from_motion(motion, feature_set=feature_set, up=up)
+    return X
+
+
+def learn_templates(training: Sequence[PathLike] = (), *, manifest: PathLike | None = None,
+                    features_dir: PathLike | None = None, split: str | None = None,
+                    truth: PathLike | None = None, classes: Sequence[str] | None = None,
+                    hard: bool = False) -> dict[str, MotionTemplate]:
+    """One motion template per class (MR06 §4.1; ``hard``: thesis §3.3), from training
+    examples named as ``mtanno learn-mt`` takes them: class folders ``training``, a
+    ``manifest`` with ``features_dir`` (and ``split``), or a ``truth`` table with the
+    documents' feature files ``training``. Returns class name → template, unquantized
+    (soft), in memory; :func:`mtanno.templates.save_template` writes one.
+    (:func:`mtanno.templates.training.collect_sources`,
+    :func:`mtanno.templates.learn.learn_template`.)"""
+    from mtanno.templates.learn import learn_template
+    from mtanno.templates.training import check_consistent, collect_sources, group_by_class
+    from mtanno.templates.training import load_examples as _load
+
+    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
+                              split=split, truth=truth)
+    out: dict[str, MotionTemplate] = {}
+    reference = None
+    for name, srcs in group_by_class(sources, classes=classes).items():
+        examples = _load(srcs)
+        check_consistent(examples, like=reference)
+        reference = reference or examples[0]
+        out[name] = learn_template(examples, class_name=name, hard=hard)
+    return out
+
+
+def load_templates(folder: PathLike, *, classes: Sequence[str] = ()) -> dict[str, MotionTemplate]:
+    """Class name → template of every ``*.json`` in a folder written by ``learn-mt``
+    (:func:`mtanno.templates.model.load_template_folder`)."""
+    from mtanno.templates.model import load_template_folder
+
+    return load_template_folder(folder, classes=classes)
+
+
+def annotate_documents(features: PathLike | Iterable[PathLike],
+             templates: PathLike | dict[str, MotionTemplate], *, tau: float | None = None,
+             delta: float | None = None, config: ClassConfig | None = None,
+             single_label: bool = False, n_jobs: int = 1) -> AnnotationBatch:
+    """Label every frame of feature files (files or folders) with the classes of
+    ``templates`` (a template folder or class name → template), MBS09 §4: τ = 0.13 and
+    δ = 0.05 unless given. Returns the :class:`~mtanno.annotate.AnnotationBatch`: its
+    ``rows`` are the segments (0-based frames at 30 Hz), ``failed`` the files that could
+    not be used. (:func:`mtanno.annotate.annotate_files`.)"""
+    from mtanno.annotate import DEFAULT_DELTA, ClassConfig, annotate_files, check_tau, class_models
+    from mtanno.store import document_files
+
+    paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
+    if isinstance(templates, (str, os.PathLike)):
+        templates = load_templates(templates)
+    models, layout = class_models(dict(templates),
+                                  delta=DEFAULT_DELTA if delta is None else delta)
+    config = config or ClassConfig()
+    if tau is not None:
+        config.default_tau = check_tau(tau)
+    config.check([m.name for m in models])
+    return annotate_files(paths, models, layout=layout, config=config, n_jobs=n_jobs,
+                          single_label=single_label)
+
+
+def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
+             truth: PathLike | Sequence[Segment], *,
+             documents: Iterable[str] | None = None) -> Report:
+    """Frame- and segment-level precision, recall and F of annotations (an
+    :func:`annotate_documents` result, its rows, or an annotation table file) against ground truth (a
+    truth table file or its segments), MBS09 §7; by default over the annotated documents.
+    ``Report.table()`` prints it. (:func:`mtanno.evaluate.evaluate_annotations`.)"""
+    from mtanno.annotate import read_annotations
+    from mtanno.evaluate import evaluate_annotations
+    from mtanno.truth import Segment, read_truth
+
+    if isinstance(annotations, (str, os.PathLike)):
+        annotations = read_annotations(annotations)
+    rows = getattr(annotations, "rows", annotations)
+    try:
+        output = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
+    except AttributeError:
+        raise MtannoError("annotations must be an annotate_documents() result, its rows or an "
+                          "annotation table file") from None
+    if isinstance(truth, (str, os.PathLike)):
+        truth = read_truth(truth)
+    if documents is None:
+        documents = {s.doc for s in output} or {s.doc for s in truth}
+    return evaluate_annotations(list(truth), output, documents=documents)

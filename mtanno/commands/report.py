@@ -1,0 +1,80 @@
+"""``mtanno report``: HTML page, figures and paper tables of an annotation run."""
+
+from __future__ import annotations
+
+import click
+
+from mtanno.commands._common import user_errors
+from mtanno.errors import MtannoError
+
+
+@click.command("report", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
+                type=click.Path(dir_okay=False))
+@click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
+              help="Ground truth table (doc,start,end,label[,fps]).")
+@click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Report folder (created): index.html, tables, PNG and SVG figures.")
+@click.option("--mt", "mt_dir", type=click.Path(exists=True), default=None,
+              help="Template folder: adds each template as a heat map, and with --features "
+                   "each class's Δ curve over every document.")
+@click.option("--features", "features", multiple=True, type=click.Path(exists=True),
+              help="Feature files or folders of the annotated documents (with --mt). "
+                   "Repeatable.")
+@click.option("--tau", type=float, default=None,
+              help="Threshold drawn in the Δ plots [default: the annotation's tau].")
+@click.option("--title", default="mtanno annotation report", show_default=True,
+              help="Title of the page.")
+@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@user_errors(2)
+def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, quiet):
+    """Write a report of annotation tables against ground truth (MBS09 §7) into a folder.
+
+    \b
+    index.html                 self-contained page (images inline): open it in a browser
+    per_class.csv|.md|.tex     P/R/F per class, frames and segments, with support
+    confusion.csv|.png|.svg    frame-level confusion matrix, truth x annotation, with "none"
+    timeline_DOC.png|.svg      per document: truth against annotation
+    template_CLASS.png|.svg    with --mt: the templates as heat maps
+    delta_DOC.png|.svg         with --mt and --features: each class's Δ over the document
+
+    Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
+    with --single-label; overlapping rows are resolved by segment cost (the page says so).
+    """
+    from mtanno.annotate import DEFAULT_TAU, read_annotation_tables
+    from mtanno.output import check_outputs
+    from mtanno.plot import require_matplotlib
+    from mtanno.report import write_report
+    from mtanno.store import document_files, read_features
+    from mtanno.tables import provenance
+    from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.truth import check_within, read_truth
+
+    require_matplotlib()
+    if features and not mt_dir:
+        raise MtannoError("--features goes with --mt (the Δ curves need the templates)")
+    paths = document_files(features) if features else []
+    check_outputs([out_dir], [*annotations, truth_path, *paths,
+                              *(template_files(mt_dir) if mt_dir else [])])
+    rows, frames, provs = read_annotation_tables(annotations)
+    recorded_tau = next((float(p["tau"]) for p in provs
+                         if isinstance(p.get("tau"), (int, float))), None)
+    truth = read_truth(truth_path)
+    check_within(truth, frames, path=truth_path)
+    templates = load_template_folder(mt_dir) if mt_dir else None
+    feats = {}
+    for p in paths:
+        ff = read_features(p)
+        feats[ff.document] = ff.X
+    result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
+                          features=feats or None,
+                          tau=tau if tau is not None else (recorded_tau or DEFAULT_TAU),
+                          title=title, provenance=provenance(
+                              inputs=[*annotations, truth_path], truth=str(truth_path)))
+    if not quiet:
+        ov = result.evaluation.frame
+        click.echo(f"report: {len(result.evaluation.documents)} documents, F1 {ov.F:.3f}, "
+                   f"{len(result.files)} files -> {result.page}", err=True)
+
+
+COMMANDS = [report_cmd]

@@ -1,0 +1,89 @@
+"""Looking into feature files: which features a file holds, and when they are on.
+
+This is the API behind ``mtanno info FILE.parquet --features`` and ``mtanno show``: read
+a document's features as a compact text timeline (one row per feature, one character per
+frame or per block of frames) to pick the frames and features of a query by example
+(MRC05 §6.2, ``mtanno query --example``). Frames are 1-based and inclusive at 30 Hz, as in
+every file.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+from mtanno.store import FeatureFile
+
+#: Characters of a timeline cell: the feature is off in every frame of the cell, on in
+#: every frame, or on in some.
+OFF, ON, MIXED = ".", "#", "+"
+#: Default number of timeline columns (frames per column grow to fit).
+DEFAULT_WIDTH = 100
+
+
+def feature_rows(ff: FeatureFile) -> list[dict]:
+    """One dict per feature of a feature file, in column order: ``id`` (F01…, from the
+    file's ``feature_ids``), ``name`` and ``group`` (the index group holding it, from the
+    file's ``groups``; empty when the file records none)."""
+    ids = ff.meta.get("feature_ids")
+    ids = ids if isinstance(ids, list) and len(ids) == len(ff.names) else \
+        [f"F{i + 1:02d}" for i in range(len(ff.names))]
+    groups = ff.meta.get("groups") if isinstance(ff.meta.get("groups"), dict) else {}
+    group_of = {n: g for g, members in groups.items() if isinstance(members, list)
+                for n in members}
+    return [{"id": str(i), "name": n, "group": group_of.get(n, "")}
+            for i, n in zip(ids, ff.names)]
+
+
+def select_features(ff: FeatureFile, wanted: Sequence[str]) -> list[int]:
+    """Rows of the features named in ``wanted`` (names or ids such as ``F20``), in the
+    order given; an unknown one is an error listing how to see the known ones."""
+    rows = feature_rows(ff)
+    by_key = {r["name"]: k for k, r in enumerate(rows)}
+    by_key.update({r["id"]: k for k, r in enumerate(rows)})
+    out = []
+    for w in wanted:
+        w = w.strip()
+        if not w:
+            continue
+        if w not in by_key:
+            raise MtannoError(f"unknown feature '{w}' (see `mtanno info {ff.path} --features`)",
+                              path=ff.path)
+        out.append(by_key[w])
+    if not out:
+        raise MtannoError("no features chosen", path=ff.path)
+    return out
+
+
+def text_timeline(X: np.ndarray, labels: Sequence[str], *, first_frame: int = 1,
+                  width: int = DEFAULT_WIDTH) -> list[str]:
+    """A feature matrix (features × frames, 0/1) as text: a ruler line of frame numbers,
+    then one line per feature: its label, then one character per column — ``#`` on, ``.``
+    off, ``+`` on in part of the column's frames. A column is one frame when the frames fit
+    in ``width`` columns, else a block of ⌈frames / width⌉ frames. ``first_frame`` is the
+    1-based frame of column 0 of ``X``."""
+    X = np.asarray(X, dtype=np.uint8)
+    n = X.shape[1]
+    if n == 0:
+        raise MtannoError("no frames to show")
+    if width < 1:
+        raise MtannoError("width must be at least 1 column")
+    block = max(1, math.ceil(n / width))
+    cols = math.ceil(n / block)
+    pad = np.zeros((X.shape[0], cols * block - n), np.uint8)
+    on = np.concatenate([X, pad], axis=1).reshape(X.shape[0], cols, block).sum(axis=2)
+    size = np.full(cols, block)
+    size[-1] = n - (cols - 1) * block
+    lw = max(len(x) for x in labels)
+    ruler = [" "] * (cols + 8)
+    for c in range(0, cols, 10):
+        text = str(first_frame + c * block)
+        ruler[c:c + len(text)] = text
+    lines = [" " * (lw + 2) + "".join(ruler).rstrip()]
+    for label, counts in zip(labels, on):
+        cells = np.where(counts == 0, OFF, np.where(counts == size, ON, MIXED))
+        lines.append(f"{label:<{lw}}  " + "".join(cells.tolist()))
+    return lines

@@ -1,0 +1,160 @@
+"""Plots of mtanno's data (matplotlib, the optional extra ``plot``: ``pip install
+'mtanno[plot]'``).
+
+Every function draws one kind of data into a matplotlib ``Axes`` and returns it:
+``plot_x(data, *, ax=None) -> Axes``. Without ``ax`` a new figure is made with
+:class:`matplotlib.figure.Figure` (no pyplot, no window, any backend), so the functions
+work the same in scripts, on servers and in notebooks; nothing calls ``plt.show``.
+:func:`save_figure` writes a figure atomically (PNG or SVG by the suffix). Frames on the
+axes are 1-based at 30 Hz, as in every file mtanno writes.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from mtanno.templates.model import MotionTemplate
+
+INSTALL_HINT = "plots need matplotlib: pip install 'mtanno[plot]' (or pip install matplotlib)"
+
+#: Colours of class labels (matplotlib's tab20, cycled); "none" is light grey.
+NONE_COLOUR = "#e8e8e8"
+
+
+def require_matplotlib() -> None:
+    """Raise an :class:`MtannoError` saying how to install matplotlib when it is missing."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise MtannoError(INSTALL_HINT) from None
+
+
+def _axes(ax, size: tuple[float, float]):
+    require_matplotlib()
+    if ax is not None:
+        return ax
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=size, layout="constrained").add_subplot()
+
+
+def label_colours(labels: Sequence[str]) -> dict[str, Any]:
+    """One colour per label (in the order given), "none" grey."""
+    require_matplotlib()
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab20"]
+    out = {lab: cmap(i % 20) for i, lab in enumerate(lab for lab in labels if lab != "none")}
+    out["none"] = NONE_COLOUR
+    return out
+
+
+def plot_features(X: np.ndarray, names: Sequence[str], *, first_frame: int = 1,
+                  ax: Axes | None = None) -> Axes:
+    """A feature matrix (features × frames, 0/1) as an image: one row per feature (named),
+    one column per frame, dark where the feature is on (MRC05 Fig. 3 style). ``first_frame``
+    is the 1-based frame of column 0."""
+    X = np.asarray(X)
+    ax = _axes(ax, (min(12.0, max(6.0, 2 + X.shape[1] / 15)), 1.2 + 0.22 * X.shape[0]))
+    ax.imshow(X, aspect="auto", interpolation="nearest", cmap="Greys", vmin=0, vmax=1,
+              extent=(first_frame - 0.5, first_frame + X.shape[1] - 0.5, X.shape[0] - 0.5,
+                      -0.5))
+    ax.set_yticks(range(len(names)), list(names), fontsize=7)
+    ax.set_xlabel("frame (30 Hz)")
+    return ax
+
+
+def plot_template(mt: MotionTemplate, *, ax: Axes | None = None) -> Axes:
+    """A motion template as a heat map (MR06 Fig. 4): rows are features, columns the
+    template's columns, colour the entry in [0, 1] (0 black, 1 white, wildcard 0.5 grey)."""
+    V = np.asarray(mt.values)
+    ax = _axes(ax, (min(12.0, 3 + V.shape[1] / 8), 1.2 + 0.13 * V.shape[0]))
+    image = ax.imshow(V, aspect="auto", interpolation="nearest", cmap="gray", vmin=0, vmax=1)
+    ax.set_yticks(range(len(mt.feature_names)), list(mt.feature_names), fontsize=6)
+    ax.set_xlabel("template column")
+    ax.set_title(f"{mt.class_name} ({mt.kind}, {V.shape[1]} columns)")
+    ax.figure.colorbar(image, ax=ax, fraction=0.03)
+    return ax
+
+
+def plot_delta(delta: np.ndarray, *, label: str | None = None, tau: float | None = None,
+               ax: Axes | None = None) -> Axes:
+    """A distance curve Δ over a document's frames (algorithms.md §3.4; MR06 Fig. 7):
+    x = frame (1-based), y = Δ; frames where no match ends (Δ = ∞) leave gaps. ``tau``
+    draws the threshold."""
+    delta = np.asarray(delta, dtype=np.float64)
+    ax = _axes(ax, (10, 3))
+    y = np.where(np.isfinite(delta), delta, np.nan)
+    ax.plot(np.arange(1, len(y) + 1), y, label=label, linewidth=1)
+    if tau is not None and not any(line.get_label() == f"τ = {tau:g}" for line in ax.lines):
+        ax.axhline(tau, color="k", linestyle=":", linewidth=1, label=f"τ = {tau:g}")
+    ax.set_xlabel("frame (30 Hz)")
+    ax.set_ylabel("Δ")
+    return ax
+
+
+def plot_confusion(matrix: np.ndarray, labels: Sequence[str], *,
+                   ax: Axes | None = None) -> Axes:
+    """A confusion matrix of frames: rows the truth, columns the annotation (labels
+    include "none"), each row shaded by its share of the row's frames, counts written."""
+    M = np.asarray(matrix, dtype=np.int64)
+    n = len(labels)
+    ax = _axes(ax, (2 + 0.55 * n, 1.5 + 0.5 * n))
+    share = M / np.maximum(M.sum(axis=1, keepdims=True), 1)
+    ax.imshow(share, cmap="Blues", vmin=0, vmax=1)
+    for i in range(n):
+        for j in range(n):
+            if M[i, j]:
+                ax.text(j, i, str(M[i, j]), ha="center", va="center", fontsize=6,
+                        color="white" if share[i, j] > 0.6 else "black")
+    ax.set_xticks(range(n), list(labels), rotation=60, ha="right", fontsize=7)
+    ax.set_yticks(range(n), list(labels), fontsize=7)
+    ax.set_xlabel("annotation")
+    ax.set_ylabel("truth")
+    return ax
+
+
+def plot_timeline(rows: dict[str, Sequence[tuple[int, int, str]]], *, n_frames: int,
+                  colours: dict[str, Any] | None = None, ax: Axes | None = None) -> Axes:
+    """Labelled segments of one document, one lane per entry of ``rows`` (e.g. "truth"
+    and "annotation"; segments (start, end, label) with 1-based inclusive frames), each
+    label in its colour; overlapping segments of a lane are drawn half height."""
+    ax = _axes(ax, (12, 0.6 + 0.45 * len(rows)))
+    labels = sorted({lab for segs in rows.values() for _, _, lab in segs})
+    colours = colours or label_colours(labels)
+    for lane, segs in enumerate(rows.values()):
+        ordered = sorted(segs)
+        for k, (s, e, lab) in enumerate(ordered):
+            overlap = any(a <= e and s <= b for a, b, _ in ordered[:k]) or \
+                any(a <= e and s <= b for a, b, _ in ordered[k + 1:])
+            height = 0.4 if overlap else 0.8
+            y = lane - 0.4 + (0.4 if overlap and k % 2 else 0)
+            ax.broken_barh([(s - 0.5, e - s + 1)], (y, height),
+                           facecolors=colours.get(lab, NONE_COLOUR))
+    ax.set_yticks(range(len(rows)), list(rows))
+    ax.set_ylim(len(rows) - 0.5, -0.5)
+    ax.set_xlim(0.5, n_frames + 0.5)
+    ax.set_xlabel("frame (30 Hz)")
+    return ax
+
+
+def save_figure(ax_or_figure, path: str | os.PathLike, *, dpi: int = 110) -> None:
+    """Write the figure of ``ax_or_figure`` atomically; the format follows the suffix
+    (``.png``, ``.svg``, ``.pdf``)."""
+    from mtanno.output import atomic_path
+
+    figure = getattr(ax_or_figure, "figure", ax_or_figure)
+    fmt = os.fspath(path).rsplit(".", 1)[-1].lower() if "." in os.fspath(path) else ""
+    if fmt not in ("png", "svg", "pdf"):
+        raise MtannoError("a plot file must end in .png, .svg or .pdf", path=str(path))
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format=fmt, dpi=dpi)

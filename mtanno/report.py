@@ -1,0 +1,310 @@
+"""``mtanno report``: an annotation run as a page for people and tables for papers.
+
+From annotation tables and the ground truth (and optionally the templates and the
+documents' feature files) :func:`write_report` writes into one folder:
+
+* ``index.html`` — a self-contained page (every image inline as a data URI, no other file
+  needed) with the tables and figures below;
+* ``per_class.csv`` / ``.md`` / ``.tex`` — per-class P/R/F at frame and segment level with
+  their support (MBS09 §7; the rows of ``mtanno evaluate``), CSV with provenance;
+* ``confusion.csv`` and ``confusion.png``/``.svg`` — the frame-level confusion matrix,
+  truth × annotation, with a "none" row and column (frames without a label);
+* ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
+* with templates and features: ``template_<class>.png``/``.svg`` (heat maps, MR06 Fig. 4)
+  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4).
+
+A confusion matrix needs one label per frame. Annotations from ``annotate
+--single-label`` are a partition; the default output may overlap, and then each frame is
+counted for the covering segment with the smallest cost (the smallest Δ̄ in the segment,
+which approximates the per-frame Δ̄ that ``--single-label`` uses); the page says so.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.annotate import Annotation
+from mtanno.errors import MtannoError
+from mtanno.evaluate import Report, evaluate_annotations
+from mtanno.truth import Segment
+
+NONE = "none"
+FORMATS = ("png", "svg")
+
+
+@dataclass
+class ReportResult:
+    """What :func:`write_report` wrote: the folder, the HTML page, every file, the
+    evaluation, the confusion matrix with its labels, and notes shown on the page."""
+
+    folder: Path
+    page: Path
+    files: list[Path] = field(default_factory=list)
+    evaluation: Report | None = None
+    labels: list[str] = field(default_factory=list)
+    confusion: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def _frame_labels(segs: Sequence, n: int, rank: dict[str, int]) -> tuple[np.ndarray, bool]:
+    """(label index per frame (−1 none), whether segments overlapped): 0-based inclusive
+    (start, end, label, cost) tuples; overlaps go to the smallest cost."""
+    out = np.full(n, -1)
+    covered = np.zeros(n, bool)
+    overlap = False
+    for s, e, lab, _ in sorted(segs, key=lambda x: (x[3], rank[x[2]])):
+        s, e = max(s, 0), min(e, n - 1)
+        if e < s:
+            continue
+        if covered[s:e + 1].any():
+            overlap = True
+        free = ~covered[s:e + 1]
+        out[s:e + 1][free] = rank[lab]
+        covered[s:e + 1] = True
+    return out, overlap
+
+
+def confusion_matrix(truth: Sequence[Segment], annotation: Sequence[Annotation],
+                     frames: dict[str, int]) -> tuple[np.ndarray, list[str], bool]:
+    """Frame-level confusion matrix over the documents of ``frames`` (document → number of
+    frames): rows truth labels, columns annotation labels, both sorted with "none" last.
+    Returns (matrix, labels, whether the annotation overlapped)."""
+    labels = sorted({s.label for s in truth} | {a.label for a in annotation}) + [NONE]
+    rank = {lab: i for i, lab in enumerate(labels)}
+    M = np.zeros((len(labels), len(labels)), np.int64)
+    overlapped = False
+    for doc, n in frames.items():
+        t, _ = _frame_labels([(s.start - 1, s.end - 1, s.label, 0.0) for s in truth
+                              if s.doc == doc], n, rank)
+        a, ov = _frame_labels([(r.start, r.end, r.label, r.cost) for r in annotation
+                               if r.doc == doc], n, rank)
+        overlapped |= ov
+        t[t < 0] = rank[NONE]
+        a[a < 0] = rank[NONE]
+        np.add.at(M, (t, a), 1)
+    return M, labels, overlapped
+
+
+def _number(x: float) -> str:
+    return f"{x:.3f}" if math.isfinite(x) else "–"
+
+
+def markdown_table(rows: Sequence[dict]) -> str:
+    """Per-class rows of :meth:`Report.rows` as a Markdown (GitHub) table."""
+    head = "| class | P1 | R1 | F1 | frames | P2 | R2 | F2 | segments |"
+    lines = [head, "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['class']} | " + " | ".join(
+            [_number(r["P1"]), _number(r["R1"]), _number(r["F1"]), str(r["frames"]),
+             _number(r["P2"]), _number(r["R2"]), _number(r["F2"]), str(r["segments"])]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _tex(text: str) -> str:
+    """Text with LaTeX's special characters escaped."""
+    text = text.replace("\\", "\0")
+    for a, b in (("_", r"\_"), ("&", r"\&"), ("%", r"\%"), ("#", r"\#"), ("$", r"\$"),
+                 ("{", r"\{"), ("}", r"\}")):
+        text = text.replace(a, b)
+    return text.replace("\0", r"\textbackslash{}")
+
+
+def latex_table(rows: Sequence[dict]) -> str:
+    """Per-class rows as a LaTeX ``tabular`` (booktabs rules), the overall row last."""
+    lines = [r"\begin{tabular}{lrrrrrrrr}", r"\toprule",
+             r"class & $P_1$ & $R_1$ & $F_1$ & frames & $P_2$ & $R_2$ & $F_2$ & segments \\",
+             r"\midrule"]
+    for r in rows:
+        if r["class"] == "overall":
+            lines.append(r"\midrule")
+        lines.append(" & ".join([_tex(str(r["class"])), _number(r["P1"]), _number(r["R1"]),
+                                 _number(r["F1"]), str(r["frames"]), _number(r["P2"]),
+                                 _number(r["R2"]), _number(r["F2"]), str(r["segments"])])
+                     + r" \\")
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    return "\n".join(lines) + "\n"
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
+class _Writer:
+    """Writes the figures (PNG and SVG), remembers them for the page."""
+
+    def __init__(self, folder: Path, result: ReportResult):
+        self.folder = folder
+        self.result = result
+        self.images: list[tuple[str, str, Path]] = []  # section, caption, png
+
+    def figure(self, ax, stem: str, section: str, caption: str) -> None:
+        from mtanno.plot import save_figure
+
+        for fmt in FORMATS:
+            path = self.folder / f"{stem}.{fmt}"
+            save_figure(ax, path)
+            self.result.files.append(path)
+        self.images.append((section, caption, self.folder / f"{stem}.png"))
+
+    def text(self, name: str, text: str) -> None:
+        from mtanno.output import write_text
+
+        write_text(self.folder / name, text)
+        self.result.files.append(self.folder / name)
+
+
+def _html_table(rows: Sequence[dict]) -> str:
+    cols = list(rows[0]) if rows else []
+    out = ["<table><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols) + "</tr>"]
+    for r in rows:
+        cells = []
+        for c in cols:
+            v = r[c]
+            cells.append(f"<td>{_number(v) if isinstance(v, float) else html.escape(str(v))}</td>")
+        out.append("<tr>" + "".join(cells) + "</tr>")
+    return "\n".join(out) + "</table>"
+
+
+def _page(result: ReportResult, images, rows, title: str, provenance: dict) -> str:
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
+             "</title><style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
+             "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;"
+             "text-align:right}img{max-width:100%;display:block;margin:8px 0}</style></head>"
+             f"<body><h1>{html.escape(title)}</h1>"]
+    docs = result.evaluation.documents if result.evaluation else []
+    parts.append(f"<p>{len(docs)} document(s); frames at 30 Hz. Files beside this page: "
+                 "per_class.csv/.md/.tex, confusion.csv, every figure as PNG and SVG.</p>")
+    for note in result.notes:
+        parts.append(f"<p><b>Note:</b> {html.escape(note)}</p>")
+    parts.append("<h2>Precision, recall, F per class</h2>" + _html_table(rows))
+    sections: dict[str, list] = {}
+    for section, caption, png in images:
+        sections.setdefault(section, []).append((caption, png))
+    for section, items in sections.items():
+        parts.append(f"<h2>{html.escape(section)}</h2>")
+        for caption, png in items:
+            data = base64.b64encode(png.read_bytes()).decode("ascii")
+            parts.append(f"<figure><img alt='{html.escape(caption)}' "
+                         f"src='data:image/png;base64,{data}'>"
+                         f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    parts.append("<h2>Provenance</h2><pre>" + html.escape(
+        "\n".join(f"{k}: {v}" for k, v in provenance.items() if k != "inputs")) + "</pre>")
+    parts.append("</body></html>\n")
+    return "\n".join(parts)
+
+
+def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
+                 annotation: Sequence[Annotation], *, frames: dict[str, int] | None = None,
+                 templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
+                 tau: float | None = None, title: str = "mtanno annotation report",
+                 provenance: dict | None = None) -> ReportResult:
+    """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
+    frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
+    document's length (default: the last labelled frame of truth or annotation);
+    ``templates`` (class → :class:`~mtanno.templates.model.MotionTemplate`) adds heat maps
+    and, with ``features`` (document → features × frames matrix), the Δ curves of every
+    class (templates quantized with δ = 0.05 as for annotation; ``tau`` drawn).
+    Documents are those annotated."""
+    from mtanno.output import make_folder
+    from mtanno.plot import (
+        label_colours,
+        plot_confusion,
+        plot_template,
+        plot_timeline,
+        require_matplotlib,
+    )
+    from mtanno.tables import write_table
+
+    require_matplotlib()
+    if not annotation:
+        raise MtannoError("the annotation has no rows to report on")
+    folder = make_folder(out_dir)
+    result = ReportResult(folder, folder / "index.html")
+    docs = sorted({a.doc for a in annotation})
+    frames = dict(frames or {})
+    for d in docs:
+        last = max([a.end + 1 for a in annotation if a.doc == d]
+                   + [s.end for s in truth if s.doc == d])
+        frames[d] = max(frames.get(d, 0), last)
+    frames = {d: frames[d] for d in docs}
+    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in annotation]
+    ev = evaluate_annotations(truth, out, documents=docs)
+    result.evaluation = ev
+    rows = ev.rows()
+    prov = dict(provenance or {})
+    import pyarrow as pa
+
+    write_table(folder / "per_class.csv", pa.Table.from_pylist(rows), provenance=prov)
+    result.files += [folder / "per_class.csv", folder / "per_class.csv.meta.json"]
+    w = _Writer(folder, result)
+    w.text("per_class.md", markdown_table(rows))
+    w.text("per_class.tex", latex_table(rows))
+    M, labels, overlapped = confusion_matrix(truth, annotation, frames)
+    result.confusion, result.labels = M, labels
+    if overlapped:
+        result.notes.append("the annotation's segments overlap; in the confusion matrix and "
+                            "timelines each frame counts for the covering segment with the "
+                            "smallest cost (use `mtanno annotate --single-label` for an exact "
+                            "partition by Δ̄)")
+    table = {"truth": labels, **{lab: M[:, j].tolist() for j, lab in enumerate(labels)}}
+    write_table(folder / "confusion.csv", pa.table(table), provenance=prov)
+    result.files += [folder / "confusion.csv", folder / "confusion.csv.meta.json"]
+    w.figure(plot_confusion(M, labels), "confusion", "Confusion matrix (frames)",
+             "rows: truth, columns: annotation; counts of frames")
+    colours = label_colours(labels)
+    for d in docs:
+        lanes = {"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d],
+                 "annotation": [(a.start + 1, a.end + 1, a.label) for a in annotation
+                                if a.doc == d]}
+        ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
+        present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
+        _legend(ax, present, colours)
+        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
+        ax.set_title(d)
+        w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation", d)
+    if templates:
+        for name, mt in templates.items():
+            w.figure(plot_template(mt), f"template_{_safe(name)}", "Templates",
+                     f"template {name}")
+    if templates and features:
+        _delta_figures(w, templates, {d: features[d] for d in docs if d in features}, tau)
+    from mtanno.output import write_text
+
+    write_text(result.page, _page(result, w.images, rows, title, prov))
+    result.files.append(result.page)
+    return result
+
+
+def _legend(ax, labels, colours) -> None:
+    from matplotlib.patches import Patch
+
+    if labels:
+        ax.legend(handles=[Patch(color=colours[lab], label=lab) for lab in labels],
+                  loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
+
+
+def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
+                   tau: float | None) -> None:
+    from mtanno.annotate import DEFAULT_DELTA, class_deltas, class_models
+    from mtanno.plot import label_colours, plot_delta
+
+    models, _ = class_models(templates, delta=DEFAULT_DELTA)
+    colours = label_colours(sorted(m.name for m in models))
+    for d, X in features.items():
+        ax = None
+        for m, (delta, _) in zip(models, class_deltas(X, models)):
+            ax = plot_delta(delta, label=m.name, tau=tau, ax=ax)
+            [line for line in ax.lines if line.get_label() == m.name][0].set_color(
+                colours[m.name])
+        ax.set_title(f"{d}: Δ of every class")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
+        ax.figure.set_size_inches(12, max(3.5, 1.0 + 0.16 * len(models)))
+        w.figure(ax, f"delta_{_safe(d)}", "Distance curves Δ per class", d)

@@ -1,0 +1,60 @@
+"""The public API of ``import mtanno`` (issue 9): the README's notebook example on the
+synthetic test world gives what the commands give."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mtanno
+from mtanno.annotate import read_annotations
+from mtanno.store import read_features
+from mtanno.templates.model import load_template_folder
+
+
+def test_import_is_light_and_names_the_api():
+    code = ("import sys, mtanno; assert 'numba' not in sys.modules, 'numba imported'; "
+            "print(sorted(mtanno.__all__))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    for name in ("read_motion", "compute_features", "learn_templates", "load_templates",
+                 "annotate_documents", "evaluate_annotation"):
+        assert name in r.stdout and callable(getattr(mtanno, name))
+    with pytest.raises(AttributeError):
+        mtanno.no_such_thing  # noqa: B018
+
+
+def test_notebook_example_equals_the_commands(world):
+    clip = world.clips / "squat" / "SYN_a_squat_001.amc"
+    X = mtanno.compute_features(mtanno.read_motion(clip))
+    assert np.array_equal(X, read_features(world.feats / "squat" / "SYN_a_squat_001.parquet").X)
+    assert np.array_equal(mtanno.compute_features(clip, feature_set="mrc05"),
+                          mtanno.compute_features(mtanno.read_motion(clip), feature_set="mrc05"))
+
+    mts = mtanno.learn_templates(manifest=world.manifest, features_dir=world.feats,
+                                 split="train")
+    cli_mts = load_template_folder(world.mt)
+    assert list(mts) == list(cli_mts)
+    for name, mt in mts.items():  # learn-mt wrote the same templates
+        assert np.array_equal(mt.values, cli_mts[name].values)
+        assert np.array_equal(mt.weights, cli_mts[name].weights)
+
+    result = mtanno.annotate_documents(world.docfeats, mts)
+    assert not result.failed
+    assert result.rows == read_annotations(world.annotation)  # = mtanno annotate
+    from_folder = mtanno.annotate_documents(world.docfeats, mtanno.load_templates(world.mt))
+    assert from_folder.rows == result.rows
+
+    report = mtanno.evaluate_annotation(result, truth=world.truth)
+    from_file = mtanno.evaluate_annotation(world.annotation, world.truth)
+    assert report.as_dict() == from_file.as_dict()
+    assert report.documents == sorted(p.stem for p in world.doc_files)
+    assert "overall" in report.table() and 0 < report.frame.F <= 1
+
+    single = mtanno.annotate_documents(world.docfeats, world.mt, single_label=True, tau=0.2)
+    assert not single.failed and single.rows != result.rows
+    with pytest.raises(mtanno.MtannoError, match="annotations must be"):
+        mtanno.evaluate_annotation([1, 2], world.truth)

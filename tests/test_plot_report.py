@@ -1,0 +1,254 @@
+"""Plots (mtanno.plot, asserted on the plotted data with the Agg backend), ``mtanno show``,
+``info --features``, ``mt plot`` and ``mtanno report`` (files, tables, confusion matrix, and
+the page in a real browser)."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mtanno.annotate import Annotation
+from mtanno.cli import main
+from mtanno.store import write_features
+from mtanno.truth import Segment
+
+matplotlib = pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
+matplotlib.use("Agg")
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+# --- plot functions -------------------------------------------------------------------------
+
+def test_plot_delta_draws_delta_with_gaps_and_tau():
+    from mtanno.plot import plot_delta
+
+    delta = np.array([np.inf, 0.3, 0.1, np.inf, 0.05])
+    ax = plot_delta(delta, label="squat", tau=0.13)
+    ax = plot_delta(delta * 2, label="kick", tau=0.13, ax=ax)
+    x, y = ax.lines[0].get_data()
+    assert x.tolist() == [1, 2, 3, 4, 5]
+    assert np.array_equal(y, [np.nan, 0.3, 0.1, np.nan, 0.05], equal_nan=True)
+    taus = [line for line in ax.lines if line.get_label() == "τ = 0.13"]
+    assert len(taus) == 1 and taus[0].get_ydata()[0] == 0.13  # drawn once
+    assert [line.get_label() for line in ax.lines] == ["squat", "τ = 0.13", "kick"]
+    assert np.array_equal(ax.lines[2].get_ydata(), 2 * y, equal_nan=True)
+
+
+def test_plot_template_features_confusion_timeline():
+    from mtanno.plot import plot_confusion, plot_features, plot_template, plot_timeline
+    from mtanno.templates.model import MotionTemplate
+
+    mt = MotionTemplate("squat", ["a", "b"], np.array([[0.0, 0.5, 1.0], [1.0, 1.0, 0.2]]),
+                        np.ones(3), feature_set="x")
+    ax = plot_template(mt)
+    assert np.array_equal(ax.images[0].get_array(), mt.values)
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["a", "b"]
+    X = np.array([[0, 1, 1], [1, 0, 0]], np.uint8)
+    ax = plot_features(X, ["F1 g:a", "F2 g:b"], first_frame=7)
+    assert np.array_equal(ax.images[0].get_array(), X)
+    assert ax.images[0].get_extent()[:2] == [6.5, 9.5]
+    M = np.array([[5, 1], [0, 3]])
+    ax = plot_confusion(M, ["squat", "none"])
+    assert sorted(t.get_text() for t in ax.texts) == ["1", "3", "5"]
+    assert np.allclose(ax.images[0].get_array(), [[5 / 6, 1 / 6], [0, 1]])
+    ax = plot_timeline({"truth": [(1, 10, "squat")], "annotation": [(3, 8, "squat"),
+                                                                     (6, 12, "kick")]},
+                       n_frames=12)
+    bars = [(c.get_paths()[0].vertices[:, 0].min(), c.get_paths()[0].vertices[:, 0].max())
+            for c in ax.collections]
+    assert bars == [(0.5, 10.5), (2.5, 8.5), (5.5, 12.5)]
+
+
+def test_save_figure_formats(tmp_path):
+    from mtanno.errors import MtannoError
+    from mtanno.plot import plot_delta, save_figure
+
+    ax = plot_delta(np.array([0.1, 0.2]))
+    save_figure(ax, tmp_path / "d.png")
+    save_figure(ax, tmp_path / "d.svg")
+    assert (tmp_path / "d.png").read_bytes()[:4] == b"\x89PNG"
+    assert b"<svg" in (tmp_path / "d.svg").read_bytes()[:500]
+    with pytest.raises(MtannoError, match="must end in .png, .svg or .pdf"):
+        save_figure(ax, tmp_path / "d.gif")
+
+
+def test_missing_matplotlib_says_how_to_install(monkeypatch, tmp_path, world):
+    import builtins
+
+    real = builtins.__import__
+
+    def no_mpl(name, *a, **k):
+        if name == "matplotlib" or name.startswith("matplotlib."):
+            raise ImportError(name)
+        return real(name, *a, **k)
+
+    monkeypatch.setattr(builtins, "__import__", no_mpl)
+    r = run("mt", "plot", world.template, "-o", tmp_path / "t.png")
+    assert r.exit_code == 2 and "pip install 'mtanno[plot]'" in r.output
+    r = run("report", world.annotation, "--truth", world.truth, "-o", tmp_path / "rep")
+    assert r.exit_code == 2 and "pip install 'mtanno[plot]'" in r.output
+    assert not (tmp_path / "t.png").exists() and not (tmp_path / "rep").exists()
+
+
+# --- feature inspection ---------------------------------------------------------------------
+
+@pytest.fixture
+def handmade(tmp_path):
+    """A 6-frame feature file: knee features of a tiny squat, one always on, one never."""
+    names = ["rknee_bent", "lknee_bent", "up", "never"]
+    X = np.array([[0, 0, 1, 1, 1, 0],
+                  [0, 1, 1, 1, 0, 0],
+                  [1, 1, 1, 1, 1, 1],
+                  [0, 0, 0, 0, 0, 0]], np.uint8)
+    path = tmp_path / "tiny.parquet"
+    write_features(path, X, names, np.arange(1, 24, 4),
+                   {"analysis_fps": 30.0, "feature_set": "custom",
+                    "feature_ids": ["F01", "F02", "F03", "F04"],
+                    "groups": {"lower": ["rknee_bent", "lknee_bent"], "upper": ["up", "never"]}})
+    return path
+
+
+def test_info_features_lists_ids_names_groups(handmade):
+    r = run("info", handmade, "--features")
+    assert r.exit_code == 0
+    assert r.output.splitlines() == ["id   name        group", "F01  rknee_bent  lower",
+                                     "F02  lknee_bent  lower", "F03  up          upper",
+                                     "F04  never       upper"]
+    r = run("info", handmade.with_suffix(".amc"), "--features")
+    assert r.exit_code == 2 and "--features goes with a feature file" in r.output
+
+
+def test_show_text_timeline(handmade, tmp_path):
+    r = run("show", handmade)
+    assert r.exit_code == 0, r.output
+    assert r.output.splitlines() == [
+        "tiny: frames 1-6 of 6 at 30 Hz, 1 frame per column",
+        "                      1",
+        "F01 lower:rknee_bent  ..###.",
+        "F02 lower:lknee_bent  .###..",
+        "F03 upper:up          ######",
+        "F04 upper:never       ......"]
+    r = run("show", handmade, "--frames", "2:5", "--features", "lknee_bent,F01")
+    assert r.output.splitlines()[2:] == ["F02 lower:lknee_bent  ###.",
+                                         "F01 lower:rknee_bent  .###"]
+    assert r.output.splitlines()[1].strip() == "2"
+    # blocks of frames: '+' where the feature is on in part of the block
+    r = run("show", handmade, "--width", "10")
+    assert r.exit_code == 0
+    from mtanno.inspect import text_timeline
+
+    X = np.array([[0, 0, 1, 1, 1, 0]] * 1, np.uint8)
+    assert text_timeline(X, ["k"], width=3) == ["   1", "k  .#+"]
+    assert text_timeline(np.zeros((1, 25), np.uint8), ["k"], width=1)[1] == "k  ."
+    r = run("show", handmade, "--features", "nope")
+    assert r.exit_code == 2 and "unknown feature 'nope'" in r.output
+    r = run("show", handmade, "--frames", "4:9")
+    assert r.exit_code == 2 and "not a range inside 1:6" in r.output
+    r = run("show", handmade, "--features", "F01,F02", "--plot", tmp_path / "k.png")
+    assert r.exit_code == 0 and (tmp_path / "k.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_mt_plot(world, tmp_path):
+    r = run("mt", "plot", world.template, "-o", tmp_path / "squat.svg", "--delta", "0.1")
+    assert r.exit_code == 0, r.output
+    assert b"<svg" in (tmp_path / "squat.svg").read_bytes()[:500]
+    r = run("mt", "plot", world.template, "-o", world.template)
+    assert r.exit_code == 2 and "would overwrite an input" in r.output
+
+
+# --- report ---------------------------------------------------------------------------------
+
+def test_confusion_matrix_counts_frames_with_none():
+    from mtanno.report import confusion_matrix
+
+    truth = [Segment("d", 1, 4, "a"), Segment("d", 5, 8, "b")]
+    ann = [Annotation("d", 0, 4, "a", 0.1), Annotation("d", 6, 7, "b", 0.1)]
+    M, labels, overlapped = confusion_matrix(truth, ann, {"d": 10})
+    assert labels == ["a", "b", "none"] and not overlapped
+    assert M.tolist() == [[4, 0, 0], [1, 2, 1], [0, 0, 2]]
+    # overlapping rows: a frame counts for the covering segment with the smaller cost
+    ann = [Annotation("d", 0, 5, "a", 0.2), Annotation("d", 4, 7, "b", 0.1)]
+    M, _, overlapped = confusion_matrix(truth, ann, {"d": 8})
+    assert overlapped and M.tolist() == [[4, 0, 0], [0, 4, 0], [0, 0, 0]]
+
+
+def test_report_files_and_tables(world, tmp_path):
+    single = tmp_path / "single.csv"
+    assert run("annotate", "--mt", world.mt, world.docfeats, "-o", single, "-q",
+               "--single-label").exit_code == 0
+    out = tmp_path / "rep"
+    r = run("report", single, "--truth", world.truth, "-o", out, "--mt", world.mt,
+            "--features", world.docfeats)
+    assert r.exit_code == 0, r.output
+    assert f"-> {out / 'index.html'}" in r.output
+    docs = [p.stem for p in world.doc_files]
+    names = {p.name for p in out.iterdir()}
+    for stem in ["confusion", *(f"timeline_{d}" for d in docs), *(f"delta_{d}" for d in docs),
+                 *(f"template_{p.stem}" for p in world.mt.glob("*.json"))]:
+        assert {f"{stem}.png", f"{stem}.svg"} <= names, stem
+    assert {"index.html", "per_class.csv", "per_class.md", "per_class.tex", "confusion.csv",
+            "per_class.csv.meta.json"} <= names
+    rows = list(csv.DictReader((out / "per_class.csv").open()))
+    ev = run("evaluate", single, "--truth", world.truth, "-o", tmp_path / "ev.csv")
+    assert rows == list(csv.DictReader((tmp_path / "ev.csv").open()))  # = mtanno evaluate
+    md = (out / "per_class.md").read_text().splitlines()
+    assert md[0].startswith("| class | P1 |") and len(md) == 2 + len(rows)
+    tex = (out / "per_class.tex").read_text()
+    assert tex.startswith("\\begin{tabular}") and tex.count("\\\\") == 1 + len(rows)
+    assert "walk2Steps" in tex and f"{float(rows[-1]['F1']):.3f}" in tex
+    conf = list(csv.DictReader((out / "confusion.csv").open()))
+    assert conf[-1]["truth"] == "none" and list(conf[0])[-1] == "none"
+    total = sum(int(v) for row in conf for k, v in row.items() if k != "truth")
+    from mtanno.store import read_features
+
+    assert total == sum(read_features(p).X.shape[1] for p in world.doc_files)
+    page = (out / "index.html").read_text()
+    assert page.count("<img ") == 1 + 2 * len(docs) + len(list(world.mt.glob("*.json")))
+    assert "src='data:image/png;base64," in page and "segments overlap" not in page
+    assert ev.exit_code == 0
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        if shutil.which(name):
+            return shutil.which(name)
+    return None
+
+
+def test_report_page_loads_every_image_in_a_browser(world, tmp_path):
+    """The page opened in headless Chromium: every image decoded (complete, with a natural
+    width), none missing. Chromium is a Debian package: apt-get install chromium."""
+    browser = _chromium()
+    if browser is None:
+        pytest.skip("headless Chromium not found (Debian: apt-get install chromium); the "
+                    "report page is checked in a browser only where it is installed")
+    out = tmp_path / "rep"
+    assert run("report", world.annotation, "--truth", world.truth, "-o", out, "-q",
+               "--mt", world.mt).exit_code == 0
+    page = (out / "index.html").read_text()
+    n_images = page.count("<img ")
+    # the page alone, moved away from its folder: nothing may come from beside it
+    probe = tmp_path / "alone" / "page.html"
+    probe.parent.mkdir()
+    script = ("<script>window.addEventListener('load', () => {const imgs = [...document.images];"
+              "document.body.setAttribute('data-loaded', imgs.filter(i => i.complete && "
+              "i.naturalWidth > 0).length + '/' + imgs.length);});</script>")
+    probe.write_text(page.replace("</body>", script + "</body>"))
+    r = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                        "--no-first-run", "--disable-background-networking",
+                        "--disable-component-update", "--disable-sync",
+                        f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=5000",
+                        "--dump-dom", probe.as_uri()], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert f'data-loaded="{n_images}/{n_images}"' in r.stdout, r.stdout[-500:]
+    # confusion matrix, a timeline per document, a heat map per template
+    assert n_images == 1 + len(world.doc_files) + len(list(world.mt.glob("*.json")))
