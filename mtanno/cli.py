@@ -1,7 +1,7 @@
 """Command line: a thin Click layer over the Python API.
 
 Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
-bad input, 130 interrupted (SIGINT or SIGTERM). Errors a user can fix are printed as one
+bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM). Errors a user can fix are printed as one
 line ``mtanno: path:line: what is wrong``; an interruption as ``mtanno: interrupted
 (SIGINT)``.
 """
@@ -18,7 +18,7 @@ import click
 
 import mtanno.commands
 from mtanno import __version__
-from mtanno.commands._common import show_progress, user_errors
+from mtanno.commands._common import lock_output, show_progress, user_errors, wait_option
 from mtanno.errors import MtannoError
 
 #: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
@@ -88,8 +88,9 @@ def main() -> None:
               help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
                    "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@wait_option
 @user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet):
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
     annotation features, or the 31 MRC05 features with --feature-set mrc05.
 
@@ -106,7 +107,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
     matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
     up axis and the extractor version. Files that fail are reported as `path:line: what is wrong` and
     the others are still written. Exit code: 0 all written or up to date, 1 some files
-    failed, 2 usage error, 130 interrupted (finished outputs stay, no partial file).
+    failed, 2 usage error, 3 OUTDIR locked by another run (see --wait), 130 interrupted
+    (finished outputs stay, no partial file).
 
     Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
     """
@@ -134,8 +136,9 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
         if outcome.status == "failed":
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
-    summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                        progress=progress, feature_set=feature_set, up=up)
+    with lock_output(outdir, wait=wait):
+        summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
+                            progress=progress, feature_set=feature_set, up=up)
     bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)

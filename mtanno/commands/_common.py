@@ -21,7 +21,7 @@ def user_errors(code: int):
                 return fn(*args, **kwargs)
             except MtannoError as exc:
                 click.echo(f"mtanno: {exc}", err=True)
-                sys.exit(code)
+                sys.exit(getattr(exc, "exit_code", code))  # LockBusy: 3
             except OSError as exc:  # the file system said no where no reader expected it
                 where = f"{exc.filename}: " if exc.filename else ""
                 click.echo(f"mtanno: {where}{exc.strerror or exc}", err=True)
@@ -30,6 +30,28 @@ def user_errors(code: int):
         return wrapper
 
     return deco
+
+
+def wait_option(fn):
+    """``--wait``: wait for another run that holds the output folder's lock instead of
+    exiting with code 3 (:func:`mtanno.output.folder_lock`)."""
+    return click.option("--wait", is_flag=True,
+                        help="If another mtanno run is writing into the same output, wait "
+                             "for it to finish instead of exiting with code 3.")(fn)
+
+
+def waiting_note(folder):
+    """The ``on_wait`` callback of a folder lock: one line on standard error."""
+    return lambda holder: click.echo(f"mtanno: waiting for {holder} to release {folder}",
+                                     err=True)
+
+
+def lock_output(folder, *, wait: bool, what: str = "output folder"):
+    """The folder lock of a command's output (:func:`mtanno.output.folder_lock`), saying on
+    standard error when it waits."""
+    from mtanno.output import folder_lock
+
+    return folder_lock(folder, wait=wait, what=what, on_wait=waiting_note(folder))
 
 
 def show_progress(quiet: bool) -> bool:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import parse_frames, user_errors
+from mtanno.commands._common import parse_frames, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 
 
@@ -59,14 +59,16 @@ def _summary(index) -> str:
 @click.option("--groups", default=None, metavar="G1,G2",
               help="Index only these groups of the feature set (default: all).")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@wait_option
 @user_errors(2)
-def build_cmd(features, out, groups, quiet):
+def build_cmd(features, out, groups, quiet, wait):
     """Index feature files (or directories of them) into OUTPUT. A file that cannot be
     read or has other features than most is reported and left out (exit code 1)."""
     from mtanno.index import build_index
 
     failures: list[str] = []
-    index = build_index(features, out, groups=_groups_option(groups), failures=failures)
+    index = build_index(features, out, groups=_groups_option(groups), failures=failures,
+                        wait=wait, on_wait=waiting_note(out))
     _report(failures)
     if not quiet:
         click.echo(f"index: {_summary(index)}, {len(failures)} failed -> {out}", err=True)
@@ -82,15 +84,17 @@ def _report(failures: list[str]) -> None:
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@wait_option
 @user_errors(2)
-def add_cmd(index_dir, features, quiet):
+def add_cmd(index_dir, features, quiet, wait):
     """Add feature files to INDEX (a document already indexed is replaced if its file
     changed). Only the new files are read; one that cannot be read or lacks the index's
     features is reported and left out (exit code 1)."""
     from mtanno.index import add_documents
 
     failures: list[str] = []
-    index, report = add_documents(index_dir, features, failures=failures)
+    index, report = add_documents(index_dir, features, failures=failures, wait=wait,
+                                  on_wait=waiting_note(index_dir))
     _report(failures)
     if not quiet:
         click.echo(f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}",
@@ -102,12 +106,13 @@ def add_cmd(index_dir, features, quiet):
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.argument("docs", nargs=-1, required=True, metavar="DOC...")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@wait_option
 @user_errors(2)
-def remove_cmd(index_dir, docs, quiet):
+def remove_cmd(index_dir, docs, quiet, wait):
     """Remove documents (names = feature file stems) from INDEX."""
     from mtanno.index import remove_documents
 
-    index, report = remove_documents(index_dir, docs)
+    index, report = remove_documents(index_dir, docs, wait=wait, on_wait=waiting_note(index_dir))
     if not quiet:
         click.echo(f"index remove: {report.line()}; {_summary(index)}", err=True)
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import show_progress, user_errors
+from mtanno.commands._common import lock_output, show_progress, user_errors, wait_option
 from mtanno.errors import MtannoError
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
@@ -53,9 +53,11 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class with a template.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@wait_option
 @user_errors(2)
 def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split, truth, method,
-                        runs, seed, jobs, generations, population, columns, classes, quiet):
+                        runs, seed, jobs, generations, population, columns, classes, quiet,
+                        wait):
     """Learn a keyframe query per class (MBS09 §6): a few key poses, each over one feature
     group, with gap bounds, that the class's training clips share and other classes' clips
     lack. `mtanno annotate --keyframes` matches templates only where they occur.
@@ -74,6 +76,7 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     from mtanno.keyframes import save_keyframes
     from mtanno.keyframes.ga import GAParams
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
+    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template_folder
     from mtanno.templates.training import (
         collect_sources,
@@ -108,28 +111,32 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     params = GAParams(population=population, generations=generations)
     out = Path(outdir)
     todo = [c for c in groups if c in templates or classes]
+    check_outputs([out / f"{c}.json" for c in todo if c and "/" not in c and "\0" not in c],
+                  [*(s.path for s in sources), manifest, truth,
+                   *(t.path for t in templates.values())])
     total = len(todo) * (runs if method == "ga" else 1)
     bar = tqdm(total=total, unit="run" if method == "ga" else "class", desc="learn-keyframes",
                disable=not show_progress(quiet))
-    t0 = time.perf_counter()
-    written, failed = [], []
-    for cls in todo:
-        bar.set_postfix_str(cls)
-        try:
-            if cls not in templates:
-                raise MtannoError(f"no template for class '{cls}' in {mt_dir}")
-            target = _class_file(out, cls)
-            q = learn_keyframes(ts, cls, templates[cls], method=method, runs=runs, seed=seed,
-                                jobs=jobs, params=params, columns=columns,
-                                examples=by_class.get(cls),
-                                progress=bar.update if method == "ga" else None)
-            save_keyframes(target, q)
-            written.append((cls, q))
-        except MtannoError as exc:
-            failed.append(cls)
-            bar.write(f"mtanno: class {cls}: {exc}", file=sys.stderr)
-        if method != "ga":
-            bar.update(1)
+    with lock_output(out, wait=wait):
+        t0 = time.perf_counter()
+        written, failed = [], []
+        for cls in todo:
+            bar.set_postfix_str(cls)
+            try:
+                if cls not in templates:
+                    raise MtannoError(f"no template for class '{cls}' in {mt_dir}")
+                target = _class_file(out, cls)
+                q = learn_keyframes(ts, cls, templates[cls], method=method, runs=runs, seed=seed,
+                                    jobs=jobs, params=params, columns=columns,
+                                    examples=by_class.get(cls),
+                                    progress=bar.update if method == "ga" else None)
+                save_keyframes(target, q)
+                written.append((cls, q))
+            except MtannoError as exc:
+                failed.append(cls)
+                bar.write(f"mtanno: class {cls}: {exc}", file=sys.stderr)
+            if method != "ga":
+                bar.update(1)
     bar.close()
     if not quiet:
         for cls, q in written:

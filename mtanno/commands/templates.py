@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mtanno.commands._common import show_progress, user_errors
+from mtanno.commands._common import lock_output, show_progress, user_errors, wait_option
 from mtanno.errors import MtannoError
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
@@ -48,9 +48,10 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
 @click.option("--thresh", default=0.005, show_default=True, type=click.FloatRange(min=0),
               help="Stop once the largest normalised alignment cost is at most this.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@wait_option
 @user_errors(2)
 def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, classes,
-                 iterations, thresh, quiet):
+                 iterations, thresh, quiet, wait):
     """Learn one motion template per class from example clips (MR06 §4.1).
 
     Training examples come from one of:
@@ -99,36 +100,36 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
         click.echo(f"learn-mt: {note}", err=True)
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
-    from mtanno.output import check_outputs, make_folder
+    from mtanno.output import check_outputs
 
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth])
-    make_folder(out)
     t0 = time.perf_counter()
     written, failed, n_examples = [], [], 0
-    reference = None
-    bar = tqdm(groups.items(), total=len(groups), unit="class", desc="learn-mt",
-               disable=not show_progress(quiet))
-    for class_name, srcs in bar:
-        bar.set_postfix_str(class_name)
-        try:
-            target = _safe_class_file(out, class_name)
-            examples = load_examples(srcs)
-            check_consistent(examples, like=reference)
-            reference = reference or examples[0]
-            mt = learn_template(examples, class_name=class_name, hard=hard,
-                                iter_max=iterations, thresh=thresh)
-            save_template(target, mt)
-            warning = few_examples_warning(class_name, len(examples))
-            if warning:
-                bar.write(f"learn-mt: {warning}", file=sys.stderr)
-        except MtannoError as exc:
-            failed.append(class_name)
-            bar.write(f"mtanno: class {class_name}: {exc}", file=sys.stderr)
-            continue
-        written.append(class_name)
-        n_examples += len(examples)
-    bar.close()
+    with lock_output(out, wait=wait):
+        reference = None
+        bar = tqdm(groups.items(), total=len(groups), unit="class", desc="learn-mt",
+                   disable=not show_progress(quiet))
+        for class_name, srcs in bar:
+            bar.set_postfix_str(class_name)
+            try:
+                target = _safe_class_file(out, class_name)
+                examples = load_examples(srcs)
+                check_consistent(examples, like=reference)
+                reference = reference or examples[0]
+                mt = learn_template(examples, class_name=class_name, hard=hard,
+                                    iter_max=iterations, thresh=thresh)
+                save_template(target, mt)
+                warning = few_examples_warning(class_name, len(examples))
+                if warning:
+                    bar.write(f"learn-mt: {warning}", file=sys.stderr)
+            except MtannoError as exc:
+                failed.append(class_name)
+                bar.write(f"mtanno: class {class_name}: {exc}", file=sys.stderr)
+                continue
+            written.append(class_name)
+            n_examples += len(examples)
+        bar.close()
     if not quiet:
         kind = "hard" if hard else "soft"
         click.echo(f"learn-mt: {len(written)} {kind} template(s) from {n_examples} examples "

@@ -69,7 +69,8 @@ def _existing_entries(index: Index) -> dict:
 
 
 def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None,
-                *, groups: GroupsArg = None, failures: list[str] | None = None) -> Index:
+                *, groups: GroupsArg = None, failures: list[str] | None = None,
+                wait: bool = False, on_wait=None) -> Index:
     """Index feature files (files or directories searched for ``*.parquet``).
 
     ``groups``: None for the feature set's groups (lower/upper/mix), a list of some of their
@@ -95,7 +96,7 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
                      float(first.meta.get("analysis_fps", 30.0)), gs, _entries(docs, gs))
     if root is None:
         return index
-    with write_lock(root):
+    with write_lock(root, wait=wait, on_wait=on_wait):
         return write_index(index, root)
 
 
@@ -136,7 +137,8 @@ class UpdateReport:
 
 
 def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os.PathLike],
-                  *, failures: list[str] | None = None) -> tuple[Index, UpdateReport]:
+                  *, failures: list[str] | None = None, wait: bool = False,
+                  on_wait=None) -> tuple[Index, UpdateReport]:
     """Add feature files to the index in ``index_dir``, in place and atomically. A document
     whose name is already indexed is replaced if its feature file changed (by SHA-256) and
     left alone otherwise. Only the new files are read. With ``failures``, a file that
@@ -146,7 +148,7 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
 
     root = Path(index_dir)
     paths = collect_feature_files(feature_files)
-    with write_lock(root):
+    with write_lock(root, wait=wait, on_wait=on_wait):
         index = read_index(root)
         layout = FeatureLayout(index.feature_set, tuple(index.features), float(index.fps),
                                f"the index {root}")
@@ -174,8 +176,8 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
         return write_index(new, root), report
 
 
-def remove_documents(index_dir: str | os.PathLike, names: Iterable[str],
-                     ) -> tuple[Index, UpdateReport]:
+def remove_documents(index_dir: str | os.PathLike, names: Iterable[str], *,
+                     wait: bool = False, on_wait=None) -> tuple[Index, UpdateReport]:
     """Remove documents (by name, or feature file path whose stem is the name) from the index
     in ``index_dir``, in place and atomically. Every name must be indexed."""
     root = Path(index_dir)
@@ -185,7 +187,7 @@ def remove_documents(index_dir: str | os.PathLike, names: Iterable[str],
         wanted.append(Path(n).stem if n.endswith(".parquet") else n)
     if not wanted:
         raise MtannoError("no documents to remove")
-    with write_lock(root):
+    with write_lock(root, wait=wait, on_wait=on_wait):
         index = read_index(root)
         entries = _existing_entries(index)
         missing = [n for n in wanted if n not in entries]

@@ -27,7 +27,6 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -49,29 +48,13 @@ class CorruptIndex(MtannoError):
     """An index directory that cannot be read as a complete index."""
 
 
-@contextlib.contextmanager
-def write_lock(root: Path) -> Iterator[None]:
-    """Exclusive writer lock on ``root/.lock`` (advisory; a dead process releases it)."""
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-        fh = open(root / ".lock", "a+")
-    except OSError as exc:
-        raise MtannoError(f"cannot write the index here: {exc.strerror or exc}",
-                          path=str(root)) from None
-    try:
-        try:
-            import fcntl
+def write_lock(root: Path, *, wait: bool = False, on_wait=None):
+    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.output.folder_lock`: a dead
+    process releases it; a busy index raises :class:`mtanno.output.LockBusy`, exit code 3,
+    naming the run that holds it, or waits with ``wait``)."""
+    from mtanno.output import folder_lock
 
-            try:
-                fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                raise MtannoError("index is being updated by another process (lock held)",
-                                  path=str(root)) from None
-        except ImportError:  # pragma: no cover - not POSIX
-            pass
-        yield
-    finally:
-        fh.close()
+    return folder_lock(root, wait=wait, what="index", name=".lock", on_wait=on_wait)
 
 
 def _fsync_dir(path: Path) -> None:

@@ -220,4 +220,4 @@ def test_a_held_index_lock_is_one_line(world, tmp_path):
     with open(idx / ".lock", "a+") as fh:
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         r = cli("index", "add", idx, world.doc_files[0])
-    assert "lock held" in assert_one_line(r, idx, codes=(2,))
+    assert "index is locked by" in assert_one_line(r, idx, codes=(3,))
