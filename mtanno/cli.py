@@ -1,9 +1,9 @@
 """Command line: a thin Click layer over the Python API.
 
 Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
-bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM). Errors a user can fix are printed as one
-line ``mtanno: path:line: what is wrong``; an interruption as ``mtanno: interrupted
-(SIGINT)``.
+bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM). Errors a
+user can fix are printed as one line ``mtanno: path:line: what is wrong``; an interruption
+as ``mtanno: interrupted (SIGINT)``.
 """
 
 from __future__ import annotations
