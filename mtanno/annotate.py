@@ -643,7 +643,8 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
                    layout: FeatureLayout, config: ClassConfig | None = None,
                    dbar_variant: str = "reference", match_variant: str = "reference",
                    keyframes: dict | None = None, n_jobs: int = 1,
-                   progress=None, single_label: bool = False) -> AnnotationBatch:
+                   progress=None, single_label: bool = False,
+                   scheduler: str | None = None) -> AnnotationBatch:
     """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
     (:class:`mtanno.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
     queries (:mod:`mtanno.keyframes`): those classes are matched only inside their
@@ -651,9 +652,10 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
     and the batch goes on. ``progress`` is called once per file with its path and its
     failure message (None on success). ``single_label`` resolves overlapping segments
-    (:func:`single_label_segments`). Rows are sorted by document, start, end and
-    label."""
-    from mtanno.workers import WorkerPool
+    (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
+    documents instead of local processes (:class:`mtanno.workers.DaskPool`, same results).
+    Rows are sorted by document, start, end and label."""
+    from mtanno.workers import make_pool
 
     config = config or ClassConfig()
     batch = AnnotationBatch()
@@ -675,12 +677,8 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
         if progress:
             progress(path, None)
 
-    if n_jobs > 1 and len(args) > 1:
-        with WorkerPool(n_jobs) as pool:
-            for a, result in zip(args, pool.map(_annotate_file, args)):
-                collect(a[0], result)
-    else:
-        for a in args:
-            collect(a[0], _annotate_file(*a))
+    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:
+        for a, result in zip(args, pool.map(_annotate_file, args)):
+            collect(a[0], result)
     batch.rows.sort(key=lambda r: (r.doc, r.start, r.end, r.label))
     return batch

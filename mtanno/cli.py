@@ -18,7 +18,13 @@ import click
 
 import mtanno.commands
 from mtanno import __version__
-from mtanno.commands._common import lock_output, show_progress, user_errors, wait_option
+from mtanno.commands._common import (
+    lock_output,
+    scheduler_option,
+    show_progress,
+    user_errors,
+    wait_option,
+)
 from mtanno.errors import MtannoError
 
 #: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
@@ -89,8 +95,10 @@ def main() -> None:
                    "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
+@scheduler_option
 @user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait):
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait,
+                 scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
     annotation features, or the 31 MRC05 features with --feature-set mrc05.
 
@@ -138,7 +146,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
 
     with lock_output(outdir, wait=wait):
         summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                            progress=progress, feature_set=feature_set, up=up)
+                            progress=progress, feature_set=feature_set, up=up,
+                            scheduler=scheduler)
     bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)

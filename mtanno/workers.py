@@ -29,7 +29,8 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-__all__ = ["Interrupted", "WorkerPool", "interruptible", "must_hard_exit"]
+__all__ = ["DaskPool", "Interrupted", "SerialPool", "WorkerPool", "interruptible", "make_pool",
+           "must_hard_exit", "shared"]
 
 #: How often a worker checks that its parent is alive (seconds).
 WATCHDOG_INTERVAL = 0.2
@@ -106,7 +107,19 @@ def _watchdog(parent: int) -> None:
             os._exit(128 + signal.SIGTERM)
 
 
-def _init_worker(parent: int) -> None:
+#: Data every task of a pool may read (:func:`shared`), set once per worker.
+_SHARED: Any = None
+
+
+def shared() -> Any:
+    """The ``shared`` object of the pool (or dask run) this task runs in: large read-only
+    data (a GA's training set, say) sent to each worker once instead of with every task."""
+    return _SHARED
+
+
+def _init_worker(parent: int, data: Any = None) -> None:
+    global _SHARED
+    _SHARED = data
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
     _set_parent_death_signal(signal.SIGTERM)
@@ -148,7 +161,7 @@ class WorkerPool:
     are gone, so no worker outlives the command.
     """
 
-    def __init__(self, n_jobs: int):
+    def __init__(self, n_jobs: int, *, shared: Any = None):
         ctx = None
         if sys.platform != "win32":
             import multiprocessing
@@ -156,7 +169,8 @@ class WorkerPool:
             ctx = multiprocessing.get_context("fork")  # no re-import of numba per worker
         self.n_jobs = int(n_jobs)
         self._pool = ProcessPoolExecutor(max_workers=self.n_jobs, mp_context=ctx,
-                                         initializer=_init_worker, initargs=(os.getpid(),))
+                                         initializer=_init_worker,
+                                         initargs=(os.getpid(), shared))
 
     def map(self, fn: Callable[..., Any], args: Iterable[Sequence[Any]], *,
             chunksize: int = 1) -> Iterator[Any]:
@@ -202,3 +216,111 @@ class WorkerPool:
             self._pool.shutdown(wait=True)
         else:
             self.stop()
+
+
+# ----------------------------------------------------------------------------- dask and serial
+
+
+class SerialPool:
+    """The pool interface in this process (``--jobs 1``): tasks run one after another."""
+
+    def __init__(self, *, shared: Any = None):
+        self._shared = shared
+
+    def map(self, fn: Callable[..., Any], args: Iterable[Sequence[Any]], *,
+            chunksize: int = 1) -> Iterator[Any]:
+        global _SHARED
+        previous, _SHARED = _SHARED, self._shared
+        try:
+            for a in args:
+                yield fn(*a)
+        finally:
+            _SHARED = previous
+
+    def __enter__(self) -> SerialPool:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        pass
+
+
+def _dask_task(fn: Callable[..., Any], data: Any, args: tuple) -> Any:
+    global _SHARED
+    _SHARED = data
+    return fn(*args)
+
+
+class DaskPool:
+    """The pool interface on a dask.distributed cluster (``--scheduler``).
+
+    ``scheduler`` is the address of a running scheduler (``tcp://host:8786``) or
+    ``local:N`` for a local cluster of N single-threaded worker processes started for this
+    run. Tasks are the same functions with the same arguments as in a :class:`WorkerPool`
+    (file paths and small records; every worker reads its inputs from the shared file
+    system), so results are identical; ``shared`` data is scattered to every worker once.
+    Results come back in input order. ``docs/scaling.md`` says how to run a cluster.
+    """
+
+    def __init__(self, scheduler: str, *, shared: Any = None):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            from mtanno.errors import MtannoError
+
+            raise MtannoError("--scheduler needs dask.distributed, an optional extra: "
+                              "pip install 'mtanno[dask]'") from None
+        self._cluster = None
+        if scheduler.startswith("local:"):
+            try:
+                n = int(scheduler.split(":", 1)[1])
+                if n < 1:
+                    raise ValueError
+            except ValueError:
+                from mtanno.errors import MtannoError
+
+                raise MtannoError(f"--scheduler local:N needs a positive number of workers, "
+                                  f"got {scheduler!r}") from None
+            self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                         dashboard_address=None)
+            self._client = Client(self._cluster)
+        else:
+            try:
+                self._client = Client(scheduler)  # dask's connect timeout (30 s by default)
+            except OSError as exc:
+                from mtanno.errors import MtannoError
+
+                raise MtannoError(f"cannot reach the dask scheduler {scheduler}: {exc}") \
+                    from None
+        self._shared = (self._client.scatter(shared, broadcast=True)
+                        if shared is not None else None)
+
+    def map(self, fn: Callable[..., Any], args: Iterable[Sequence[Any]], *,
+            chunksize: int = 1) -> Iterator[Any]:
+        items = [tuple(a) for a in args]
+        futures = self._client.map(_dask_task, [fn] * len(items), [self._shared] * len(items),
+                                   items, pure=False)
+        for fut in futures:
+            yield fut.result()
+
+    def __enter__(self) -> DaskPool:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        with contextlib.suppress(Exception):
+            self._client.close()
+        if self._cluster is not None:
+            with contextlib.suppress(Exception):
+                self._cluster.close()
+
+
+def make_pool(*, jobs: int = 1, scheduler: str | None = None, shared: Any = None,
+              n_tasks: int | None = None):
+    """The executor of a batch: a :class:`DaskPool` with ``scheduler``; else a
+    :class:`WorkerPool` of ``jobs`` processes, or a :class:`SerialPool` for one job (or one
+    task). All three give ``fn(*args)`` results in input order, with ``shared`` readable
+    through :func:`shared` inside the tasks — and the same results."""
+    if scheduler:
+        return DaskPool(scheduler, shared=shared)
+    if jobs > 1 and (n_tasks is None or n_tasks > 1):
+        return WorkerPool(jobs, shared=shared)
+    return SerialPool(shared=shared)

@@ -40,6 +40,16 @@ def wait_option(fn):
                              "for it to finish instead of exiting with code 3.")(fn)
 
 
+def scheduler_option(fn):
+    """``--scheduler ADDRESS|local:N``: run the tasks on a dask.distributed cluster
+    (:class:`mtanno.workers.DaskPool`, docs/scaling.md) instead of ``--jobs`` processes."""
+    return click.option("--scheduler", default=None, metavar="ADDRESS|local:N",
+                        help="Run the tasks on a dask.distributed cluster (scheduler address, "
+                             "or local:N for N local workers) instead of --jobs processes; "
+                             "same results. Needs pip install 'mtanno[dask]'; "
+                             "docs/scaling.md.")(fn)
+
+
 def waiting_note(folder):
     """The ``on_wait`` callback of a folder lock: one line on standard error."""
     return lambda holder: click.echo(f"mtanno: waiting for {holder} to release {folder}",

@@ -7,7 +7,7 @@ import sys
 import click
 
 from mtanno.annotate import load_class_models
-from mtanno.commands._common import show_progress, user_errors
+from mtanno.commands._common import scheduler_option, show_progress, user_errors
 from mtanno.errors import MtannoError
 from mtanno.store import check_layout, document_files
 from mtanno.templates.model import template_files
@@ -44,9 +44,10 @@ check_features = check_layout
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (documents in parallel).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@scheduler_option
 @user_errors(2)
 def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, variant,
-                 match_variant, single_label, jobs, quiet):
+                 match_variant, single_label, jobs, quiet, scheduler):
     """Label every frame of documents with motion classes (MBS09 §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
@@ -103,7 +104,8 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
 
     batch = annotate_files(paths, models, layout=key, config=config, dbar_variant=variant,
                            match_variant=match_variant, keyframes=keyframes or None,
-                           n_jobs=jobs, progress=progress, single_label=single_label)
+                           n_jobs=jobs, progress=progress, single_label=single_label,
+                           scheduler=scheduler)
     bar.close()
     prov = provenance(inputs=batch.files, templates=[m.record() for m in models],
                       tau=config.default_tau, tau_per_class=config.tau or None,

@@ -10,7 +10,13 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import lock_output, show_progress, user_errors, wait_option
+from mtanno.commands._common import (
+    lock_output,
+    scheduler_option,
+    show_progress,
+    user_errors,
+    wait_option,
+)
 from mtanno.errors import MtannoError
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
@@ -54,10 +60,11 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
               help="Learn only this class (repeatable). Default: every class with a template.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
+@scheduler_option
 @user_errors(2)
 def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split, truth, method,
                         runs, seed, jobs, generations, population, columns, classes, quiet,
-                        wait):
+                        wait, scheduler):
     """Learn a keyframe query per class (MBS09 §6): a few key poses, each over one feature
     group, with gap bounds, that the class's training clips share and other classes' clips
     lack. `mtanno annotate --keyframes` matches templates only where they occur.
@@ -127,7 +134,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
                     raise MtannoError(f"no template for class '{cls}' in {mt_dir}")
                 target = _class_file(out, cls)
                 q = learn_keyframes(ts, cls, templates[cls], method=method, runs=runs, seed=seed,
-                                    jobs=jobs, params=params, columns=columns,
+                                    jobs=jobs, scheduler=scheduler, params=params,
+                                columns=columns,
                                     examples=by_class.get(cls),
                                     progress=bar.update if method == "ga" else None)
                 save_keyframes(target, q)

@@ -279,16 +279,19 @@ def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
 def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
               skeleton: str | None = None,
               progress: Callable[[Outcome], None] | None = None,
-              feature_set: str = FEATURE_SET, up: str = "y") -> Summary:
+              feature_set: str = FEATURE_SET, up: str = "y",
+              scheduler: str | None = None) -> Summary:
     """Extract features for every job; failures are recorded, the batch goes on.
 
     ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`).
 
     ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.workers.WorkerPool`:
-    they stop with this process). Outputs that are up to date (:func:`up_to_date`) are
-    skipped unless ``force``. ``progress`` is called once per finished job.
+    they stop with this process); ``scheduler`` sends them to a dask.distributed cluster
+    instead (:class:`mtanno.workers.DaskPool`; same results). Outputs that are up to date
+    (:func:`up_to_date`) are skipped unless ``force``. ``progress`` is called once per
+    finished job.
     """
-    from mtanno.workers import WorkerPool
+    from mtanno.workers import make_pool
 
     feature_set = get_feature_set(feature_set).name
     to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work
@@ -302,14 +305,7 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
                 progress(o)
         else:
             todo.append(j)
-    if n_jobs <= 1 or len(todo) <= 1:
-        results: Iterable[Outcome] = (_run_one(j, skeleton, feature_set, up) for j in todo)
-        for o in results:
-            summary.outcomes.append(o)
-            if progress:
-                progress(o)
-        return summary
-    with WorkerPool(n_jobs) as pool:
+    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(todo)) as pool:
         for o in pool.map(_run_one, [(j, skeleton, feature_set, up) for j in todo],
                           chunksize=4):
             summary.outcomes.append(o)

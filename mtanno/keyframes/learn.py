@@ -22,7 +22,6 @@ import math
 import zlib
 from collections import Counter
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -180,30 +179,22 @@ def validation_folds(training: TrainingSet, positives: np.ndarray, *, folds: int
     return fold, usable, how
 
 
-_WORKER: dict = {}
+def _ga_run(k: int, seed_seq) -> tuple[int, GARun, Score | None]:
+    """GA run k in a worker (the problem, parameters and folds are the pool's shared data,
+    :func:`mtanno.workers.shared`); with usable folds, it learns without fold
+    ``usable[k % len]`` and is scored on that fold."""
+    from mtanno.workers import shared
 
-
-def _worker_init(problem: Problem, params: GAParams, fold: np.ndarray | None = None,
-                 usable: Sequence[int] = ()):
-    _WORKER.update(problem=problem, params=params, fold=fold, usable=list(usable))
-
-
-def _worker_run(args) -> tuple[int, GARun, Score | None]:
-    """Run k; with usable folds, it learns without fold ``usable[k % len]`` and is scored
-    on that fold."""
-    k, seed_seq = args
-    pb: Problem = _WORKER["problem"]
-    usable, fold = _WORKER["usable"], _WORKER["fold"]
+    pb, params, fold, usable = shared()
     held = None
     if usable:
         held = fold == usable[k % len(usable)]
         pb = Problem(pb.strict, pb.soft, pb.group_rows, pb.training, pb.positives, ~held)
-    res = run_ga(pb, rng=np.random.default_rng(seed_seq), params=_WORKER["params"])
+    res = run_ga(pb, rng=np.random.default_rng(seed_seq), params=params)
     val = None
     if held is not None:
-        prm = _WORKER["params"]
-        val = pb.training.score(res.genes, res.gaps, pb.positives, prm.beta, within=held,
-                                mismatches=prm.mismatches)
+        val = pb.training.score(res.genes, res.gaps, pb.positives, params.beta, within=held,
+                                mismatches=params.mismatches)
     return k, res, val
 
 
@@ -231,8 +222,10 @@ def _choose(results: list[GARun], full: list[Score], val: list[Score | None],
 
 
 def _learn_ga(ctx: _Context, template, *, runs: int, seed: int, jobs: int, params: GAParams,
-              validate: bool, progress: Callable[[int], None] | None) -> KeyframeQuery:
+              validate: bool, scheduler: str | None,
+              progress: Callable[[int], None] | None) -> KeyframeQuery:
     from mtanno.templates.model import quantize
+    from mtanno.workers import make_pool
 
     strict = quantize(template, 0.0).values
     problem = Problem(strict, ctx.soft, ctx.group_rows, ctx.training, ctx.positives)
@@ -241,18 +234,11 @@ def _learn_ga(ctx: _Context, template, *, runs: int, seed: int, jobs: int, param
     seeds = run_seeds(ctx.class_name, seed, runs)
     results: list[GARun | None] = [None] * runs
     val: list[Score | None] = [None] * runs
-    if jobs > 1 and runs > 1:
-        with ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init,
-                                 initargs=(problem, params, fold, usable)) as pool:
-            for k, res, v in pool.map(_worker_run, list(enumerate(seeds)),
-                                      chunksize=max(1, runs // (4 * jobs))):
-                results[k], val[k] = res, v
-                if progress:
-                    progress(1)
-    else:
-        _worker_init(problem, params, fold, usable)
-        for k, s in enumerate(seeds):
-            _, results[k], val[k] = _worker_run((k, s))
+    with make_pool(jobs=jobs, scheduler=scheduler, n_tasks=runs,
+                   shared=(problem, params, fold, usable)) as pool:
+        for k, res, v in pool.map(_ga_run, list(enumerate(seeds)),
+                                  chunksize=max(1, runs // (4 * jobs))):
+            results[k], val[k] = res, v
             if progress:
                 progress(1)
     full = [ctx.training.score(r.genes, r.gaps, ctx.positives, params.beta,
@@ -419,7 +405,7 @@ def _learn_heuristic(ctx: _Context, template, *, columns: int, beta: float) -> K
 def learn_keyframes(training: TrainingSet, class_name: str, template, *, method: str = "ga",
                     examples=None, runs: int = DEFAULT_RUNS, seed: int = 0, jobs: int = 1,
                     params: GAParams | None = None, columns: int = DEFAULT_COLUMNS,
-                    validate: bool = True,
+                    validate: bool = True, scheduler: str | None = None,
                     progress: Callable[[int], None] | None = None) -> KeyframeQuery:
     """Learn the keyframe query of ``class_name`` (algorithms.md §6).
 
@@ -434,8 +420,9 @@ def learn_keyframes(training: TrainingSet, class_name: str, template, *, method:
         ``"ga"`` (MBS09 §6), ``"hard"`` (thesis ch. 6) or ``"heuristic"`` (MR06).
     examples:
         The class's training examples (``hard`` learns its template from them).
-    runs, seed, jobs, params:
-        GA: independent runs, the seed they derive from, worker processes, GA parameters.
+    runs, seed, jobs, params, scheduler:
+        GA: independent runs, the seed they derive from, worker processes (or a
+        dask.distributed scheduler address, ``local:N``), GA parameters.
     columns:
         ``hard``/``heuristic``: number of template columns to take.
     validate:
@@ -459,7 +446,7 @@ def learn_keyframes(training: TrainingSet, class_name: str, template, *, method:
             raise MtannoError("the genetic algorithm needs training clips of at least two "
                               "classes (the other classes are its negatives)")
         return _learn_ga(ctx, template, runs=runs, seed=seed, jobs=jobs, params=params,
-                         validate=validate, progress=progress)
+                         validate=validate, scheduler=scheduler, progress=progress)
     if method == "hard":
         if not examples:
             raise MtannoError("the hard method needs the class's training examples")
