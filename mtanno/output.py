@@ -85,7 +85,7 @@ def remove_stale_temporaries(folder: str | os.PathLike, *, force: bool = False) 
     ``force``. Returns the files removed.
     """
     folder = Path(folder)
-    key = str(folder.resolve())
+    key = str(folder)  # as named: a folder named two ways is merely looked at twice
     if key in _CLEANED and not force:
         return []
     _CLEANED.add(key)
@@ -140,17 +140,28 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
     file system (unwritable folder, a file where a folder should be, disk full) are raised
     as :class:`MtannoError` naming ``target``.
     """
+    import stat
+
     target = Path(target)
-    if target.is_dir():
+    try:
+        st = os.stat(target)
+    except (FileNotFoundError, NotADirectoryError):
+        st = None
+    except OSError as exc:
+        raise _write_error(target, exc) from None
+    if st is not None and stat.S_ISDIR(st.st_mode):
         raise MtannoError("output is a folder, not a file", path=str(target))
-    if target.exists() and not target.is_file():
+    if st is not None and not stat.S_ISREG(st.st_mode):
         yield target
         return
-    make_folder(target.parent)
     remove_stale_temporaries(target.parent)
+    prefix = f".{target.name}.{_HOST}-{os.getpid()}."
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{_HOST}-{os.getpid()}.",
-                                   suffix=TMP_SUFFIX, dir=target.parent)
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=TMP_SUFFIX, dir=target.parent)
+        except FileNotFoundError:  # the folder does not exist yet
+            make_folder(target.parent)
+            fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=TMP_SUFFIX, dir=target.parent)
     except OSError as exc:
         raise _write_error(target, exc) from None
     try:
@@ -200,13 +211,25 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
     Call it before any work: the command then fails at once, with one line, and writes
     nothing.
     """
+    folders: dict[str, str] = {}
+
+    def resolved(p: Path) -> str:
+        # the folder resolved once per folder (batches name thousands of files in a few
+        # folders); a file that is itself a link is caught by its inode below
+        parent = str(p.parent)
+        if parent not in folders:
+            folders[parent] = str(p.parent.resolve())
+        return os.path.join(folders[parent], p.name)
+
     by_path: dict[str, str] = {}
     by_inode: dict[tuple[int, int], str] = {}
     for item in inputs:
         if item is None or str(item) == "-":
             continue
         p = Path(item)
-        by_path.setdefault(str(p.resolve()), str(item))
+        by_path.setdefault(resolved(p), str(item))
+        if p.is_symlink():  # also where it leads
+            by_path.setdefault(str(p.resolve()), str(item))
         ident = _identity(p)
         if ident is not None and p.is_file():
             by_inode.setdefault(ident, str(item))
@@ -215,7 +238,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
         if item is None or str(item) == "-":
             continue
         p = Path(item)
-        rp = str(p.resolve())
+        rp = resolved(p)
         if rp in seen:
             raise MtannoError(f"the same output is named twice ({seen[rp]} and {item})",
                               path=str(item))

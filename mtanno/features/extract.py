@@ -121,10 +121,10 @@ _DIGESTS: dict[tuple, str] = {}
 
 def _skeleton_digest(path: Path) -> str:
     """SHA-256 of a skeleton file, hashed once per batch: every AMC of an actor names the
-    same ASF. Keyed by (path, size, modification time, inode), so a changed file is hashed
-    again."""
+    same ASF. Keyed by (device, inode, size, modification time), so a changed file is
+    hashed again."""
     st = path.stat()
-    key = (str(path.resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+    key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
     digest = _DIGESTS.get(key)
     if digest is None:
         if len(_DIGESTS) > 256:
