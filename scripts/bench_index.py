@@ -114,7 +114,16 @@ def bench_build(feats: Path, out: Path, repeat: int) -> dict:
         for k, v in zip(phases, (t1 - t0, t2 - t1, t3 - t2, t5 - t4)):
             phases[k].append(v)
     manifest = read_manifest(out)
+    # the whole command, process start-up included (issue 12: < 5 s for Bandai set 2)
+    whole = []
+    for _ in range(repeat):
+        shutil.rmtree(out, ignore_errors=True)
+        t = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "mtanno.cli", "index", str(feats), "-o",
+                        str(out), "-q"], check=True)
+        whole.append(time.perf_counter() - t)
     return {"index": index, "files": len(paths), "manifest": manifest,
+            "command": statistics.median(whole),
             **{k: statistics.median(v) for k, v in phases.items()}}
 
 
@@ -126,7 +135,9 @@ def print_sizes(name: str, fs: str, b: dict) -> None:
           f"frames at {index.fps:g} Hz ({minutes:.1f} min)")
     print(f"build_index: {b['build']:.2f} s for {b['files']} feature files (phases: read "
           f"{b['read']:.2f} s, segment + inverted lists {b['segment']:.2f} s, write "
-          f"{b['write']:.2f} s); index {total / 1e6:.2f} MB on disk")
+          f"{b['write']:.2f} s); index {total / 1e6:.2f} MB on disk; the whole command "
+          f"`mtanno index` {b['command']:.2f} s (start-up included; target < 5 s for Bandai "
+          f"set 2)")
     print("| group | f | segments | seg/frame | lists (of 2^f) | bytes | bytes/segment |")
     print("|---|---|---|---|---|---|---|")
     for g in index.groups.values():
