@@ -839,11 +839,15 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
 
     out = []
     for cls, paths in config.template_paths().items():
+        line = config.line_of("templates", cls)
         for path in paths:
+            if not path.is_file():
+                raise MtannoError(f"[templates] {cls}: template file {path} not found",
+                                  path=config.path, line=line)
             mt = load_template(path)
             if mt.class_name != cls:
-                raise MtannoError(f"[templates] lists this file under {cls!r} but it holds a "
-                                  f"template of {mt.class_name!r}", path=str(path))
+                raise MtannoError(f"[templates] {cls}: {path} holds a template of class "
+                                  f"{mt.class_name!r}", path=config.path, line=line)
             check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
                                        f"template {path}"), layout, path=str(path))
             q = quantize(mt, delta)
