@@ -4,6 +4,8 @@ Exit codes: 0 success, 2 usage error or bad input, 130 interrupted."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from mtanno.commands._common import user_errors
@@ -43,6 +45,9 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("--unknown-weight", default=UNKNOWN_WEIGHT, show_default=True,
               type=click.FloatRange(min=0),
               help="Weight w of the unknown-class rate in the objective (F1 + F2)/2 − w·U.")
+@click.option("--ablation", "ablation_dir", type=click.Path(file_okay=False), default=None,
+              help="Also tune with each method left out, and with none, on the same folds; "
+                   "write DIR/without-METHOD.toml and DIR/none.toml (an ablation study).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the held-out document composition (same seed, same file).")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
@@ -50,7 +55,7 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("-q", "--quiet", is_flag=True, help="No search log and no summary line.")
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
-             disabled, unknown_weight, seed, jobs, quiet):
+             disabled, unknown_weight, ablation_dir, seed, jobs, quiet):
     """Learn the annotation parameters from the training data alone (issue 10).
 
     Cross-validation inside the training examples: each performer (manifest actor, or
@@ -78,7 +83,9 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth)
-    check_outputs([output], [mt_dir, *template_files(mt_dir), manifest, truth,
+    planned = [output] + ([Path(ablation_dir) / f"{n}.toml" for n in
+                           [*(f"without-{m}" for m in METHODS), "none"]] if ablation_dir else [])
+    check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
                              *(s.path for s in sources),
                              *(keyframe_files(kf_dir) if kf_dir else [])])
 
@@ -93,8 +100,14 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
                                else f" (truth {truth})" if truth else ""), err=True)
     result = tune(sources, mt_dir, keyframes_dir=kf_dir, seed=seed, n_jobs=jobs,
                   methods=[m for m in METHODS if m not in disabled], documents=documents,
-                  unknown_weight=unknown_weight, log=log)
+                  unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log)
     write_tuned(output, result, command=command_line())
+    if ablation_dir is not None:
+        from mtanno.output import make_folder
+
+        make_folder(Path(ablation_dir))
+        for name, variant in result.ablation.items():
+            write_tuned(Path(ablation_dir) / f"{name}.toml", variant, command=command_line())
     if not quiet:
         extra = (f", extra templates in {template_folder_of(output)}"
                  if result.extra_templates else "")

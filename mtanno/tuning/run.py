@@ -58,6 +58,7 @@ class TuneResult:
     documents: str = "composed"
     unknown_weight: float = UNKNOWN_WEIGHT
     seconds: float = 0.0
+    ablation: dict[str, TuneResult] = field(default_factory=dict)
 
 
 def _learn_params(mt) -> dict:
@@ -101,7 +102,7 @@ def _final_groups(cls: str, examples: list[TrainingExample], k: int, learn: dict
 def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          keyframes_dir: str | os.PathLike | None = None, seed: int = 0, n_jobs: int = 1,
          methods: Sequence[str] = METHODS, documents: str = "composed",
-         unknown_weight: float = UNKNOWN_WEIGHT,
+         unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
          log: Callable[[str], None] | None = None) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
@@ -114,7 +115,10 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     stage are a little optimistic). ``methods``: those of :data:`METHODS` to use (the
     others stay as in the reference annotation). ``documents``: how held-out clips become
     documents (:data:`mtanno.tuning.cv.DOCUMENT_MODES`). ``unknown_weight``: w of the
-    objective. ``log`` receives one line per search step.
+    objective. ``log`` receives one line per search step. With ``ablation``, the search is
+    also run once with each method of ``methods`` left out and once with none of them
+    (one τ for all classes), on the same folds: ``TuneResult.ablation`` maps
+    ``"without-METHOD"`` and ``"none"`` to those results.
     """
     from mtanno.store import FeatureLayout, check_layout, read_features, sha256_file
     from mtanno.templates.model import load_template_folder, template_files
@@ -177,13 +181,24 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
     reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), 0.13), per_class=True)
+    variants = {}
+    if ablation:
+        for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
+                               for m in methods), ("none", [])]:
+            if log:
+                log(f"ablation {name}:")
+            variants[name] = tuner.search(delta=delta0, methods=subset)
     by_class = {c: [e for e in examples if e.class_name == c] for c in classes}
-    extra = {}
-    split = [c for c in classes if params.groups.get(c, 1) > 1]
-    if split:
-        got = _run_tasks([(c, (c, by_class[c], params.groups[c], learn[c]), {})
-                          for c in split], n_jobs, fn=_final_groups)
-        extra = {c: g for c, g in zip(split, got) if g}
+    wanted = sorted({(c, p.groups[c]) for p in [params, *(v[0] for v in variants.values())]
+                     for c in classes if p.groups.get(c, 1) > 1})
+    got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
+                      for key in wanted], n_jobs, fn=_final_groups) if wanted else []
+    learned = {key: g for key, g in zip(wanted, got) if g}
+
+    def extra_of(p: Params) -> dict:
+        return {c: learned[(c, p.groups[c])] for c in classes
+                if (c, p.groups.get(c, 1)) in learned}
+
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     if keyframes_dir is not None:
         from mtanno.keyframes import keyframe_files
@@ -195,9 +210,16 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
         if ex.file not in seen:
             seen.add(ex.file)
             inputs.append({"path": ex.file, "sha256": ex.sha256})
-    return TuneResult(params, evaluation, reference, steps, classes, extra, inputs,
-                      {f.name: len(f.held_examples) for f in folds}, seed, methods, documents,
-                      unknown_weight, time.perf_counter() - t0)
+    folds_held = {f.name: len(f.held_examples) for f in folds}
+    seconds = time.perf_counter() - t0
+    result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
+                        folds_held, seed, methods, documents, unknown_weight, seconds)
+    for name, (p, ev, st) in variants.items():
+        subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
+        result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
+                                           folds_held, seed, subset, documents, unknown_weight,
+                                           seconds)
+    return result
 
 
 def _deltas(methods: Sequence[str], templates) -> list[float]:

@@ -73,7 +73,7 @@ SCALE_STEPS = (0.8, 0.9, 1.1, 1.25)
 #: Smallest rise of J for which a per-class change is kept (guards against noise).
 EPS = 0.002
 #: Default weight of the unknown-class rate in the objective.
-UNKNOWN_WEIGHT = 0.05
+UNKNOWN_WEIGHT = 0.02
 
 
 @dataclass
@@ -189,6 +189,40 @@ class _FoldData:
     truth_by_class: dict[str, list[tuple[int, int]]]
     match: dict                             # (δ, class, k, i) -> (Δ, starts, evidence)
     groups: dict                            # (class, k) -> groups made
+    hidden: dict = field(default_factory=dict)  # class -> _FoldData of its documents only
+
+
+def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
+    """The fold restricted to some of its documents (the unknown-class runs of a class
+    need only the documents that hold it): arrays sliced, start frames moved along."""
+    if len(docs) == len(fd.offsets) - 1:
+        return fd
+    idx = np.concatenate([np.arange(fd.offsets[d], fd.offsets[d + 1]) for d in docs])
+    lengths = [int(fd.offsets[d + 1] - fd.offsets[d]) for d in docs]
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    shift = np.concatenate([np.full(n, offsets[j] - fd.offsets[d], dtype=np.int64)
+                            for j, (d, n) in enumerate(zip(docs, lengths))])
+    new_of = {int(d): j for j, d in enumerate(docs)}
+
+    def frame(a: int) -> int:
+        d = int(np.searchsorted(fd.offsets, a, side="right")) - 1
+        return int(a - fd.offsets[d] + offsets[new_of[d]])
+
+    match = {}
+    for key, (d, st, ev) in fd.match.items():
+        s2 = st[idx]
+        match[key] = (d[idx], np.where(s2 >= 0, s2 + shift, -1),
+                      None if ev is None else ev[idx])
+    keep = [(c, a, b) for c, a, b in fd.truth
+            if int(np.searchsorted(fd.offsets, a, side="right")) - 1 in new_of]
+    truth = [(c, frame(a), frame(b)) for c, a, b in keep]
+    by_class: dict[str, list[tuple[int, int]]] = {}
+    for c, lst in fd.truth_by_class.items():
+        for a, b in lst:
+            if int(np.searchsorted(fd.offsets, a, side="right")) - 1 in new_of:
+                by_class.setdefault(c, []).append((frame(a), frame(b)))
+    return _FoldData(fd.name, int(offsets[-1]), offsets, fd.classes, truth, by_class, match,
+                     fd.groups)
 
 
 class Tuner:
@@ -223,9 +257,15 @@ class Tuner:
             by_class: dict[str, list[tuple[int, int]]] = {}
             for c, a, b in f.held_out.truth:
                 by_class.setdefault(c, []).append((a, b))
-            self.folds.append(_FoldData(
-                f.name, f.held_out.n_frames, f.held_out.offsets, present,
-                [(self.ids[c], a, b) for c, a, b in f.held_out.truth], by_class, match, groups))
+            fd = _FoldData(f.name, f.held_out.n_frames, f.held_out.offsets, present,
+                           [(self.ids[c], a, b) for c, a, b in f.held_out.truth], by_class,
+                           match, groups)
+            for c in present:
+                docs = sorted({int(np.searchsorted(fd.offsets, a, side="right")) - 1
+                               for a, _ in by_class.get(c, [])})
+                if docs:
+                    fd.hidden[c] = _subset(fd, docs)
+            self.folds.append(fd)
         self.evaluations = 0
 
     # ------------------------------------------------------------------ scoring
@@ -269,21 +309,30 @@ class Tuner:
                                   else relative_evidence(ev), weight=params.frame_weight,
                                   boundaries=fd.offsets[1:-1])
             return [(self.ids[classes[d.label]], d.start, d.end) for d in dec]
+        return self._reference_segments(fd, params, classes)
+
+    def _reference_segments(self, fd: _FoldData, params: Params, classes: Sequence[str]):
+        """The reference decoder (Δ̄, labels, extension) on all held-out documents at once:
+        one frame of Δ = ∞ between documents keeps runs and extensions inside them (Δ̄
+        picks never cross documents: their spans come from per-document matching); frames
+        are mapped back afterwards. Equal to :func:`label_document` per document."""
         cfg = ClassConfig(tau=dict(params.tau), reject=dict(params.reject),
                           refine=params.refine)
-        out = []
-        for a, b in zip(fd.offsets[:-1], fd.offsets[1:]):
-            names, arrays = [], []
-            for c in classes:
-                for k, i in self._templates(fd, c, params):
-                    d, s, _ = fd.match[(params.delta, c, k, i)]
-                    rel = s[a:b] - a
-                    rel[s[a:b] < 0] = -1
-                    names.append(c)
-                    arrays.append((c, d[a:b], rel, None))
-            rows, _, _ = label_document("d", names, iter(arrays), int(b - a), config=cfg)
-            out.extend((self.ids[r.label], r.start + a, r.end + a) for r in rows)
-        return out
+        cuts = fd.offsets[1:-1]
+        shift = np.arange(1, len(cuts) + 1)
+        names, arrays = [], []
+        for c in classes:
+            for k, i in self._templates(fd, c, params):
+                d, s, _ = fd.match[(params.delta, c, k, i)]
+                s = np.where(s >= 0, s + np.searchsorted(cuts, s, side="right"), -1)
+                names.append(c)
+                arrays.append((c, np.insert(d, cuts, np.inf), np.insert(s, cuts, -1), None))
+        L = fd.n_frames + len(cuts)
+        rows, _, _ = label_document("d", names, iter(arrays), L, config=cfg)
+        sep = np.zeros(L, dtype=bool)
+        sep[cuts + shift - 1] = True
+        back = np.arange(L) - np.cumsum(sep)  # frame of the concatenation without separators
+        return [(self.ids[r.label], int(back[r.start]), int(back[r.end])) for r in rows]
 
     def evaluate(self, params: Params, *, per_class: bool = False) -> Evaluation:
         """J and the counts of ``params`` over all folds (unknown rate with each class left
@@ -306,13 +355,12 @@ class Tuner:
                     per.setdefault(c, Counts())
                     per[c] += got
             if self.unknown_weight > 0 or per_class:
-                for c in fd.classes:
-                    frames = fd.truth_by_class.get(c)
-                    if not frames:
-                        continue
+                for c, sub in fd.hidden.items():
                     rest = [x for x in fd.classes if x != c]
-                    hit, n = covered_fraction(frames, self._segments(fd, params, rest, arrays)
-                                              if rest else [], fd.n_frames)
+                    sub_arrays = arrays if sub is fd else (
+                        self._arrays(sub, params) if params.resolve else None)
+                    hit, n = covered_fraction(sub.truth_by_class[c], self._segments(
+                        sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
                     unk[0] += hit
                     unk[1] += n
                     h0, n0 = per_unk.get(c, (0, 0))
@@ -339,10 +387,12 @@ class Tuner:
     def _with_tau(self, p: Params, tau: float) -> Params:
         return p.copy(tau={c: tau for c in self.classes}, reject={})
 
-    def search(self, *, delta: float = DEFAULT_DELTA) -> tuple[Params, Evaluation, list[str]]:
-        """The coordinate search of the module docstring; returns the best parameters,
-        their evaluation and a log of the steps (one line each, with J)."""
-        on = self.methods
+    def search(self, *, delta: float = DEFAULT_DELTA, methods: Sequence[str] | None = None,
+               ) -> tuple[Params, Evaluation, list[str]]:
+        """The coordinate search of the module docstring over ``methods`` (default: the
+        tuner's); returns the best parameters, their evaluation and a log of the steps
+        (one line each, with J)."""
+        on = set(self.methods if methods is None else methods)
         steps: list[str] = []
 
         def note(what: str, ev: Evaluation) -> None:
