@@ -27,7 +27,8 @@ The search, in this order, each step only over the methods switched on
    where J rises by more than :data:`EPS`;
 5. rejection (``reject``): a ceiling ρ_p = m·τ_p (m in :data:`REJECT_STEPS`) per class,
    kept where J rises by more than :data:`EPS`;
-6. frame-wise tie-breaking (``frames``): the evidence weight (:data:`FRAME_WEIGHTS`);
+6. frame-wise tie-breaking (``frames``): the evidence weight (:data:`FRAME_WEIGHTS`), kept
+   where J rises by more than :data:`EPS` (the evidence costs annotation time);
 7. all τ and ρ scaled together once more (:data:`SCALE_STEPS`).
 
 Everything is deterministic for a seed (fold composition, grouping, learning, search
@@ -457,9 +458,10 @@ class Tuner:
                     cur, cur_ev = got, ev
             note(f"reject {len(cur.reject)} classes", cur_ev)
         # 6. frame-wise tie-breaking
-        if "frames" in on and cur.resolve:
-            got, ev = self._best([cur.copy(frame_weight=w) for w in FRAME_WEIGHTS])
-            if ev.J > cur_ev.J:
+        if "frames" in on and cur.resolve:  # evidence costs time: kept only where it pays
+            got, ev = self._best([cur.copy(frame_weight=w) for w in FRAME_WEIGHTS[1:]],
+                                 cur_ev, EPS)
+            if got is not None:
                 cur, cur_ev = got, ev
             note(f"frame weight {cur.frame_weight:g}", cur_ev)
         # 7. all thresholds scaled together
