@@ -629,9 +629,13 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
         for c in classes:
             _class_delta(X, packed, c, windows, match_variant, delta, start)
             if evidence:
-                from mtanno.decode import frame_evidence
+                from mtanno.decode import EVIDENCE_MARGIN, frame_evidence
 
-                yield c.name, delta, start, frame_evidence(packed, c.values)
+                spans = None
+                if windows is not None and c.name in windows:  # only where c can be
+                    spans = _merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
+                                           for a, b in windows[c.name]], L)
+                yield c.name, delta, start, frame_evidence(packed, c.values, spans=spans)
             else:
                 yield c.name, delta, start, None
 
@@ -692,7 +696,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
         mode: bool | str = "unclaimed" if (extend and config.refine) else extend
         return segments_from_labels(doc, labels, mat, extend=mode), labels, mat
 
-    from mtanno.decode import decode_segments, relative_evidence
+    from mtanno.decode import decode_segments, fold_label, relative_evidence
 
     starts = np.full((P, L), -1, dtype=np.int64)
     taus = np.ones((P, L)) if len({limits(n, member_of.get(n, n))[0] for n in names}) > 1 \
@@ -707,12 +711,12 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                               path=config.path)
         one_tau = tau
         k = labels.index(lab)
-        norm = np.where(np.asarray(delta) <= rho, delta, np.inf) / tau
-        better = norm < mat[k]
-        mat[k][better] = norm[better]
-        starts[k][better] = np.asarray(start)[better]
-        if taus is not None:
-            taus[k][better] = tau
+        if taus is None:
+            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
+        else:  # the τ of the template that gives each frame's minimum, for the cost column
+            before = mat[k].copy()
+            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
+            taus[k][mat[k] < before] = tau
         if ev is not None:
             if evidence is None:
                 raise MtannoError("frame_weight > 0 needs each template's frame evidence")
@@ -720,8 +724,9 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
                               else 0, evidence=None if ev is None else relative_evidence(ev),
                               weight=config.frame_weight)
-    rows = [Annotation(doc, d.start, d.end, labels[d.label],
-                       d.cost * (one_tau if taus is None else float(taus[d.label, d.end])))
+    # cost: Δ at the segment's end, back from Δ/τ (to 12 digits: the division's rounding)
+    rows = [Annotation(doc, d.start, d.end, labels[d.label], float(
+        f"{d.cost * (one_tau if taus is None else float(taus[d.label, d.end])):.12g}"))
             for d in decoded]
     rows.sort(key=lambda a: (a.start, a.end, a.label))
     return rows, labels, mat

@@ -36,11 +36,14 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 
-__all__ = ["DEFAULT_SLACK", "Decoded", "decode_segments", "frame_evidence",
-           "relative_evidence"]
+__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "decode_segments", "fold_label",
+           "frame_evidence", "relative_evidence"]
 
 #: Frames a segment start may move from its match's start (boundary refinement).
 DEFAULT_SLACK = 3
+#: Frames around a class's candidate windows (keyframes) where its evidence is computed:
+#: at least the largest slack a segment start may move out of a window.
+EVIDENCE_MARGIN = 8
 
 
 class Decoded(NamedTuple):
@@ -197,35 +200,72 @@ def _popcount(x):
 
 
 @numba.njit(cache=True)
-def _best_column(packed, masks, vals, inv_nnz, out):
-    """out[t] = min over columns k of (disagreements of frame t on k's fixed rows) / nnz_k."""
-    L, words = packed.shape
+def _best_column(packed, masks, vals, inv_nnz, starts, ends, out):
+    """out[t] = min over columns k of (disagreements of frame t on k's fixed rows) / nnz_k,
+    for the frames t of the spans [starts[i], ends[i]]."""
+    words = packed.shape[1]
     K = masks.shape[0]
-    for t in range(L):
-        b = np.inf
-        for k in range(K):
-            m = 0
-            for w in range(words):
-                m += _popcount((packed[t, w] ^ vals[k, w]) & masks[k, w])
-            c = m * inv_nnz[k]
-            if c < b:
-                b = c
-        out[t] = b
+    for i in range(starts.shape[0]):
+        for t in range(starts[i], ends[i] + 1):
+            b = np.inf
+            for k in range(K):
+                m = 0
+                for w in range(words):
+                    m += _popcount((packed[t, w] ^ vals[k, w]) & masks[k, w])
+                c = m * inv_nnz[k]
+                if c < b:
+                    b = c
+            out[t] = b
 
 
-def frame_evidence(packed: np.ndarray, values: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True)
+def _fold(delta, start, ceiling, inv_tau, row, row_start):
+    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima."""
+    for t in range(delta.shape[0]):
+        d = delta[t]
+        if d <= ceiling:
+            v = d * inv_tau
+            if v < row[t]:
+                row[t] = v
+                row_start[t] = start[t]
+
+
+def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start: np.ndarray, *,
+               tau: float, reject: float = np.inf) -> None:
+    """Fold one template's match into its label's row of the decoder's input, in place:
+    ``row`` = min(``row``, Δ/τ) over the frames where Δ ≤ ``reject`` (Δ·(1/τ), the decoder's
+    rounding), ``row_start`` the start frames of the minima (several templates of a class,
+    or the classes of a superclass, make one label)."""
+    if not tau > 0:
+        raise MtannoError(f"tau must be > 0 for the segment decoder, got {tau!r}")
+    _fold(np.ascontiguousarray(delta, dtype=np.float64), np.ascontiguousarray(start, np.int64),
+          float(reject), 1.0 / float(tau), row, row_start)
+
+
+def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
+                   spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Frame-wise evidence of one quantized template: for every frame of a bit-packed
     document (:func:`mtanno.templates.match.pack_document`), the smallest fraction of
     disagreeing fixed entries over the template's columns — 0 where the frame's pose is
     one the template holds anywhere, whatever the order (a "bag of columns"; wildcard-only
     columns are skipped, a template of only those gives 0). ``values`` is the (features ×
-    K) quantized template (0, 1, 0.5 = wildcard)."""
+    K) quantized template (0, 1, 0.5 = wildcard). With ``spans`` (first and last frames,
+    0-based inclusive, e.g. a class's candidate windows widened by
+    :data:`EVIDENCE_MARGIN`) only those frames are computed, the others are ∞."""
     V = np.asarray(values)
     fixed = V != 0.5
     keep = fixed.any(axis=0)
     L = packed.shape[0]
+    if spans is None:
+        starts, ends = np.array([0], np.int64), np.array([L - 1], np.int64)
+    else:
+        starts = np.clip(np.asarray(spans[0], np.int64), 0, L)
+        ends = np.clip(np.asarray(spans[1], np.int64), -1, L - 1)
     if not keep.any():
-        return np.zeros(L)
+        out = np.full(L, np.inf)
+        for a, b in zip(starts.tolist(), ends.tolist()):
+            out[a:b + 1] = 0.0
+        return out
     fixed = fixed[:, keep]
     ones = (V[:, keep] == 1.0) & fixed
     words = packed.shape[1]
@@ -242,15 +282,30 @@ def frame_evidence(packed: np.ndarray, values: np.ndarray) -> np.ndarray:
     pairs = np.unique(np.concatenate([masks, vals], axis=1), axis=0)  # distinct columns
     masks, vals = np.ascontiguousarray(pairs[:, :words]), np.ascontiguousarray(pairs[:, words:])
     nnz = np.array([sum(bin(int(x)).count("1") for x in row) for row in masks], dtype=np.float64)
-    out = np.empty(L)
-    _best_column(np.ascontiguousarray(packed), masks, vals, 1.0 / nnz, out)
+    out = np.full(L, np.inf)
+    frames = np.concatenate([np.arange(a, b + 1) for a, b in zip(starts.tolist(), ends.tolist())]
+                            or [np.zeros(0, np.int64)])
+    if frames.size == 0:
+        return out
+    # feature vectors repeat for many frames in a row: compute each distinct one once
+    distinct, inverse = np.unique(np.ascontiguousarray(packed)[frames], axis=0,
+                                  return_inverse=True)
+    got = np.empty(distinct.shape[0])
+    n = np.array([distinct.shape[0] - 1], np.int64)
+    _best_column(np.ascontiguousarray(distinct), masks, vals, 1.0 / nnz,
+                 np.zeros(1, np.int64), n, got)
+    out[frames] = got[inverse.reshape(-1)]
     return out
 
 
 def relative_evidence(evidence: np.ndarray) -> np.ndarray:
     """Per-label evidence (labels × frames) minus the smallest of each frame: 0 for the
-    label whose template fits the frame best, the margin behind it for the others."""
+    label whose template fits the frame best, the margin behind it for the others. ∞
+    entries (frames a label was not computed for: outside its candidate windows, where it
+    cannot claim frames) take no part in the minimum and become 0."""
     E = np.asarray(evidence, dtype=np.float64)
     if E.shape[0] == 0:
         return E
-    return E - E.min(axis=0, keepdims=True)
+    finite = np.isfinite(E)
+    low = np.where(finite, E, np.inf).min(axis=0, keepdims=True)
+    return np.where(finite, E - np.where(np.isfinite(low), low, 0.0), 0.0)

@@ -8,7 +8,8 @@ configuration no slower than 1.2× the untuned one).
   composed in order, tiled; 108 000 frames) with the templates alone and with
   ``--classes tuned.toml``: in one process (:func:`mtanno.annotate.annotate_document` on the
   document already read), median of 7, and as whole commands, median of ``--repeats``.
-  The same with the tuned configuration that `tune --keyframes` writes, with keyframes.
+  The same with the tuned configuration that `tune --keyframes` writes, with keyframes;
+  and the peak memory of annotating 10 hours with and without the tuned configuration.
 
     .venv/bin/python scripts/bench_tune.py [--repeats 3] [--out .cache/bench/annotate]
 """
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -110,6 +112,16 @@ def main() -> int:
     for name, inproc, wall, n_classes, n_templates in rows:
         print(f"  {name:34s} {inproc * 1000:7.0f} ms | {wall:5.2f} s   ({n_classes} classes, "
               f"{n_templates} templates)")
+    doc10 = tiled(src, out / "doc_600min.parquet", 600 * 60 * 30)
+    for name, extra in (("untuned", []), ("tuned", ["--classes", str(out / "tuned.toml")])):
+        t = time.perf_counter()
+        proc = subprocess.run(["/usr/bin/time", "-f", "%M", str(REPO / ".venv" / "bin" / "mtanno"),
+                               "annotate", "--mt", str(out / "mt"), *extra, str(doc10), "-o",
+                               str(out / "ann_600_tune.csv"), "-q"],
+                              check=True, capture_output=True, text=True)
+        peak = int(proc.stderr.strip().splitlines()[-1]) / 1024
+        print(f"annotate 10 h (1 080 000 frames), {name}: {time.perf_counter() - t:.1f} s wall, "
+              f"peak RSS {peak:.0f} MB")
     base, tuned = rows[0], rows[1]
     kbase, ktuned = rows[2], rows[3]
     print(f"tuned / untuned: {tuned[1] / base[1]:.2f}x in one process, {tuned[2] / base[2]:.2f}x "

@@ -174,6 +174,15 @@ def test_frame_evidence_equals_its_definition():
     assert frame_evidence(pack_document(X, 70), np.full((70, 3), 0.5)).tolist() == [0.0] * 30
     rel = relative_evidence(np.array([[0.1, 0.5], [0.3, 0.2]]))
     assert np.allclose(rel, [[0.0, 0.3], [0.2, 0.0]])
+    # only inside spans (a class's keyframe windows): ∞ elsewhere, and ∞ takes no part in
+    # the minimum of the relative evidence
+    full = frame_evidence(pack_document(X, 70), V)
+    part = frame_evidence(pack_document(X, 70), V, spans=(np.array([2, 20]), np.array([5, 40])))
+    inside = np.zeros(30, bool)
+    inside[2:6] = inside[20:] = True
+    assert np.array_equal(part[inside], full[inside]) and np.isinf(part[~inside]).all()
+    rel = relative_evidence(np.array([[0.1, np.inf, np.inf], [0.3, 0.2, np.inf]]))
+    assert np.allclose(rel, [[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])
 
 
 def test_label_document_applies_tau_reject_and_several_templates():

@@ -20,6 +20,7 @@ import numpy as np
 
 from mtanno import __version__
 from mtanno.annotate import ClassConfig, class_config_text
+from mtanno.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
@@ -71,11 +72,13 @@ def _learn_params(mt) -> dict:
     return out
 
 
-def _spans(windows_per_doc: list[list[tuple[int, int]]], offsets: np.ndarray):
+def _spans(windows_per_doc: list[list[tuple[int, int]]], offsets: np.ndarray, margin: int = 0):
+    """Absolute merged spans of per-document windows, widened by ``margin`` within each
+    document (as annotate widens a document's windows for the frame evidence)."""
     starts, ends = [], []
     for (a, b), wins in zip(zip(offsets[:-1], offsets[1:]), windows_per_doc):
         for s, e in sorted(wins):
-            s, e = max(0, s), min(int(b - a) - 1, e)
+            s, e = max(0, s - margin), min(int(b - a) - 1, e + margin)
             if e < s:
                 continue
             if starts and a + s <= ends[-1]:
@@ -168,13 +171,16 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             train = [e for e in f.train if e.class_name == c]
             if not train:
                 continue
-            spans = None
+            spans = ev_spans = None
             if windows is not None and c in queries:
-                spans = _spans([w.get(c, []) for w in windows], f.held_out.offsets)
+                wins = [w.get(c, []) for w in windows]
+                spans = _spans(wins, f.held_out.offsets)
+                ev_spans = _spans(wins, f.held_out.offsets, EVIDENCE_MARGIN)
             tasks.append(((f.name, c), (c, train, f.held_out.X, f.held_out.offsets), {
                 "deltas": _deltas(methods, templates), "groups": GROUPS
                 if "templates" in methods else (), "learn": learn[c], "spans": spans,
-                "evidence": "frames" in methods and "resolve" in methods}))
+                "evidence": "frames" in methods and "resolve" in methods,
+                "evidence_spans": ev_spans}))
     prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs)))
     tuner = Tuner(folds, prepared, classes=classes, methods=methods,
                   unknown_weight=unknown_weight, log=log)

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
-from mtanno.decode import DEFAULT_SLACK, decode_segments, relative_evidence
+from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, count, covered_fraction
@@ -135,11 +135,13 @@ class Evaluation:
 
 def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray, *,
                        deltas: Sequence[float], groups: Sequence[int], learn: dict,
-                       spans: tuple[np.ndarray, np.ndarray] | None, evidence: bool) -> dict:
+                       spans: tuple[np.ndarray, np.ndarray] | None, evidence: bool,
+                       evidence_spans: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
     """One class of one fold (a worker task): its templates learned from ``train`` (all
     examples, and per group for each group count of ``groups``), quantized with each δ,
     matched against the held-out documents (``offsets``; only inside ``spans`` — absolute
-    first and last frames — when keyframe windows are given). Returns ``{"groups": {k: k'},
+    first and last frames — when keyframe windows are given; the frame evidence then only
+    inside ``evidence_spans``, the windows widened as annotate widens them). Returns ``{"groups": {k: k'},
     "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
     for k asked (fewer when a group would be too small); template (1, 0) is the one learned
     from all examples, (k', i) group i of a split into k'."""
@@ -175,7 +177,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
                     seg[seg >= 0] += a
             else:
                 d, s = prep.match_spans(packed, spans[0], spans[1])
-            ev = frame_evidence(packed, q.values) if evidence else None
+            ev = frame_evidence(packed, q.values, spans=evidence_spans) if evidence else None
             out[(float(delta), *key)] = (d, s, ev)
     return {"groups": made, "match": out}
 
@@ -288,10 +290,7 @@ class Tuner:
             tau, rho = params.tau[c], params.reject.get(c, math.inf)
             for k, i in self._templates(fd, c, params):
                 d, s, e = fd.match[(params.delta, c, k, i)]
-                norm = np.where(d <= rho, d, np.inf) / tau
-                better = norm < mat[p]
-                mat[p][better] = norm[better]
-                st[p][better] = s[better]
+                fold_label(mat[p], st[p], d, s, tau=tau, reject=rho)
                 if ev is not None:
                     np.minimum(ev[p], e, out=ev[p])
         return mat, st, ev
