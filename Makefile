@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 SHARED ?= ../shared/data
 OUT    ?= out
 
-.PHONY: install test demo bench lint clean experiment-hdm05 experiment-mocap6
+.PHONY: install test demo bench lint clean experiment-hdm05 experiment-mocap6 experiment-bandai
 
 $(BIN)/mtanno: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -44,6 +44,9 @@ experiment-hdm05: $(BIN)/mtanno  ## the HDM05 annotation experiment (scripts/exp
 experiment-mocap6: $(BIN)/mtanno  ## the CMU mocap6 annotation experiment
 	scripts/experiment_mocap6.sh $(OUT)/mocap6
 
+experiment-bandai: $(BIN)/mtanno  ## the Bandai set-2 leave-one-style-out annotation experiment
+	scripts/experiment_bandai.sh $(OUT)/bandai
+
 bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the peers first
 	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python scripts/bench_features.py
@@ -53,6 +56,7 @@ bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the pe
 	$(BIN)/python scripts/bench_index.py
 	$(BIN)/python scripts/bench_keyframes.py
 	$(BIN)/python scripts/bench_align.py
+	$(BIN)/python scripts/bench_tune.py
 
 lint: $(BIN)/mtanno
 	$(BIN)/ruff check mtanno tests scripts

@@ -12,11 +12,13 @@ Frames are 0-based inside this module and 1-based inclusive in the tables it wri
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import numba
@@ -40,27 +42,62 @@ DEFAULT_DELTA = 0.05
 
 @dataclass
 class ClassConfig:
-    """Per-class thresholds and superclasses (a TOML file, see ``docs/annotation.md``).
+    """Per-class thresholds, superclasses and the annotation methods of issue 10 (a TOML
+    file, see ``docs/annotation.md``; ``mtanno tune`` writes one).
 
     ``tau`` maps class (or superclass) names to τ; ``superclasses`` maps a superclass
-    name to the classes it joins (its Δ̄ is the frame-wise minimum over them).
+    name to the classes it joins (its Δ̄ is the frame-wise minimum over them). The methods,
+    all off by default (MBS09 as the reference implementation runs it):
+
+    * ``resolve`` — overlap resolution: the segment decoder (:mod:`mtanno.decode`) picks
+      one least-cost partition into matches instead of Δ̄ labels and extension;
+    * ``refine`` — boundary refinement: with ``resolve`` a segment may start up to
+      ``slack`` frames from its match's start; without, the extension of §7 step 4 walks
+      only over frames no other class labels;
+    * ``reject`` — rejection ceilings ρ per label (``default_reject`` for the others):
+      matches with Δ above it are never taken (segment decoder) or picked (Δ̄);
+    * ``frame_weight`` — tie-breaking by frame-wise evidence (segment decoder);
+    * ``templates`` — several templates per class: further template files of a class
+      (paths relative to the configuration), matched like its own; its Δ is the
+      frame-wise minimum over them;
+    * ``delta`` — the templates' quantization δ (None: the command's ``--delta``).
     """
 
     default_tau: float = DEFAULT_TAU
     tau: dict[str, float] = field(default_factory=dict)
     superclasses: dict[str, list[str]] = field(default_factory=dict)
     path: str | None = None
+    resolve: bool = False
+    refine: bool = False
+    slack: int = 3
+    frame_weight: float = 0.0
+    delta: float | None = None
+    default_reject: float = math.inf
+    reject: dict[str, float] = field(default_factory=dict)
+    templates: dict[str, list[str]] = field(default_factory=dict)
+    lines: dict[tuple[str, str], int] = field(default_factory=dict, repr=False, compare=False)
 
     def tau_for(self, name: str) -> float:
         return self.tau.get(name, self.default_tau)
 
+    def reject_for(self, name: str) -> float:
+        return self.reject.get(name, self.default_reject)
+
+    def line_of(self, section: str, key: str) -> int | None:
+        """1-based line of ``key`` in ``[section]`` of the file read (None if unknown)."""
+        return self.lines.get((section, key))
+
     def check(self, classes: Sequence[str]) -> None:
         """Refuse what would be silently ignored or give nonsense: a τ that is not a
-        number ≥ 0 (NaN labels nothing), and names in ``[tau]`` or ``[superclasses]`` that
-        are none of ``classes`` (the templates' classes) or of the superclasses."""
+        number ≥ 0 (NaN labels nothing; with ``resolve`` τ must be > 0), and names in
+        ``[tau]``, ``[reject]``, ``[superclasses]`` or ``[templates]`` that are none of
+        ``classes`` (the templates' classes) or of the superclasses."""
         for name, value in [("default", self.default_tau), *self.tau.items()]:
-            check_tau(value, what=f"tau of {name}" if name != "default" else "tau",
-                      path=self.path)
+            what = f"tau of {name}" if name != "default" else "tau"
+            check_tau(value, what=what, path=self.path)
+            if self.resolve and not value > 0:
+                raise MtannoError(f"{what} must be > 0 with [decoder] resolve, got {value!r}",
+                                  path=self.path, line=self.line_of("tau", name))
         known = set(classes)
         labels = known | set(self.superclasses)
         for sup, members in self.superclasses.items():
@@ -68,11 +105,39 @@ class ClassConfig:
             if unknown:
                 raise MtannoError(f"superclass {sup!r} names class(es) without a template: "
                                   f"{', '.join(unknown)} (classes: {', '.join(sorted(known))})",
-                                  path=self.path)
-        unknown = sorted(n for n in self.tau if n not in labels)
-        if unknown:
-            raise MtannoError(f"[tau] names unknown class(es) {', '.join(unknown)} (classes "
-                              f"and superclasses: {', '.join(sorted(labels))})", path=self.path)
+                                  path=self.path, line=self.line_of("superclasses", sup))
+        for section, table, allowed in (("tau", self.tau, labels),
+                                        ("reject", self.reject, labels),
+                                        ("templates", self.templates, known)):
+            unknown = sorted(n for n in table if n not in allowed)
+            if unknown:
+                what = "classes and superclasses" if allowed is labels else "classes"
+                raise MtannoError(f"[{section}] names unknown class(es) {', '.join(unknown)} "
+                                  f"(no template; {what}: {', '.join(sorted(allowed))})",
+                                  path=self.path, line=self.line_of(section, unknown[0]))
+
+    def methods(self) -> dict:
+        """The issue-10 methods in use, for an output's provenance (empty: none)."""
+        out: dict = {}
+        if self.resolve:
+            out["resolve"] = True
+        if self.refine:
+            out["refine"] = {"slack": self.slack} if self.resolve else "unclaimed"
+        if self.resolve and self.frame_weight > 0:
+            out["frame_weight"] = self.frame_weight
+        if self.reject or self.default_reject != math.inf:
+            out["reject"] = {**({"default": self.default_reject}
+                                if self.default_reject != math.inf else {}), **self.reject}
+        if self.templates:
+            out["templates"] = {c: list(v) for c, v in self.templates.items()}
+        if self.delta is not None:
+            out["delta"] = self.delta
+        return out
+
+    def template_paths(self) -> dict[str, list[Path]]:
+        """``[templates]`` as paths (relative ones taken from the configuration's folder)."""
+        base = Path(self.path).parent if self.path else Path(".")
+        return {c: [base / f for f in files] for c, files in self.templates.items()}
 
 
 def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
@@ -87,8 +152,29 @@ def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
     return value
 
 
+#: Keys of the ``[decoder]`` section of a class configuration and their types.
+DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": float,
+                "delta": float}
+_SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates")
+
+
+def _key_lines(text: str) -> dict[tuple[str, str], int]:
+    """(section, key) → 1-based line of ``key =`` in a simple TOML file (for messages)."""
+    out: dict[tuple[str, str], int] = {}
+    section = ""
+    for i, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if s.startswith("[") and not s.startswith("[["):
+            section = s.strip("[] \t").split("#")[0].strip()
+            out.setdefault(("", section), i)
+        elif "=" in s and not s.startswith("#"):
+            key = s.split("=", 1)[0].strip().strip('"\'')
+            out.setdefault((section, key), i)
+    return out
+
+
 def load_class_config(path: str | os.PathLike) -> ClassConfig:
-    """Read a class configuration::
+    """Read a class configuration (``docs/annotation.md``)::
 
         [tau]
         default = 0.13
@@ -96,30 +182,146 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
 
         [superclasses]
         kick = ["kickLFront1Reps", "kickRFront1Reps"]
+
+        [decoder]                 # issue 10's methods, all optional
+        resolve = true
+        refine = true
+        slack = 3
+        frame_weight = 0.3
+        delta = 0.05
+
+        [reject]
+        default = 0.1
+        squat1Reps = 0.08
+
+        [templates]
+        squat1Reps = ["tuned.templates/squat1Reps.2.json"]
+
+    Every problem is one :class:`MtannoError` naming the file and, where it can be told,
+    the line: unknown sections or keys, values of the wrong type, τ or ρ not a number
+    ≥ 0, a slack that is not an integer ≥ 0, δ outside [0, 0.5).
     """
     spath = str(path)
     try:
-        data = tomllib.loads(read_input(path, what="class configuration").decode("utf-8"))
+        text = read_input(path, what="class configuration").decode("utf-8")
+        data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MtannoError(f"not a valid TOML class configuration: {exc}", path=spath) from None
-    cfg = ClassConfig(path=spath)
-    taus = data.get("tau", {})
-    if not isinstance(taus, dict):
-        raise MtannoError("[tau] must be a table of class = number", path=spath)
-    taus = dict(taus)
-    cfg.default_tau = check_tau(taus.pop("default", DEFAULT_TAU), what="[tau] default",
-                                path=spath)
-    cfg.tau = {str(k): check_tau(v, what=f"[tau] {k}", path=spath) for k, v in taus.items()}
-    sup = data.get("superclasses", {})
-    if not isinstance(sup, dict) or not all(isinstance(v, list) and v for v in sup.values()):
-        raise MtannoError("[superclasses] must map names to non-empty lists of classes",
-                          path=spath)
-    cfg.superclasses = {str(k): [str(c) for c in v] for k, v in sup.items()}
-    unknown = sorted(set(data) - {"tau", "superclasses"})
+    cfg = ClassConfig(path=spath, lines=_key_lines(text))
+
+    def bad(section: str, key: str | None, msg: str) -> MtannoError:
+        line = cfg.line_of(section, key) if key is not None else cfg.line_of("", section)
+        return MtannoError(msg, path=spath, line=line)
+
+    unknown = sorted(set(data) - set(_SECTIONS))
     if unknown:
-        raise MtannoError(f"unknown section(s) {', '.join(unknown)} (known: tau, superclasses)",
-                          path=spath)
+        raise bad(unknown[0], None, f"unknown section(s) {', '.join(unknown)} (known: "
+                                    f"{', '.join(_SECTIONS)})")
+    for name in _SECTIONS:
+        if name in data and not isinstance(data[name], dict):
+            raise bad(name, None, f"[{name}] must be a table of keys")
+
+    def number(section: str, key: str, value, *, what: str) -> float:
+        try:
+            return check_tau(value, what=what)
+        except MtannoError as exc:
+            raise bad(section, key, exc.message) from None
+
+    taus = dict(data.get("tau", {}))
+    cfg.default_tau = number("tau", "default", taus.pop("default", DEFAULT_TAU),
+                             what="[tau] default")
+    cfg.tau = {str(k): number("tau", k, v, what=f"[tau] {k}") for k, v in taus.items()}
+    for k, v in data.get("superclasses", {}).items():
+        if not isinstance(v, list) or not v or not all(isinstance(c, str) for c in v):
+            raise bad("superclasses", k, "[superclasses] must map names to non-empty lists "
+                                         "of classes")
+    cfg.superclasses = {str(k): [str(c) for c in v]
+                        for k, v in data.get("superclasses", {}).items()}
+    for k, v in data.get("decoder", {}).items():
+        kind = DECODER_KEYS.get(k)
+        if kind is None:
+            raise bad("decoder", k, f"unknown key {k!r} in [decoder] (known: "
+                                    f"{', '.join(DECODER_KEYS)})")
+        ok = (isinstance(v, bool) if kind is bool else
+              isinstance(v, int) and not isinstance(v, bool) if kind is int else
+              isinstance(v, (int, float)) and not isinstance(v, bool))
+        if not ok:
+            want = {bool: "true or false", int: "an integer", float: "a number"}[kind]
+            raise bad("decoder", k, f"[decoder] {k} must be {want}, got {v!r}")
+        setattr(cfg, k, kind(v))
+    if cfg.slack < 0:
+        raise bad("decoder", "slack", f"[decoder] slack must be ≥ 0, got {cfg.slack}")
+    if not (cfg.frame_weight >= 0 and math.isfinite(cfg.frame_weight)):
+        raise bad("decoder", "frame_weight", "[decoder] frame_weight must be a finite number "
+                                             f"≥ 0, got {cfg.frame_weight!r}")
+    if cfg.delta is not None and not 0 <= cfg.delta < 0.5:
+        raise bad("decoder", "delta", f"[decoder] delta must be in [0, 0.5), got {cfg.delta!r}")
+    rej = dict(data.get("reject", {}))
+    cfg.default_reject = number("reject", "default", rej.pop("default", math.inf),
+                                what="[reject] default")
+    cfg.reject = {str(k): number("reject", k, v, what=f"[reject] {k}") for k, v in rej.items()}
+    for k, v in data.get("templates", {}).items():
+        if not isinstance(v, list) or not v or not all(isinstance(f, str) and f for f in v):
+            raise bad("templates", k, "[templates] must map classes to non-empty lists of "
+                                      "template files")
+    cfg.templates = {str(k): list(v) for k, v in data.get("templates", {}).items()}
     return cfg
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return "inf" if v == math.inf else repr(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, str):
+        return json.dumps(v)
+    return str(v)
+
+
+def _toml_key(k: str) -> str:
+    return k if k and all(c.isalnum() or c in "_-" for c in k) else json.dumps(k)
+
+
+def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
+                      comments: dict[tuple[str, str], str] | None = None) -> str:
+    """The TOML text of a class configuration (what :func:`load_class_config` reads back
+    to an equal :class:`ClassConfig`): ``header`` lines as comments on top, and
+    ``comments[(section, key)]`` after the key's value."""
+    comments = comments or {}
+    out = [f"# {h}" if h else "#" for h in header]
+
+    def section(name: str, items: list[tuple[str, object]]) -> None:
+        if not items:
+            return
+        if out:
+            out.append("")
+        out.append(f"[{name}]")
+        for k, v in items:
+            note = comments.get((name, k))
+            out.append(f"{_toml_key(k)} = {_toml_value(v)}" + (f"  # {note}" if note else ""))
+
+    section("decoder", [("resolve", cfg.resolve), ("refine", cfg.refine), ("slack", cfg.slack),
+                        ("frame_weight", cfg.frame_weight)]
+            + ([("delta", cfg.delta)] if cfg.delta is not None else []))
+    section("tau", [("default", cfg.default_tau), *sorted(cfg.tau.items())])
+    if cfg.reject or cfg.default_reject != math.inf:
+        section("reject", [("default", cfg.default_reject), *sorted(cfg.reject.items())])
+    section("superclasses", sorted(cfg.superclasses.items()))
+    section("templates", sorted(cfg.templates.items()))
+    return "\n".join(out) + "\n"
+
+
+def write_class_config(path: str | os.PathLike, cfg: ClassConfig, *,
+                       header: Sequence[str] = (),
+                       comments: dict[tuple[str, str], str] | None = None) -> None:
+    """Write :func:`class_config_text` atomically (:func:`mtanno.output.atomic_path`)."""
+    from mtanno.output import atomic_path
+
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(class_config_text(cfg, header=header, comments=comments),
+                             encoding="utf-8")
 
 
 @numba.njit(cache=True)
@@ -202,6 +404,20 @@ def _extend(dbar, s, t):
     return r, u
 
 
+@numba.njit(cache=True)
+def _extend_unclaimed(dbar, labels, p, s, t):
+    """:func:`_extend` that walks only over frames whose label is none or ``p`` (boundary
+    refinement, issue 10: the extension never runs into another class's frames)."""
+    n = dbar.shape[0]
+    r = s
+    while r > 0 and dbar[r - 1] <= dbar[r] and (labels[r - 1] < 0 or labels[r - 1] == p):
+        r -= 1
+    u = t
+    while u + 1 < n and dbar[u + 1] <= dbar[u] and (labels[u + 1] < 0 or labels[u + 1] == p):
+        u += 1
+    return r, u
+
+
 class Annotation(NamedTuple):
     """One output segment: 0-based inclusive frames at 30 Hz (a named tuple: documents of
     hours give thousands, made in a few microseconds each)."""
@@ -226,10 +442,18 @@ def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _label_runs(dbars, extend, out_p, out_s, out_t, out_cost):
     """Segments of a Δ̄ matrix (labels × frames): each frame's label is the smallest Δ̄
     (ties → smaller label, none where all are ∞); maximal runs of one label, extended
-    while Δ̄ of the label does not rise (when ``extend``), merged per label where they
-    overlap, with the smallest Δ̄ inside. Writes (label, start, end, cost) sorted by label
-    and start; returns their number."""
+    while Δ̄ of the label does not rise (``extend`` 1; 2: only over frames of no other
+    label; 0: not extended), merged per label where they overlap, with the smallest Δ̄
+    inside. Writes (label, start, end, cost) sorted by label and start; returns their
+    number."""
     P, L = dbars.shape
+    labels = np.full(L if extend == 2 else 0, -1, np.int64)
+    for j in range(labels.shape[0]):
+        best = np.inf
+        for p in range(P):
+            if dbars[p, j] < best:
+                best = dbars[p, j]
+                labels[j] = p
     n = 0
     prev = -2
     s0 = 0
@@ -244,7 +468,9 @@ def _label_runs(dbars, extend, out_p, out_s, out_t, out_cost):
         if j == L or lab != prev:
             if j > 0 and prev >= 0:
                 s, t = s0, j - 1
-                if extend:
+                if extend == 2:
+                    s, t = _extend_unclaimed(dbars[prev], labels, prev, s, t)
+                elif extend:
                     s, t = _extend(dbars[prev], s, t)
                 out_p[n] = prev
                 out_s[n] = s
@@ -276,15 +502,20 @@ def _label_runs(dbars, extend, out_p, out_s, out_t, out_cost):
 
 
 def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
-                         extend: bool = True) -> list[Annotation]:
-    """Maximal runs of one label, extended (optional) and merged per label (§7 step 4)."""
+                         extend: bool | str = True) -> list[Annotation]:
+    """Maximal runs of one label, extended (optional) and merged per label (§7 step 4).
+    ``extend="unclaimed"`` walks only over frames that no other label has (boundary
+    refinement, issue 10)."""
     dbars = np.ascontiguousarray(dbars, dtype=np.float64)
     L = dbars.shape[1]
     out_p = np.empty(L + 1, np.int64)
     out_s = np.empty(L + 1, np.int64)
     out_t = np.empty(L + 1, np.int64)
     cost = np.empty(L + 1)
-    m = _label_runs(dbars, bool(extend), out_p, out_s, out_t, cost)
+    if extend not in (True, False, "unclaimed"):
+        raise MtannoError(f"extend must be True, False or 'unclaimed', got {extend!r}")
+    m = _label_runs(dbars, 2 if extend == "unclaimed" else int(bool(extend)), out_p, out_s,
+                    out_t, cost)
     out = [Annotation(doc, s, t, names[p], c) for p, s, t, c in
            zip(out_p[:m].tolist(), out_s[:m].tolist(), out_t[:m].tolist(), cost[:m].tolist())]
     out.sort(key=lambda a: (a.start, a.end, a.label))
@@ -414,42 +645,134 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     Segments of different labels may overlap (the reference output); with
     ``single_label`` overlaps are resolved frame by frame to the label with the smallest
     Δ̄ (:func:`single_label_segments`), so the segments form a partition of the labelled
-    frames.
+    frames. Several :class:`ClassModel` of one name (a class with several templates) make
+    one label, like a superclass. With ``config.resolve`` the segments come from the
+    segment decoder (:func:`label_document`; already a partition) and the matrix holds
+    Δ/τ per label instead of Δ̄.
     """
     config = config or ClassConfig()
     if not classes:
         raise MtannoError("no class templates to annotate with")
-    names = [c.name for c in classes]
+    from mtanno.templates.match import pack_document
+
+    L = X.shape[1]
+    packed = pack_document(X, X.shape[0])
+    # one Δ buffer for all classes: documents can be hours long
+    delta, start = np.empty(L), np.empty(L, np.int64)
+    evidence = config.resolve and config.frame_weight > 0
+
+    def matches():
+        for c in classes:
+            _class_delta(X, packed, c, windows, match_variant, delta, start)
+            if evidence:
+                from mtanno.decode import EVIDENCE_MARGIN, frame_evidence
+
+                spans = None
+                if windows is not None and c.name in windows:  # only where c can be
+                    spans = _merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
+                                           for a, b in windows[c.name]], L)
+                yield c.name, delta, start, frame_evidence(packed, c.values, spans=spans)
+            else:
+                yield c.name, delta, start, None
+
+    return label_document(doc, [c.name for c in classes], matches(), L, config=config,
+                          dbar_variant=dbar_variant, max_hits=max_hits, extend=extend,
+                          single_label=single_label)
+
+
+def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
+                   config: ClassConfig | None = None, dbar_variant: str = "reference",
+                   max_hits: int | None = None, extend: bool = True,
+                   single_label: bool = False,
+                   ) -> tuple[list[Annotation], list[str], np.ndarray]:
+    """Segments of one document from its templates' distance functions (algorithms.md
+    §7 steps 2–4, or the methods of issue 10 that ``config`` switches on).
+
+    ``names`` is the class of each template, in order; ``matches`` yields, for each
+    template in that order, (class, Δ, start frames, frame evidence or None) — Δ and the
+    starts as :func:`mtanno.templates.match.match_template` gives them (the arrays may be
+    reused buffers: each is read before the next is asked for), the evidence of
+    :func:`mtanno.decode.frame_evidence` where ``config.frame_weight`` is used.
+
+    * Default (MBS09, the reference implementation): Δ̄ per class with τ (at most the
+      class's rejection ceiling ρ), labels, extension (``config.refine``: only over
+      frames of no other label).
+    * ``config.resolve``: the segment decoder (:func:`mtanno.decode.decode_segments`) on
+      Δ/τ per label (templates with Δ > ρ dropped), with ``config.slack`` when
+      ``config.refine`` and the relative frame evidence weighted by
+      ``config.frame_weight``; a segment's cost is Δ at its end.
+    * ``single_label`` (default path only; the decoder's segments are a partition
+      already): overlaps resolved frame by frame (:func:`single_label_segments`).
+
+    Returns (segments sorted by start, end and label; label names; Δ̄ or Δ/τ matrix).
+    """
+    config = config or ClassConfig()
     member_of = {m: s for s, ms in config.superclasses.items() for m in ms}
     labels: list[str] = []
     for n in names:
         lab = member_of.get(n, n)
         if lab not in labels:
             labels.append(lab)
-    from mtanno.templates.match import pack_document
+    L = int(n_frames)
+    P = len(labels)
+    count = {lab: sum(member_of.get(n, n) == lab for n in names) for lab in labels}
+    mat = np.full((P, L), np.inf)
 
-    L = X.shape[1]
-    dbars = np.full((len(labels), L), np.inf)
-    packed = pack_document(X, X.shape[0])
-    # one Δ and one Δ̄ buffer for all classes: documents can be hours long
-    delta, start, tmp = np.empty(L), np.empty(L, np.int64), np.empty(L)
-    alone = {lab: sum(member_of.get(n, n) == lab for n in names) == 1 for lab in labels}
-    for c in classes:
-        _class_delta(X, packed, c, windows, match_variant, delta, start)
-        lab = member_of.get(c.name, c.name)
-        tau = config.tau.get(c.name, config.tau_for(lab))
+    def limits(name: str, lab: str) -> tuple[float, float]:
+        return (config.tau.get(name, config.tau_for(lab)),
+                config.reject.get(name, config.reject_for(lab)))
+
+    if not config.resolve:
+        tmp = np.empty(L)
+        for name, delta, start, _ in matches:
+            lab = member_of.get(name, name)
+            tau, rho = limits(name, lab)
+            k = labels.index(lab)
+            out = mat[k] if count[lab] == 1 else tmp
+            modified_delta(delta, start, tau=min(tau, rho), variant=dbar_variant,
+                           max_hits=max_hits, out=out)
+            if count[lab] > 1:
+                np.minimum(mat[k], tmp, out=mat[k])
+        mode: bool | str = "unclaimed" if (extend and config.refine) else extend
+        rows = segments_from_labels(doc, labels, mat, extend=mode)
+        if single_label:
+            rows = single_label_segments(doc, labels, mat, rows)
+        return rows, labels, mat
+
+    from mtanno.decode import decode_segments, fold_label, relative_evidence
+
+    starts = np.full((P, L), -1, dtype=np.int64)
+    taus = np.ones((P, L)) if len({limits(n, member_of.get(n, n))[0] for n in names}) > 1 \
+        else None
+    ev = np.full((P, L), np.inf) if config.frame_weight > 0 else None
+    one_tau = None
+    for name, delta, start, evidence in matches:
+        lab = member_of.get(name, name)
+        tau, rho = limits(name, lab)
+        if not tau > 0:
+            raise MtannoError(f"tau of {name} must be > 0 for the segment decoder, got {tau!r}",
+                              path=config.path)
+        one_tau = tau
         k = labels.index(lab)
-        if alone[lab]:
-            modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits,
-                           out=dbars[k])
-        else:
-            modified_delta(delta, start, tau=tau, variant=dbar_variant, max_hits=max_hits,
-                           out=tmp)
-            np.minimum(dbars[k], tmp, out=dbars[k])
-    rows = segments_from_labels(doc, labels, dbars, extend=extend)
-    if single_label:
-        rows = single_label_segments(doc, labels, dbars, rows)
-    return rows, labels, dbars
+        if taus is None:
+            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
+        else:  # the τ of the template that gives each frame's minimum, for the cost column
+            before = mat[k].copy()
+            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
+            taus[k][mat[k] < before] = tau
+        if ev is not None:
+            if evidence is None:
+                raise MtannoError("frame_weight > 0 needs each template's frame evidence")
+            np.minimum(ev[k], evidence, out=ev[k])
+    decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
+                              else 0, evidence=None if ev is None else relative_evidence(ev),
+                              weight=config.frame_weight)
+    # cost: Δ at the segment's end, back from Δ/τ (to 12 digits: the division's rounding)
+    rows = [Annotation(doc, d.start, d.end, labels[d.label], float(
+        f"{d.cost * (one_tau if taus is None else float(taus[d.label, d.end])):.12g}"))
+            for d in decoded]
+    rows.sort(key=lambda a: (a.start, a.end, a.label))
+    return rows, labels, mat
 
 
 ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")
@@ -593,6 +916,38 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
         check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
                                    f"template {mt.class_name}"), layout, path=mt.path)
     return models, layout
+
+
+def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
+                          delta: float = DEFAULT_DELTA) -> list[ClassModel]:
+    """The further templates of ``config.templates`` (several templates per class) as
+    :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
+    of the class it is listed under, with the ``layout`` of the other templates."""
+    from mtanno.store import FeatureLayout, check_layout, sha256_file
+    from mtanno.templates.model import load_template, quantize
+
+    out = []
+    for cls, paths in config.template_paths().items():
+        line = config.line_of("templates", cls)
+        for path in paths:
+            if not path.is_file():
+                raise MtannoError(f"[templates] {cls}: template file {path} not found",
+                                  path=config.path, line=line)
+            mt = load_template(path)
+            if mt.class_name != cls:
+                raise MtannoError(f"[templates] {cls}: {path} holds a template of class "
+                                  f"{mt.class_name!r}", path=config.path, line=line)
+            check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
+                                       f"template {path}"), layout, path=str(path))
+            q = quantize(mt, delta)
+            model = ClassModel(cls, q.values, q.weights, path=str(path),
+                               sha256=sha256_file(path))
+            try:
+                model.matcher("reference")
+            except MtannoError as exc:
+                raise MtannoError(exc.message, path=str(path)) from None
+            out.append(model)
+    return out
 
 
 @dataclass

@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
-# HDM05 annotation experiment (issues 3 and 7): templates from actors bd/bk/dg (train split)
+# HDM05 annotation experiment (issues 3, 7 and 10): templates from actors bd/bk/dg (train split)
 # for the 11 classes, documents composed from actor mm (10 per seed). Annotation without
 # keyframes (reference Δ̄ and the paper's variant), with the reference implementation's
 # hand-made keyframes, and with keyframes learned from the train split by the genetic
 # algorithm, the hard-template and the heuristic methods: P1/R1/F1, P2/R2/F2 and the time
 # annotate spends annotating, side by side. Then the keyframe table per class (training
 # fitness, mm clips found) and the retrieval table per class on one document of all
-# actor-mm clips in manifest order.
+# actor-mm clips in manifest order. Issue 10: the k-NN frame-classifier baseline, the
+# annotation tuned by `mtanno tune` on the train split only (with and without GA keyframes),
+# the ablation (tune with each method left out) and the unknown-class protocol (each class
+# in turn left out of templates and tuning, the fraction of its frames labelled anyway).
 #
 #   scripts/experiment_hdm05.sh [OUT] [SEEDS...]      (defaults: out/hdm05, seeds 1 2 3)
 set -euo pipefail
@@ -84,3 +87,81 @@ r=$OUT/retrieval
 "$MTANNO" features "$r/docs" -o "$r/features" -q
 "$MTANNO" evaluate-retrieval "$r/features" --mt "$OUT/mt" --truth "$r/docs/truth.csv" \
   --json "$r/retrieval.json"
+
+# --------------------------------------------------------------------------- issue 10
+echo "== issue 10: tune on the train split only (bd, bk, dg; the config lists its inputs)"
+T=$OUT/tune
+mkdir -p "$T"
+if [ ! -f "$T/tuned.toml" ] || [ -z "${REUSE:-}" ]; then
+  "$MTANNO" tune --mt "$OUT/mt" --manifest "$CLIPS" --features-dir "$OUT/features" \
+    --split train -o "$T/tuned.toml" --ablation "$T/ablation" --jobs 2 2> "$T/tune.log"
+  "$MTANNO" tune --mt "$OUT/mt" --keyframes "$OUT/kf_ga" --manifest "$CLIPS" \
+    --features-dir "$OUT/features" --split train -o "$T/tuned_kf.toml" --jobs 2 -q
+fi
+tail -1 "$T/tune.log"
+echo "   tuning inputs: $(grep -c '\.parquet$' "$T/tuned.toml") feature files," \
+  "of actor mm: $(grep -c '/HDM_mm_' "$T/tuned.toml")"
+ABLATION="without-tau without-reject without-refine without-resolve without-templates \
+without-frames without-delta none"
+for seed in $SEEDS; do
+  d=$OUT/seed$seed
+  python_knn=("$here/.venv/bin/python" "$here/scripts/baseline_knn.py")
+  "${python_knn[@]}" --manifest "$CLIPS" --features-dir "$OUT/features" --split train \
+    "$d/features" -o "$d/annotation_knn.csv" 2> "$d/annotate_knn.log"
+  "$MTANNO" annotate --mt "$OUT/mt" --classes "$T/tuned.toml" "$d/features" \
+    -o "$d/annotation_tuned.csv" 2> "$d/annotate_tuned.log"
+  "$MTANNO" annotate --mt "$OUT/mt" --classes "$T/tuned_kf.toml" --keyframes "$OUT/kf_ga" \
+    "$d/features" -o "$d/annotation_tuned_kf.csv" 2> "$d/annotate_tuned_kf.log"
+  for a in $ABLATION; do
+    "$MTANNO" annotate --mt "$OUT/mt" --classes "$T/ablation/$a.toml" "$d/features" \
+      -o "$d/annotation_ab_$a.csv" -q
+  done
+  for run in knn tuned tuned_kf $(for a in $ABLATION; do echo "ab_$a"; done); do
+    "$MTANNO" evaluate "$d/annotation_$run.csv" --truth "$d/docs/truth.csv" \
+      --json "$d/report_$run.json" > "$d/report_$run.txt"
+  done
+  echo "-- seed $seed: baseline $(tail -1 "$d/report_knn.txt")"
+  echo "-- seed $seed: tuned    $(tail -1 "$d/report_tuned.txt")"
+done
+
+echo "== unknown-class protocol: each class left out of templates, tuning and baseline"
+U=$OUT/unknown
+TABLES=("$here/.venv/bin/python" "$here/scripts/annotation_tables.py")
+for mt in "$OUT"/mt/*.json; do
+  c=$(basename "$mt" .json)
+  u=$U/$c
+  mkdir -p "$u/mt"
+  cp "$OUT"/mt/*.json "$u/mt/" && rm "$u/mt/$c.json"
+  "${TABLES[@]}" drop "$CLIPS" "$c" -o "$u/clips.csv"
+  [ -f "$u/tuned.toml" ] && [ -n "${REUSE:-}" ] || \
+    "$MTANNO" tune --mt "$u/mt" --manifest "$u/clips.csv" --features-dir "$OUT/features" \
+      --split train -o "$u/tuned.toml" --jobs 2 -q
+  for seed in $SEEDS; do
+    d=$OUT/seed$seed
+    "$MTANNO" annotate --mt "$u/mt" "$d/features" -o "$u/seed${seed}_reference.csv" -q
+    "$MTANNO" annotate --mt "$u/mt" --classes "$u/tuned.toml" "$d/features" \
+      -o "$u/seed${seed}_tuned.csv" -q
+    "$here/.venv/bin/python" "$here/scripts/baseline_knn.py" --manifest "$u/clips.csv" \
+      --features-dir "$OUT/features" --split train "$d/features" -o "$u/seed${seed}_knn.csv" \
+      2> /dev/null
+    for run in reference tuned knn; do
+      "${TABLES[@]}" unknown "$u/seed${seed}_$run.csv" --truth "$d/docs/truth.csv" --class "$c" \
+        -o "$u/seed${seed}_$run.json"
+    done
+  done
+done
+
+echo "== issue 10 summary (mean over seeds $SEEDS; tuning and templates from bd, bk, dg only)"
+reports() { for s in $SEEDS; do printf '%s,' "$OUT/seed$s/report_$1.json"; done; }
+"${TABLES[@]}" quality "baseline (k-NN, 1 s majority)=$(reports knn)" \
+  "reference annotation=$(reports reference)" "tuned=$(reports tuned)" \
+  "tuned + GA keyframes=$(reports tuned_kf)"
+echo
+echo "Ablation (tune re-run with one method left out; 'none' = one tau for all classes):"
+"${TABLES[@]}" quality "tuned (all methods)=$(reports tuned)" \
+  $(for a in $ABLATION; do echo "$a=$(reports "ab_$a")"; done)
+echo
+echo "Unknown-class rate (fraction of a left-out class's frames labelled with another class):"
+rates() { for c in "$U"/*/; do for s in $SEEDS; do printf '%s,' "$c/seed${s}_$1.json"; done; done; }
+"${TABLES[@]}" unknown-table "baseline=$(rates knn)" "reference=$(rates reference)" \
+  "tuned=$(rates tuned)"

@@ -28,11 +28,13 @@ check_features = check_layout
               help="Folder of keyframe queries (CLASS.json from learn-keyframes): a class's "
                    "template is matched only inside its candidate windows (MBS09 §5).")
 @click.option("--classes", "config_path", type=click.Path(dir_okay=False), default=None,
-              help="Class configuration (TOML): per-class tau, superclasses.")
+              help="Class configuration (TOML): per-class tau, superclasses, and the methods "
+                   "`mtanno tune` writes (docs/annotation.md).")
 @click.option("--tau", type=float, default=None,
               help="Threshold tau for every class without its own [default: 0.13].")
-@click.option("--delta", type=float, default=0.05, show_default=True,
-              help="Quantization delta of the templates.")
+@click.option("--delta", type=float, default=None,
+              help="Quantization delta of the templates [default: [decoder] delta of "
+                   "--classes, else 0.05].")
 @click.option("--variant", type=click.Choice(["reference", "paper"]), default="reference",
               show_default=True, help="Modified-distance variant (algorithms.md §7).")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
@@ -64,10 +66,12 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
     from tqdm import tqdm
 
     from mtanno.annotate import (
+        DEFAULT_DELTA,
         ClassConfig,
         annotate_files,
         check_tau,
         load_class_config,
+        load_config_templates,
         write_annotations,
     )
     from mtanno.keyframes import keyframe_files, load_class_keyframes
@@ -77,18 +81,22 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
     for out in outputs:
         table_format(out)
     paths = feature_paths(features)
-    check_outputs([f for out in outputs for f in output_files(out)],
-                  [mt_dir, *template_files(mt_dir), config_path, *paths,
-                   *(keyframe_files(kf_dir) if kf_dir else [])])
+    written = [f for out in outputs for f in output_files(out)]
+    check_outputs(written, [mt_dir, *template_files(mt_dir), config_path, *paths,
+                            *(keyframe_files(kf_dir) if kf_dir else [])])
     config = load_class_config(config_path) if config_path else ClassConfig()
+    check_outputs(written, [f for fs in config.template_paths().values() for f in fs])
     if tau is not None:
         config.default_tau = check_tau(tau, what="--tau")
+    if delta is None:
+        delta = config.delta if config.delta is not None else DEFAULT_DELTA
     models, key = load_class_models(mt_dir, delta=delta)
     config.check([m.name for m in models])
+    models += load_config_templates(config, key, delta=delta)
     keyframes, kf_files = {}, []
     if kf_dir:
         keyframes, kf_files, missing, extra = load_class_keyframes(
-            kf_dir, [m.name for m in models], feature_set=key.feature_set)
+            kf_dir, list(dict.fromkeys(m.name for m in models)), feature_set=key.feature_set)
         if not quiet and missing:
             click.echo(f"annotate: note: no keyframe query for {', '.join(missing)}; matched "
                        "everywhere", err=True)
@@ -110,6 +118,7 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
     prov = provenance(inputs=batch.files, templates=[m.record() for m in models],
                       tau=config.default_tau, tau_per_class=config.tau or None,
                       superclasses=config.superclasses or None, delta=delta,
+                      methods=config.methods() or None,
                       variant=variant, match=match_variant, feature_set=key.feature_set,
                       keyframes=kf_files or None, single_label=single_label or None,
                       documents=batch.frames)
@@ -118,8 +127,9 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
     failed = len(batch.failed)
     if not quiet:
         kf = f", keyframes for {len(keyframes)}" if keyframes else ""
+        n_classes = len({m.name for m in models})
         click.echo(f"annotate: {len(paths) - failed} documents, {len(batch.rows)} segments, "
-                   f"{len(models)} classes{kf}, {failed} failed, {batch.seconds:.2f} s of "
+                   f"{n_classes} classes{kf}, {failed} failed, {batch.seconds:.2f} s of "
                    f"annotation -> {', '.join(outputs)}", err=True)
     sys.exit(1 if failed else 0)
 

@@ -215,6 +215,14 @@ def _text_maker(name, content):
     return make
 
 
+def _with_template(name, content, cls, target):
+    """A class configuration beside a copy of the world's template of ``cls``."""
+    def make(d, w):
+        shutil.copyfile(w.mt / f"{cls}.json", d / target)
+        return _text_maker(name, content)(d, w)
+    return make
+
+
 def _doc(w):
     return w.doc_files[0].stem
 
@@ -284,6 +292,21 @@ CLASS_CONFIGS = {
     "unknown member": _text_maker("c.toml", '[superclasses]\nlegs = ["squat", "kik"]\n'),
     "tau not a table": _text_maker("c.toml", "tau = 3\n"),
     "bad toml": _text_maker("c.toml", "[tau\n"),
+    # the methods of issue 10 (mtanno tune writes them)
+    "unknown section": _text_maker("c.toml", "[decoders]\nresolve = true\n"),
+    "decoder unknown key": _text_maker("c.toml", "[decoder]\nresolv = true\n"),
+    "decoder wrong type": _text_maker("c.toml", "[decoder]\nresolve = 1\n"),
+    "slack negative": _text_maker("c.toml", "[decoder]\nslack = -2\n"),
+    "delta out of range": _text_maker("c.toml", "[decoder]\ndelta = 0.7\n"),
+    "tau zero for the decoder": _text_maker("c.toml", "[decoder]\nresolve = true\n[tau]\n"
+                                                      "squat = 0.0\n"),
+    "reject unknown class": _text_maker("c.toml", "[reject]\nsquatt = 0.1\n"),
+    "reject negative": _text_maker("c.toml", "[reject]\ndefault = -0.1\n"),
+    "templates unknown class": _text_maker("c.toml", '[templates]\nsquatt = ["x.json"]\n'),
+    "templates not a list": _text_maker("c.toml", '[templates]\nsquat = "x.json"\n'),
+    "templates missing file": _text_maker("c.toml", '[templates]\nsquat = ["nothere.json"]\n'),
+    "templates of another class": _with_template("c.toml", '[templates]\nsquat = ["k.json"]\n',
+                                                 "kickLFront", "k.json"),
 }
 
 # --------------------------------------------------------------------- indexes

@@ -1,0 +1,123 @@
+"""The ``tune`` command (issue 10): annotation parameters learned by cross-validation inside
+the training data, written as the class configuration ``annotate --classes`` reads.
+Exit codes: 0 success, 2 usage error or bad input, 130 interrupted."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from mtanno.commands._common import user_errors
+from mtanno.tuning.cv import DOCUMENT_MODES
+from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
+
+
+@click.command("tune", epilog="Exit codes: 0 success, 2 usage error or bad input, "
+                              "130 interrupted.")
+@click.argument("training", nargs=-1, metavar="[TRAINING]...")
+@click.option("--mt", "mt_dir", required=True, type=click.Path(),
+              help="Folder of class templates (CLASS.json from learn-mt): the classes tuned.")
+@click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
+              help="Folder of keyframe queries (learn-keyframes): held-out documents are "
+                   "matched only inside their windows, as annotate --keyframes does.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Class configuration to write (TOML); extra templates go to "
+                   "CONFIG.templates/ beside it.")
+@click.option("--manifest", type=click.Path(dir_okay=False), default=None,
+              help="Manifest CSV (file,class[,actor,split]) listing the training clips; the "
+                   "actor column names the performers held out in turn.")
+@click.option("--features-dir", type=click.Path(file_okay=False), default=None,
+              help="With --manifest: folder of the feature files (DIR/<file>.parquet).")
+@click.option("--split", default=None, metavar="NAME",
+              help="With --manifest: only rows whose split column is NAME.")
+@click.option("--truth", type=click.Path(dir_okay=False), default=None,
+              help="Truth table; every labelled segment of the TRAINING feature files is an "
+                   "example, and each document is held out in turn.")
+@click.option("--documents", type=click.Choice(DOCUMENT_MODES), default="composed",
+              show_default=True,
+              help="How held-out clips become documents: composed (concatenated in random "
+                   "orders, like `mtanno compose`) or separate (one document per clip).")
+@click.option("--disable", "disabled", multiple=True, type=click.Choice(METHODS),
+              metavar="METHOD",
+              help=f"Leave a method as in the reference annotation (repeatable): "
+                   f"{', '.join(METHODS)}.")
+@click.option("--unknown-weight", default=UNKNOWN_WEIGHT, show_default=True,
+              type=click.FloatRange(min=0),
+              help="Weight w of the unknown-class rate in the objective (F1 + F2)/2 − w·U.")
+@click.option("--ablation", "ablation_dir", type=click.Path(file_okay=False), default=None,
+              help="Also tune with each method left out, and with none, on the same folds; "
+                   "write DIR/without-METHOD.toml and DIR/none.toml (an ablation study).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the held-out document composition (same seed, same file).")
+@click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
+              help="Worker processes for learning and matching per fold and class.")
+@click.option("-q", "--quiet", is_flag=True, help="No search log and no summary line.")
+@user_errors(2)
+def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
+             disabled, unknown_weight, ablation_dir, seed, jobs, quiet):
+    """Learn the annotation parameters from the training data alone (issue 10).
+
+    Cross-validation inside the training examples: each performer (manifest actor, or
+    truth document) is held out in turn; templates are learned from the others, the
+    held-out examples are composed into documents and annotated, and the parameters that
+    score best over all folds are kept — per-class tau, a rejection ceiling per class,
+    the segment decoder (overlap resolution), boundary refinement, several templates
+    per class, frame-wise tie-breaking, the quantization delta. The objective is
+    (F1 + F2)/2 − w·U with U the unknown-class rate (each class left out in turn).
+
+    Training examples come as for learn-mt (a manifest with --features-dir, --truth with
+    feature files, or CLASS/ folders). Writes CONFIG (TOML: [decoder], [tau], [reject],
+    [templates], with the cross-validated scores and the training files as comments;
+    docs/annotation.md) for `mtanno annotate --mt MT/ --classes CONFIG`.
+
+    Example: mtanno tune --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
+    --features-dir feats/ --split train -o tuned.toml --jobs 2
+    """
+    from mtanno.keyframes import keyframe_files
+    from mtanno.output import check_outputs
+    from mtanno.tables import command_line
+    from mtanno.templates.model import template_files
+    from mtanno.templates.training import collect_sources
+    from mtanno.tuning import template_folder_of, tune, write_tuned
+
+    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
+                              split=split, truth=truth)
+    planned = [output] + ([Path(ablation_dir) / f"{n}.toml" for n in
+                           [*(f"without-{m}" for m in METHODS), "none"]] if ablation_dir else [])
+    check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
+                             *(s.path for s in sources),
+                             *(keyframe_files(kf_dir) if kf_dir else [])])
+
+    def log(line: str) -> None:
+        if not quiet:
+            click.echo(f"tune: {line}", err=True)
+
+    if not quiet:
+        files = sorted({s.path for s in sources})
+        click.echo(f"tune: training inputs: {len(sources)} examples in {len(files)} feature "
+                   f"files" + (f" (manifest {manifest}, split {split or 'all'})" if manifest
+                               else f" (truth {truth})" if truth else ""), err=True)
+    result = tune(sources, mt_dir, keyframes_dir=kf_dir, seed=seed, n_jobs=jobs,
+                  methods=[m for m in METHODS if m not in disabled], documents=documents,
+                  unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log)
+    write_tuned(output, result, command=command_line())
+    if ablation_dir is not None:
+        from mtanno.output import make_folder
+
+        make_folder(Path(ablation_dir))
+        for name, variant in result.ablation.items():
+            write_tuned(Path(ablation_dir) / f"{name}.toml", variant, command=command_line())
+    if not quiet:
+        extra = (f", extra templates in {template_folder_of(output)}"
+                 if result.extra_templates else "")
+        p1, r1, f1 = result.evaluation.counts.frame()
+        p2, r2, f2 = result.evaluation.counts.segment()
+        click.echo(f"tune: {len(result.classes)} classes, {len(result.folds)} folds, "
+                   f"cross-validated F1 {f1:.3f} F2 {f2:.3f} unknown-class rate "
+                   f"{result.evaluation.unknown:.3f} (reference: F1 "
+                   f"{result.reference.counts.frame()[2]:.3f} F2 "
+                   f"{result.reference.counts.segment()[2]:.3f}), {result.seconds:.1f} s -> "
+                   f"{output}{extra}", err=True)
+
+COMMANDS = [tune_cmd]

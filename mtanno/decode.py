@@ -1,0 +1,311 @@
+"""The segment decoder of tuned annotation: overlap resolution, boundary refinement,
+rejection and frame-wise tie-breaking (issue 10; ``docs/annotation.md``).
+
+MBS09's annotation (§4, algorithms.md §7) labels every frame with the class of smallest
+modified distance Δ̄ and then extends the runs outward, so segments of different classes
+overlap and extended segments run past the true boundaries. The segment decoder instead
+chooses, per document, the cheapest *partition* into matches and unlabelled frames, by
+dynamic programming over the frames:
+
+* a match of label p ends at a frame ℓ whose distance Δ_p(ℓ) (algorithms.md §3.4) is at
+  most the label's rejection ceiling ρ_p (∞ unless tuned); it starts at the start frame
+  a_ℓ of that match, or — boundary refinement — anywhere within ``slack`` frames of it, so
+  that neighbouring matches meet instead of overlapping or leaving a sliver between them;
+* a match covering frames k…ℓ costs (ℓ − k + 1)·Δ_p(ℓ)/τ_p, plus ``weight`` times the sum of
+  the frame-wise evidence E_p over k…ℓ (tie-breaking; :func:`frame_evidence`); an
+  unlabelled frame costs 1 — so a match is worth taking only where Δ_p/τ_p < 1, and τ_p
+  both thresholds the class and calibrates its costs against the other classes';
+* the partition of least total cost wins (ties: an unlabelled frame before a match, a
+  smaller label index, an earlier start); touching segments of one label are merged.
+
+Every frame gets at most one label, every segment is one whole match (or several touching
+ones), and frames where no class matches well enough stay unlabelled — which is what
+rejects motions of classes without a template. The work is O(L · P · (2·slack + 1)) for L
+frames and P labels, with O(L) memory besides the P × L distance and start arrays.
+
+Frames are 0-based inside this module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from mtanno.errors import MtannoError
+
+__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "decode_segments", "fold_label",
+           "frame_evidence", "relative_evidence"]
+
+#: Frames a segment start may move from its match's start (boundary refinement).
+DEFAULT_SLACK = 3
+#: Frames around a class's candidate windows (keyframes) where its evidence is computed:
+#: at least the largest slack a segment start may move out of a window.
+EVIDENCE_MARGIN = 8
+
+
+class Decoded(NamedTuple):
+    """One decoded segment: label index, 0-based inclusive frames, Δ at its end (the
+    smallest over merged touching matches)."""
+
+    label: int
+    start: int
+    end: int
+    cost: float
+
+
+@numba.njit(cache=True)
+def _decode(delta, start, scale, ceiling, cum_ev, weight, slack, first, best, back_k, back_p):
+    """Least-cost partition of frames 0…L−1 into matches and unlabelled frames.
+
+    ``best[j]`` is the least cost of frames 0…j−1; a match of label p ending at ℓ starts
+    at k ∈ [a − slack, a + slack] ∩ [first[ℓ], ℓ] (a = start[p, ℓ]; ``first`` holds the
+    first frame of ℓ's document when several are decoded at once) and costs
+    (ℓ − k + 1)·delta[p, ℓ]·scale[p] + weight·(cum_ev[p, ℓ + 1] − cum_ev[p, k]); an
+    unlabelled frame costs 1. Only strictly cheaper choices replace earlier ones."""
+    P, L = delta.shape
+    best[0] = 0.0
+    for ell in range(L):
+        b = best[ell] + 1.0
+        bk = ell
+        bp = -1
+        for p in range(P):
+            d = delta[p, ell]
+            if not d <= ceiling[p]:  # ∞ (no match ends here), NaN, or rejected
+                continue
+            a = start[p, ell]
+            if a < 0:
+                continue
+            per = d * scale[p]
+            lo = max(first[ell], a - slack)
+            hi = min(ell, a + slack)
+            for k in range(lo, hi + 1):
+                c = best[k] + (ell - k + 1) * per
+                if weight != 0.0:
+                    c += weight * (cum_ev[p, ell + 1] - cum_ev[p, k])
+                if c < b:
+                    b = c
+                    bk = k
+                    bp = p
+        best[ell + 1] = b
+        back_k[ell + 1] = bk
+        back_p[ell + 1] = bp
+
+
+def _check_labels(deltas, starts, tau, reject):
+    deltas = np.ascontiguousarray(deltas, dtype=np.float64)
+    starts = np.ascontiguousarray(starts, dtype=np.int64)
+    if deltas.ndim != 2 or deltas.shape != starts.shape:
+        raise MtannoError("deltas and starts must be (labels × frames) arrays of one shape")
+    P = deltas.shape[0]
+    tau = np.asarray(tau, dtype=np.float64).reshape(-1)
+    if tau.shape != (P,) or not np.all(tau > 0):
+        raise MtannoError(f"tau must give one number > 0 per label ({P} labels)")
+    if reject is None:
+        reject = np.full(P, np.inf)
+    reject = np.asarray(reject, dtype=np.float64).reshape(-1)
+    if reject.shape != (P,) or np.isnan(reject).any():
+        raise MtannoError(f"reject must give one number per label ({P} labels)")
+    return deltas, starts, tau, reject
+
+
+def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[float] | np.ndarray,
+                    reject: Sequence[float] | np.ndarray | None = None,
+                    slack: int = DEFAULT_SLACK, evidence: np.ndarray | None = None,
+                    weight: float = 0.0, boundaries: Sequence[int] = ()) -> list[Decoded]:
+    """The least-cost partition of a document into label segments and unlabelled frames
+    (module docstring; issue 10, built on MBS09 §4's distance functions).
+
+    Parameters
+    ----------
+    deltas, starts:
+        (labels × frames) Δ_p(ℓ) (∞ where no match ends) and the 0-based start frame a_ℓ
+        of each match (−1 where none), as :func:`mtanno.templates.match.match_template`
+        gives them per class (a label with several templates: their frame-wise minimum).
+    tau:
+        τ_p per label (> 0): a match covering n frames costs n·Δ/τ_p, an unlabelled frame 1.
+    reject:
+        Rejection ceiling ρ_p per label: matches with Δ_p(ℓ) > ρ_p are never taken
+        (default ∞).
+    slack:
+        Boundary refinement: a segment may start up to ``slack`` frames (30 Hz) before or
+        after its match's start a_ℓ (0: exactly at a_ℓ).
+    evidence, weight:
+        Frame-wise evidence (labels × frames, ≥ 0, small where the frame looks like the
+        label; :func:`relative_evidence`) and its weight per frame; 0 ignores it.
+    boundaries:
+        Frames where a further document begins, when several documents are decoded as
+        one array (their matches must not cross documents): no segment starts before its
+        document, and segments of neighbouring documents are not merged.
+
+    Returns
+    -------
+    The segments in frame order, touching segments of one label merged.
+    """
+    deltas, starts, tau, reject = _check_labels(deltas, starts, tau, reject)
+    if not isinstance(slack, (int, np.integer)) or isinstance(slack, bool) or slack < 0:
+        raise MtannoError(f"slack must be an integer ≥ 0, got {slack!r}")
+    weight = float(weight)
+    if not weight >= 0 or not np.isfinite(weight):
+        raise MtannoError(f"frame-evidence weight must be a finite number ≥ 0, got {weight!r}")
+    P, L = deltas.shape
+    if weight > 0:
+        if evidence is None or np.shape(evidence) != (P, L):
+            raise MtannoError("a frame-evidence weight needs evidence of shape (labels × frames)")
+        cum = np.zeros((P, L + 1))
+        np.cumsum(np.asarray(evidence, dtype=np.float64), axis=1, out=cum[:, 1:])
+    else:
+        cum = np.zeros((P, 1))
+    cuts = np.unique(np.asarray(boundaries, dtype=np.int64))
+    if cuts.size and (cuts[0] <= 0 or cuts[-1] >= L):
+        raise MtannoError(f"document boundaries must lie inside 1..{L - 1}")
+    first = np.zeros(L, dtype=np.int64)
+    first[cuts] = cuts
+    np.maximum.accumulate(first, out=first)
+    best = np.empty(L + 1)
+    back_k = np.zeros(L + 1, dtype=np.int64)
+    back_p = np.full(L + 1, -1, dtype=np.int64)
+    _decode(deltas, starts, 1.0 / tau, reject, cum, weight, int(slack), first, best, back_k,
+            back_p)
+    out: list[Decoded] = []
+    j = L
+    while j > 0:
+        k, p = int(back_k[j]), int(back_p[j])
+        if p >= 0:
+            out.append(Decoded(p, k, j - 1, float(deltas[p, j - 1])))
+        j = k
+    out.reverse()
+    merged: list[Decoded] = []
+    for s in out:
+        if merged and merged[-1].label == s.label and merged[-1].end + 1 == s.start \
+                and first[s.start] == first[merged[-1].end]:
+            last = merged[-1]
+            merged[-1] = Decoded(s.label, last.start, s.end, min(last.cost, s.cost))
+        else:
+            merged.append(s)
+    return merged
+
+
+# --------------------------------------------------------------------------- evidence
+
+
+@numba.njit(cache=True)
+def _popcount(x):
+    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return np.int64((x * np.uint64(0x0101010101010101)) >> np.uint64(56))
+
+
+@numba.njit(cache=True)
+def _best_column(packed, masks, vals, inv_nnz, starts, ends, out):
+    """out[t] = min over columns k of (disagreements of frame t on k's fixed rows) / nnz_k,
+    for the frames t of the spans [starts[i], ends[i]]."""
+    words = packed.shape[1]
+    K = masks.shape[0]
+    for i in range(starts.shape[0]):
+        for t in range(starts[i], ends[i] + 1):
+            b = np.inf
+            for k in range(K):
+                m = 0
+                for w in range(words):
+                    m += _popcount((packed[t, w] ^ vals[k, w]) & masks[k, w])
+                c = m * inv_nnz[k]
+                if c < b:
+                    b = c
+            out[t] = b
+
+
+@numba.njit(cache=True)
+def _fold(delta, start, ceiling, inv_tau, row, row_start):
+    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima."""
+    for t in range(delta.shape[0]):
+        d = delta[t]
+        if d <= ceiling:
+            v = d * inv_tau
+            if v < row[t]:
+                row[t] = v
+                row_start[t] = start[t]
+
+
+def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start: np.ndarray, *,
+               tau: float, reject: float = np.inf) -> None:
+    """Fold one template's match into its label's row of the decoder's input, in place:
+    ``row`` = min(``row``, Δ/τ) over the frames where Δ ≤ ``reject`` (Δ·(1/τ), the decoder's
+    rounding), ``row_start`` the start frames of the minima (several templates of a class,
+    or the classes of a superclass, make one label)."""
+    if not tau > 0:
+        raise MtannoError(f"tau must be > 0 for the segment decoder, got {tau!r}")
+    _fold(np.ascontiguousarray(delta, dtype=np.float64), np.ascontiguousarray(start, np.int64),
+          float(reject), 1.0 / float(tau), row, row_start)
+
+
+def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
+                   spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Frame-wise evidence of one quantized template: for every frame of a bit-packed
+    document (:func:`mtanno.templates.match.pack_document`), the smallest fraction of
+    disagreeing fixed entries over the template's columns — 0 where the frame's pose is
+    one the template holds anywhere, whatever the order (a "bag of columns"; wildcard-only
+    columns are skipped, a template of only those gives 0). ``values`` is the (features ×
+    K) quantized template (0, 1, 0.5 = wildcard). With ``spans`` (first and last frames,
+    0-based inclusive, e.g. a class's candidate windows widened by
+    :data:`EVIDENCE_MARGIN`) only those frames are computed, the others are ∞."""
+    V = np.asarray(values)
+    fixed = V != 0.5
+    keep = fixed.any(axis=0)
+    L = packed.shape[0]
+    if spans is None:
+        starts, ends = np.array([0], np.int64), np.array([L - 1], np.int64)
+    else:
+        starts = np.clip(np.asarray(spans[0], np.int64), 0, L)
+        ends = np.clip(np.asarray(spans[1], np.int64), -1, L - 1)
+    if not keep.any():
+        out = np.full(L, np.inf)
+        for a, b in zip(starts.tolist(), ends.tolist()):
+            out[a:b + 1] = 0.0
+        return out
+    fixed = fixed[:, keep]
+    ones = (V[:, keep] == 1.0) & fixed
+    words = packed.shape[1]
+    if V.shape[0] > 64 * words:
+        raise MtannoError(f"template has {V.shape[0]} features, the document {64 * words} bits")
+    weights = np.uint64(1) << np.arange(64, dtype=np.uint64)
+    masks = np.zeros((fixed.shape[1], words), dtype=np.uint64)
+    vals = np.zeros_like(masks)
+    for w in range(words):
+        rows = slice(64 * w, min(V.shape[0], 64 * w + 64))
+        n = rows.stop - rows.start
+        masks[:, w] = (fixed[rows].T.astype(np.uint64) * weights[:n]).sum(axis=1, dtype=np.uint64)
+        vals[:, w] = (ones[rows].T.astype(np.uint64) * weights[:n]).sum(axis=1, dtype=np.uint64)
+    pairs = np.unique(np.concatenate([masks, vals], axis=1), axis=0)  # distinct columns
+    masks, vals = np.ascontiguousarray(pairs[:, :words]), np.ascontiguousarray(pairs[:, words:])
+    nnz = np.array([sum(bin(int(x)).count("1") for x in row) for row in masks], dtype=np.float64)
+    out = np.full(L, np.inf)
+    frames = np.concatenate([np.arange(a, b + 1) for a, b in zip(starts.tolist(), ends.tolist())]
+                            or [np.zeros(0, np.int64)])
+    if frames.size == 0:
+        return out
+    # feature vectors repeat for many frames in a row: compute each distinct one once
+    distinct, inverse = np.unique(np.ascontiguousarray(packed)[frames], axis=0,
+                                  return_inverse=True)
+    got = np.empty(distinct.shape[0])
+    n = np.array([distinct.shape[0] - 1], np.int64)
+    _best_column(np.ascontiguousarray(distinct), masks, vals, 1.0 / nnz,
+                 np.zeros(1, np.int64), n, got)
+    out[frames] = got[inverse.reshape(-1)]
+    return out
+
+
+def relative_evidence(evidence: np.ndarray) -> np.ndarray:
+    """Per-label evidence (labels × frames) minus the smallest of each frame: 0 for the
+    label whose template fits the frame best, the margin behind it for the others. ∞
+    entries (frames a label was not computed for: outside its candidate windows, where it
+    cannot claim frames) take no part in the minimum and become 0."""
+    E = np.asarray(evidence, dtype=np.float64)
+    if E.shape[0] == 0:
+        return E
+    finite = np.isfinite(E)
+    low = np.where(finite, E, np.inf).min(axis=0, keepdims=True)
+    return np.where(finite, E - np.where(np.isfinite(low), low, 0.0), 0.0)

@@ -1,0 +1,21 @@
+"""Tuning the annotation (issue 10): ``mtanno tune`` learns the parameters of
+``annotate --classes`` by cross-validation inside the training data.
+
+* :mod:`~mtanno.tuning.cv` — folds (one performer held out), held-out documents built
+  from the held-out examples only.
+* :mod:`~mtanno.tuning.cluster` — several templates per class: groups of similar examples.
+* :mod:`~mtanno.tuning.score` — the evaluation counts of MBS09 §7 on frame arrays.
+* :mod:`~mtanno.tuning.search` — learning and matching per fold, the objective and the
+  coordinate search.
+* :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run) and :func:`write_tuned` (the
+  configuration and its extra templates).
+
+The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
+:mod:`mtanno.decode`.
+"""
+
+from mtanno.tuning.run import TuneResult, template_folder_of, tune, write_tuned
+from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params
+
+__all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder_of", "tune",
+           "write_tuned"]

@@ -1,0 +1,328 @@
+"""The whole ``mtanno tune`` run: read the training inputs, build the folds, learn and match
+per fold and class (in worker processes), search (:class:`mtanno.tuning.search.Tuner`),
+learn the final extra templates, and write the class configuration.
+
+Files read: the templates folder (classes, layout, learning parameters), the keyframe
+folder if given, and the training examples' feature files — nothing else (a test watches
+every file the run opens).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mtanno import __version__
+from mtanno.annotate import ClassConfig, class_config_text
+from mtanno.decode import EVIDENCE_MARGIN
+from mtanno.errors import MtannoError
+from mtanno.templates.training import ExampleSource, TrainingExample
+from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
+from mtanno.tuning.search import (
+    GROUPS,
+    METHODS,
+    UNKNOWN_WEIGHT,
+    Evaluation,
+    Params,
+    Tuner,
+    check_methods,
+    prepare_fold_class,
+)
+
+__all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
+
+
+@dataclass
+class TuneResult:
+    """What :func:`tune` found: the parameters, their cross-validated evaluation (pooled
+    over folds, per class), the search log, the extra templates per class (several
+    templates per class), the reference annotation's evaluation on the same folds, and
+    what was read (``inputs``: files with SHA-256; ``folds``: held-out performer → number
+    of held-out examples)."""
+
+    params: Params
+    evaluation: Evaluation
+    reference: Evaluation
+    steps: list[str]
+    classes: list[str]
+    extra_templates: dict[str, list] = field(default_factory=dict)
+    inputs: list[dict] = field(default_factory=list)
+    folds: dict[str, int] = field(default_factory=dict)
+    seed: int = 0
+    methods: list[str] = field(default_factory=list)
+    documents: str = "composed"
+    unknown_weight: float = UNKNOWN_WEIGHT
+    seconds: float = 0.0
+    ablation: dict[str, TuneResult] = field(default_factory=dict)
+
+
+def _learn_params(mt) -> dict:
+    p = mt.params or {}
+    out = {"hard": mt.kind == "hard"}
+    if isinstance(p.get("iter_max"), int) and p["iter_max"] >= 1:
+        out["iter_max"] = int(p["iter_max"])
+    if isinstance(p.get("iter_thresh"), (int, float)) and p["iter_thresh"] >= 0:
+        out["thresh"] = float(p["iter_thresh"])
+    return out
+
+
+def _spans(windows_per_doc: list[list[tuple[int, int]]], offsets: np.ndarray, margin: int = 0):
+    """Absolute merged spans of per-document windows, widened by ``margin`` within each
+    document (as annotate widens a document's windows for the frame evidence)."""
+    starts, ends = [], []
+    for (a, b), wins in zip(zip(offsets[:-1], offsets[1:]), windows_per_doc):
+        for s, e in sorted(wins):
+            s, e = max(0, s - margin), min(int(b - a) - 1, e + margin)
+            if e < s:
+                continue
+            if starts and a + s <= ends[-1]:
+                ends[-1] = max(ends[-1], a + e)
+            else:
+                starts.append(a + s)
+                ends.append(a + e)
+    return np.array(starts, np.int64), np.array(ends, np.int64)
+
+
+def _final_groups(cls: str, examples: list[TrainingExample], k: int, learn: dict) -> list:
+    """The group templates of a class learned from all its training examples."""
+    from mtanno.templates.learn import learn_template
+    from mtanno.tuning.cluster import example_distances, group_examples
+
+    lab = group_examples(example_distances(examples), k)
+    n = int(lab.max()) + 1
+    if n < 2:
+        return []
+    return [learn_template([e for e, g in zip(examples, lab) if g == i], class_name=cls,
+                           **learn) for i in range(n)]
+
+
+def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
+         keyframes_dir: str | os.PathLike | None = None, seed: int = 0, n_jobs: int = 1,
+         methods: Sequence[str] = METHODS, documents: str = "composed",
+         unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
+         log: Callable[[str], None] | None = None) -> TuneResult:
+    """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
+    inside the training examples ``sources`` (:func:`mtanno.templates.training.
+    collect_sources`): see :mod:`mtanno.tuning.search` for the search and
+    :mod:`mtanno.tuning.cv` for the folds.
+
+    ``keyframes_dir``: keyframe queries (``learn-keyframes``); the held-out documents are
+    then matched only inside their candidate windows, as ``annotate --keyframes`` does (the
+    queries were learned on all training examples, so the cross-validated scores of this
+    stage are a little optimistic). ``methods``: those of :data:`METHODS` to use (the
+    others stay as in the reference annotation). ``documents``: how held-out clips become
+    documents (:data:`mtanno.tuning.cv.DOCUMENT_MODES`). ``unknown_weight``: w of the
+    objective. ``log`` receives one line per search step. With ``ablation``, the search is
+    also run once with each method of ``methods`` left out and once with none of them
+    (one τ for all classes), on the same folds: ``TuneResult.ablation`` maps
+    ``"without-METHOD"`` and ``"none"`` to those results.
+    """
+    from mtanno.store import FeatureLayout, check_layout, read_features, sha256_file
+    from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.templates.training import group_by_class, load_examples
+
+    t0 = time.perf_counter()
+    methods = check_methods(methods)
+    if documents not in DOCUMENT_MODES:
+        raise MtannoError(f"unknown --documents {documents!r} (choose from "
+                          f"{', '.join(DOCUMENT_MODES)})")
+    if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
+        raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
+    templates = load_template_folder(mt_dir)
+    classes = list(templates)
+    first = next(iter(templates.values()))
+    layout = FeatureLayout(first.feature_set, tuple(first.feature_names), float(first.fps),
+                           f"the templates in {mt_dir}")
+    groups = group_by_class(sources)
+    examples = [e for c in groups for e in load_examples(groups[c])]
+    for ex in examples:
+        check_layout(FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),
+                                   f"feature file {ex.file}"), layout, path=ex.file)
+    no_examples = [c for c in classes if c not in groups]
+    if no_examples:
+        raise MtannoError(f"no training examples of class(es) {', '.join(no_examples)} "
+                          f"(templates in {mt_dir}); tune needs examples of every class")
+    queries = {}
+    if keyframes_dir is not None:
+        from mtanno.keyframes import load_class_keyframes
+
+        queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
+                                                feature_set=layout.feature_set)
+    whole = any(s.start is not None for s in sources)
+    read_document = (lambda path: read_features(path).X) if whole else None
+    folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
+    learn = {c: _learn_params(templates[c]) for c in classes}
+    tasks = []
+    for f in folds:
+        windows = None
+        if queries:
+            from mtanno.keyframes import class_windows
+
+            windows = [class_windows(X, list(layout.names), queries,
+                                     feature_set=layout.feature_set)
+                       for _, X in f.held_out.documents()]
+        for c in classes:
+            train = [e for e in f.train if e.class_name == c]
+            if not train:
+                continue
+            spans = ev_spans = None
+            if windows is not None and c in queries:
+                wins = [w.get(c, []) for w in windows]
+                spans = _spans(wins, f.held_out.offsets)
+                ev_spans = _spans(wins, f.held_out.offsets, EVIDENCE_MARGIN)
+            tasks.append(((f.name, c), (c, train, f.held_out.X, f.held_out.offsets), {
+                "deltas": _deltas(methods, templates), "groups": GROUPS
+                if "templates" in methods else (), "learn": learn[c], "spans": spans,
+                "evidence": "frames" in methods and "resolve" in methods,
+                "evidence_spans": ev_spans}))
+    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs)))
+    tuner = Tuner(folds, prepared, classes=classes, methods=methods,
+                  unknown_weight=unknown_weight, log=log)
+    delta0 = _deltas(methods, templates)[0]
+    params, evaluation, steps = tuner.search(delta=delta0)
+    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), 0.13), per_class=True)
+    variants = {}
+    if ablation:
+        for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
+                               for m in methods), ("none", [])]:
+            if log:
+                log(f"ablation {name}:")
+            variants[name] = tuner.search(delta=delta0, methods=subset)
+    by_class = {c: [e for e in examples if e.class_name == c] for c in classes}
+    wanted = sorted({(c, p.groups[c]) for p in [params, *(v[0] for v in variants.values())]
+                     for c in classes if p.groups.get(c, 1) > 1})
+    got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
+                      for key in wanted], n_jobs, fn=_final_groups) if wanted else []
+    learned = {key: g for key, g in zip(wanted, got) if g}
+
+    def extra_of(p: Params) -> dict:
+        return {c: learned[(c, p.groups[c])] for c in classes
+                if (c, p.groups.get(c, 1)) in learned}
+
+    inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
+    if keyframes_dir is not None:
+        from mtanno.keyframes import keyframe_files
+
+        inputs += [{"path": str(p), "sha256": sha256_file(p)}
+                   for p in keyframe_files(keyframes_dir)]
+    seen = set()
+    for ex in examples:
+        if ex.file not in seen:
+            seen.add(ex.file)
+            inputs.append({"path": ex.file, "sha256": ex.sha256})
+    folds_held = {f.name: len(f.held_examples) for f in folds}
+    seconds = time.perf_counter() - t0
+    result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
+                        folds_held, seed, methods, documents, unknown_weight, seconds)
+    for name, (p, ev, st) in variants.items():
+        subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
+        result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
+                                           folds_held, seed, subset, documents, unknown_weight,
+                                           seconds)
+    return result
+
+
+def _deltas(methods: Sequence[str], templates) -> list[float]:
+    from mtanno.annotate import DEFAULT_DELTA
+    from mtanno.tuning.search import DELTA_GRID
+
+    return [float(d) for d in DELTA_GRID] if "delta" in methods else [DEFAULT_DELTA]
+
+
+def _run_tasks(tasks: list, n_jobs: int, fn=prepare_fold_class) -> list:
+    """``fn(*args, **kwargs)`` of every (key, args, kwargs) task, in order; in ``n_jobs``
+    worker processes when more than one."""
+    if n_jobs > 1 and len(tasks) > 1:
+        from mtanno.workers import WorkerPool
+
+        with WorkerPool(n_jobs) as pool:
+            futures = [pool.submit(_call, fn, args, kwargs) for _, args, kwargs in tasks]
+            return [f.result() for f in futures]
+    return [fn(*args, **kwargs) for _, args, kwargs in tasks]
+
+
+def _call(fn, args, kwargs):
+    return fn(*args, **kwargs)
+
+
+def template_folder_of(config_path: str | os.PathLike) -> Path:
+    """Where :func:`write_tuned` puts a configuration's extra templates:
+    ``CONFIG.templates/`` beside ``CONFIG.toml``."""
+    p = Path(config_path)
+    return p.with_name(p.stem + ".templates")
+
+
+def _fmt(ev: Evaluation) -> str:
+    p1, r1, f1 = ev.counts.frame()
+    p2, r2, f2 = ev.counts.segment()
+    return (f"P1 {p1:.3f} R1 {r1:.3f} F1 {f1:.3f}, P2 {p2:.3f} R2 {r2:.3f} F2 {f2:.3f}, "
+            f"unknown-class rate {ev.unknown:.3f}")
+
+
+def write_tuned(path: str | os.PathLike, result: TuneResult, *,
+                command: Sequence[str] = ()) -> ClassConfig:
+    """Write the tuned class configuration to ``path`` (TOML, cross-validated scores as
+    comments) and its extra templates into :func:`template_folder_of` ``(path)``; returns
+    the configuration as written."""
+    from mtanno.output import atomic_path, make_folder
+    from mtanno.templates.model import save_template
+
+    path = Path(path)
+    cfg = result.params.config()
+    cfg.path = str(path)
+    if result.extra_templates:
+        folder = template_folder_of(path)
+        make_folder(folder)
+        for c, mts in sorted(result.extra_templates.items()):
+            files = []
+            for i, mt in enumerate(mts, 1):
+                target = folder / f"{c}.{i}.json"
+                save_template(target, mt)
+                files.append(f"{folder.name}/{target.name}")
+            cfg.templates[c] = files
+    ev = result.evaluation
+    header = [
+        f"class configuration written by mtanno {__version__} tune "
+        f"({' '.join(command) if command else 'API'})",
+        f"seed {result.seed}; methods: {', '.join(result.methods) or 'none'}; held-out "
+        f"documents: {result.documents}; unknown-class weight {result.unknown_weight:g}",
+        "folds (held-out performer: examples): "
+        + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
+        f"cross-validated, tuned:    {_fmt(ev)}",
+        f"cross-validated, reference (tau 0.13, no methods): {_fmt(result.reference)}",
+        "search:",
+        *(f"  {s}" for s in result.steps),
+        "the training inputs this file was tuned on are listed at its end",
+    ]
+    comments = {}
+    for c in result.classes:
+        pc = ev.per_class.get(c)
+        hit, n = ev.per_class_unknown.get(c, (0, 0))
+        note = ""
+        if pc is not None:
+            note = (f"CV F1 {pc.frame()[2]:.3f} ({pc.frame_support} frames), F2 "
+                    f"{pc.segment()[2]:.3f} ({pc.seg_support} segments)")
+        if n:
+            note += f", unknown-class rate {hit / n:.3f}"
+        if c in cfg.tau:
+            comments[("tau", c)] = note
+        elif c in cfg.reject:
+            comments[("reject", c)] = note
+        else:
+            comments[("classes", c)] = note
+    text = class_config_text(cfg, header=header, comments=comments)
+    plain = [c for c in result.classes if ("classes", c) in comments and comments[("classes", c)]]
+    if plain:
+        text += "\n# cross-validated scores of the classes at the default tau:\n" + "".join(
+            f"#   {c}: {comments[('classes', c)]}\n" for c in plain)
+    text += f"\n# training inputs ({len(result.inputs)} files; SHA-256, path):\n" + "".join(
+        f"#   {i['sha256']}  {i['path']}\n" for i in result.inputs)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+    return cfg

@@ -1,0 +1,101 @@
+"""Fast scores of annotations on the held-out documents of cross-validation: the counts of
+MBS09 §7 (algorithms.md §8) that ``mtanno evaluate`` reports, computed on frame arrays.
+
+Segments are (label index, first, last) with 0-based inclusive frames of one array of
+``n_frames`` frames (the held-out documents concatenated); labels are indices into one list
+of class names shared by truth and output. The counts equal
+:func:`mtanno.evaluate.evaluate_annotations` on the same segments (a test checks it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Counts", "count", "covered_fraction"]
+
+
+@dataclass
+class Counts:
+    """Frame-level (correct, predicted, support) and segment-level (correct output
+    segments, output segments, found truth segments, truth segments) counts; they add up
+    over folds."""
+
+    frame_correct: int = 0
+    frame_predicted: int = 0
+    frame_support: int = 0
+    seg_correct: int = 0
+    seg_predicted: int = 0
+    seg_found: int = 0
+    seg_support: int = 0
+
+    def __iadd__(self, other: Counts) -> Counts:
+        for k, v in vars(other).items():
+            setattr(self, k, getattr(self, k) + v)
+        return self
+
+    @staticmethod
+    def _f(p: float, r: float) -> float:
+        return 2 * p * r / (p + r) if p + r else 0.0
+
+    def frame(self) -> tuple[float, float, float]:
+        """(P1, R1, F1)."""
+        p = self.frame_correct / self.frame_predicted if self.frame_predicted else 0.0
+        r = self.frame_correct / self.frame_support if self.frame_support else 0.0
+        return p, r, self._f(p, r)
+
+    def segment(self) -> tuple[float, float, float]:
+        """(P2, R2, F2)."""
+        p = self.seg_correct / self.seg_predicted if self.seg_predicted else 0.0
+        r = self.seg_found / self.seg_support if self.seg_support else 0.0
+        return p, r, self._f(p, r)
+
+
+def _cover(segs: Sequence[tuple[int, int, int]], n_labels: int, n_frames: int) -> np.ndarray:
+    """(labels × frames + 1) cumulative counts of frames covered per label (a frame
+    covered twice by one label counts once)."""
+    diff = np.zeros((n_labels, n_frames + 1), dtype=np.int64)
+    for p, a, b in segs:
+        diff[p, a] += 1
+        diff[p, b + 1] -= 1
+    covered = (np.cumsum(diff[:, :-1], axis=1) > 0).astype(np.int64)
+    out = np.zeros((n_labels, n_frames + 1), dtype=np.int64)
+    np.cumsum(covered, axis=1, out=out[:, 1:])
+    return out
+
+
+def count(truth: Sequence[tuple[int, int, int]], output: Sequence[tuple[int, int, int]], *,
+          n_labels: int, n_frames: int) -> Counts:
+    """The evaluation counts of ``output`` against ``truth`` (module docstring)."""
+    ct = _cover(truth, n_labels, n_frames)
+    co = _cover(output, n_labels, n_frames)
+    both = 0
+    for p in range(n_labels):
+        t = np.diff(ct[p]) > 0
+        o = np.diff(co[p]) > 0
+        both += int(np.count_nonzero(t & o))
+    c = Counts(frame_correct=both, frame_predicted=int(co[:, -1].sum()),
+               frame_support=int(ct[:, -1].sum()))
+    c.seg_predicted = len(output)
+    c.seg_support = len(truth)
+    c.seg_correct = sum(1 for p, a, b in output if ct[p, b + 1] - ct[p, a] > 0)
+    c.seg_found = sum(1 for p, a, b in truth if co[p, b + 1] - co[p, a] > 0)
+    return c
+
+
+def covered_fraction(frames: Sequence[tuple[int, int]], output: Sequence[tuple[int, int, int]],
+                     n_frames: int) -> tuple[int, int]:
+    """(frames of the spans ``frames`` that some output segment covers, frames of the
+    spans): the numerator and denominator of the unknown-class rate."""
+    mask = np.zeros(n_frames + 1, dtype=np.int64)
+    for _, a, b in output:
+        mask[a] += 1
+        mask[b + 1] -= 1
+    cov = np.cumsum(mask[:-1]) > 0
+    total = hit = 0
+    for a, b in frames:
+        total += b - a + 1
+        hit += int(np.count_nonzero(cov[a:b + 1]))
+    return hit, total

@@ -1,0 +1,481 @@
+"""``mtanno tune``: the annotation parameters learned by cross-validation inside the
+training data (issue 10; ``docs/annotation.md``).
+
+For every fold (:mod:`mtanno.tuning.cv`) the templates are learned from the other folds'
+examples, quantized with each δ of :data:`DELTA_GRID`, and matched against the fold's
+held-out documents once; then the parameters are chosen by coordinate search, each
+candidate scored by annotating all held-out documents from those cached distance
+functions (:func:`mtanno.annotate.label_document` / :func:`mtanno.decode.decode_segments`,
+exactly what ``annotate --classes`` does). The objective is
+
+    J = (F1 + F2) / 2 − w · U
+
+with F1, F2 the frame and segment F-measures over all folds (MBS09 §7) and U the
+unknown-class rate — for each class in turn left out of the templates, the fraction of
+its held-out frames that another class labels — weighted by ``unknown_weight`` (w).
+
+The search, in this order, each step only over the methods switched on
+(:data:`METHODS`):
+
+1. one τ for all classes (grid :data:`TAU_GRID`), for each δ of :data:`DELTA_GRID`
+   (``delta``) and with and without the segment decoder (``resolve``);
+2. boundary refinement (``refine``): the decoder's slack (:data:`SLACK_GRID`), or the
+   extension over unclaimed frames only;
+3. several templates per class (``templates``): each class split into 2 or 3 groups of
+   examples (:mod:`mtanno.tuning.cluster`), kept where J rises by more than :data:`EPS`;
+4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
+   where J rises by more than :data:`EPS`;
+5. rejection (``reject``): a ceiling ρ_p = m·τ_p (m in :data:`REJECT_STEPS`) per class,
+   kept where J rises by more than :data:`EPS`;
+6. frame-wise tie-breaking (``frames``): the evidence weight (:data:`FRAME_WEIGHTS`), kept
+   where J rises by more than :data:`EPS` (the evidence costs annotation time);
+7. all τ and ρ scaled together once more (:data:`SCALE_STEPS`).
+
+Everything is deterministic for a seed (fold composition, grouping, learning, search
+order); ``n_jobs`` only spreads the learning and matching over processes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
+from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
+from mtanno.errors import MtannoError
+from mtanno.tuning.cv import Fold
+from mtanno.tuning.score import Counts, count, covered_fraction
+
+__all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_STEPS",
+           "SLACK_GRID", "TAU_GRID", "TAU_STEPS", "UNKNOWN_WEIGHT", "Evaluation", "Params",
+           "Tuner", "prepare_fold_class"]
+
+#: The methods ``tune`` can switch on (all by default); ``--disable`` names them.
+METHODS = ("tau", "reject", "refine", "resolve", "templates", "frames", "delta")
+#: Quantization δ tried (MBS09 uses 0.05; examples of varied styles want a larger one).
+DELTA_GRID = (0.05, 0.15, 0.25, 0.35)
+#: One τ for all classes, tried first.
+TAU_GRID = (0.03, 0.04, 0.05, 0.065, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.4, 0.5)
+#: Slack of the decoder's segment starts (frames at 30 Hz).
+SLACK_GRID = (0, 1, 2, 3, 5, 8)
+#: Factors tried on a class's τ.
+TAU_STEPS = (0.6, 0.8, 1.25, 1.6)
+#: Rejection ceilings tried, as fractions of the class's τ.
+REJECT_STEPS = (0.3, 0.45, 0.6, 0.8)
+#: Weights of the frame-wise evidence tried.
+FRAME_WEIGHTS = (0.0, 0.1, 0.3, 1.0)
+#: Group counts tried for several templates per class.
+GROUPS = (2, 3)
+#: Factors on all τ and ρ tried at the end.
+SCALE_STEPS = (0.8, 0.9, 1.1, 1.25)
+#: Smallest rise of J for which a per-class change is kept (guards against noise).
+EPS = 0.002
+#: Default weight of the unknown-class rate in the objective.
+UNKNOWN_WEIGHT = 0.02
+
+
+@dataclass
+class Params:
+    """A point of the search: δ, decoder, refinement, and per class τ, ρ and the number of
+    template groups (1: the class's template only)."""
+
+    delta: float = DEFAULT_DELTA
+    resolve: bool = False
+    refine: bool = False
+    slack: int = DEFAULT_SLACK
+    tau: dict[str, float] = field(default_factory=dict)
+    reject: dict[str, float] = field(default_factory=dict)
+    groups: dict[str, int] = field(default_factory=dict)
+    frame_weight: float = 0.0
+
+    def copy(self, **changes) -> Params:
+        out = replace(self, tau=dict(self.tau), reject=dict(self.reject),
+                      groups=dict(self.groups))
+        for k, v in changes.items():
+            setattr(out, k, v)
+        return out
+
+    def config(self, *, default_tau: float | None = None) -> ClassConfig:
+        """The class configuration of these parameters (τ equal to ``default_tau`` are
+        left to ``[tau] default``)."""
+        taus = list(self.tau.values())
+        default = default_tau if default_tau is not None else \
+            (max(set(taus), key=taus.count) if taus else DEFAULT_TAU)
+        return ClassConfig(default_tau=default,
+                           tau={c: t for c, t in self.tau.items() if t != default},
+                           resolve=self.resolve, refine=self.refine, slack=self.slack,
+                           frame_weight=self.frame_weight, delta=self.delta,
+                           reject={c: r for c, r in self.reject.items() if r != math.inf})
+
+
+@dataclass
+class Evaluation:
+    """Scores of one parameter point over all folds: J, the pooled counts, the unknown
+    rate U (and its frames), per-class counts and per-class unknown rates."""
+
+    J: float
+    counts: Counts
+    unknown: float
+    unknown_frames: tuple[int, int]
+    per_class: dict[str, Counts] = field(default_factory=dict)
+    per_class_unknown: dict[str, tuple[int, int]] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        p1, r1, f1 = self.counts.frame()
+        p2, r2, f2 = self.counts.segment()
+        return (f"P1 {p1:.3f} R1 {r1:.3f} F1 {f1:.3f} P2 {p2:.3f} R2 {r2:.3f} F2 {f2:.3f} "
+                f"unknown {self.unknown:.3f} J {self.J:.4f}")
+
+
+# --------------------------------------------------------------------------- fold data
+
+
+def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray, *,
+                       deltas: Sequence[float], groups: Sequence[int], learn: dict,
+                       spans: tuple[np.ndarray, np.ndarray] | None, evidence: bool,
+                       evidence_spans: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """One class of one fold (a worker task): its templates learned from ``train`` (all
+    examples, and per group for each group count of ``groups``), quantized with each δ,
+    matched against the held-out documents (``offsets``; only inside ``spans`` — absolute
+    first and last frames — when keyframe windows are given; the frame evidence then only
+    inside ``evidence_spans``, the windows widened as annotate widens them). Returns ``{"groups": {k: k'},
+    "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
+    for k asked (fewer when a group would be too small); template (1, 0) is the one learned
+    from all examples, (k', i) group i of a split into k'."""
+    from mtanno.decode import frame_evidence
+    from mtanno.templates.learn import learn_template
+    from mtanno.templates.match import PreparedTemplate, pack_document
+    from mtanno.templates.model import quantize
+    from mtanno.tuning.cluster import example_distances, group_examples
+
+    templates = {(1, 0): learn_template(train, class_name=cls, **learn)}
+    made = {1: 1}
+    if groups:
+        D = example_distances(train)
+        for k in groups:
+            lab = group_examples(D, k)
+            n = made[k] = int(lab.max()) + 1
+            if n < 2 or (n, 0) in templates:
+                continue  # no split, or the split of a smaller k again (k-medoids falls back)
+            for i in range(n):
+                templates[(n, i)] = learn_template([e for e, g in zip(train, lab) if g == i],
+                                                   class_name=cls, **learn)
+    packed = pack_document(held_X, held_X.shape[0])
+    out = {}
+    for delta in deltas:
+        for key, mt in templates.items():
+            q = quantize(mt, delta)
+            prep = PreparedTemplate(q.values, q.weights)
+            if spans is None:
+                d, s = prep.run(packed, offsets)
+                # run gives starts relative to each document: make them absolute
+                for a, b in zip(offsets[:-1], offsets[1:]):
+                    seg = s[a:b]
+                    seg[seg >= 0] += a
+            else:
+                d, s = prep.match_spans(packed, spans[0], spans[1])
+            ev = frame_evidence(packed, q.values, spans=evidence_spans) if evidence else None
+            out[(float(delta), *key)] = (d, s, ev)
+    return {"groups": made, "match": out}
+
+
+@dataclass
+class _FoldData:
+    name: str
+    n_frames: int
+    offsets: np.ndarray
+    classes: list[str]                      # classes with templates in this fold
+    truth: list[tuple[int, int, int]]       # (label id, first, last)
+    truth_by_class: dict[str, list[tuple[int, int]]]
+    match: dict                             # (δ, class, k, i) -> (Δ, starts, evidence)
+    groups: dict                            # (class, k) -> groups made
+    hidden: dict = field(default_factory=dict)  # class -> _FoldData of its documents only
+
+
+def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
+    """The fold restricted to some of its documents (the unknown-class runs of a class
+    need only the documents that hold it): arrays sliced, start frames moved along."""
+    if len(docs) == len(fd.offsets) - 1:
+        return fd
+    idx = np.concatenate([np.arange(fd.offsets[d], fd.offsets[d + 1]) for d in docs])
+    lengths = [int(fd.offsets[d + 1] - fd.offsets[d]) for d in docs]
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    shift = np.concatenate([np.full(n, offsets[j] - fd.offsets[d], dtype=np.int64)
+                            for j, (d, n) in enumerate(zip(docs, lengths))])
+    new_of = {int(d): j for j, d in enumerate(docs)}
+
+    def frame(a: int) -> int:
+        d = int(np.searchsorted(fd.offsets, a, side="right")) - 1
+        return int(a - fd.offsets[d] + offsets[new_of[d]])
+
+    match = {}
+    for key, (d, st, ev) in fd.match.items():
+        s2 = st[idx]
+        match[key] = (d[idx], np.where(s2 >= 0, s2 + shift, -1),
+                      None if ev is None else ev[idx])
+    keep = [(c, a, b) for c, a, b in fd.truth
+            if int(np.searchsorted(fd.offsets, a, side="right")) - 1 in new_of]
+    truth = [(c, frame(a), frame(b)) for c, a, b in keep]
+    by_class: dict[str, list[tuple[int, int]]] = {}
+    for c, lst in fd.truth_by_class.items():
+        for a, b in lst:
+            if int(np.searchsorted(fd.offsets, a, side="right")) - 1 in new_of:
+                by_class.setdefault(c, []).append((frame(a), frame(b)))
+    return _FoldData(fd.name, int(offsets[-1]), offsets, fd.classes, truth, by_class, match,
+                     fd.groups)
+
+
+class Tuner:
+    """Scores parameter points on cached fold data and searches them (module docstring)."""
+
+    def __init__(self, folds: Sequence[Fold], prepared: dict[tuple[str, str], dict], *,
+                 classes: Sequence[str], methods: Sequence[str] = METHODS,
+                 unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None):
+        self.classes = list(classes)
+        self.methods = set(methods)
+        self.unknown_weight = float(unknown_weight)
+        self.log = log or (lambda msg: None)
+        names = list(self.classes)
+        for f in folds:
+            for c, _, _ in f.held_out.truth:
+                if c not in names:
+                    names.append(c)
+        self.names = names
+        self.ids = {c: i for i, c in enumerate(names)}
+        self.folds: list[_FoldData] = []
+        for f in folds:
+            match, groups, present = {}, {}, []
+            for c in self.classes:
+                got = prepared.get((f.name, c))
+                if got is None:
+                    continue
+                present.append(c)
+                for (delta, k, i), v in got["match"].items():
+                    match[(delta, c, k, i)] = v
+                for k, n in got["groups"].items():
+                    groups[(c, k)] = n
+            by_class: dict[str, list[tuple[int, int]]] = {}
+            for c, a, b in f.held_out.truth:
+                by_class.setdefault(c, []).append((a, b))
+            fd = _FoldData(f.name, f.held_out.n_frames, f.held_out.offsets, present,
+                           [(self.ids[c], a, b) for c, a, b in f.held_out.truth], by_class,
+                           match, groups)
+            for c in present:
+                docs = sorted({int(np.searchsorted(fd.offsets, a, side="right")) - 1
+                               for a, _ in by_class.get(c, [])})
+                if docs:
+                    fd.hidden[c] = _subset(fd, docs)
+            self.folds.append(fd)
+        self.evaluations = 0
+
+    # ------------------------------------------------------------------ scoring
+
+    def _templates(self, fd: _FoldData, c: str, params: Params) -> list[tuple[int, int]]:
+        k = params.groups.get(c, 1)
+        n = fd.groups.get((c, k), 1) if k > 1 else 1
+        return [(1, 0)] + ([(n, i) for i in range(n)] if n > 1 else [])
+
+    def _arrays(self, fd: _FoldData, params: Params):
+        """Δ/τ (ρ applied), starts and frame evidence per class of the fold (segment
+        decoder), as :func:`mtanno.annotate.label_document` builds them."""
+        L = fd.n_frames
+        P = len(fd.classes)
+        mat = np.full((P, L), np.inf)
+        st = np.full((P, L), -1, dtype=np.int64)
+        ev = np.full((P, L), np.inf) if params.frame_weight > 0 else None
+        for p, c in enumerate(fd.classes):
+            tau, rho = params.tau[c], params.reject.get(c, math.inf)
+            for k, i in self._templates(fd, c, params):
+                d, s, e = fd.match[(params.delta, c, k, i)]
+                fold_label(mat[p], st[p], d, s, tau=tau, reject=rho)
+                if ev is not None:
+                    np.minimum(ev[p], e, out=ev[p])
+        return mat, st, ev
+
+    def _segments(self, fd: _FoldData, params: Params, classes: Sequence[str], arrays=None):
+        """Output segments (label id, first, last) of one fold with ``classes`` only
+        (``arrays``: :meth:`_arrays` of the fold, for the segment decoder)."""
+        if params.resolve:
+            mat, st, ev = arrays if arrays is not None else self._arrays(fd, params)
+            rows = [fd.classes.index(c) for c in classes]
+            if len(rows) < len(fd.classes):
+                mat, st = mat[rows], st[rows]
+                ev = None if ev is None else ev[rows]
+            dec = decode_segments(mat, st, tau=np.ones(len(rows)), slack=params.slack
+                                  if params.refine else 0, evidence=None if ev is None
+                                  else relative_evidence(ev), weight=params.frame_weight,
+                                  boundaries=fd.offsets[1:-1])
+            return [(self.ids[classes[d.label]], d.start, d.end) for d in dec]
+        return self._reference_segments(fd, params, classes)
+
+    def _reference_segments(self, fd: _FoldData, params: Params, classes: Sequence[str]):
+        """The reference decoder (Δ̄, labels, extension) on all held-out documents at once:
+        one frame of Δ = ∞ between documents keeps runs and extensions inside them (Δ̄
+        picks never cross documents: their spans come from per-document matching); frames
+        are mapped back afterwards. Equal to :func:`label_document` per document."""
+        cfg = ClassConfig(tau=dict(params.tau), reject=dict(params.reject),
+                          refine=params.refine)
+        cuts = fd.offsets[1:-1]
+        shift = np.arange(1, len(cuts) + 1)
+        names, arrays = [], []
+        for c in classes:
+            for k, i in self._templates(fd, c, params):
+                d, s, _ = fd.match[(params.delta, c, k, i)]
+                s = np.where(s >= 0, s + np.searchsorted(cuts, s, side="right"), -1)
+                names.append(c)
+                arrays.append((c, np.insert(d, cuts, np.inf), np.insert(s, cuts, -1), None))
+        L = fd.n_frames + len(cuts)
+        rows, _, _ = label_document("d", names, iter(arrays), L, config=cfg)
+        sep = np.zeros(L, dtype=bool)
+        sep[cuts + shift - 1] = True
+        back = np.arange(L) - np.cumsum(sep)  # frame of the concatenation without separators
+        return [(self.ids[r.label], int(back[r.start]), int(back[r.end])) for r in rows]
+
+    def evaluate(self, params: Params, *, per_class: bool = False) -> Evaluation:
+        """J and the counts of ``params`` over all folds (unknown rate with each class left
+        out in turn)."""
+        self.evaluations += 1
+        total = Counts()
+        unk = [0, 0]
+        per: dict[str, Counts] = {}
+        per_unk: dict[str, tuple[int, int]] = {}
+        for fd in self.folds:
+            arrays = self._arrays(fd, params) if params.resolve else None
+            segs = self._segments(fd, params, fd.classes, arrays)
+            total += count(fd.truth, segs, n_labels=len(self.names), n_frames=fd.n_frames)
+            if per_class:
+                for c in self.classes:
+                    cid = self.ids[c]
+                    got = count([t for t in fd.truth if t[0] == cid],
+                                [s for s in segs if s[0] == cid], n_labels=len(self.names),
+                                n_frames=fd.n_frames)
+                    per.setdefault(c, Counts())
+                    per[c] += got
+            if self.unknown_weight > 0 or per_class:
+                for c, sub in fd.hidden.items():
+                    rest = [x for x in fd.classes if x != c]
+                    sub_arrays = arrays if sub is fd else (
+                        self._arrays(sub, params) if params.resolve else None)
+                    hit, n = covered_fraction(sub.truth_by_class[c], self._segments(
+                        sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
+                    unk[0] += hit
+                    unk[1] += n
+                    h0, n0 = per_unk.get(c, (0, 0))
+                    per_unk[c] = (h0 + hit, n0 + n)
+        U = unk[0] / unk[1] if unk[1] else 0.0
+        J = (total.frame()[2] + total.segment()[2]) / 2 - self.unknown_weight * U
+        return Evaluation(J, total, U, (unk[0], unk[1]), per, per_unk)
+
+    # ------------------------------------------------------------------ search
+
+    def _best(self, candidates: Sequence[Params], current: Evaluation | None = None,
+              eps: float = 0.0) -> tuple[Params | None, Evaluation | None]:
+        """The candidate of highest J (the first of equals), if it beats ``current`` by
+        more than ``eps``."""
+        best, best_ev = None, None
+        for cand in candidates:
+            ev = self.evaluate(cand)
+            if best_ev is None or ev.J > best_ev.J:
+                best, best_ev = cand, ev
+        if current is not None and (best_ev is None or best_ev.J <= current.J + eps):
+            return None, None
+        return best, best_ev
+
+    def _with_tau(self, p: Params, tau: float) -> Params:
+        return p.copy(tau={c: tau for c in self.classes}, reject={})
+
+    def search(self, *, delta: float = DEFAULT_DELTA, methods: Sequence[str] | None = None,
+               ) -> tuple[Params, Evaluation, list[str]]:
+        """The coordinate search of the module docstring over ``methods`` (default: the
+        tuner's); returns the best parameters, their evaluation and a log of the steps
+        (one line each, with J)."""
+        on = set(self.methods if methods is None else methods)
+        steps: list[str] = []
+
+        def note(what: str, ev: Evaluation) -> None:
+            line = f"{what}: {ev.summary()}"
+            steps.append(line)
+            self.log(line)
+
+        base = Params(delta=delta, resolve="resolve" in on, refine="refine" in on,
+                      slack=DEFAULT_SLACK, groups={c: 1 for c in self.classes})
+        ref_ev = self.evaluate(self._with_tau(base.copy(resolve=False, refine=False),
+                                              DEFAULT_TAU))
+        note(f"reference (tau {DEFAULT_TAU}, delta {delta})", ref_ev)
+        # 1. one τ, per δ and decoder
+        deltas = [float(d) for d in DELTA_GRID] if "delta" in on else [float(delta)]
+        decoders = [True, False] if "resolve" in on else [False]
+        cur, cur_ev = None, None
+        for dl in deltas:
+            for res in decoders:
+                p0 = base.copy(delta=dl, resolve=res, refine=base.refine)
+                cand, ev = self._best([self._with_tau(p0, t) for t in TAU_GRID])
+                if cur_ev is None or ev.J > cur_ev.J:
+                    cur, cur_ev = cand, ev
+        note(f"one tau {cur.tau[self.classes[0]]:g}, delta {cur.delta:g}, "
+             f"{'segment decoder' if cur.resolve else 'reference decoder'}", cur_ev)
+        # 2. boundary refinement
+        if "refine" in on:
+            cands = ([cur.copy(slack=s, refine=s > 0) for s in SLACK_GRID] if cur.resolve
+                     else [cur.copy(refine=r) for r in (False, True)])
+            got, ev = self._best(cands)
+            if ev.J > cur_ev.J:
+                cur, cur_ev = got, ev
+            what = (f"slack {cur.slack}" if cur.resolve and cur.refine else
+                    "extension over unclaimed frames" if cur.refine else "off")
+            note(f"refine: {what}", cur_ev)
+        # 3. several templates per class
+        if "templates" in on:
+            for c in self.classes:
+                got, ev = self._best([cur.copy(groups={**cur.groups, c: k}) for k in GROUPS],
+                                     cur_ev, EPS)
+                if got is not None:
+                    cur, cur_ev = got, ev
+            split = {c: k for c, k in cur.groups.items() if k > 1}
+            note(f"templates {split or 'one per class'}", cur_ev)
+        # 4. per-class τ
+        if "tau" in on:
+            for _ in range(2):
+                changed = False
+                for c in self.classes:
+                    got, ev = self._best([cur.copy(tau={**cur.tau, c: cur.tau[c] * f})
+                                          for f in TAU_STEPS], cur_ev, EPS)
+                    if got is not None:
+                        cur, cur_ev, changed = got, ev, True
+                if not changed:
+                    break
+            note("per-class tau", cur_ev)
+        # 5. rejection ceilings
+        if "reject" in on:
+            for c in self.classes:
+                got, ev = self._best([cur.copy(reject={**cur.reject, c: cur.tau[c] * m})
+                                      for m in REJECT_STEPS], cur_ev, EPS)
+                if got is not None:
+                    cur, cur_ev = got, ev
+            note(f"reject {len(cur.reject)} classes", cur_ev)
+        # 6. frame-wise tie-breaking
+        if "frames" in on and cur.resolve:  # evidence costs time: kept only where it pays
+            got, ev = self._best([cur.copy(frame_weight=w) for w in FRAME_WEIGHTS[1:]],
+                                 cur_ev, EPS)
+            if got is not None:
+                cur, cur_ev = got, ev
+            note(f"frame weight {cur.frame_weight:g}", cur_ev)
+        # 7. all thresholds scaled together
+        got, ev = self._best([cur.copy(tau={c: t * s for c, t in cur.tau.items()},
+                                       reject={c: r * s for c, r in cur.reject.items()})
+                              for s in SCALE_STEPS], cur_ev, EPS)
+        if got is not None:
+            cur, cur_ev = got, ev
+        note("final", cur_ev)
+        return cur, self.evaluate(cur, per_class=True), steps
+
+
+def check_methods(methods: Sequence[str]) -> list[str]:
+    """``methods`` checked against :data:`METHODS`."""
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        raise MtannoError(f"unknown method(s) {', '.join(bad)} (choose from {', '.join(METHODS)})")
+    return [m for m in METHODS if m in methods]

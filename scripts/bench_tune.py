@@ -1,0 +1,134 @@
+"""Benchmark of ``mtanno tune`` and of annotation with a tuned configuration (issue 10
+targets: tune for the 11 HDM05 classes < 60 s on 2 cores; annotation with a tuned
+configuration no slower than 1.2× the untuned one).
+
+* ``tune --jobs 2`` on the train split (actors bd, bk, dg; 188 clips, 11 classes), whole
+  command, median of ``--repeats``.
+* Annotation of the 60-minute document of ``bench_annotate.py`` (all 44 actor-mm clips
+  composed in order, tiled; 108 000 frames) with the templates alone and with
+  ``--classes tuned.toml``: in one process (:func:`mtanno.annotate.annotate_document` on the
+  document already read), median of 7, and as whole commands, median of ``--repeats``.
+  The same with the tuned configuration that `tune --keyframes` writes, with keyframes;
+  and the peak memory of annotating 10 hours with and without the tuned configuration.
+
+    .venv/bin/python scripts/bench_tune.py [--repeats 3] [--out .cache/bench/annotate]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _machine import machine  # noqa: E402
+from bench_annotate import REPO, SHARED, run, tiled, timed  # noqa: E402
+
+
+def median_of(fn, n: int = 7) -> float:
+    ts = []
+    for _ in range(n):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return statistics.median(ts)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--out", default=str(REPO / ".cache" / "bench" / "annotate"))
+    args = ap.parse_args()
+    if not SHARED.is_dir():
+        print(f"bench_tune: {SHARED} not found; the benchmark needs the real data")
+        return 2
+    out = Path(args.out)
+    clips = SHARED / "hdm05_cut" / "clips.csv"
+    if not (out / "mt").is_dir():
+        run(["features", str(SHARED / "hdm05_cut"), "-o", str(out / "features"), "-j", "2", "-q"])
+        run(["learn-mt", "--manifest", str(clips), "--features-dir", str(out / "features"),
+             "--split", "train", "-o", str(out / "mt"), "-q"])
+    if not (out / "docfeat").is_dir():
+        run(["compose", str(clips), "--actor", "mm", "--docs", "1", "--in-order", "-o",
+             str(out / "doc")])
+        run(["features", str(out / "doc"), "-o", str(out / "docfeat"), "-q"])
+    if not (out / "kf").is_dir():
+        run(["learn-keyframes", "--mt", str(out / "mt"), "--manifest", str(clips),
+             "--features-dir", str(out / "features"), "--split", "train", "-o",
+             str(out / "kf"), "--jobs", "2", "-q"])
+    print(f"machine: {machine()}")
+    train = ["--manifest", str(clips), "--features-dir", str(out / "features"), "--split",
+             "train", "--jobs", "2"]
+    walls = []
+    for _ in range(args.repeats):
+        t = time.perf_counter()
+        run(["tune", "--mt", str(out / "mt"), *train, "-o", str(out / "tuned.toml")])
+        walls.append(time.perf_counter() - t)
+    print(f"tune, 11 HDM05 classes, 188 clips, --jobs 2: {statistics.median(walls):.1f} s wall "
+          f"(median of {args.repeats}: {', '.join(f'{w:.1f}' for w in walls)}; target < 60 s)")
+    run(["tune", "--mt", str(out / "mt"), "--keyframes", str(out / "kf"), *train, "-o",
+         str(out / "tuned_kf.toml")])
+
+    from mtanno.annotate import (
+        DEFAULT_DELTA,
+        annotate_document,
+        load_class_config,
+        load_class_models,
+        load_config_templates,
+    )
+    from mtanno.keyframes import class_windows, load_keyframe_folder
+    from mtanno.store import read_features
+
+    src = next((out / "docfeat").glob("*.parquet"))
+    doc = tiled(src, out / "doc_60min.parquet", 60 * 60 * 30)
+    ff = read_features(doc)
+    queries = load_keyframe_folder(out / "kf")
+    rows = []
+    for name, cfg_path, kf in (("untuned", None, False), ("tuned", out / "tuned.toml", False),
+                               ("untuned, keyframes", None, True),
+                               ("tuned with keyframes, keyframes", out / "tuned_kf.toml", True)):
+        cfg = load_class_config(cfg_path) if cfg_path else None
+        delta = cfg.delta if cfg is not None and cfg.delta is not None else DEFAULT_DELTA
+        models, layout = load_class_models(out / "mt", delta=delta)
+        if cfg is not None:
+            models += load_config_templates(cfg, layout, delta=delta)
+        annotate_document("w", ff.X[:, :3000], models, config=cfg)  # kernels loaded
+
+        def once(models=models, cfg=cfg, kf=kf):
+            w = class_windows(ff.X, ff.names, queries) if kf else None
+            annotate_document(ff.document, ff.X, models, config=cfg, windows=w)
+
+        inproc = median_of(once)
+        extra = (["--classes", str(cfg_path)] if cfg_path else []) + \
+            (["--keyframes", str(out / "kf")] if kf else [])
+        wall, _ = timed(["annotate", "--mt", str(out / "mt"), *extra, str(doc), "-o",
+                         str(out / "ann_tune.csv"), "-q"], args.repeats)
+        rows.append((name, inproc, wall, len({m.name for m in models}), len(models)))
+    print("annotation of 60 min (108 000 frames): in one process (median of 7) | whole command "
+          f"(median of {args.repeats})")
+    for name, inproc, wall, n_classes, n_templates in rows:
+        print(f"  {name:34s} {inproc * 1000:7.0f} ms | {wall:5.2f} s   ({n_classes} classes, "
+              f"{n_templates} templates)")
+    doc10 = tiled(src, out / "doc_600min.parquet", 600 * 60 * 30)
+    for name, extra in (("untuned", []), ("tuned", ["--classes", str(out / "tuned.toml")])):
+        t = time.perf_counter()
+        proc = subprocess.run(["/usr/bin/time", "-f", "%M", str(REPO / ".venv" / "bin" / "mtanno"),
+                               "annotate", "--mt", str(out / "mt"), *extra, str(doc10), "-o",
+                               str(out / "ann_600_tune.csv"), "-q"],
+                              check=True, capture_output=True, text=True)
+        peak = int(proc.stderr.strip().splitlines()[-1]) / 1024
+        print(f"annotate 10 h (1 080 000 frames), {name}: {time.perf_counter() - t:.1f} s wall, "
+              f"peak RSS {peak:.0f} MB")
+    base, tuned = rows[0], rows[1]
+    kbase, ktuned = rows[2], rows[3]
+    print(f"tuned / untuned: {tuned[1] / base[1]:.2f}x in one process, {tuned[2] / base[2]:.2f}x "
+          f"whole command; with keyframes {ktuned[1] / kbase[1]:.2f}x and "
+          f"{ktuned[2] / kbase[2]:.2f}x (target ≤ 1.2x)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

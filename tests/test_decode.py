@@ -1,0 +1,219 @@
+"""The methods of tuned annotation (issue 10) on hand-made Δ curves: the segment decoder
+(overlap resolution, boundary refinement, rejection, frame-wise tie-breaking, document
+boundaries), the refined extension of the reference decoder, the frame evidence — and the
+decoder against its naive twin and an exhaustive search (hypothesis, JIT on and off)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from naive_decode import best_column_naive, decode_naive, least_cost_exhaustive
+
+from mtanno.annotate import ClassConfig, label_document, segments_from_labels
+from mtanno.decode import decode_segments, frame_evidence, relative_evidence
+from mtanno.errors import MtannoError
+from mtanno.templates.match import pack_document
+
+INF = math.inf
+
+
+def _curve(L, matches):
+    """Δ and starts of one label from {end: (start, Δ)}."""
+    d = np.full(L, INF)
+    s = np.full(L, -1, dtype=np.int64)
+    for end, (a, v) in matches.items():
+        d[end], s[end] = v, a
+    return d, s
+
+
+def _decode(curves, **kw):
+    D = np.vstack([c[0] for c in curves])
+    S = np.vstack([c[1] for c in curves])
+    kw.setdefault("tau", [0.13] * len(curves))
+    kw.setdefault("slack", 0)
+    return [(d.label, d.start, d.end) for d in decode_segments(D, S, **kw)]
+
+
+def test_overlapping_matches_are_resolved_into_a_partition():
+    # a matches 0..9 (cost 0.02), b matches 6..15 (0.03) and 10..15 (0.06): the reference
+    # annotation would output both whole spans, overlapping on 6..9; the decoder keeps a
+    # whole and b's later-starting match
+    a = _curve(16, {9: (0, 0.02)})
+    b = _curve(16, {15: (6, 0.03), 14: (10, 0.06)})
+    assert _decode([a, b]) == [(0, 0, 9), (1, 10, 14)]
+    # with boundary refinement b's better match may start 4 frames later: the neighbours
+    # meet, and b covers its frames to 15
+    assert _decode([a, b], slack=4) == [(0, 0, 9), (1, 10, 15)]
+    # the cheapest partition wins: b2 (0.01 over 6..15) beats a (0.02 over 0..9) when
+    # matches must start where they start (6 unlabelled frames + 10·0.01/0.13 < 10·0.02/0.13
+    # + 6); with the slack both fit side by side
+    b2 = _curve(16, {15: (6, 0.01)})
+    assert _decode([a, b2]) == [(1, 6, 15)]
+    assert _decode([a, b2], slack=4) == [(0, 0, 9), (1, 10, 15)]
+
+
+def test_rejection_ceiling_leaves_an_unknown_motion_unlabelled():
+    a = _curve(12, {11: (2, 0.09)})  # below τ = 0.13: labelled
+    assert _decode([a]) == [(0, 2, 11)]
+    assert _decode([a], reject=[0.08]) == []  # above the ceiling: left unlabelled
+    assert _decode([a], reject=[0.09]) == [(0, 2, 11)]  # inclusive
+    assert _decode([a], tau=[0.085]) == []  # Δ/τ > 1: dearer than unlabelled frames
+    assert _decode([a], tau=[0.095]) == [(0, 2, 11)]
+
+
+def test_frame_evidence_breaks_near_ties():
+    a = _curve(10, {9: (0, 0.050)})
+    b = _curve(10, {9: (0, 0.051)})
+    assert _decode([a, b]) == [(0, 0, 9)]
+    ev = np.array([[0.2] * 10, [0.0] * 10])  # the frames look like b
+    assert _decode([a, b], evidence=ev, weight=0.1) == [(1, 0, 9)]
+    assert _decode([a, b], evidence=ev, weight=0.0) == [(0, 0, 9)]
+
+
+def test_touching_segments_of_a_label_merge_but_not_across_documents():
+    a = _curve(12, {5: (0, 0.02), 11: (6, 0.03)})
+    got = decode_segments(np.vstack([a[0]]), np.vstack([a[1]]), tau=[0.13], slack=0)
+    assert [(d.start, d.end, d.cost) for d in got] == [(0, 11, 0.02)]
+    got = decode_segments(np.vstack([a[0]]), np.vstack([a[1]]), tau=[0.13], slack=0,
+                          boundaries=[6])
+    assert [(d.start, d.end) for d in got] == [(0, 5), (6, 11)]
+    # a slack never moves a start into the previous document
+    b = _curve(12, {11: (7, 0.01)})
+    assert _decode([b], slack=3, boundaries=[6]) == [(0, 6, 11)]
+    assert _decode([b], slack=3) == [(0, 4, 11)]
+
+
+def test_decoder_input_checks():
+    d, s = _curve(5, {4: (0, 0.1)})
+    with pytest.raises(MtannoError, match="tau must give one number > 0"):
+        decode_segments(d[None], s[None], tau=[0.0])
+    with pytest.raises(MtannoError, match="slack"):
+        decode_segments(d[None], s[None], tau=[0.1], slack=-1)
+    with pytest.raises(MtannoError, match="needs evidence"):
+        decode_segments(d[None], s[None], tau=[0.1], weight=0.5)
+    with pytest.raises(MtannoError, match="boundaries"):
+        decode_segments(d[None], s[None], tau=[0.1], boundaries=[5])
+    with pytest.raises(MtannoError, match="one shape"):
+        decode_segments(d[None], s[None, :4], tau=[0.1])
+
+
+@st.composite
+def problems(draw):
+    P = draw(st.integers(1, 3))
+    L = draw(st.integers(1, 9))
+    deltas, starts = [], []
+    for _ in range(P):
+        row_d, row_s = [], []
+        for ell in range(L):
+            if draw(st.booleans()):
+                row_d.append(draw(st.sampled_from([0.01, 0.02, 0.05, 0.1, 0.12, 0.2])))
+                row_s.append(draw(st.integers(0, ell)))
+            else:
+                row_d.append(INF)
+                row_s.append(-1)
+        deltas.append(row_d)
+        starts.append(row_s)
+    tau = [draw(st.sampled_from([0.05, 0.1, 0.13])) for _ in range(P)]
+    reject = [draw(st.sampled_from([INF, 0.05, 0.1])) for _ in range(P)]
+    slack = draw(st.integers(0, 3))
+    weight = draw(st.sampled_from([0.0, 0.25, 1.0]))
+    evidence = [[draw(st.sampled_from([0.0, 0.1, 0.5])) for _ in range(L)] for _ in range(P)]
+    boundaries = sorted(set(draw(st.lists(st.integers(1, max(1, L - 1)), max_size=2)))) \
+        if L > 1 else []
+    return deltas, starts, tau, reject, slack, evidence, weight, boundaries
+
+
+def check_against_oracles(problem):
+    deltas, starts, tau, reject, slack, evidence, weight, boundaries = problem
+    got = decode_segments(np.array(deltas), np.array(starts), tau=tau, reject=reject,
+                          slack=slack, evidence=np.array(evidence), weight=weight,
+                          boundaries=boundaries)
+    want, cost = decode_naive(deltas, starts, tau, reject, slack, evidence, weight, boundaries)
+    assert [tuple(d) for d in got] == want
+    assert cost == pytest.approx(least_cost_exhaustive(deltas, starts, tau, reject, slack,
+                                                       evidence, weight, boundaries))
+
+
+@settings(max_examples=300, deadline=None)
+@given(problems())
+def test_decoder_equals_naive_twin_and_is_optimal(problem):
+    check_against_oracles(problem)
+
+
+def check_seeded(seed):
+    """A seeded random problem (for the run without JIT)."""
+    rng = np.random.default_rng(seed)
+    P, L = int(rng.integers(1, 4)), int(rng.integers(1, 9))
+    deltas = np.where(rng.random((P, L)) < 0.5, rng.choice([0.01, 0.05, 0.1, 0.2], (P, L)), INF)
+    starts = np.where(np.isfinite(deltas), [[int(rng.integers(0, j + 1)) for j in range(L)]
+                                            for _ in range(P)], -1)
+    problem = (deltas.tolist(), starts.tolist(), [0.13] * P, [INF] * P, int(seed % 3),
+               rng.choice([0.0, 0.2], (P, L)).tolist(), 0.5 if seed % 2 else 0.0,
+               [L // 2] if L > 2 else [])
+    check_against_oracles(problem)
+
+
+def test_decoder_without_jit():
+    from nojit import run_without_jit
+
+    run_without_jit("test_decode", "check_seeded", *[(s,) for s in range(12)])
+
+
+def test_frame_evidence_equals_its_definition():
+    rng = np.random.default_rng(5)
+    for f in (7, 40, 70):  # one and two words per frame
+        X = (rng.random((f, 30)) < 0.5).astype(np.uint8)
+        V = rng.choice([0.0, 0.5, 1.0], size=(f, 6), p=[0.3, 0.4, 0.3])
+        V[:, 2] = 0.5  # a wildcard-only column is skipped
+        got = frame_evidence(pack_document(X, f), V)
+        assert got.tolist() == pytest.approx(best_column_naive(X.tolist(), V.tolist()))
+    assert frame_evidence(pack_document(X, 70), np.full((70, 3), 0.5)).tolist() == [0.0] * 30
+    rel = relative_evidence(np.array([[0.1, 0.5], [0.3, 0.2]]))
+    assert np.allclose(rel, [[0.0, 0.3], [0.2, 0.0]])
+    # only inside spans (a class's keyframe windows): ∞ elsewhere, and ∞ takes no part in
+    # the minimum of the relative evidence
+    full = frame_evidence(pack_document(X, 70), V)
+    part = frame_evidence(pack_document(X, 70), V, spans=(np.array([2, 20]), np.array([5, 40])))
+    inside = np.zeros(30, bool)
+    inside[2:6] = inside[20:] = True
+    assert np.array_equal(part[inside], full[inside]) and np.isinf(part[~inside]).all()
+    rel = relative_evidence(np.array([[0.1, np.inf, np.inf], [0.3, 0.2, np.inf]]))
+    assert np.allclose(rel, [[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])
+
+
+def test_label_document_applies_tau_reject_and_several_templates():
+    # two templates of class a (a short and a long variant) and one of b
+    L = 20
+    a1 = _curve(L, {9: (0, 0.05)})
+    a2 = _curve(L, {9: (2, 0.02)})
+    b = _curve(L, {19: (10, 0.04)})
+    matches = [("a", *a1, None), ("a", *a2, None), ("b", *b, None)]
+    cfg = ClassConfig(resolve=True, default_tau=0.13)
+    rows, labels, mat = label_document("d", ["a", "a", "b"], iter(matches), L, config=cfg)
+    assert labels == ["a", "b"]
+    assert [(r.label, r.start, r.end, r.cost) for r in rows] == [("a", 2, 9, 0.02),
+                                                                ("b", 10, 19, 0.04)]
+    assert mat[0, 9] == pytest.approx(0.02 / 0.13)
+    cfg = ClassConfig(resolve=True, default_tau=0.13, reject={"a": 0.03}, tau={"b": 0.03})
+    rows, _, _ = label_document("d", ["a", "a", "b"], iter(matches), L, config=cfg)
+    assert [(r.label, r.start, r.end) for r in rows] == [("a", 2, 9)]  # b above its τ
+    cfg = ClassConfig(resolve=True, refine=True, slack=2, default_tau=0.13)
+    rows, _, _ = label_document("d", ["a", "a", "b"], iter(matches), L, config=cfg)
+    assert [(r.label, r.start) for r in rows] == [("a", 0), ("b", 10)]  # start moved to 0
+
+
+def test_refined_extension_stops_at_frames_of_another_class():
+    # a wins frames 3..4 and would extend right over 5..6 (Δ̄ keeps falling), which b wins
+    a = np.array([INF, INF, 0.10, 0.04, 0.03, 0.02, 0.02, INF])
+    b = np.array([0.05, 0.05, 0.05, 0.08, 0.08, 0.01, 0.01, 0.01])
+    free = segments_from_labels("d", ["a", "b"], np.vstack([a, b]))
+    assert ("a", 3, 6) in {(s.label, s.start, s.end) for s in free}
+    refined = segments_from_labels("d", ["a", "b"], np.vstack([a, b]), extend="unclaimed")
+    assert {(s.label, s.start, s.end) for s in refined} == {("b", 0, 2), ("a", 3, 4),
+                                                            ("b", 5, 7)}
+    with pytest.raises(MtannoError, match="extend must be"):
+        segments_from_labels("d", ["a", "b"], np.vstack([a, b]), extend="sometimes")

@@ -1,0 +1,239 @@
+"""``mtanno tune`` (issue 10) on the synthetic test world: deterministic for a seed, its
+configuration round-trips through ``annotate --classes``, it opens no file outside its
+training inputs, it scores what annotate does; bad input gives one line."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from world import assert_one_line, cli
+
+from mtanno.annotate import ClassConfig, label_document, load_class_config
+from mtanno.evaluate import evaluate_annotations
+from mtanno.templates.training import collect_sources
+from mtanno.truth import Segment
+from mtanno.tuning import METHODS, tune, write_tuned
+from mtanno.tuning.cv import HeldOut, make_folds
+from mtanno.tuning.score import count
+from mtanno.tuning.search import Params, Tuner
+
+
+def _sources(world):
+    return collect_sources(manifest=world.manifest, features_dir=world.feats, split="train")
+
+
+def _config_body(path: Path) -> str:
+    """The configuration without its first comment line (it holds the command line)."""
+    return path.read_text().split("\n", 1)[1]
+
+
+def test_tune_is_deterministic_for_a_seed(world, tmp_path):
+    a = tune(_sources(world), world.mt, seed=3, n_jobs=1)
+    b = tune(_sources(world), world.mt, seed=3, n_jobs=2)
+    assert a.params == b.params and a.steps == b.steps
+    write_tuned(tmp_path / "a.toml", a)
+    write_tuned(tmp_path / "b.toml", b)
+    assert (tmp_path / "a.toml").read_text() == (tmp_path / "b.toml").read_text()
+    for f in sorted((tmp_path / "a.templates").glob("*.json")) if a.extra_templates else []:
+        assert f.read_bytes() == (tmp_path / "b.templates" / f.name).read_bytes()
+
+
+def test_tuned_configuration_round_trips_through_annotate(world, tmp_path):
+    cfg_path = tmp_path / "tuned.toml"
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", cfg_path, "--seed", "1", "-q")
+    assert r.exit_code == 0, r.output
+    cfg = load_class_config(cfg_path)
+    result = tune(_sources(world), world.mt, seed=1)
+    want = result.params.config()
+    for key in ("default_tau", "tau", "resolve", "refine", "slack", "frame_weight", "delta",
+                "reject", "default_reject"):
+        assert getattr(cfg, key) == getattr(want, key), key
+    assert set(cfg.templates) == set(result.extra_templates)
+    out = tmp_path / "a.csv"
+    r = cli("annotate", "--mt", world.mt, "--classes", cfg_path, world.docfeats, "-o", out)
+    assert r.exit_code == 0, r.output
+    prov = json.loads((tmp_path / "a.csv.meta.json").read_text())
+    assert prov["delta"] == cfg.delta
+    assert prov.get("methods", {}).get("resolve") == cfg.resolve or not cfg.resolve
+    # the configuration's text is what class_config_text makes of what it holds
+    assert "[decoder]" in cfg_path.read_text() and "cross-validated" in cfg_path.read_text()
+
+
+def test_methods_can_be_disabled_and_ablated(world, tmp_path):
+    r = tune(_sources(world), world.mt, seed=0, ablation=True)
+    assert set(r.ablation) == {f"without-{m}" for m in METHODS} | {"none"}
+    none = r.ablation["none"].params
+    assert not none.resolve and not none.refine and none.frame_weight == 0
+    assert none.delta == 0.05 and len(set(none.tau.values())) == 1 and not none.reject
+    assert not r.ablation["none"].extra_templates and r.ablation["none"].methods == []
+    assert not r.ablation["without-resolve"].params.resolve
+    assert r.ablation["without-delta"].params.delta == 0.05
+    assert not r.ablation["without-reject"].params.reject
+    assert r.ablation["without-frames"].params.frame_weight == 0
+    assert not r.ablation["without-templates"].extra_templates
+    assert len(set(r.ablation["without-tau"].params.tau.values())) == 1
+    # the search with everything disabled is what tune finds with no methods at all
+    assert tune(_sources(world), world.mt, methods=[], seed=0).params == none
+    with pytest.raises(Exception, match="unknown method"):
+        tune(_sources(world), world.mt, methods=["magic"])
+    r2 = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+             world.feats, "--split", "train", "-o", tmp_path / "t.toml", "--disable", "resolve",
+             "--disable", "templates", "-q")
+    assert r2.exit_code == 0, r2.output
+    cfg = load_class_config(tmp_path / "t.toml")
+    assert not cfg.resolve and not cfg.templates
+
+
+_AUDIT = r"""
+import json, sys
+opened = []
+def hook(event, args):
+    if event == "open" and isinstance(args[0], str):
+        opened.append([args[0], str(args[1])])
+sys.addaudithook(hook)
+from mtanno.cli import main
+try:
+    main(sys.argv[2:], prog_name="mtanno")
+except SystemExit as exc:
+    code = exc.code
+with open(sys.argv[1], "w") as f:
+    json.dump({"code": code, "opened": opened}, f)
+"""
+
+
+@pytest.mark.parametrize("mode", ["manifest", "truth"])
+def test_tune_reads_only_its_training_inputs(world, tmp_path, mode):
+    out = tmp_path / "tuned.toml"
+    if mode == "manifest":
+        args = ["--manifest", world.manifest, "--features-dir", world.feats, "--split", "train"]
+        allowed = {str(world.manifest), *(s.path for s in _sources(world))}
+    else:  # the composed documents and their truth (the world's dev actor)
+        args = ["--truth", world.truth, world.docfeats]
+        allowed = {str(world.truth), f"{world.truth}.meta.json", *map(str, world.doc_files)}
+    allowed |= {str(p) for p in world.mt.glob("*.json")}
+    log = tmp_path / "opened.json"
+    r = subprocess.run([sys.executable, "-c", _AUDIT, str(log), "tune", "--mt", str(world.mt),
+                        *map(str, args), "-o", str(out), "-q"], capture_output=True, text=True)
+    got = json.loads(log.read_text())
+    assert got["code"] in (0, None), r.stderr
+    root = str(world.root)
+    read = {p for p, m in got["opened"] if p.startswith(root) and "r" in m and "+" not in m}
+    assert any(p.endswith(".parquet") for p in read), "no feature file seen (audit hook?)"
+    assert read <= allowed, sorted(read - allowed)
+    written = {p for p, m in got["opened"] if any(c in m for c in "wxa+")}
+    assert not {p for p in written if p.startswith(root)}, "a file of the world was written"
+    assert any(p.startswith(str(tmp_path)) for p in written)
+    # the configuration names exactly the training files it was tuned on
+    text = out.read_text()
+    assert all(p in text for p in allowed if p.endswith(".parquet"))
+
+
+def test_scores_equal_evaluate():
+    names = ["a", "b", "c"]
+    truth = [(0, 0, 9), (1, 10, 25), (0, 26, 30), (2, 31, 39)]
+    out = [(0, 2, 12), (1, 13, 20), (1, 18, 27), (2, 35, 39), (0, 5, 6)]
+    got = count(truth, out, n_labels=3, n_frames=40)
+    rep = evaluate_annotations([Segment("d", a + 1, b + 1, names[p]) for p, a, b in truth],
+                               [Segment("d", a + 1, b + 1, names[p]) for p, a, b in out]).as_dict()
+    assert got.frame() == pytest.approx((rep["frame"]["P"], rep["frame"]["R"], rep["frame"]["F"]))
+    assert got.segment() == pytest.approx((rep["segment"]["P"], rep["segment"]["R"],
+                                           rep["segment"]["F"]))
+
+
+def _fold_data(L=60):
+    """One fold with two held-out documents and hand-made Δ curves of two classes (two
+    templates of class a)."""
+    from mtanno.tuning.cv import Fold
+
+    def curve(matches):
+        d, s = np.full(L, math.inf), np.full(L, -1, np.int64)
+        for end, (a, v) in matches.items():
+            d[end], s[end] = v, a
+        return d, s, np.zeros(L)
+
+    held = HeldOut(np.zeros((3, L), np.uint8), np.array([0, 30, L]), ["d1", "d2"],
+                   [("a", 0, 14), ("b", 15, 29), ("b", 30, 44), ("a", 45, 59)])
+    fold = Fold("f", [], held)
+    match = {}
+    for delta in (0.05,):
+        match[(delta, 1, 0)] = curve({14: (1, 0.04), 59: (46, 0.09), 35: (31, 0.01)})
+        match[(delta, 2, 0)] = curve({13: (0, 0.02)})
+        match[(delta, 2, 1)] = curve({58: (47, 0.03)})
+    prepared = {("f", "a"): {"groups": {1: 1, 2: 2}, "match": match},
+                ("f", "b"): {"groups": {1: 1}, "match": {(0.05, 1, 0): curve(
+                    {29: (16, 0.05), 44: (31, 0.02), 50: (40, 0.11)})}}}
+    return fold, prepared
+
+
+@pytest.mark.parametrize("resolve", [True, False])
+def test_tuner_scores_what_annotate_does(resolve):
+    fold, prepared = _fold_data()
+    tuner = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.0)
+    p = Params(delta=0.05, resolve=resolve, refine=True, slack=2, tau={"a": 0.1, "b": 0.13},
+               reject={"b": 0.1}, groups={"a": 2, "b": 1})
+    got = tuner._segments(tuner.folds[0], p, ["a", "b"])
+    # annotate's way: per document, label_document on the same curves with the config
+    cfg = ClassConfig(tau={"a": 0.1, "b": 0.13}, reject={"b": 0.1}, resolve=resolve,
+                      refine=True, slack=2)
+    want = []
+    for a, b in ((0, 30), (30, 60)):
+        names, arrays = [], []
+        for cls, keys in (("a", [(1, 0), (2, 0), (2, 1)]), ("b", [(1, 0)])):
+            for k in keys:
+                d, s, _ = prepared[("f", cls)]["match"][(0.05, *k)]
+                rel = np.where(s[a:b] >= 0, s[a:b] - a, -1)
+                names.append(cls)
+                arrays.append((cls, d[a:b], rel, None))
+        rows, _, _ = label_document("x", names, iter(arrays), b - a, config=cfg)
+        want += [(["a", "b"].index(r.label), r.start + a, r.end + a) for r in rows]
+    assert sorted(got) == sorted(want)
+    assert want  # the curves do label something
+
+
+def test_folds_leave_one_performer_out(world):
+    from mtanno.templates.training import load_examples
+
+    examples = load_examples(_sources(world))
+    folds = make_folds(examples, seed=0)
+    assert [f.name for f in folds] == ["a", "b"]
+    for f in folds:
+        assert {e.performer for e in f.train} == {"a", "b"} - {f.name}
+        assert all(e.performer == f.name for e in f.held_examples)
+        # every held-out clip appears once per composition order, with exact truth
+        lengths = sorted(e.X.shape[1] for e in f.held_examples) * 2
+        assert sorted(b - a + 1 for _, a, b in f.held_out.truth) == sorted(lengths)
+    sep = make_folds(examples, documents="separate", seed=0)
+    assert all(len(f.held_out.names) == len(f.held_examples) for f in sep)
+
+
+def test_tune_bad_input_one_line(world, tmp_path):
+    base = ["tune", "--manifest", world.manifest, "--features-dir", world.feats,
+            "--split", "train", "-o", tmp_path / "t.toml"]
+    assert_one_line(cli(*base, "--mt", tmp_path / "none"), tmp_path / "none", codes=(2,))
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "nosuch", "-o", tmp_path / "t.toml")
+    assert_one_line(r, world.manifest, codes=(2,))
+    r = cli(*base, "--mt", world.mt, "--disable", "magic")
+    assert r.exit_code == 2 and "magic" in r.output
+    # the output may not be one of the inputs
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", world.manifest)
+    assert_one_line(r, world.manifest, codes=(2,))
+    assert not (tmp_path / "t.toml").exists()
+
+
+def test_tune_without_examples_of_a_class(world, tmp_path):
+    m = tmp_path / "m.csv"
+    rows = world.manifest.read_text().splitlines()
+    m.write_text("\n".join([rows[0]] + [r for r in rows[1:] if ",squat," not in r]) + "\n")
+    r = cli("tune", "--mt", world.mt, "--manifest", m, "--features-dir", world.feats,
+            "--split", "train", "-o", tmp_path / "t.toml")
+    line = assert_one_line(r, "squat", codes=(2,))
+    assert "no training examples of class(es) squat" in line
