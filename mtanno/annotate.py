@@ -57,6 +57,9 @@ class ClassConfig:
     * ``reject`` — rejection ceilings ρ per label (``default_reject`` for the others):
       matches with Δ above it are never taken (segment decoder) or picked (Δ̄);
     * ``frame_weight`` — tie-breaking by frame-wise evidence (segment decoder);
+    * ``segment_cost`` — a fixed cost λ per segment (segment decoder; in frames): long
+      motions are not cut into short matches of other classes, short spurious matches
+      stay out;
     * ``templates`` — several templates per class: further template files of a class
       (paths relative to the configuration), matched like its own; its Δ is the
       frame-wise minimum over them;
@@ -71,6 +74,7 @@ class ClassConfig:
     refine: bool = False
     slack: int = 3
     frame_weight: float = 0.0
+    segment_cost: float = 0.0
     delta: float | None = None
     default_reject: float = math.inf
     reject: dict[str, float] = field(default_factory=dict)
@@ -125,6 +129,8 @@ class ClassConfig:
             out["refine"] = {"slack": self.slack} if self.resolve else "unclaimed"
         if self.resolve and self.frame_weight > 0:
             out["frame_weight"] = self.frame_weight
+        if self.resolve and self.segment_cost > 0:
+            out["segment_cost"] = self.segment_cost
         if self.reject or self.default_reject != math.inf:
             out["reject"] = {**({"default": self.default_reject}
                                 if self.default_reject != math.inf else {}), **self.reject}
@@ -154,7 +160,7 @@ def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
 
 #: Keys of the ``[decoder]`` section of a class configuration and their types.
 DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": float,
-                "delta": float}
+                "segment_cost": float, "delta": float}
 _SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates")
 
 
@@ -188,6 +194,7 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
         refine = true
         slack = 3
         frame_weight = 0.3
+        segment_cost = 6
         delta = 0.05
 
         [reject]
@@ -199,7 +206,8 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
 
     Every problem is one :class:`MtannoError` naming the file and, where it can be told,
     the line: unknown sections or keys, values of the wrong type, τ or ρ not a number
-    ≥ 0, a slack that is not an integer ≥ 0, δ outside [0, 0.5).
+    ≥ 0, a slack that is not an integer ≥ 0, a frame weight or segment cost that is not a
+    finite number ≥ 0, δ outside [0, 0.5).
     """
     spath = str(path)
     try:
@@ -254,6 +262,9 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     if not (cfg.frame_weight >= 0 and math.isfinite(cfg.frame_weight)):
         raise bad("decoder", "frame_weight", "[decoder] frame_weight must be a finite number "
                                              f"≥ 0, got {cfg.frame_weight!r}")
+    if not (cfg.segment_cost >= 0 and math.isfinite(cfg.segment_cost)):
+        raise bad("decoder", "segment_cost", "[decoder] segment_cost must be a finite number "
+                                             f"≥ 0, got {cfg.segment_cost!r}")
     if cfg.delta is not None and not 0 <= cfg.delta < 0.5:
         raise bad("decoder", "delta", f"[decoder] delta must be in [0, 0.5), got {cfg.delta!r}")
     rej = dict(data.get("reject", {}))
@@ -304,6 +315,7 @@ def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
 
     section("decoder", [("resolve", cfg.resolve), ("refine", cfg.refine), ("slack", cfg.slack),
                         ("frame_weight", cfg.frame_weight)]
+            + ([("segment_cost", cfg.segment_cost)] if cfg.segment_cost else [])
             + ([("delta", cfg.delta)] if cfg.delta is not None else []))
     section("tau", [("default", cfg.default_tau), *sorted(cfg.tau.items())])
     if cfg.reject or cfg.default_reject != math.inf:
@@ -699,8 +711,8 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
       frames of no other label).
     * ``config.resolve``: the segment decoder (:func:`mtanno.decode.decode_segments`) on
       Δ/τ per label (templates with Δ > ρ dropped), with ``config.slack`` when
-      ``config.refine`` and the relative frame evidence weighted by
-      ``config.frame_weight``; a segment's cost is Δ at its end.
+      ``config.refine``, the relative frame evidence weighted by ``config.frame_weight``
+      and ``config.segment_cost`` per segment; a segment's cost is Δ at its end.
     * ``single_label`` (default path only; the decoder's segments are a partition
       already): overlaps resolved frame by frame (:func:`single_label_segments`).
 
@@ -766,7 +778,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             np.minimum(ev[k], evidence, out=ev[k])
     decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
                               else 0, evidence=None if ev is None else relative_evidence(ev),
-                              weight=config.frame_weight)
+                              weight=config.frame_weight, segment_cost=config.segment_cost)
     # cost: Δ at the segment's end, back from Δ/τ (to 12 digits: the division's rounding)
     rows = [Annotation(doc, d.start, d.end, labels[d.label], float(
         f"{d.cost * (one_tau if taus is None else float(taus[d.label, d.end])):.12g}"))

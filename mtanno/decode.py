@@ -12,9 +12,11 @@ dynamic programming over the frames:
   a_ℓ of that match, or — boundary refinement — anywhere within ``slack`` frames of it, so
   that neighbouring matches meet instead of overlapping or leaving a sliver between them;
 * a match covering frames k…ℓ costs (ℓ − k + 1)·Δ_p(ℓ)/τ_p, plus ``weight`` times the sum of
-  the frame-wise evidence E_p over k…ℓ (tie-breaking; :func:`frame_evidence`); an
-  unlabelled frame costs 1 — so a match is worth taking only where Δ_p/τ_p < 1, and τ_p
-  both thresholds the class and calibrates its costs against the other classes';
+  the frame-wise evidence E_p over k…ℓ (tie-breaking; :func:`frame_evidence`), plus a fixed
+  ``segment_cost`` λ per match; an unlabelled frame costs 1 — so a match of n frames is
+  worth taking only where Δ_p/τ_p < 1 − λ/n, τ_p both thresholds the class and calibrates
+  its costs against the other classes', and λ (in frames) keeps a long motion from being
+  cut into short matches of other classes, and short spurious matches out;
 * the partition of least total cost wins (ties: an unlabelled frame before a match, a
   smaller label index, an earlier start); touching segments of one label are merged.
 
@@ -57,14 +59,15 @@ class Decoded(NamedTuple):
 
 
 @numba.njit(cache=True)
-def _decode(delta, start, scale, ceiling, cum_ev, weight, slack, first, best, back_k, back_p):
+def _decode(delta, start, scale, ceiling, cum_ev, weight, seg_cost, slack, first, best,
+            back_k, back_p):
     """Least-cost partition of frames 0…L−1 into matches and unlabelled frames.
 
     ``best[j]`` is the least cost of frames 0…j−1; a match of label p ending at ℓ starts
     at k ∈ [a − slack, a + slack] ∩ [first[ℓ], ℓ] (a = start[p, ℓ]; ``first`` holds the
     first frame of ℓ's document when several are decoded at once) and costs
-    (ℓ − k + 1)·delta[p, ℓ]·scale[p] + weight·(cum_ev[p, ℓ + 1] − cum_ev[p, k]); an
-    unlabelled frame costs 1. Only strictly cheaper choices replace earlier ones."""
+    (ℓ − k + 1)·delta[p, ℓ]·scale[p] + weight·(cum_ev[p, ℓ + 1] − cum_ev[p, k]) + seg_cost;
+    an unlabelled frame costs 1. Only strictly cheaper choices replace earlier ones."""
     P, L = delta.shape
     best[0] = 0.0
     for ell in range(L):
@@ -82,7 +85,7 @@ def _decode(delta, start, scale, ceiling, cum_ev, weight, slack, first, best, ba
             lo = max(first[ell], a - slack)
             hi = min(ell, a + slack)
             for k in range(lo, hi + 1):
-                c = best[k] + (ell - k + 1) * per
+                c = best[k] + (ell - k + 1) * per + seg_cost
                 if weight != 0.0:
                     c += weight * (cum_ev[p, ell + 1] - cum_ev[p, k])
                 if c < b:
@@ -114,7 +117,8 @@ def _check_labels(deltas, starts, tau, reject):
 def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[float] | np.ndarray,
                     reject: Sequence[float] | np.ndarray | None = None,
                     slack: int = DEFAULT_SLACK, evidence: np.ndarray | None = None,
-                    weight: float = 0.0, boundaries: Sequence[int] = ()) -> list[Decoded]:
+                    weight: float = 0.0, segment_cost: float = 0.0,
+                    boundaries: Sequence[int] = ()) -> list[Decoded]:
     """The least-cost partition of a document into label segments and unlabelled frames
     (module docstring; issue 10, built on MBS09 §4's distance functions).
 
@@ -135,6 +139,10 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     evidence, weight:
         Frame-wise evidence (labels × frames, ≥ 0, small where the frame looks like the
         label; :func:`relative_evidence`) and its weight per frame; 0 ignores it.
+    segment_cost:
+        λ ≥ 0, added once per match (in units of an unlabelled frame's cost): a match of n
+        frames pays off only where its mean Δ/τ is below 1 − λ/n; 0 (default) is the
+        plain decoder.
     boundaries:
         Frames where a further document begins, when several documents are decoded as
         one array (their matches must not cross documents): no segment starts before its
@@ -150,6 +158,9 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     weight = float(weight)
     if not weight >= 0 or not np.isfinite(weight):
         raise MtannoError(f"frame-evidence weight must be a finite number ≥ 0, got {weight!r}")
+    segment_cost = float(segment_cost)
+    if not segment_cost >= 0 or not np.isfinite(segment_cost):
+        raise MtannoError(f"segment cost must be a finite number ≥ 0, got {segment_cost!r}")
     P, L = deltas.shape
     if weight > 0:
         if evidence is None or np.shape(evidence) != (P, L):
@@ -167,8 +178,8 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     best = np.empty(L + 1)
     back_k = np.zeros(L + 1, dtype=np.int64)
     back_p = np.full(L + 1, -1, dtype=np.int64)
-    _decode(deltas, starts, 1.0 / tau, reject, cum, weight, int(slack), first, best, back_k,
-            back_p)
+    _decode(deltas, starts, 1.0 / tau, reject, cum, weight, segment_cost, int(slack), first,
+            best, back_k, back_p)
     out: list[Decoded] = []
     j = L
     while j > 0:

@@ -35,15 +35,15 @@ def _options(deltas, starts, tau, reject, slack, first, ell):
     return out
 
 
-def _segment_cost(k, ell, p, per, evidence, weight):
-    c = (ell - k + 1) * per
+def _segment_cost(k, ell, p, per, evidence, weight, segment_cost=0.0):
+    c = (ell - k + 1) * per + segment_cost
     if weight:
         c += weight * sum(evidence[p][k:ell + 1])
     return c
 
 
 def decode_naive(deltas, starts, tau, reject=None, slack=0, evidence=None, weight=0.0,
-                 boundaries=()):
+                 boundaries=(), segment_cost=0.0):
     """([(label, first, last, Δ at the end)] of the least-cost partition, its total cost);
     ties: unlabelled frame, then smaller label, then earlier start; touching segments of a
     label merged within a document."""
@@ -64,7 +64,7 @@ def decode_naive(deltas, starts, tau, reject=None, slack=0, evidence=None, weigh
     for ell in range(L):
         b, choice = best[ell] + 1.0, (ell, -1)
         for p, k, per in _options(deltas, starts, tau, reject, slack, first, ell):
-            c = best[k] + (ell - k + 1) * per
+            c = best[k] + (ell - k + 1) * per + segment_cost
             if weight:
                 c += weight * (prefix[p][ell + 1] - prefix[p][k])
             if c < b:
@@ -87,7 +87,7 @@ def decode_naive(deltas, starts, tau, reject=None, slack=0, evidence=None, weigh
 
 
 def least_cost_exhaustive(deltas, starts, tau, reject=None, slack=0, evidence=None, weight=0.0,
-                          boundaries=()):
+                          boundaries=(), segment_cost=0.0):
     """The least total cost over every partition of the frames into unlabelled frames
     (cost 1) and admissible segments, by trying them all (short documents only)."""
     P, L = len(deltas), len(deltas[0]) if deltas else 0
@@ -96,7 +96,8 @@ def least_cost_exhaustive(deltas, starts, tau, reject=None, slack=0, evidence=No
     segments = []  # (first frame, last frame, cost)
     for ell in range(L):
         for p, k, per in _options(deltas, starts, tau, reject, slack, first, ell):
-            segments.append((k, ell, _segment_cost(k, ell, p, per, evidence, weight)))
+            segments.append((k, ell, _segment_cost(k, ell, p, per, evidence, weight,
+                                                   segment_cost)))
 
     def rest(j):
         if j == L:

@@ -74,6 +74,24 @@ def test_frame_evidence_breaks_near_ties():
     assert _decode([a, b], evidence=ev, weight=0.0) == [(0, 0, 9)]
 
 
+def test_segment_cost_keeps_a_long_motion_whole_and_drops_short_matches():
+    # a long motion of a (0..19, Δ 0.06) against b's two short matches inside it (0..9 and
+    # 10..19, Δ 0.05 each): without a segment cost the two cheaper b pieces win; a cost of
+    # 2 frames per match makes the one a match cheaper (20·0.06/0.13 + 2 < 20·0.05/0.13 + 4)
+    a = _curve(20, {19: (0, 0.06)})
+    b = _curve(20, {9: (0, 0.05), 19: (10, 0.05)})
+    assert _decode([a, b]) == [(1, 0, 19)]  # b's touching pieces merged
+    assert _decode([a, b], segment_cost=2.0) == [(0, 0, 19)]
+    # a short match worth less than its cost stays unlabelled: 3·(1 − 0.1/0.13) < 1
+    c = _curve(10, {6: (4, 0.10)})
+    assert _decode([c]) == [(0, 4, 6)]
+    assert _decode([c], segment_cost=1.0) == []
+    with pytest.raises(MtannoError, match="segment cost"):
+        _decode([c], segment_cost=-1.0)
+    with pytest.raises(MtannoError, match="segment cost"):
+        _decode([c], segment_cost=float("inf"))
+
+
 def test_touching_segments_of_a_label_merge_but_not_across_documents():
     a = _curve(12, {5: (0, 0.02), 11: (6, 0.03)})
     got = decode_segments(np.vstack([a[0]]), np.vstack([a[1]]), tau=[0.13], slack=0)
@@ -124,18 +142,20 @@ def problems(draw):
     evidence = [[draw(st.sampled_from([0.0, 0.1, 0.5])) for _ in range(L)] for _ in range(P)]
     boundaries = sorted(set(draw(st.lists(st.integers(1, max(1, L - 1)), max_size=2)))) \
         if L > 1 else []
-    return deltas, starts, tau, reject, slack, evidence, weight, boundaries
+    segment_cost = draw(st.sampled_from([0.0, 0.0, 0.5, 2.0]))
+    return deltas, starts, tau, reject, slack, evidence, weight, boundaries, segment_cost
 
 
 def check_against_oracles(problem):
-    deltas, starts, tau, reject, slack, evidence, weight, boundaries = problem
+    deltas, starts, tau, reject, slack, evidence, weight, boundaries, seg = problem
     got = decode_segments(np.array(deltas), np.array(starts), tau=tau, reject=reject,
                           slack=slack, evidence=np.array(evidence), weight=weight,
-                          boundaries=boundaries)
-    want, cost = decode_naive(deltas, starts, tau, reject, slack, evidence, weight, boundaries)
+                          boundaries=boundaries, segment_cost=seg)
+    want, cost = decode_naive(deltas, starts, tau, reject, slack, evidence, weight, boundaries,
+                              seg)
     assert [tuple(d) for d in got] == want
     assert cost == pytest.approx(least_cost_exhaustive(deltas, starts, tau, reject, slack,
-                                                       evidence, weight, boundaries))
+                                                       evidence, weight, boundaries, seg))
 
 
 @settings(max_examples=300, deadline=None)
@@ -153,7 +173,7 @@ def check_seeded(seed):
                                             for _ in range(P)], -1)
     problem = (deltas.tolist(), starts.tolist(), [0.13] * P, [INF] * P, int(seed % 3),
                rng.choice([0.0, 0.2], (P, L)).tolist(), 0.5 if seed % 2 else 0.0,
-               [L // 2] if L > 2 else [])
+               [L // 2] if L > 2 else [], 1.5 if seed % 4 >= 2 else 0.0)
     check_against_oracles(problem)
 
 

@@ -52,8 +52,8 @@ def test_tuned_configuration_round_trips_through_annotate(world, tmp_path):
     cfg = load_class_config(cfg_path)
     result = tune(_sources(world), world.mt, seed=1)
     want = result.params.config()
-    for key in ("default_tau", "tau", "resolve", "refine", "slack", "frame_weight", "delta",
-                "reject", "default_reject"):
+    for key in ("default_tau", "tau", "resolve", "refine", "slack", "frame_weight",
+                "segment_cost", "delta", "reject", "default_reject"):
         assert getattr(cfg, key) == getattr(want, key), key
     assert set(cfg.templates) == set(result.extra_templates)
     out = tmp_path / "a.csv"
@@ -77,6 +77,8 @@ def test_methods_can_be_disabled_and_ablated(world, tmp_path):
     assert r.ablation["without-delta"].params.delta == 0.05
     assert not r.ablation["without-reject"].params.reject
     assert r.ablation["without-frames"].params.frame_weight == 0
+    assert r.ablation["without-segments"].params.segment_cost == 0
+    assert none.segment_cost == 0
     assert not r.ablation["without-templates"].extra_templates
     assert len(set(r.ablation["without-tau"].params.tau.values())) == 1
     # the search with everything disabled is what tune finds with no methods at all

@@ -21,6 +21,8 @@ The search, in this order, each step only over the methods switched on
    (``delta``) and with and without the segment decoder (``resolve``);
 2. boundary refinement (``refine``): the decoder's slack (:data:`SLACK_GRID`), or the
    extension over unclaimed frames only;
+   then, with the segment decoder, its segment cost (``segments``): λ of
+   :data:`SEGMENT_COSTS` together with the one τ again (λ shifts the threshold);
 3. several templates per class (``templates``): each class split into 2 or 3 groups of
    examples (:mod:`mtanno.tuning.cluster`), kept where J rises by more than :data:`EPS`;
 4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
@@ -50,17 +52,19 @@ from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, count, covered_fraction
 
 __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_STEPS",
-           "SLACK_GRID", "TAU_GRID", "TAU_STEPS", "UNKNOWN_WEIGHT", "Evaluation", "Params",
+           "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS", "UNKNOWN_WEIGHT", "Evaluation", "Params",
            "Tuner", "prepare_fold_class"]
 
 #: The methods ``tune`` can switch on (all by default); ``--disable`` names them.
-METHODS = ("tau", "reject", "refine", "resolve", "templates", "frames", "delta")
+METHODS = ("tau", "reject", "refine", "resolve", "segments", "templates", "frames", "delta")
 #: Quantization δ tried (MBS09 uses 0.05; examples of varied styles want a larger one).
 DELTA_GRID = (0.05, 0.15, 0.25, 0.35)
 #: One τ for all classes, tried first.
 TAU_GRID = (0.03, 0.04, 0.05, 0.065, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.4, 0.5)
 #: Slack of the decoder's segment starts (frames at 30 Hz).
 SLACK_GRID = (0, 1, 2, 3, 5, 8)
+#: Segment costs λ of the decoder tried (in frames: a match must save λ unlabelled frames).
+SEGMENT_COSTS = (0.0, 2.0, 4.0, 6.0, 10.0, 15.0)
 #: Factors tried on a class's τ.
 TAU_STEPS = (0.6, 0.8, 1.25, 1.6)
 #: Rejection ceilings tried, as fractions of the class's τ.
@@ -90,6 +94,7 @@ class Params:
     reject: dict[str, float] = field(default_factory=dict)
     groups: dict[str, int] = field(default_factory=dict)
     frame_weight: float = 0.0
+    segment_cost: float = 0.0
 
     def copy(self, **changes) -> Params:
         out = replace(self, tau=dict(self.tau), reject=dict(self.reject),
@@ -107,7 +112,8 @@ class Params:
         return ClassConfig(default_tau=default,
                            tau={c: t for c, t in self.tau.items() if t != default},
                            resolve=self.resolve, refine=self.refine, slack=self.slack,
-                           frame_weight=self.frame_weight, delta=self.delta,
+                           frame_weight=self.frame_weight, segment_cost=self.segment_cost,
+                           delta=self.delta,
                            reject={c: r for c, r in self.reject.items() if r != math.inf})
 
 
@@ -307,6 +313,7 @@ class Tuner:
             dec = decode_segments(mat, st, tau=np.ones(len(rows)), slack=params.slack
                                   if params.refine else 0, evidence=None if ev is None
                                   else relative_evidence(ev), weight=params.frame_weight,
+                                  segment_cost=params.segment_cost,
                                   boundaries=fd.offsets[1:-1])
             return [(self.ids[classes[d.label]], d.start, d.end) for d in dec]
         return self._reference_segments(fd, params, classes)
@@ -427,6 +434,13 @@ class Tuner:
             what = (f"slack {cur.slack}" if cur.resolve and cur.refine else
                     "extension over unclaimed frames" if cur.refine else "off")
             note(f"refine: {what}", cur_ev)
+        if "segments" in on and cur.resolve:
+            got, ev = self._best([self._with_tau(cur.copy(segment_cost=lam), t)
+                                  for lam in SEGMENT_COSTS[1:] for t in TAU_GRID], cur_ev, EPS)
+            if got is not None:
+                cur, cur_ev = got, ev
+            note(f"segment cost {cur.segment_cost:g}, one tau {cur.tau[self.classes[0]]:g}",
+                 cur_ev)
         # 3. several templates per class
         if "templates" in on:
             for c in self.classes:
