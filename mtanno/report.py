@@ -228,11 +228,12 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         raise MtannoError("the annotation has no rows to report on")
     folder = make_folder(out_dir)
     result = ReportResult(folder, folder / "index.html")
-    docs = sorted({a.doc for a in annotation})
     frames = dict(frames or {})
+    # documents with rows, and those recorded as annotated without any (their truth counts)
+    docs = sorted({a.doc for a in annotation} | set(frames))
     for d in docs:
         last = max([a.end + 1 for a in annotation if a.doc == d]
-                   + [s.end for s in truth if s.doc == d])
+                   + [s.end for s in truth if s.doc == d] + [0])
         frames[d] = max(frames.get(d, 0), last)
     frames = {d: frames[d] for d in docs}
     out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in annotation]

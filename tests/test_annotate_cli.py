@@ -57,6 +57,28 @@ def test_annotate_and_evaluate(pipeline):
     assert all(e >= s for s, e in zip(t["start_native"], t["end_native"]))
 
 
+def test_documents_annotated_without_rows_count_in_evaluate_and_report(pipeline, tmp_path):
+    """A document that annotate labelled nothing in was still annotated: its truth is
+    missed (recall falls), not dropped from the evaluation."""
+    d = pipeline
+    r = run("annotate", "--mt", d / "mt", d / "docfeats", "-o", tmp_path / "a.csv")
+    assert r.exit_code == 0, r.output
+    meta = json.loads((tmp_path / "a.csv.meta.json").read_text())
+    docs = sorted(meta["documents"])
+    lines = (tmp_path / "a.csv").read_text().splitlines()
+    kept = [ln for ln in lines if not ln.startswith(docs[0] + ",")]  # docs[0] has no rows now
+    (tmp_path / "b.csv").write_text("\n".join(kept) + "\n")
+    (tmp_path / "b.csv.meta.json").write_text(json.dumps(meta))
+    full = run("evaluate", tmp_path / "a.csv", "--truth", d / "docs" / "truth.csv", "--json",
+               tmp_path / "a.json")
+    part = run("evaluate", tmp_path / "b.csv", "--truth", d / "docs" / "truth.csv", "--json",
+               tmp_path / "b.json")
+    assert full.exit_code == 0 and part.exit_code == 0, part.output
+    a, b = (json.loads((tmp_path / f"{x}.json").read_text()) for x in "ab")
+    assert b["documents"] == a["documents"] == docs
+    assert b["frame"]["R"] < a["frame"]["R"] and b["segment"]["R"] < a["segment"]["R"]
+
+
 def test_annotate_single_label_partition(pipeline):
     """The default output overlaps; --single-label gives one label per frame, covering the
     same frames, and records the option in its provenance."""

@@ -147,8 +147,9 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
               default=None, help="Also write the per-class table (.csv, .parquet, .jsonl, "
                                  "or - for CSV on standard output).")
 @click.option("--all-docs", is_flag=True,
-              help="Count truth documents that have no annotation rows (default: only "
-                   "documents present in ANNOTATIONS or listed with --doc).")
+              help="Count every truth document, also those not annotated at all (default: "
+                   "the documents of ANNOTATIONS — with rows, or recorded in their "
+                   "provenance as annotated without any — or those listed with --doc).")
 @click.option("--doc", "docs", multiple=True, help="Evaluate only these documents.")
 @user_errors(2)
 def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs):
@@ -187,7 +188,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     elif all_docs:
         documents = None
     else:
-        documents = {s.doc for s in out} or {s.doc for s in truth}
+        # documents with rows, and those the annotation records as annotated without any
+        documents = ({s.doc for s in out} | set(frames)) or {s.doc for s in truth}
     report = evaluate_annotations(truth, out, documents=documents)
     if json_path != "-" and table_path != "-":
         click.echo(report.table())
