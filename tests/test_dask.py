@@ -1,5 +1,5 @@
-"""--scheduler (issue 12): features, annotate and learn-keyframes on a dask.distributed
-LocalCluster of 2 workers give the same outputs as --jobs 2."""
+"""--scheduler (issue 12): features, annotate, learn-keyframes and tune on a
+dask.distributed LocalCluster of 2 workers give the same outputs as --jobs 2."""
 
 from __future__ import annotations
 
@@ -37,10 +37,19 @@ def test_scheduler_equals_jobs(world, tmp_path, cluster):
                 "--features-dir", world.feats, "--split", "train", "-o", out / "kf",
                 "--runs", "4", "--generations", "10", "-q", *extra)
         assert r.exit_code == 0, r.output
+        r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+                world.feats, "--split", "train", "-o", out / "tuned.toml", "-q", *extra)
+        assert r.exit_code == 0, r.output
     a, b = tmp_path / "jobs", tmp_path / "dask"
     assert _files(a / "feats") == _files(b / "feats") and _files(a / "feats")
     assert (a / "ann.csv").read_bytes() == (b / "ann.csv").read_bytes()
     assert _files(a / "kf") == _files(b / "kf") and _files(a / "kf")
+
+    def config(p):  # its first line is the command (--jobs 2 or --scheduler ADDRESS)
+        return p.read_text().split("\n", 1)[1]
+
+    assert config(a / "tuned.toml") == config(b / "tuned.toml")
+    assert "--scheduler" in (b / "tuned.toml").read_text().split("\n", 1)[0]
 
 
 def test_local_cluster_started_for_the_run(world, tmp_path):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import user_errors
+from mtanno.commands._common import scheduler_option, user_errors
 from mtanno.tuning.cv import DOCUMENT_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
@@ -53,9 +53,10 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes for learning and matching per fold and class.")
 @click.option("-q", "--quiet", is_flag=True, help="No search log and no summary line.")
+@scheduler_option
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
-             disabled, unknown_weight, ablation_dir, seed, jobs, quiet):
+             disabled, unknown_weight, ablation_dir, seed, jobs, quiet, scheduler):
     """Learn the annotation parameters from the training data alone (issue 10).
 
     Cross-validation inside the training examples: each performer (manifest actor, or
@@ -100,7 +101,8 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
                                else f" (truth {truth})" if truth else ""), err=True)
     result = tune(sources, mt_dir, keyframes_dir=kf_dir, seed=seed, n_jobs=jobs,
                   methods=[m for m in METHODS if m not in disabled], documents=documents,
-                  unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log)
+                  unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log,
+                  scheduler=scheduler)
     write_tuned(output, result, command=command_line())
     if ablation_dir is not None:
         from mtanno.output import make_folder

@@ -106,7 +106,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          keyframes_dir: str | os.PathLike | None = None, seed: int = 0, n_jobs: int = 1,
          methods: Sequence[str] = METHODS, documents: str = "composed",
          unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
-         log: Callable[[str], None] | None = None) -> TuneResult:
+         log: Callable[[str], None] | None = None, scheduler: str | None = None) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
     collect_sources`): see :mod:`mtanno.tuning.search` for the search and
@@ -121,7 +121,10 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     objective. ``log`` receives one line per search step. With ``ablation``, the search is
     also run once with each method of ``methods`` left out and once with none of them
     (one τ for all classes), on the same folds: ``TuneResult.ablation`` maps
-    ``"without-METHOD"`` and ``"none"`` to those results.
+    ``"without-METHOD"`` and ``"none"`` to those results. ``scheduler``: run the per fold
+    and class tasks on a dask.distributed cluster (:func:`mtanno.workers.make_pool`; the
+    examples and held-out documents are sent once, the tasks carry indices) instead of
+    ``n_jobs`` local processes — with the same result.
     """
     from mtanno.store import FeatureLayout, check_layout, read_features, sha256_file
     from mtanno.templates.model import load_template_folder, template_files
@@ -158,6 +161,9 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     read_document = (lambda path: read_features(path).X) if whole else None
     folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
     learn = {c: _learn_params(templates[c]) for c in classes}
+    index = {id(e): i for i, e in enumerate(examples)}
+    shared = {"examples": examples,
+              "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
     tasks = []
     for f in folds:
         windows = None
@@ -176,12 +182,13 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                 wins = [w.get(c, []) for w in windows]
                 spans = _spans(wins, f.held_out.offsets)
                 ev_spans = _spans(wins, f.held_out.offsets, EVIDENCE_MARGIN)
-            tasks.append(((f.name, c), (c, train, f.held_out.X, f.held_out.offsets), {
+            tasks.append(((f.name, c), (c, [index[id(e)] for e in train], f.name), {
                 "deltas": _deltas(methods, templates), "groups": GROUPS
                 if "templates" in methods else (), "learn": learn[c], "spans": spans,
                 "evidence": "frames" in methods and "resolve" in methods,
                 "evidence_spans": ev_spans}))
-    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs)))
+    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
+                                                          scheduler=scheduler, shared=shared)))
     tuner = Tuner(folds, prepared, classes=classes, methods=methods,
                   unknown_weight=unknown_weight, log=log)
     delta0 = _deltas(methods, templates)[0]
@@ -194,11 +201,12 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             if log:
                 log(f"ablation {name}:")
             variants[name] = tuner.search(delta=delta0, methods=subset)
-    by_class = {c: [e for e in examples if e.class_name == c] for c in classes}
+    by_class = {c: [i for i, e in enumerate(examples) if e.class_name == c] for c in classes}
     wanted = sorted({(c, p.groups[c]) for p in [params, *(v[0] for v in variants.values())]
                      for c in classes if p.groups.get(c, 1) > 1})
     got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
-                      for key in wanted], n_jobs, fn=_final_groups) if wanted else []
+                      for key in wanted], n_jobs, _final_groups_task, scheduler=scheduler,
+                     shared=shared) if wanted else []
     learned = {key: g for key, g in zip(wanted, got) if g}
 
     def extra_of(p: Params) -> dict:
@@ -235,20 +243,37 @@ def _deltas(methods: Sequence[str], templates) -> list[float]:
     return [float(d) for d in DELTA_GRID] if "delta" in methods else [DEFAULT_DELTA]
 
 
-def _run_tasks(tasks: list, n_jobs: int, fn=prepare_fold_class) -> list:
-    """``fn(*args, **kwargs)`` of every (key, args, kwargs) task, in order; in ``n_jobs``
-    worker processes when more than one."""
-    if n_jobs > 1 and len(tasks) > 1:
-        from mtanno.workers import WorkerPool
+def _run_tasks(tasks: list, n_jobs: int, fn, *, scheduler: str | None = None,
+               shared=None) -> list:
+    """``fn(*args, **kwargs)`` of every (key, args, kwargs) task, in order, in the executor
+    of :func:`mtanno.workers.make_pool` (``n_jobs`` processes, or a dask cluster), with
+    ``shared`` readable through :func:`mtanno.workers.shared`."""
+    from mtanno.workers import make_pool
 
-        with WorkerPool(n_jobs) as pool:
-            futures = [pool.submit(_call, fn, args, kwargs) for _, args, kwargs in tasks]
-            return [f.result() for f in futures]
-    return [fn(*args, **kwargs) for _, args, kwargs in tasks]
+    with make_pool(jobs=n_jobs, scheduler=scheduler, shared=shared,
+                   n_tasks=len(tasks)) as pool:
+        return list(pool.map(_call, [(fn, args, kwargs) for _, args, kwargs in tasks]))
 
 
 def _call(fn, args, kwargs):
     return fn(*args, **kwargs)
+
+
+def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
+    """:func:`prepare_fold_class` of one fold and class, from the shared examples (by
+    index) and the fold's held-out documents."""
+    from mtanno.workers import shared
+
+    data = shared()
+    held_X, offsets = data["held"][fold]
+    return prepare_fold_class(cls, [data["examples"][i] for i in train], held_X, offsets,
+                              **kwargs)
+
+
+def _final_groups_task(cls: str, idx: list[int], k: int, learn: dict) -> list:
+    from mtanno.workers import shared
+
+    return _final_groups(cls, [shared()["examples"][i] for i in idx], k, learn)
 
 
 def template_folder_of(config_path: str | os.PathLike) -> Path:
