@@ -455,7 +455,7 @@ class Tuner:
             for _ in range(2):
                 changed = False
                 for c in self.classes:
-                    got, ev = self._best([cur.copy(tau={**cur.tau, c: cur.tau[c] * f})
+                    got, ev = self._best([cur.copy(tau={**cur.tau, c: _round(cur.tau[c] * f)})
                                           for f in TAU_STEPS], cur_ev, EPS)
                     if got is not None:
                         cur, cur_ev, changed = got, ev, True
@@ -465,7 +465,7 @@ class Tuner:
         # 5. rejection ceilings
         if "reject" in on:
             for c in self.classes:
-                got, ev = self._best([cur.copy(reject={**cur.reject, c: cur.tau[c] * m})
+                got, ev = self._best([cur.copy(reject={**cur.reject, c: _round(cur.tau[c] * m)})
                                       for m in REJECT_STEPS], cur_ev, EPS)
                 if got is not None:
                     cur, cur_ev = got, ev
@@ -478,13 +478,19 @@ class Tuner:
                 cur, cur_ev = got, ev
             note(f"frame weight {cur.frame_weight:g}", cur_ev)
         # 7. all thresholds scaled together
-        got, ev = self._best([cur.copy(tau={c: t * s for c, t in cur.tau.items()},
-                                       reject={c: r * s for c, r in cur.reject.items()})
+        got, ev = self._best([cur.copy(tau={c: _round(t * s) for c, t in cur.tau.items()},
+                                       reject={c: _round(r * s) for c, r in cur.reject.items()})
                               for s in SCALE_STEPS], cur_ev, EPS)
         if got is not None:
             cur, cur_ev = got, ev
         note("final", cur_ev)
         return cur, self.evaluate(cur, per_class=True), steps
+
+
+def _round(x: float) -> float:
+    """A threshold to 4 significant digits: the configuration reads 0.1248, not
+    0.12480000000000001 (and holds exactly the value that was scored)."""
+    return float(f"{x:.4g}")
 
 
 def check_methods(methods: Sequence[str]) -> list[str]:
