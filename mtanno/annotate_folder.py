@@ -30,7 +30,7 @@ from mtanno.annotate import AnnotationSetup
 from mtanno.errors import MtannoError
 
 __all__ = ["FORMATS", "DocJob", "DocOutcome", "FolderSummary", "annotate_folder",
-           "plan_folder", "recipe", "up_to_date"]
+           "folder_table", "plan_folder", "recipe", "up_to_date"]
 
 #: ``--format`` names and the suffix of the tables they give.
 FORMATS = {"csv": ".csv", "parquet": ".parquet", "jsonl": ".jsonl"}
@@ -223,3 +223,16 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
         record(DocOutcome(job, "computed", sha256=digest, frames=frames, segments=len(rows)))
     summary.outcomes.sort(key=lambda o: o.job.doc)
     return summary
+
+
+def folder_table(summary: FolderSummary, setup: AnnotationSetup):
+    """The table of all documents of a folder batch that are done (computed or up to date),
+    assembled from their tables (:func:`mtanno.annotate.merge_annotation_tables`: the rows
+    ``annotate -o`` writes for them), and its provenance (every feature file with its
+    SHA-256, every document's frame count)."""
+    from mtanno.annotate import merge_annotation_tables
+
+    done = summary.done
+    table, frames = merge_annotation_tables([o.job.dst for o in done])
+    return table, setup.provenance(
+        inputs=[{"path": str(o.job.src), "sha256": o.sha256} for o in done], documents=frames)

@@ -218,6 +218,11 @@ def test_output_dir_and_table_together(world, archive, reference, tmp_path):
     assert all(i["sha256"] for i in prov["inputs"])
     # no lock file or temporary left
     assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
+    # the same tables from worker processes
+    r = cli("annotate", "--mt", world.mt, archive, "--output-dir", tmp_path / "jobs2", "--jobs",
+            "2", "-q")
+    assert r.exit_code == 0, r.output
+    assert tables(tmp_path / "jobs2") == tables(reference)
 
 
 def test_what_makes_a_rerun_recompute(world, tmp_path):

@@ -80,7 +80,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
 
     Give -o TABLE (one table of all documents), --output-dir OUT/ (one table per
     document), or both. With --output-dir the run is resumable: a document is skipped when
-    its table is newer than its inputs and its recorded provenance matches the run (the
+    its table is not older than its inputs and its recorded provenance matches the run (the
     feature file's SHA-256; the templates, keyframe queries and class configuration by
     SHA-256; tau, delta, variants; mtanno version); --force recomputes every document. The
     run holds OUT/'s lock: another run writing into OUT/ makes it exit with code 3 (or wait,
@@ -149,8 +149,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                                               f"{len(batch.rows)} segments"
         seconds = batch.seconds
     else:
-        from mtanno.annotate import merge_annotation_tables
-        from mtanno.annotate_folder import annotate_folder
+        from mtanno.annotate_folder import annotate_folder, folder_table
         from mtanno.tables import write_table
 
         with lock_output(out_dir, wait=wait):
@@ -159,10 +158,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                 progress=lambda o: note_failure(o.message if o.status == "failed" else None))
             bar.close()
             if outputs:
-                table, frames = merge_annotation_tables([o.job.dst for o in summary.done])
-                prov = setup.provenance(
-                    inputs=[{"path": str(o.job.src), "sha256": o.sha256} for o in summary.done],
-                    documents=frames)
+                table, prov = folder_table(summary, setup)
                 for out in outputs:
                     write_table(out, table, provenance=prov)
         failed, seconds = len(summary.failed), summary.seconds
