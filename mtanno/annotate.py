@@ -795,21 +795,22 @@ def annotation_table(rows: Sequence[Annotation], native: dict[str, np.ndarray] |
     (1-based inclusive 30 Hz frames), label, cost (null where infinite), and start_native,
     end_native (1-based native frames) when ``native`` maps each document to its feature
     file's native_frame column."""
+    pairs = None
+    if native is not None:
+        pairs = [(int(native[r.doc][r.start]), int(native[r.doc][r.end])) for r in rows]
+    return _annotation_arrow(rows, pairs)
+
+
+def _annotation_arrow(rows: Sequence[Annotation], pairs: Sequence[tuple[int, int]] | None):
+    """:func:`annotation_table` with each row's native start and end given (or None)."""
     import pyarrow as pa
 
-    cols: dict[str, list] = {"doc": [], "start": [], "end": [], "label": [], "cost": []}
-    if native is not None:
-        cols["start_native"], cols["end_native"] = [], []
-    for r in rows:
-        cols["doc"].append(r.doc)
-        cols["start"].append(r.start + 1)
-        cols["end"].append(r.end + 1)
-        cols["label"].append(r.label)
-        cols["cost"].append(r.cost if math.isfinite(r.cost) else None)
-        if native is not None:
-            nf = native[r.doc]
-            cols["start_native"].append(int(nf[r.start]))
-            cols["end_native"].append(int(nf[r.end]))
+    cols: dict[str, list] = {"doc": [r.doc for r in rows], "start": [r.start + 1 for r in rows],
+                             "end": [r.end + 1 for r in rows], "label": [r.label for r in rows],
+                             "cost": [r.cost if math.isfinite(r.cost) else None for r in rows]}
+    if pairs is not None:
+        cols["start_native"] = [a for a, _ in pairs]
+        cols["end_native"] = [b for _, b in pairs]
     types = {"doc": pa.string(), "label": pa.string(), "cost": pa.float64()}
     return pa.table({k: pa.array(v, type=types.get(k, pa.int64())) for k, v in cols.items()})
 
@@ -835,12 +836,23 @@ def read_annotations(path: str | os.PathLike) -> list[Annotation]:
 
 def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], dict | None]:
     """:func:`read_annotations` and the table's provenance (None when it has none)."""
-    from mtanno.tables import parse_int, parse_text, read_table
-    from mtanno.truth import MAX_FRAME
+    from mtanno.tables import read_table
 
     table = read_table(path, what="annotation table")
+    return _annotation_rows(table, native=False)[0], table.provenance
+
+
+def _annotation_rows(table, *, native: bool = True
+                     ) -> tuple[list[Annotation], list[tuple[int, int]] | None]:
+    """The checked rows of an annotation table (:func:`read_annotations`) and, with
+    ``native`` and when it has the columns start_native and end_native, each row's native
+    start and end (checked too; else None)."""
+    from mtanno.tables import parse_int, parse_text
+    from mtanno.truth import MAX_FRAME
+
     table.require(["doc", "start", "end", "label"])
-    out = []
+    native = native and "start_native" in table.columns and "end_native" in table.columns
+    out, pairs = [], []
     for i, row in enumerate(table.rows):
         doc, label = parse_text(table, i, "doc"), parse_text(table, i, "label")
         start = parse_int(table, i, "start", minimum=1, maximum=MAX_FRAME)
@@ -858,12 +870,82 @@ def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], di
             if math.isnan(cost):
                 raise table.error(i, "cost is NaN")
         out.append(Annotation(doc, start - 1, end - 1, label, cost))
-    return out, table.provenance
+        if native:
+            pairs.append((parse_int(table, i, "start_native", minimum=1),
+                          parse_int(table, i, "end_native", minimum=1)))
+    return out, (pairs if native else None)
+
+
+#: Suffixes of the annotation tables a folder given to evaluate or report is searched for.
+ANNOTATION_SUFFIXES = (".csv", ".parquet", ".jsonl")
+
+
+def annotation_files(inputs: Sequence[str | os.PathLike]) -> list[str]:
+    """Annotation tables named by ``inputs``: files (and ``-``) as given; a folder (the
+    per-document tables of ``annotate --output-dir``) gives every table below it
+    (``*.csv``, ``*.parquet``, ``*.jsonl``, sorted; hidden files and folders — locks,
+    temporaries — skipped). A folder without tables is an error."""
+    out: list[str] = []
+    for item in inputs:
+        p = Path(item)
+        if str(item) != "-" and p.is_dir():
+            found = sorted(q for q in p.rglob("*") if q.suffix.lower() in ANNOTATION_SUFFIXES
+                           and not any(part.startswith(".") for part in q.relative_to(p).parts)
+                           and q.is_file())
+            if not found:
+                raise MtannoError("no annotation tables (*.csv, *.parquet, *.jsonl) in this "
+                                  "folder", path=str(p))
+            out.extend(str(q) for q in found)
+        else:
+            out.append(str(item))
+    return out
+
+
+def merge_annotation_tables(paths: Sequence[str | os.PathLike]):
+    """One annotation table (:class:`pyarrow.Table`) of the rows of several, each document
+    in one of them only, sorted by document, start, end and label — what ``annotate -o``
+    writes for the same documents — and the documents' frame counts their provenances
+    record. The native columns are kept when every table has them."""
+    from mtanno.tables import read_table
+
+    rows: list[Annotation] = []
+    pairs: list[tuple[int, int]] | None = []
+    frames: dict[str, int] = {}
+    where: dict[str, str] = {}
+    for path in paths:
+        table = read_table(path, what="annotation table")
+        part, native = _annotation_rows(table)
+        _claim_documents(where, part, path)
+        rows.extend(part)
+        pairs = None if pairs is None or native is None else pairs + native
+        frames.update(_recorded_frames(table.provenance))
+    order = sorted(range(len(rows)), key=lambda i: (rows[i].doc, rows[i].start, rows[i].end,
+                                                    rows[i].label))
+    return (_annotation_arrow([rows[i] for i in order],
+                              None if pairs is None else [pairs[i] for i in order]), frames)
+
+
+def _claim_documents(where: dict[str, str], rows: Sequence[Annotation], path) -> None:
+    """Each document in one table only: else an error naming both files."""
+    for d in sorted({a.doc for a in rows}):
+        if d in where:
+            raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
+                              "document's annotation once", path=str(path))
+        where[d] = str(path)
+
+
+def _recorded_frames(prov: dict | None) -> dict[str, int]:
+    recorded = (prov or {}).get("documents")
+    if not isinstance(recorded, dict):
+        return {}
+    return {str(k): int(v) for k, v in recorded.items()
+            if isinstance(v, int) and not isinstance(v, bool)}
 
 
 def read_annotation_tables(paths: Sequence[str | os.PathLike]
                            ) -> tuple[list[Annotation], dict[str, int], list[dict]]:
-    """The rows of several annotation tables (a run split over machines, say), each
+    """The rows of several annotation tables (a run split over machines, or the
+    per-document tables of ``annotate --output-dir``: :func:`annotation_files`), each
     document in one of them only (else an error naming both files); the documents' frame
     counts their provenance records (``annotate`` records them) and the provenances."""
     rows: list[Annotation] = []
@@ -872,17 +954,10 @@ def read_annotation_tables(paths: Sequence[str | os.PathLike]
     where: dict[str, str] = {}
     for path in paths:
         part, prov = read_annotation_table(path)
-        for d in sorted({a.doc for a in part}):
-            if d in where:
-                raise MtannoError(f"document {d!r} is annotated in {where[d]} too; give each "
-                                  "document's annotation once", path=str(path))
-            where[d] = str(path)
+        _claim_documents(where, part, path)
         rows.extend(part)
         provs.append(prov or {})
-        recorded = (prov or {}).get("documents")
-        if isinstance(recorded, dict):
-            frames.update({str(k): int(v) for k, v in recorded.items()
-                           if isinstance(v, int) and not isinstance(v, bool)})
+        frames.update(_recorded_frames(prov))
     return rows, frames, provs
 
 
@@ -1006,6 +1081,22 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0
 
 
+def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
+                   layout: FeatureLayout, config: ClassConfig, dbar_variant: str,
+                   match_variant: str, keyframes: dict | None, n_jobs: int,
+                   single_label: bool, scheduler: str | None):
+    """(path, result) for every document of a batch in input order, as the pool delivers
+    them: result is ``(document, rows, native frames, sha256, seconds)`` or the message
+    of the document's failure."""
+    from mtanno.workers import make_pool
+
+    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
+             single_label) for p in paths]
+    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:
+        for a, result in zip(args, pool.map(_annotate_file, args)):
+            yield a[0], result
+
+
 def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
                    layout: FeatureLayout, config: ClassConfig | None = None,
                    dbar_variant: str = "reference", match_variant: str = "reference",
@@ -1022,19 +1113,17 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
     documents instead of local processes (:class:`mtanno.workers.DaskPool`, same results).
     Rows are sorted by document, start, end and label."""
-    from mtanno.workers import make_pool
-
-    config = config or ClassConfig()
     batch = AnnotationBatch()
-    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
-             single_label) for p in paths]
-
-    def collect(path, result):
+    for path, result in _iter_annotate(paths, models, layout=layout,
+                                       config=config or ClassConfig(),
+                                       dbar_variant=dbar_variant, match_variant=match_variant,
+                                       keyframes=keyframes, n_jobs=n_jobs,
+                                       single_label=single_label, scheduler=scheduler):
         if isinstance(result, str):
             batch.failed.append(result)
             if progress:
                 progress(path, result)
-            return
+            continue
         doc, rows, native, digest, seconds = result
         batch.seconds += seconds
         batch.rows.extend(rows)
@@ -1043,9 +1132,109 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
         batch.files.append({"path": str(path), "sha256": digest})
         if progress:
             progress(path, None)
-
-    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:
-        for a, result in zip(args, pool.map(_annotate_file, args)):
-            collect(a[0], result)
     batch.rows.sort(key=lambda r: (r.doc, r.start, r.end, r.label))
     return batch
+
+
+@dataclass
+class AnnotationSetup:
+    """Everything that shapes an annotation besides its documents, loaded once for a batch
+    (:func:`load_annotation_setup`): the class models (the templates of the template folder
+    and of the configuration's ``[templates]``, quantized with ``delta``), their feature
+    layout, the class configuration, the keyframe queries with their files, and the
+    options. :meth:`provenance` is what every annotation table of the batch records, and
+    :meth:`annotate` runs :func:`annotate_files` with it."""
+
+    models: list[ClassModel]
+    layout: FeatureLayout
+    config: ClassConfig = field(default_factory=ClassConfig)
+    delta: float = DEFAULT_DELTA
+    dbar_variant: str = "reference"
+    match_variant: str = "reference"
+    keyframes: dict = field(default_factory=dict)
+    keyframe_files: list[dict] = field(default_factory=list)
+    single_label: bool = False
+    config_sha256: str | None = None
+    #: classes without a keyframe query (matched everywhere), and queries without a template
+    keyframes_missing: list[str] = field(default_factory=list)
+    keyframes_extra: list[str] = field(default_factory=list)
+
+    @property
+    def classes(self) -> list[str]:
+        return list(dict.fromkeys(m.name for m in self.models))
+
+    def files(self) -> list[str]:
+        """Every file the setup was read from: templates, class configuration, keyframe
+        queries."""
+        return [*(m.path for m in self.models if m.path), *([self.config.path]
+                if self.config.path else []), *(f["path"] for f in self.keyframe_files)]
+
+    def provenance(self, *, inputs=(), documents: dict[str, int] | None = None) -> dict:
+        """The provenance of an annotation table of ``inputs`` (feature file records) with
+        ``documents`` (frames per document): templates with SHA-256, τ (default and per
+        class), superclasses, δ, the configuration's methods, the configuration file and its
+        SHA-256, variants, feature set, keyframe files, single label."""
+        from mtanno.tables import provenance
+
+        cfg = self.config
+        return provenance(inputs=inputs, templates=[m.record() for m in self.models],
+                          tau=cfg.default_tau, tau_per_class=cfg.tau or None,
+                          superclasses=cfg.superclasses or None, delta=self.delta,
+                          methods=cfg.methods() or None,
+                          classes=({"path": cfg.path, "sha256": self.config_sha256}
+                                   if cfg.path else None),
+                          variant=self.dbar_variant, match=self.match_variant,
+                          feature_set=self.layout.feature_set,
+                          keyframes=self.keyframe_files or None,
+                          single_label=self.single_label or None, documents=documents)
+
+    def annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1, progress=None,
+                 scheduler: str | None = None) -> AnnotationBatch:
+        """:func:`annotate_files` of ``paths`` with this setup."""
+        return annotate_files(paths, self.models, layout=self.layout, config=self.config,
+                              dbar_variant=self.dbar_variant, match_variant=self.match_variant,
+                              keyframes=self.keyframes or None, n_jobs=n_jobs,
+                              progress=progress, single_label=self.single_label,
+                              scheduler=scheduler)
+
+    def iter_annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1,
+                      scheduler: str | None = None):
+        """(path, result) per document in input order as they are done (result: document,
+        rows, native frames, SHA-256, seconds; or the failure's message)."""
+        return _iter_annotate(paths, self.models, layout=self.layout, config=self.config,
+                              dbar_variant=self.dbar_variant, match_variant=self.match_variant,
+                              keyframes=self.keyframes or None, n_jobs=n_jobs,
+                              single_label=self.single_label, scheduler=scheduler)
+
+
+def load_annotation_setup(mt_dir: str | os.PathLike, *,
+                          config_path: str | os.PathLike | None = None,
+                          keyframes_dir: str | os.PathLike | None = None,
+                          tau: float | None = None, delta: float | None = None,
+                          dbar_variant: str = "reference", match_variant: str = "reference",
+                          single_label: bool = False) -> AnnotationSetup:
+    """Read what ``mtanno annotate`` annotates with: the templates of ``mt_dir``, the
+    class configuration (``config_path``, checked against the templates' classes, with its
+    further templates), the keyframe queries of ``keyframes_dir`` for those classes. ``tau``
+    replaces the configuration's default τ; ``delta`` defaults to the configuration's
+    ``[decoder] delta``, else :data:`DEFAULT_DELTA`."""
+    from mtanno.store import sha256_file
+
+    config = load_class_config(config_path) if config_path else ClassConfig()
+    if tau is not None:
+        config.default_tau = check_tau(tau)
+    if delta is None:
+        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+    models, layout = load_class_models(mt_dir, delta=delta)
+    config.check([m.name for m in models])
+    models += load_config_templates(config, layout, delta=delta)
+    setup = AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
+                            single_label=single_label,
+                            config_sha256=sha256_file(config_path) if config_path else None)
+    if keyframes_dir:
+        from mtanno.keyframes import load_class_keyframes
+
+        (setup.keyframes, setup.keyframe_files, setup.keyframes_missing,
+         setup.keyframes_extra) = load_class_keyframes(keyframes_dir, setup.classes,
+                                                       feature_set=layout.feature_set)
+    return setup

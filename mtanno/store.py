@@ -25,8 +25,8 @@ from mtanno.errors import MtannoError, read_input
 from mtanno.output import atomic_path
 
 __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
-           "common_layout", "document_files", "feature_files", "read_feature_matrix",
-           "read_features", "sha256_file", "write_features"]
+           "common_layout", "document_files", "document_files_below", "feature_files",
+           "read_feature_matrix", "read_features", "sha256_file", "write_features"]
 
 FEATURES_SCHEMA = "mtanno.features/1"
 #: Feature files of documents with at least this many frames are zstd-compressed.
@@ -222,20 +222,19 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
         Path(tmp).write_bytes(data.to_pybytes())
 
 
-def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Feature files named by ``inputs``: files as given, directories searched recursively
-    for ``*.parquet`` (sorted). A missing input, a directory without feature files, or no
-    file at all is an error."""
-    out: list[Path] = []
+def _found_feature_files(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:
+    """(file, its path below the folder it was found in — its name for a file given as
+    such) for every feature file named by ``inputs`` (see :func:`feature_files`)."""
+    out: list[tuple[Path, Path]] = []
     for item in inputs:
         p = Path(item)
         if p.is_dir():
             found = sorted(q for q in p.rglob("*.parquet") if q.is_file())
             if not found:
                 raise MtannoError("no feature files (*.parquet) in this folder", path=str(p))
-            out.extend(found)
+            out.extend((q, q.relative_to(p)) for q in found)
         elif p.is_file():
-            out.append(p)
+            out.append((p, Path(p.name)))
         else:
             raise MtannoError("no such feature file or folder", path=str(p))
     if not out:
@@ -243,22 +242,37 @@ def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     return out
 
 
-def document_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """:func:`feature_files`, where no two files may name the same document (file stem):
-    for commands whose outputs are keyed by document name."""
-    out: list[Path] = []
+def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """Feature files named by ``inputs``: files as given, directories searched recursively
+    for ``*.parquet`` (sorted). A missing input, a directory without feature files, or no
+    file at all is an error."""
+    return [f for f, _ in _found_feature_files(inputs)]
+
+
+def document_files_below(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:
+    """:func:`document_files` with each file's path below the folder it was found in (its
+    name for a file given as such): for outputs that mirror the inputs' tree
+    (``annotate --output-dir``)."""
+    out: list[tuple[Path, Path]] = []
     names: dict[str, Path] = {}
     seen: set[Path] = set()
-    for p in feature_files(inputs):
-        if p.resolve() in seen:  # the same file given twice (a folder and a file in it)
+    for p, rel in _found_feature_files(inputs):
+        key = p.resolve()
+        if key in seen:  # the same file given twice (a folder and a file in it)
             continue
-        seen.add(p.resolve())
+        seen.add(key)
         if p.stem in names:
             raise MtannoError(f"two feature files name the same document '{p.stem}': "
                               f"{names[p.stem]} and {p}")
         names[p.stem] = p
-        out.append(p)
+        out.append((p, rel))
     return out
+
+
+def document_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """:func:`feature_files`, where no two files may name the same document (file stem):
+    for commands whose outputs are keyed by document name."""
+    return [p for p, _ in document_files_below(inputs)]
 
 
 def _rows(mask: np.ndarray) -> str:

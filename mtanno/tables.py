@@ -40,9 +40,9 @@ from mtanno.errors import MtannoError, read_input
 from mtanno.output import atomic_path
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line",
-           "file_record", "output_files", "provenance", "read_manifest", "read_provenance",
-           "read_table", "set_command_line", "sidecar_path", "table_format", "write_json",
-           "write_table"]
+           "file_record", "output_files", "provenance", "provenance_as_read", "read_manifest",
+           "read_provenance", "read_table", "set_command_line", "sidecar_path",
+           "table_format", "table_provenance", "write_json", "write_table"]
 
 #: Table formats by file suffix.
 FORMATS = {".csv": "csv", ".parquet": "parquet", ".jsonl": "jsonl"}
@@ -346,6 +346,27 @@ def read_provenance(path: str | os.PathLike) -> dict | None:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return None
     return obj if isinstance(obj, dict) else None
+
+
+def table_provenance(path: str | os.PathLike) -> dict | None:
+    """The provenance a table file records (Parquet metadata, or the sidecar of a CSV or
+    JSON Lines table) without reading its rows; None when it has no readable one."""
+    if table_format(path) != "parquet":
+        return read_provenance(path)
+    import pyarrow.parquet as pq
+
+    try:
+        raw = (pq.read_schema(path).metadata or {}).get(_META_KEY)
+        prov = json.loads(raw) if raw else None
+    except (OSError, ValueError, TypeError, pa.ArrowException):
+        return None
+    return prov if isinstance(prov, dict) else None
+
+
+def provenance_as_read(prov: dict) -> dict:
+    """``prov`` as a table file gives it back (JSON: tuples become lists, non-finite
+    numbers null), to compare a run's provenance with a recorded one."""
+    return json.loads(json.dumps(_clean(prov)))
 
 
 def read_table(path: str | os.PathLike, *, what: str = "table") -> Table:

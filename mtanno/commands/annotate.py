@@ -7,7 +7,13 @@ import sys
 import click
 
 from mtanno.annotate import load_class_models
-from mtanno.commands._common import scheduler_option, show_progress, user_errors
+from mtanno.commands._common import (
+    lock_output,
+    scheduler_option,
+    show_progress,
+    user_errors,
+    wait_option,
+)
 from mtanno.errors import MtannoError
 from mtanno.store import check_layout, document_files
 from mtanno.templates.model import template_files
@@ -21,9 +27,17 @@ check_features = check_layout
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
 @click.option("--mt", "mt_dir", required=True, type=click.Path(exists=True),
               help="Directory of class templates (CLASS.json) from learn-mt.")
-@click.option("-o", "--output", "outputs", multiple=True, required=True,
-              help="Annotation table: .csv, .parquet or .jsonl, or - for CSV on standard "
-                   "output (repeat for several; docs/formats.md).")
+@click.option("-o", "--output", "outputs", multiple=True,
+              help="Annotation table of all documents: .csv, .parquet or .jsonl, or - for CSV "
+                   "on standard output (repeat for several; docs/formats.md).")
+@click.option("--output-dir", "out_dir", default=None, metavar="OUT/",
+              help="One annotation table per document in OUT/ (names mirror the feature "
+                   "files' paths below the folders given), written as each document is done; "
+                   "a rerun computes only documents whose table is missing or out of date.")
+@click.option("--format", "fmt", type=click.Choice(["csv", "parquet", "jsonl"]), default=None,
+              help="Format of the --output-dir tables [default: csv].")
+@click.option("-f", "--force", is_flag=True,
+              help="With --output-dir: recompute tables that are up to date.")
 @click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
               help="Folder of keyframe queries (CLASS.json from learn-keyframes): a class's "
                    "template is matched only inside its candidate windows (MBS09 §5).")
@@ -46,10 +60,11 @@ check_features = check_layout
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (documents in parallel).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@wait_option
 @scheduler_option
 @user_errors(2)
-def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, variant,
-                 match_variant, single_label, jobs, quiet, scheduler):
+def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
+                 delta, variant, match_variant, single_label, jobs, quiet, wait, scheduler):
     """Label every frame of documents with motion classes (MBS09 §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
@@ -62,81 +77,104 @@ def annotate_cmd(features, mt_dir, outputs, kf_dir, config_path, tau, delta, var
     poses (a fast scan of the features), and its template is matched only inside the
     windows found (widened by the query's extension); classes without a query are matched
     everywhere, with a note.
+
+    Give -o TABLE (one table of all documents), --output-dir OUT/ (one table per
+    document), or both. With --output-dir the run is resumable: a document is skipped when
+    its table is not older than its inputs and its recorded provenance matches the run (the
+    feature file's SHA-256; the templates, keyframe queries and class configuration by
+    SHA-256; tau, delta, variants; mtanno version); --force recomputes every document. The
+    run holds OUT/'s lock: another run writing into OUT/ makes it exit with code 3 (or wait,
+    with --wait). -o with --output-dir writes the table of all documents, computed and
+    skipped, assembled from their tables. `mtanno evaluate OUT/` reads the folder.
+
+    Exit codes: 0 success, 1 some documents failed (the others were annotated), 2 bad
+    input (nothing written), 3 OUT/ locked by another run, 130 interrupted (finished
+    tables are complete and are skipped by the rerun).
     """
     from tqdm import tqdm
 
-    from mtanno.annotate import (
-        DEFAULT_DELTA,
-        ClassConfig,
-        annotate_files,
-        check_tau,
-        load_class_config,
-        load_config_templates,
-        write_annotations,
-    )
-    from mtanno.keyframes import keyframe_files, load_class_keyframes
+    from mtanno.annotate import check_tau, load_annotation_setup, write_annotations
+    from mtanno.keyframes import keyframe_files
     from mtanno.output import check_outputs
-    from mtanno.tables import output_files, provenance, table_format
+    from mtanno.tables import output_files, table_format
 
     for out in outputs:
         table_format(out)
-    paths = feature_paths(features)
-    written = [f for out in outputs for f in output_files(out)]
+    if not outputs and out_dir is None:
+        raise MtannoError("give -o TABLE (one table of all documents), --output-dir OUT/ "
+                          "(one table per document), or both")
+    if out_dir is None:
+        for flag, given in (("--format", fmt), ("--force", force), ("--wait", wait)):
+            if given:
+                raise MtannoError(f"{flag} goes with --output-dir (an -o table is always "
+                                  "written anew, in the format of its suffix)")
+    if tau is not None:
+        tau = check_tau(tau, what="--tau")
+    if out_dir is not None:
+        from mtanno.annotate_folder import plan_folder
+
+        folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv")
+        paths = [j.src for j in folder_jobs]
+    else:
+        folder_jobs, paths = [], feature_paths(features)
+    written = [*(f for j in folder_jobs for f in output_files(j.dst)),
+               *(f for out in outputs for f in output_files(out))]
     check_outputs(written, [mt_dir, *template_files(mt_dir), config_path, *paths,
                             *(keyframe_files(kf_dir) if kf_dir else [])])
-    config = load_class_config(config_path) if config_path else ClassConfig()
-    check_outputs(written, [f for fs in config.template_paths().values() for f in fs])
-    if tau is not None:
-        config.default_tau = check_tau(tau, what="--tau")
-    if delta is None:
-        delta = config.delta if config.delta is not None else DEFAULT_DELTA
-    models, key = load_class_models(mt_dir, delta=delta)
-    config.check([m.name for m in models])
-    models += load_config_templates(config, key, delta=delta)
-    keyframes, kf_files = {}, []
-    if kf_dir:
-        keyframes, kf_files, missing, extra = load_class_keyframes(
-            kf_dir, list(dict.fromkeys(m.name for m in models)), feature_set=key.feature_set)
-        if not quiet and missing:
-            click.echo(f"annotate: note: no keyframe query for {', '.join(missing)}; matched "
-                       "everywhere", err=True)
-        if not quiet and extra:
-            click.echo("annotate: note: keyframe queries without a template ignored: "
-                       f"{', '.join(extra)}", err=True)
+    setup = load_annotation_setup(mt_dir, config_path=config_path, keyframes_dir=kf_dir,
+                                  tau=tau, delta=delta, dbar_variant=variant,
+                                  match_variant=match_variant, single_label=single_label)
+    check_outputs(written, setup.files())  # the configuration's further templates
+    if not quiet and setup.keyframes_missing:
+        click.echo(f"annotate: note: no keyframe query for {', '.join(setup.keyframes_missing)}"
+                   "; matched everywhere", err=True)
+    if not quiet and setup.keyframes_extra:
+        click.echo("annotate: note: keyframe queries without a template ignored: "
+                   f"{', '.join(setup.keyframes_extra)}", err=True)
     bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")
 
-    def progress(path, error):
+    def note_failure(error):
         bar.update(1)
         if error is not None:
             bar.write(f"mtanno: {error}", file=sys.stderr)
 
-    batch = annotate_files(paths, models, layout=key, config=config, dbar_variant=variant,
-                           match_variant=match_variant, keyframes=keyframes or None,
-                           n_jobs=jobs, progress=progress, single_label=single_label,
-                           scheduler=scheduler)
-    bar.close()
-    prov = provenance(inputs=batch.files, templates=[m.record() for m in models],
-                      tau=config.default_tau, tau_per_class=config.tau or None,
-                      superclasses=config.superclasses or None, delta=delta,
-                      methods=config.methods() or None,
-                      variant=variant, match=match_variant, feature_set=key.feature_set,
-                      keyframes=kf_files or None, single_label=single_label or None,
-                      documents=batch.frames)
-    for out in outputs:
-        write_annotations(out, batch.rows, batch.native, provenance=prov)
-    failed = len(batch.failed)
+    if out_dir is None:
+        batch = setup.annotate(paths, n_jobs=jobs, scheduler=scheduler,
+                               progress=lambda path, error: note_failure(error))
+        bar.close()
+        prov = setup.provenance(inputs=batch.files, documents=batch.frames)
+        for out in outputs:
+            write_annotations(out, batch.rows, batch.native, provenance=prov)
+        failed, what = len(batch.failed), f"{len(paths) - len(batch.failed)} documents, " \
+                                              f"{len(batch.rows)} segments"
+        seconds = batch.seconds
+    else:
+        from mtanno.annotate_folder import annotate_folder, folder_table
+        from mtanno.tables import write_table
+
+        with lock_output(out_dir, wait=wait):
+            summary = annotate_folder(
+                folder_jobs, setup, force=force, n_jobs=jobs, scheduler=scheduler,
+                progress=lambda o: note_failure(o.message if o.status == "failed" else None))
+            bar.close()
+            if outputs:
+                table, prov = folder_table(summary, setup)
+                for out in outputs:
+                    write_table(out, table, provenance=prov)
+        failed, seconds = len(summary.failed), summary.seconds
+        what = f"{len(folder_jobs)} documents: {summary.line()}"
+        outputs = (out_dir, *outputs)
     if not quiet:
-        kf = f", keyframes for {len(keyframes)}" if keyframes else ""
-        n_classes = len({m.name for m in models})
-        click.echo(f"annotate: {len(paths) - failed} documents, {len(batch.rows)} segments, "
-                   f"{n_classes} classes{kf}, {failed} failed, {batch.seconds:.2f} s of "
-                   f"annotation -> {', '.join(outputs)}", err=True)
+        kf = f", keyframes for {len(setup.keyframes)}" if setup.keyframes else ""
+        tail = "" if out_dir is not None else f", {failed} failed"
+        click.echo(f"annotate: {what}, {len(setup.classes)} classes{kf}{tail}, "
+                   f"{seconds:.2f} s of annotation -> {', '.join(map(str, outputs))}", err=True)
     sys.exit(1 if failed else 0)
 
 
 @click.command("evaluate")
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
-                type=click.Path(dir_okay=False, allow_dash=True))
+                type=click.Path(allow_dash=True))
 @click.option("--truth", "truth_path", required=True,
               type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth table (doc,start,end,label[,fps]).")
@@ -157,11 +195,13 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     against ground truth, overall and per class, with support counts (MBS09 §7).
 
     ANNOTATIONS are annotation tables (from `mtanno annotate`; - reads CSV from standard
-    input), e.g. the outputs of a run split over several machines; a document may appear
-    in only one of them. When the annotations record their documents' lengths, a truth
-    segment past the end of its document is an error.
+    input), e.g. the outputs of a run split over several machines, or folders: every table
+    (.csv, .parquet, .jsonl) below a folder, such as the per-document tables of `mtanno
+    annotate --output-dir`. A document may appear in only one table. When the annotations
+    record their documents' lengths, a truth segment past the end of its document is an
+    error.
     """
-    from mtanno.annotate import read_annotation_tables
+    from mtanno.annotate import annotation_files, read_annotation_tables
     from mtanno.evaluate import evaluate_annotations
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
@@ -169,6 +209,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
 
     if table_path is not None:
         table_format(table_path)
+    annotations = annotation_files(annotations)
     inputs = [*annotations, truth_path]
     if sum(str(i) == "-" for i in inputs) > 1:
         raise MtannoError("standard input (-) can be read only once")

@@ -10,7 +10,7 @@ from mtanno.errors import MtannoError
 
 @click.command("report", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
-                type=click.Path(dir_okay=False))
+                type=click.Path())
 @click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
               help="Ground truth table (doc,start,end,label[,fps]).")
 @click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
@@ -38,10 +38,14 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     template_CLASS.png|.svg    with --mt: the templates as heat maps
     delta_DOC.png|.svg         with --mt and --features: each class's Δ over the document
 
+    ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
+    table below a folder, such as the per-document tables of `mtanno annotate
+    --output-dir`).
+
     Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
     with --single-label; overlapping rows are resolved by segment cost (the page says so).
     """
-    from mtanno.annotate import DEFAULT_TAU, read_annotation_tables
+    from mtanno.annotate import DEFAULT_TAU, annotation_files, read_annotation_tables
     from mtanno.output import check_outputs
     from mtanno.plot import require_matplotlib
     from mtanno.report import write_report
@@ -54,6 +58,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     if features and not mt_dir:
         raise MtannoError("--features goes with --mt (the Δ curves need the templates)")
     paths = document_files(features) if features else []
+    annotations = annotation_files(annotations)
     check_outputs([out_dir], [*annotations, truth_path, *paths,
                               *(template_files(mt_dir) if mt_dir else [])])
     rows, frames, provs = read_annotation_tables(annotations)

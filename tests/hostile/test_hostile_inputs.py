@@ -221,3 +221,46 @@ def test_a_held_index_lock_is_one_line(world, tmp_path):
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         r = cli("index", "add", idx, world.doc_files[0])
     assert "index is locked by" in assert_one_line(r, idx, codes=(3,))
+
+
+# --------------------------------------------------------------------- output folders
+
+
+@pytest.mark.parametrize("kind", ["a file", "below a file", "read-only", "a table's name is a "
+                                  "folder"])
+def test_unusable_annotation_folder(world, tmp_path, kind):
+    """annotate --output-dir into a folder it cannot use: one line naming it, nothing
+    written; a document whose table cannot be written fails alone."""
+    import os
+
+    docs = [world.copy(f, tmp_path / "in" / f.name) for f in world.doc_files]
+    out, named, codes = tmp_path / "out", tmp_path / "out", (2,)
+    if kind == "a file":
+        out.write_text("a file, not a folder")
+    elif kind == "below a file":
+        (tmp_path / "file").write_text("a file, not a folder")
+        out, named = tmp_path / "file" / "out", tmp_path / "file"
+    elif kind == "read-only":
+        out.mkdir()
+        out.chmod(0o555)
+        if os.access(out, os.W_OK):
+            pytest.skip("this user may write into read-only folders (root)")
+    else:
+        named, codes = out / f"{docs[0].stem}.csv", (1,)
+        named.mkdir(parents=True)
+    before = checksums(tmp_path)
+    try:
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "--output-dir", out)
+    finally:
+        if kind == "read-only":
+            out.chmod(0o755)
+    line = assert_one_line(r, named, codes=codes)
+    assert "Traceback" not in r.output and "internal error" not in line
+    assert temporaries(tmp_path) == []
+    if kind == "a table's name is a folder":  # the other document was annotated
+        assert "output is a folder" in line
+        assert (out / f"{docs[1].stem}.csv").is_file() and "1 failed" in r.output
+        assert checksums(tmp_path / "in") == {k: v for k, v in before.items()
+                                             if k.startswith(str(tmp_path / "in"))}
+    else:
+        assert checksums(tmp_path) == before  # nothing written, no input changed

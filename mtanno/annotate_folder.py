@@ -1,0 +1,238 @@
+"""Resumable annotation: one annotation table per document in a folder (``mtanno annotate
+--output-dir``, ``docs/annotation.md``).
+
+A batch over an archive is planned (:func:`plan_folder`: one output per feature file,
+mirroring the inputs' tree), the documents whose output is up to date are skipped
+(:func:`up_to_date`), and every other document's table is written, atomically, as soon as
+it is annotated (:func:`annotate_folder`). A run that is interrupted or killed leaves the
+tables it finished; the next run computes only the others. Every table records the same
+provenance as a single annotation table (:meth:`mtanno.annotate.AnnotationSetup.provenance`)
+for its one document: the feature file with its SHA-256 and frame count, the templates,
+keyframe queries and class configuration with their SHA-256, and the options.
+
+Up to date means: the output exists, is not older than any of its inputs (feature file,
+templates, class configuration, keyframe queries), and its recorded provenance says it was
+made from this feature file (SHA-256) with the same templates, keyframe queries and
+configuration (SHA-256, wherever the files are now), the same options and the same mtanno
+version (:func:`recipe`). The caller holds the folder's lock
+(:func:`mtanno.output.folder_lock`) so that two runs never work on one folder at once.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mtanno.annotate import AnnotationSetup
+from mtanno.errors import MtannoError
+
+__all__ = ["FORMATS", "DocJob", "DocOutcome", "FolderSummary", "annotate_folder",
+           "folder_table", "plan_folder", "recipe", "up_to_date"]
+
+#: ``--format`` names and the suffix of the tables they give.
+FORMATS = {"csv": ".csv", "parquet": ".parquet", "jsonl": ".jsonl"}
+#: Provenance keys that say when, by which command line and of which document an output
+#: was made, not how (:func:`recipe` leaves them out; the document is checked apart).
+_NOT_RECIPE = ("schema", "command", "created", "inputs", "documents")
+
+
+@dataclass(frozen=True)
+class DocJob:
+    """One document of a folder batch: its feature file and its annotation table."""
+
+    src: Path
+    dst: Path
+
+    @property
+    def doc(self) -> str:
+        return self.src.stem
+
+
+@dataclass
+class DocOutcome:
+    """What became of one document: ``status`` is ``"computed"``, ``"skipped"`` (up to
+    date) or ``"failed"`` (``message`` says why); the feature file's SHA-256 and frame
+    count, and the number of segments written (computed documents)."""
+
+    job: DocJob
+    status: str
+    message: str = ""
+    sha256: str | None = None
+    frames: int = 0
+    segments: int = 0
+
+
+@dataclass
+class FolderSummary:
+    """Outcomes of a folder batch, in the order of the jobs; ``seconds`` is the time spent
+    annotating (summed over the computed documents)."""
+
+    outcomes: list[DocOutcome] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def count(self, status: str) -> int:
+        return sum(o.status == status for o in self.outcomes)
+
+    @property
+    def failed(self) -> list[DocOutcome]:
+        return [o for o in self.outcomes if o.status == "failed"]
+
+    @property
+    def done(self) -> list[DocOutcome]:
+        """The documents whose table is in the folder and up to date (computed or skipped)."""
+        return [o for o in self.outcomes if o.status != "failed"]
+
+    def line(self) -> str:
+        segments = sum(o.segments for o in self.outcomes)
+        return (f"{self.count('computed')} computed ({segments} segments), "
+                f"{self.count('skipped')} up to date, {self.count('failed')} failed")
+
+
+def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
+                fmt: str = "csv") -> list[DocJob]:
+    """One job per feature file named by ``inputs`` (files, folders searched recursively;
+    :func:`mtanno.store.document_files_below`): a file ``F.parquet`` gives
+    ``outdir/F.<fmt>``, a file found in folder ``D`` gives ``outdir/<its path below
+    D>`` with the format's suffix. Jobs are sorted by document name. Parquet tables in a
+    folder inside an input folder would be read as feature files by the next run: refused.
+    """
+    from mtanno.store import document_files_below
+
+    if fmt not in FORMATS:
+        raise MtannoError(f"unknown table format {fmt!r} (known: {', '.join(FORMATS)})")
+    outdir = Path(outdir)
+    inputs = list(inputs)
+    if fmt == "parquet":
+        out = outdir.resolve()
+        for item in inputs:
+            p = Path(item)
+            if p.is_dir() and (out == p.resolve() or p.resolve() in out.parents):
+                raise MtannoError(f"the output folder is inside the input folder {p}: its "
+                                  "Parquet tables would be read as feature files; choose "
+                                  "another folder, or --format csv", path=str(outdir))
+    jobs = [DocJob(src, outdir / rel.with_suffix(FORMATS[fmt]))
+            for src, rel in document_files_below(inputs)]
+    return sorted(jobs, key=lambda j: j.doc)
+
+
+def recipe(prov: dict) -> dict | None:
+    """How an annotation table was made, from its provenance: every option, the mtanno
+    version, and the templates, keyframe queries and class configuration by content
+    (class and SHA-256; not where the files were). Two tables with equal recipes of the
+    same feature file hold the same annotation. None for a provenance that cannot be read
+    as one."""
+    try:
+        out = {k: v for k, v in prov.items() if k not in _NOT_RECIPE}
+        for key in ("templates", "keyframes"):
+            out[key] = sorted(([r.get("class"), r.get("sha256")] for r in prov.get(key) or []),
+                              key=json.dumps)
+        classes = prov.get("classes")
+        out["classes"] = classes.get("sha256") if classes else None
+    except (AttributeError, TypeError):
+        return None
+    return out
+
+
+def _mtime_ns(path: str | os.PathLike) -> int:
+    try:
+        return os.stat(path).st_mtime_ns
+    except OSError:
+        return 0
+
+
+def up_to_date(job: DocJob, expected: dict, *, not_before: int = 0) -> DocOutcome | None:
+    """Whether ``job.dst`` holds the annotation this run would write (module docstring):
+    it exists, its modification time is not before the feature file's nor ``not_before``
+    (nanoseconds: the newest template, configuration or keyframe file), its provenance
+    names this one document, made from the feature file as it is now (SHA-256), and its
+    :func:`recipe` is ``expected``. Returns the ``"skipped"`` outcome (with the feature
+    file's SHA-256 and the frame count recorded) when it is up to date, else None."""
+    from mtanno.store import sha256_file
+    from mtanno.tables import table_provenance
+
+    try:
+        made = os.stat(job.dst).st_mtime_ns
+    except OSError:
+        return None
+    if made < max(not_before, _mtime_ns(job.src)):
+        return None
+    prov = table_provenance(job.dst)
+    if prov is None or recipe(prov) != expected:
+        return None
+    documents, inputs = prov.get("documents"), prov.get("inputs")
+    if not (isinstance(documents, dict) and list(documents) == [job.doc]
+            and isinstance(documents[job.doc], int) and isinstance(inputs, list)
+            and len(inputs) == 1 and isinstance(inputs[0], dict)):
+        return None
+    try:
+        digest = sha256_file(job.src)
+    except OSError:
+        return None
+    if inputs[0].get("sha256") != digest:
+        return None
+    return DocOutcome(job, "skipped", sha256=digest, frames=int(documents[job.doc]))
+
+
+def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bool = False,
+                    n_jobs: int = 1, scheduler: str | None = None,
+                    progress: Callable[[DocOutcome], None] | None = None) -> FolderSummary:
+    """Annotate every job's document with ``setup`` into its table, skipping those up to
+    date (:func:`up_to_date`) unless ``force``. Documents run in ``n_jobs`` processes or on
+    a dask cluster (``scheduler``), as :func:`mtanno.annotate.annotate_files`; each table is
+    written atomically (:func:`mtanno.annotate.write_annotations`, format by the output's
+    suffix) as soon as its document is done, with its provenance. A document that fails
+    (unreadable, other features than the templates, unwritable output) is recorded and
+    the batch goes on. ``progress`` is called once per job. Hold the output folder's lock
+    (:func:`mtanno.output.folder_lock`) around this call."""
+    from mtanno.annotate import write_annotations
+    from mtanno.tables import provenance_as_read
+
+    summary = FolderSummary()
+    expected = recipe(provenance_as_read(setup.provenance()))
+    not_before = max((_mtime_ns(f) for f in setup.files()), default=0)
+
+    def record(o: DocOutcome) -> None:
+        summary.outcomes.append(o)
+        if progress:
+            progress(o)
+
+    todo = []
+    for job in jobs:
+        skipped = None if force else up_to_date(job, expected, not_before=not_before)
+        if skipped is not None:
+            record(skipped)
+        else:
+            todo.append(job)
+    for job, (_, result) in zip(todo, setup.iter_annotate([j.src for j in todo],
+                                                          n_jobs=n_jobs, scheduler=scheduler)):
+        if isinstance(result, str):
+            record(DocOutcome(job, "failed", result))
+            continue
+        doc, rows, native, digest, seconds = result
+        summary.seconds += seconds
+        frames = int(native.shape[0])
+        try:
+            write_annotations(job.dst, rows, {doc: native}, provenance=setup.provenance(
+                inputs=[{"path": str(job.src), "sha256": digest}], documents={doc: frames}))
+        except MtannoError as exc:
+            record(DocOutcome(job, "failed", str(exc)))
+            continue
+        record(DocOutcome(job, "computed", sha256=digest, frames=frames, segments=len(rows)))
+    summary.outcomes.sort(key=lambda o: o.job.doc)
+    return summary
+
+
+def folder_table(summary: FolderSummary, setup: AnnotationSetup):
+    """The table of all documents of a folder batch that are done (computed or up to date),
+    assembled from their tables (:func:`mtanno.annotate.merge_annotation_tables`: the rows
+    ``annotate -o`` writes for them), and its provenance (every feature file with its
+    SHA-256, every document's frame count)."""
+    from mtanno.annotate import merge_annotation_tables
+
+    done = summary.done
+    table, frames = merge_annotation_tables([o.job.dst for o in done])
+    return table, setup.provenance(
+        inputs=[{"path": str(o.job.src), "sha256": o.sha256} for o in done], documents=frames)
