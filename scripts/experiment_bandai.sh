@@ -11,7 +11,8 @@
 #   scripts/experiment_bandai.sh [OUT] [STYLES...]   (defaults: out/bandai, all five styles)
 #
 # Environment: GA_RUNS (default 20 GA runs per content for the keyframes), REUSE=1 keeps
-# tuned configurations and keyframes already there.
+# tuned configurations and keyframes already there, UNKNOWN_STYLES (default: all held-out
+# styles) the styles whose unknown-class protocol is run (ten tune runs per style).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 MTANNO=${MTANNO:-$here/.venv/bin/mtanno}
@@ -19,10 +20,11 @@ PY=$here/.venv/bin/python
 OUT=${1:-$here/out/bandai}
 shift || true
 STYLES=${*:-active elderly feminine masculine normal}
+UNKNOWN_STYLES=${UNKNOWN_STYLES:-$STYLES}
 GA_RUNS=${GA_RUNS:-20}
 TABLES=("$PY" "$here/scripts/annotation_tables.py")
 ABLATION="without-tau without-reject without-refine without-resolve without-templates \
-without-frames without-delta none"
+without-segments without-frames without-delta none"
 mkdir -p "$OUT"
 
 echo "== unpack the five set-2 archives (.cache/data) and compute their features"
@@ -68,6 +70,7 @@ for S in $STYLES; do
   done
   # unknown-class protocol: each content left out of templates, tuning and baseline; its
   # clips of the held-out style annotated
+  case " $UNKNOWN_STYLES " in *" $S "*) ;; *) continue ;; esac
   for mt in "$f"/mt/*.json; do
     c=$(basename "$mt" .json)
     u=$f/unknown/$c
@@ -98,6 +101,7 @@ echo "Ablation (tune re-run with one method left out; 'none' = one tau for all c
   $(for a in $ABLATION; do echo "$a=$(reports "ab_$a")"; done)
 echo
 echo "Unknown-class rate (fraction of a left-out content's frames labelled with another):"
-rates() { for s in $STYLES; do ls "$OUT/folds/$s"/unknown/*/"$1".json; done | tr '\n' ','; }
+echo "(held-out styles of this protocol: $UNKNOWN_STYLES)"
+rates() { for s in $UNKNOWN_STYLES; do ls "$OUT/folds/$s"/unknown/*/"$1".json; done | tr '\n' ','; }
 "${TABLES[@]}" unknown-table "baseline=$(rates knn)" "reference=$(rates reference)" \
   "tuned=$(rates tuned)"

@@ -102,7 +102,7 @@ tail -1 "$T/tune.log"
 echo "   tuning inputs: $(grep -c '\.parquet$' "$T/tuned.toml") feature files," \
   "of actor mm: $(grep -c '/HDM_mm_' "$T/tuned.toml")"
 ABLATION="without-tau without-reject without-refine without-resolve without-templates \
-without-frames without-delta none"
+without-segments without-frames without-delta none"
 for seed in $SEEDS; do
   d=$OUT/seed$seed
   python_knn=("$here/.venv/bin/python" "$here/scripts/baseline_knn.py")

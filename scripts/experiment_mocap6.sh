@@ -72,7 +72,7 @@ PY
 echo "== issue 10: baseline, tuned (tuning on the two training documents only), ablation"
 TABLES=("$here/.venv/bin/python" "$here/scripts/annotation_tables.py")
 ABLATION="without-tau without-reject without-refine without-resolve without-templates \
-without-frames without-delta none"
+without-segments without-frames without-delta none"
 for test in $DOCS; do
   train=()
   for d in $DOCS; do [ "$d" = "$test" ] || train+=("$OUT/features/$d.parquet"); done
