@@ -673,17 +673,22 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     delta, start = np.empty(L), np.empty(L, np.int64)
     evidence = config.resolve and config.frame_weight > 0
 
+    if evidence:
+        from mtanno.decode import EVIDENCE_MARGIN, distinct_frames, frame_evidence
+
+        distinct = distinct_frames(packed)  # once for all templates
+
     def matches():
         for c in classes:
             _class_delta(X, packed, c, windows, match_variant, delta, start)
             if evidence:
-                from mtanno.decode import EVIDENCE_MARGIN, frame_evidence
 
                 spans = None
                 if windows is not None and c.name in windows:  # only where c can be
                     spans = _merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
                                            for a, b in windows[c.name]], L)
-                yield c.name, delta, start, frame_evidence(packed, c.values, spans=spans)
+                yield c.name, delta, start, frame_evidence(packed, c.values, spans=spans,
+                                                           distinct=distinct)
             else:
                 yield c.name, delta, start, None
 
@@ -754,35 +759,42 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     from mtanno.decode import decode_segments, fold_label, relative_evidence
 
     starts = np.full((P, L), -1, dtype=np.int64)
-    taus = np.ones((P, L)) if len({limits(n, member_of.get(n, n))[0] for n in names}) > 1 \
-        else None
+    # τ of each label for the cost column; a label whose members have different τ (a
+    # superclass) keeps, per frame, the τ of the template that gives the minimum
+    member_taus: dict[int, set[float]] = {}
+    for n in names:
+        lab = member_of.get(n, n)
+        member_taus.setdefault(labels.index(lab), set()).add(limits(n, lab)[0])
+    label_tau = {k: next(iter(t)) for k, t in member_taus.items() if len(t) == 1}
+    tau_rows = {k: np.ones(L) for k in member_taus if k not in label_tau}
     ev = np.full((P, L), np.inf) if config.frame_weight > 0 else None
-    one_tau = None
     for name, delta, start, evidence in matches:
         lab = member_of.get(name, name)
         tau, rho = limits(name, lab)
         if not tau > 0:
             raise MtannoError(f"tau of {name} must be > 0 for the segment decoder, got {tau!r}",
                               path=config.path)
-        one_tau = tau
         k = labels.index(lab)
-        if taus is None:
+        if k in label_tau:
             fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
-        else:  # the τ of the template that gives each frame's minimum, for the cost column
+        else:
             before = mat[k].copy()
             fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
-            taus[k][mat[k] < before] = tau
+            tau_rows[k][mat[k] < before] = tau
         if ev is not None:
             if evidence is None:
                 raise MtannoError("frame_weight > 0 needs each template's frame evidence")
             np.minimum(ev[k], evidence, out=ev[k])
     decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
-                              else 0, evidence=None if ev is None else relative_evidence(ev),
+                              else 0, evidence=None if ev is None else
+                              relative_evidence(ev, out=ev),
                               weight=config.frame_weight, segment_cost=config.segment_cost)
     # cost: Δ at the segment's end, back from Δ/τ (to 12 digits: the division's rounding)
-    rows = [Annotation(doc, d.start, d.end, labels[d.label], float(
-        f"{d.cost * (one_tau if taus is None else float(taus[d.label, d.end])):.12g}"))
-            for d in decoded]
+    def tau_at(k: int, t: int) -> float:
+        return label_tau[k] if k in label_tau else float(tau_rows[k][t])
+
+    rows = [Annotation(doc, d.start, d.end, labels[d.label],
+                       float(f"{d.cost * tau_at(d.label, d.end):.12g}")) for d in decoded]
     rows.sort(key=lambda a: (a.start, a.end, a.label))
     return rows, labels, mat
 

@@ -38,8 +38,8 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 
-__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "decode_segments", "fold_label",
-           "frame_evidence", "relative_evidence"]
+__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "decode_segments", "distinct_frames",
+           "fold_label", "frame_evidence", "relative_evidence"]
 
 #: Frames a segment start may move from its match's start (boundary refinement).
 DEFAULT_SLACK = 3
@@ -82,6 +82,8 @@ def _decode(delta, start, scale, ceiling, cum_ev, weight, seg_cost, slack, first
             if a < 0:
                 continue
             per = d * scale[p]
+            if per >= 1.0:  # never cheaper than unlabelled frames (weights are ≥ 0)
+                continue
             lo = max(first[ell], a - slack)
             hi = min(ell, a + slack)
             for k in range(lo, hi + 1):
@@ -165,8 +167,10 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     if weight > 0:
         if evidence is None or np.shape(evidence) != (P, L):
             raise MtannoError("a frame-evidence weight needs evidence of shape (labels × frames)")
-        cum = np.zeros((P, L + 1))
-        np.cumsum(np.asarray(evidence, dtype=np.float64), axis=1, out=cum[:, 1:])
+        if not (np.asarray(evidence) >= 0).all():
+            raise MtannoError("frame evidence must be ≥ 0 (relative_evidence gives that)")
+        cum = np.empty((P, L + 1))
+        _prefix(np.ascontiguousarray(evidence, dtype=np.float64), cum)
     else:
         cum = np.zeros((P, 1))
     cuts = np.unique(np.asarray(boundaries, dtype=np.int64))
@@ -253,8 +257,32 @@ def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start:
           float(reject), 1.0 / float(tau), row, row_start)
 
 
+def distinct_frames(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of a bit-packed document (:func:`mtanno.templates.match.
+    pack_document`) and, per frame, the index of its row: feature vectors repeat for many
+    frames in a row, so the evidence of every template is computed once per distinct
+    vector. Computed once per document (one word per frame — up to 64 features — is a
+    plain sort of integers)."""
+    P = np.ascontiguousarray(packed)
+    L = P.shape[0]
+    if L == 0:
+        return P[:0], np.zeros(0, np.int64)
+    # runs of equal rows first (poses hold for many frames), then the distinct run values
+    new = np.ones(L, dtype=bool)
+    new[1:] = (P[1:] != P[:-1]).any(axis=1)
+    heads = np.flatnonzero(new)
+    lengths = np.diff(np.append(heads, L))
+    if P.shape[1] == 1:
+        u, inv = np.unique(P[heads, 0], return_inverse=True)
+        u = u.reshape(-1, 1)
+    else:
+        u, inv = np.unique(P[heads], axis=0, return_inverse=True)
+    return np.ascontiguousarray(u), np.repeat(inv.reshape(-1), lengths)
+
+
 def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
-                   spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                   spans: tuple[np.ndarray, np.ndarray] | None = None,
+                   distinct: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Frame-wise evidence of one quantized template: for every frame of a bit-packed
     document (:func:`mtanno.templates.match.pack_document`), the smallest fraction of
     disagreeing fixed entries over the template's columns — 0 where the frame's pose is
@@ -262,7 +290,9 @@ def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
     columns are skipped, a template of only those gives 0). ``values`` is the (features ×
     K) quantized template (0, 1, 0.5 = wildcard). With ``spans`` (first and last frames,
     0-based inclusive, e.g. a class's candidate windows widened by
-    :data:`EVIDENCE_MARGIN`) only those frames are computed, the others are ∞."""
+    :data:`EVIDENCE_MARGIN`) only those frames are computed, the others are ∞.
+    ``distinct``: :func:`distinct_frames` of ``packed``, when the caller has it (one
+    document, many templates)."""
     V = np.asarray(values)
     fixed = V != 0.5
     keep = fixed.any(axis=0)
@@ -293,30 +323,61 @@ def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
     pairs = np.unique(np.concatenate([masks, vals], axis=1), axis=0)  # distinct columns
     masks, vals = np.ascontiguousarray(pairs[:, :words]), np.ascontiguousarray(pairs[:, words:])
     nnz = np.array([sum(bin(int(x)).count("1") for x in row) for row in masks], dtype=np.float64)
+    if spans is not None and not (ends >= starts).any():
+        return np.full(L, np.inf)
+    rows, inverse = distinct if distinct is not None else distinct_frames(packed)
+    if rows.shape[1] != words or inverse.shape[0] != L:
+        raise MtannoError("distinct frames of another document")
+    got = np.empty(rows.shape[0])
+    n = np.array([rows.shape[0] - 1], np.int64)
+    _best_column(rows, masks, vals, 1.0 / nnz, np.zeros(1, np.int64), n, got)
+    if spans is None:
+        return got[inverse]
     out = np.full(L, np.inf)
-    frames = np.concatenate([np.arange(a, b + 1) for a, b in zip(starts.tolist(), ends.tolist())]
-                            or [np.zeros(0, np.int64)])
-    if frames.size == 0:
-        return out
-    # feature vectors repeat for many frames in a row: compute each distinct one once
-    distinct, inverse = np.unique(np.ascontiguousarray(packed)[frames], axis=0,
-                                  return_inverse=True)
-    got = np.empty(distinct.shape[0])
-    n = np.array([distinct.shape[0] - 1], np.int64)
-    _best_column(np.ascontiguousarray(distinct), masks, vals, 1.0 / nnz,
-                 np.zeros(1, np.int64), n, got)
-    out[frames] = got[inverse.reshape(-1)]
+    for a, b in zip(starts.tolist(), ends.tolist()):
+        out[a:b + 1] = got[inverse[a:b + 1]]
     return out
 
 
-def relative_evidence(evidence: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True)
+def _prefix(E, cum):
+    """cum[p, t] = E[p, 0] + … + E[p, t − 1], added in frame order."""
+    P, L = E.shape
+    for p in range(P):
+        acc = 0.0
+        cum[p, 0] = 0.0
+        for t in range(L):
+            acc += E[p, t]
+            cum[p, t + 1] = acc
+
+
+def relative_evidence(evidence: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Per-label evidence (labels × frames) minus the smallest of each frame: 0 for the
     label whose template fits the frame best, the margin behind it for the others. ∞
     entries (frames a label was not computed for: outside its candidate windows, where it
-    cannot claim frames) take no part in the minimum and become 0."""
-    E = np.asarray(evidence, dtype=np.float64)
-    if E.shape[0] == 0:
-        return E
-    finite = np.isfinite(E)
-    low = np.where(finite, E, np.inf).min(axis=0, keepdims=True)
-    return np.where(finite, E - np.where(np.isfinite(low), low, 0.0), 0.0)
+    cannot claim frames) take no part in the minimum and become 0. ``out`` (float64, the
+    evidence's shape; may be the evidence array itself) receives the result."""
+    E = np.ascontiguousarray(evidence, dtype=np.float64)
+    if out is None:
+        out = np.empty_like(E)
+    elif out.shape != E.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise MtannoError("out must be a C-contiguous float64 array of the evidence's shape")
+    if E.shape[0]:
+        _relative(E, out)
+    return out
+
+
+@numba.njit(cache=True)
+def _relative(E, out):
+    """out = E − (per column, the least finite entry); non-finite entries give 0."""
+    P, L = E.shape
+    low = np.full(L, np.inf)
+    for p in range(P):
+        for t in range(L):
+            e = E[p, t]
+            if e < low[t]:  # False for ∞ and NaN
+                low[t] = e
+    for p in range(P):
+        for t in range(L):
+            e = E[p, t]
+            out[p, t] = e - low[t] if np.isfinite(e) else 0.0

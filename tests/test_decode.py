@@ -113,6 +113,8 @@ def test_decoder_input_checks():
         decode_segments(d[None], s[None], tau=[0.1], slack=-1)
     with pytest.raises(MtannoError, match="needs evidence"):
         decode_segments(d[None], s[None], tau=[0.1], weight=0.5)
+    with pytest.raises(MtannoError, match="evidence must be ≥ 0"):
+        decode_segments(d[None], s[None], tau=[0.1], weight=0.5, evidence=-np.ones((1, 5)))
     with pytest.raises(MtannoError, match="boundaries"):
         decode_segments(d[None], s[None], tau=[0.1], boundaries=[5])
     with pytest.raises(MtannoError, match="one shape"):
@@ -175,12 +177,33 @@ def check_seeded(seed):
                rng.choice([0.0, 0.2], (P, L)).tolist(), 0.5 if seed % 2 else 0.0,
                [L // 2] if L > 2 else [], 1.5 if seed % 4 >= 2 else 0.0)
     check_against_oracles(problem)
+    # relative evidence against its definition (∞ entries: no part in the minimum, 0)
+    E = np.where(rng.random((P, L)) < 0.3, INF, rng.random((P, L)))
+    low = [min([E[p, t] for p in range(P) if np.isfinite(E[p, t])], default=0.0)
+           for t in range(L)]
+    want = [[E[p, t] - low[t] if np.isfinite(E[p, t]) else 0.0 for t in range(L)]
+            for p in range(P)]
+    assert relative_evidence(E).tolist() == want
 
 
 def test_decoder_without_jit():
     from nojit import run_without_jit
 
     run_without_jit("test_decode", "check_seeded", *[(s,) for s in range(12)])
+
+
+def test_distinct_frames_rebuild_the_document():
+    from mtanno.decode import distinct_frames
+
+    rng = np.random.default_rng(3)
+    for words in (1, 2):
+        P = rng.integers(0, 4, size=(50, words)).astype(np.uint64)
+        P = np.repeat(P, rng.integers(1, 5, size=50), axis=0)  # runs, as poses hold
+        rows, inv = distinct_frames(P)
+        assert np.array_equal(rows[inv], P)
+        assert len({tuple(r) for r in rows.tolist()}) == len(rows)
+    rows, inv = distinct_frames(np.zeros((0, 1), np.uint64))
+    assert rows.shape == (0, 1) and inv.shape == (0,)
 
 
 def test_frame_evidence_equals_its_definition():
@@ -203,6 +226,10 @@ def test_frame_evidence_equals_its_definition():
     assert np.array_equal(part[inside], full[inside]) and np.isinf(part[~inside]).all()
     rel = relative_evidence(np.array([[0.1, np.inf, np.inf], [0.3, 0.2, np.inf]]))
     assert np.allclose(rel, [[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])
+    E = np.array([[0.1, np.inf, np.inf], [0.3, 0.2, np.inf]])
+    assert relative_evidence(E, out=E) is E and np.allclose(E, rel)  # in place
+    with pytest.raises(MtannoError, match="out must be"):
+        relative_evidence(E, out=np.empty((3, 2)))
 
 
 def test_label_document_applies_tau_reject_and_several_templates():

@@ -151,7 +151,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
     "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
     for k asked (fewer when a group would be too small); template (1, 0) is the one learned
     from all examples, (k', i) group i of a split into k'."""
-    from mtanno.decode import frame_evidence
+    from mtanno.decode import distinct_frames, frame_evidence
     from mtanno.templates.learn import learn_template
     from mtanno.templates.match import PreparedTemplate, pack_document
     from mtanno.templates.model import quantize
@@ -170,6 +170,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
                 templates[(n, i)] = learn_template([e for e, g in zip(train, lab) if g == i],
                                                    class_name=cls, **learn)
     packed = pack_document(held_X, held_X.shape[0])
+    distinct = distinct_frames(packed) if evidence else None
     out = {}
     for delta in deltas:
         for key, mt in templates.items():
@@ -183,7 +184,8 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
                     seg[seg >= 0] += a
             else:
                 d, s = prep.match_spans(packed, spans[0], spans[1])
-            ev = frame_evidence(packed, q.values, spans=evidence_spans) if evidence else None
+            ev = frame_evidence(packed, q.values, spans=evidence_spans,
+                                distinct=distinct) if evidence else None
             out[(float(delta), *key)] = (d, s, ev)
     return {"groups": made, "match": out}
 
