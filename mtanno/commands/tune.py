@@ -63,8 +63,9 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     truth document) is held out in turn; templates are learned from the others, the
     held-out examples are composed into documents and annotated, and the parameters that
     score best over all folds are kept — per-class tau, a rejection ceiling per class,
-    the segment decoder (overlap resolution), boundary refinement, several templates
-    per class, frame-wise tie-breaking, the quantization delta. The objective is
+    the segment decoder (overlap resolution) and its cost per segment, boundary
+    refinement, several templates per class, frame-wise tie-breaking, the quantization
+    delta. The objective is
     (F1 + F2)/2 − w·U with U the unknown-class rate (each class left out in turn).
 
     Training examples come as for learn-mt (a manifest with --features-dir, --truth with
