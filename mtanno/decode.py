@@ -208,6 +208,8 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
 
 @numba.njit(cache=True)
 def _popcount(x):
+    """Set bits of a uint64 (SWAR). Kept in this file, as in the other kernel files: numba's
+    cache does not see a change of a kernel defined in another file."""
     x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
     x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
     x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
