@@ -111,15 +111,9 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
         print(f"  whole command {name} keyframes: {wall:.2f} s wall (median of {repeats})")
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--out", default=str(REPO / ".cache" / "bench" / "annotate"))
-    args = ap.parse_args()
-    if not SHARED.is_dir():
-        print(f"bench_annotate: {SHARED} not found; the benchmark needs the real data")
-        return 2
-    out = Path(args.out)
+def prepare(out: Path) -> tuple[Path, Path]:
+    """Templates of the 11 HDM05 classes (train split) and one document of all 44 actor-mm
+    clips in order, made once under ``out``: returns (manifest, the document's features)."""
     clips = SHARED / "hdm05_cut" / "clips.csv"
     if not (out / "mt").is_dir():
         run(["features", str(SHARED / "hdm05_cut"), "-o", str(out / "features"), "-j", "2", "-q"])
@@ -129,7 +123,19 @@ def main() -> int:
         run(["compose", str(clips), "--actor", "mm", "--docs", "1", "--in-order", "-o",
              str(out / "doc")])
         run(["features", str(out / "doc"), "-o", str(out / "docfeat"), "-q"])
-    src = next((out / "docfeat").glob("*.parquet"))
+    return clips, next((out / "docfeat").glob("*.parquet"))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--out", default=str(REPO / ".cache" / "bench" / "annotate"))
+    args = ap.parse_args()
+    if not SHARED.is_dir():
+        print(f"bench_annotate: {SHARED} not found; the benchmark needs the real data")
+        return 2
+    out = Path(args.out)
+    clips, src = prepare(out)
     print(f"machine: {machine()}; templates: 11 HDM05 classes")
     for minutes, jobs in ((60, 1), (60, 2)):
         doc = tiled(src, out / f"doc_{minutes}min.parquet", minutes * 60 * 30)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine  # noqa: E402
-from bench_annotate import REPO, SHARED, run, tiled, timed  # noqa: E402
+from bench_annotate import REPO, SHARED, prepare, run, tiled, timed  # noqa: E402
 
 
 def median_of(fn, n: int = 7) -> float:
@@ -46,15 +46,7 @@ def main() -> int:
         print(f"bench_tune: {SHARED} not found; the benchmark needs the real data")
         return 2
     out = Path(args.out)
-    clips = SHARED / "hdm05_cut" / "clips.csv"
-    if not (out / "mt").is_dir():
-        run(["features", str(SHARED / "hdm05_cut"), "-o", str(out / "features"), "-j", "2", "-q"])
-        run(["learn-mt", "--manifest", str(clips), "--features-dir", str(out / "features"),
-             "--split", "train", "-o", str(out / "mt"), "-q"])
-    if not (out / "docfeat").is_dir():
-        run(["compose", str(clips), "--actor", "mm", "--docs", "1", "--in-order", "-o",
-             str(out / "doc")])
-        run(["features", str(out / "doc"), "-o", str(out / "docfeat"), "-q"])
+    clips, src = prepare(out)
     if not (out / "kf").is_dir():
         run(["learn-keyframes", "--mt", str(out / "mt"), "--manifest", str(clips),
              "--features-dir", str(out / "features"), "--split", "train", "-o",
@@ -82,7 +74,6 @@ def main() -> int:
     from mtanno.keyframes import class_windows, load_keyframe_folder
     from mtanno.store import read_features
 
-    src = next((out / "docfeat").glob("*.parquet"))
     doc = tiled(src, out / "doc_60min.parquet", 60 * 60 * 30)
     ff = read_features(doc)
     queries = load_keyframe_folder(out / "kf")
