@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno.errors import MtannoError, read_input
-from mtanno.output import atomic_path
+from mtanno.output import atomic_path, write_bytes
 
 __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
            "common_layout", "document_files", "document_files_below", "feature_files",
@@ -204,22 +204,44 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     X = np.asarray(X)
     if X.ndim != 2 or X.shape[0] != len(names):
         raise MtannoError(f"feature matrix must be ({len(names)} × frames), got {X.shape}")
+    names = tuple(names)
+    if len(set(names)) != len(names) or "native_frame" in names:
+        raise MtannoError("feature names must be unique and differ from 'native_frame'",
+                          path=str(path))
     meta = _check_meta({"schema": FEATURES_SCHEMA, **meta}, str(path))
-    cols = {"native_frame": pa.array(np.asarray(native_frames, dtype=np.int32))}
-    for i, name in enumerate(names):
-        cols[name] = pa.array(X[i].astype(bool))
-    table = pa.table(cols)
-    table = table.replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True)})
+    n = X.shape[1]
+    # every feature row as a boolean array over one buffer of packed bits (the arrays
+    # pa.array(row.astype(bool)) gives, without a copy and a conversion per row)
+    bits = np.packbits(X != 0, axis=1, bitorder="little")
+    buf = pa.py_buffer(bits)
+    stride = bits.shape[1]
+    columns = [pa.array(np.asarray(native_frames, dtype=np.int32))]
+    columns += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
+                for i in range(len(names))]
+    table = pa.Table.from_arrays(columns, schema=_schema(names).with_metadata(
+        {META_KEY: json.dumps(meta, sort_keys=True)}))
     # No column statistics or dictionaries (readers take whole 0/1 columns); zstd only for
     # documents long enough to gain from it: a clip of a few seconds compresses by a few
     # percent, and the codec's per-column set-up was most of its writing time (archives of
     # short clips are written thousands at a time).
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, write_statistics=False, use_dictionary=False,
-                   compression="zstd" if X.shape[1] >= COMPRESS_FROM_FRAMES else "none")
-    data = sink.getvalue()
-    with atomic_path(path) as tmp:
-        Path(tmp).write_bytes(data.to_pybytes())
+                   compression="zstd" if n >= COMPRESS_FROM_FRAMES else "none")
+    write_bytes(path, sink.getvalue())
+
+
+_SCHEMAS: dict[tuple[str, ...], pa.Schema] = {}
+
+
+def _schema(names: tuple[str, ...]) -> pa.Schema:
+    """The Arrow schema of a feature file with these feature columns (built once)."""
+    schema = _SCHEMAS.get(names)
+    if schema is None:
+        if len(_SCHEMAS) > 16:
+            _SCHEMAS.clear()
+        schema = _SCHEMAS[names] = pa.schema(
+            [pa.field("native_frame", pa.int32())] + [pa.field(nm, pa.bool_()) for nm in names])
+    return schema
 
 
 def _found_feature_files(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:

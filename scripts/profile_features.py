@@ -60,6 +60,25 @@ def _timed(name: str, fn):
     return wrapper
 
 
+def _timed_cm(name: str, cm_fn):
+    """A context-manager function whose entering and leaving count under ``name``."""
+
+    @functools.wraps(cm_fn)
+    def wrapper(*args, **kwargs):
+        cm = cm_fn(*args, **kwargs)
+
+        class Timed:
+            def __enter__(self):
+                return _timed(name, cm.__enter__)()
+
+            def __exit__(self, *exc):
+                return _timed(name, cm.__exit__)(*exc)
+
+        return Timed()
+
+    return wrapper
+
+
 def _patch(module, attr: str, name: str) -> None:
     if hasattr(module, attr):
         setattr(module, attr, _timed(name, getattr(module, attr)))
@@ -102,11 +121,14 @@ def instrument() -> None:
         _patch(mod, "dumps", "write: metadata JSON")
     _patch(pq, "write_table", "write: Parquet encode")
     _patch(pa, "table", "write: Arrow table build")
-    _patch(store, "atomic_path", "write: atomic file (mkstemp, write, rename)")
-    _patch(output, "atomic_path", "write: atomic file (mkstemp, write, rename)")
-    for mod in (store, output, extract, io):
-        for attr in ("write_file", "_write_bytes"):
-            _patch(mod, attr, "write: atomic file (mkstemp, write, rename)")
+    fs_name = "write: file system (create, write, rename)"
+    for mod in (store, output):
+        if hasattr(mod, "atomic_path"):
+            mod.atomic_path = _timed_cm(fs_name, mod.atomic_path)
+        _patch(mod, "write_bytes", fs_name)
+    import pathlib
+
+    _patch(pathlib.Path, "write_bytes", fs_name)
 
 
 def worker_side(folder: Path, repeats: int) -> None:
