@@ -273,6 +273,8 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
     Call it before any work: the command then fails at once, with one line, and writes
     nothing.
     """
+    import stat
+
     folders: dict[str, str] = {}
 
     def resolved(p: Path) -> str:
@@ -280,7 +282,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
         # folders); a file that is itself a link is caught by its inode below
         parent = str(p.parent)
         if parent not in folders:
-            folders[parent] = str(p.parent.resolve())
+            folders[parent] = os.path.realpath(parent)
         return os.path.join(folders[parent], p.name)
 
     by_path: dict[str, str] = {}
@@ -290,11 +292,15 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
             continue
         p = Path(item)
         by_path.setdefault(resolved(p), str(item))
-        if p.is_symlink():  # also where it leads
-            by_path.setdefault(str(p.resolve()), str(item))
-        ident = _identity(p)
-        if ident is not None and p.is_file():
-            by_inode.setdefault(ident, str(item))
+        try:
+            st = os.lstat(p)
+            if stat.S_ISLNK(st.st_mode):  # also where it leads
+                by_path.setdefault(os.path.realpath(p), str(item))
+                st = os.stat(p)
+        except OSError:
+            continue
+        if stat.S_ISREG(st.st_mode):
+            by_inode.setdefault((st.st_dev, st.st_ino), str(item))
     seen: dict[str, str] = {}
     for item in outputs:
         if item is None or str(item) == "-":

@@ -86,6 +86,7 @@ def _patch(module, attr: str, name: str) -> None:
 
 def instrument() -> None:
     """Wrap the stages of one file (and of the batch around it) in timers."""
+    import hashlib
     import json as json_mod
 
     import pyarrow as pa
@@ -114,6 +115,7 @@ def instrument() -> None:
     _patch(features, "compute_features", "features")
     _patch(extract, "compute_features", "features")
     _patch(extract, "sha256_file", "SHA-256 of inputs")
+    _patch(hashlib, "sha256", "SHA-256 of inputs")
     _patch(extract, "_skeleton_digest", "SHA-256 of inputs")
     _patch(extract, "write_features", "write: Arrow table build")
     _patch(store, "_check_meta", "write: metadata JSON")
@@ -227,7 +229,8 @@ def pool_side(folder: Path, jobs: int) -> None:
     for name, t in sorted(totals.items(), key=lambda kv: -kv[1]):
         print(f"  {name:<58} {1000 * t / n:6.2f} ms/file")
     for name, t in sorted(parent_totals.items(), key=lambda kv: -kv[1]):
-        print(f"  parent: {name:<50} {1000 * t / n:6.2f} ms/file")
+        if t >= 0.0005 * n:
+            print(f"  parent: {name:<50} {1000 * t / n:6.2f} ms/file")
 
 
 _RUSAGE = r"""

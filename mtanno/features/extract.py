@@ -83,12 +83,12 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
     src = Path(src)
     if src.suffix.lower() == ".amc" and asf is None:
         asf = find_asf(src)
-    motion = read_motion(src, asf=asf, skeleton=skeleton)
+    motion = read_motion(src, asf=asf, skeleton=skeleton, sha256=True)
     X, native = features_from_motion(motion, feature_set=fs, up=up)
     meta = {
         "document": src.stem,
         "source": str(src),
-        "source_sha256": sha256_file(src),
+        "source_sha256": motion.source_sha256,
         "skeleton_file": None if asf is None else str(asf),
         "skeleton_file_sha256": None if asf is None else _skeleton_digest(Path(asf)),
         "rig": motion.rig.kind,
@@ -187,7 +187,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     for item in inputs:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.rglob("*") if q.is_file() and _is_motion(q))
+            found = sorted(q for q in p.rglob("*") if _is_motion(q) and q.is_file())
             for q in found:
                 rel = q.relative_to(p).with_suffix(".parquet")
                 jobs.append(Job(q, outdir / rel))

@@ -23,6 +23,7 @@ adds a rig by dropping a file there, or passes one with ``--skeleton``.
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 from dataclasses import dataclass
@@ -48,6 +49,7 @@ CANONICAL_JOINTS: tuple[str, ...] = (
 
 
 
+@functools.lru_cache(maxsize=1)
 def builtin_dir() -> Path:
     """Folder of the skeleton maps shipped with the package (package data)."""
     return Path(str(resources.files("mtanno") / "skeletons"))
@@ -182,13 +184,19 @@ def available_maps() -> list[SkeletonMap]:
     files = []
     for d in search_dirs():
         try:
-            dkey = (str(d), d.stat().st_mtime_ns)
+            dkey = (str(d), os.stat(d).st_mtime_ns)
         except OSError:
             continue
         if dkey not in _DIR_CACHE:
             _DIR_CACHE[dkey] = sorted(d.glob("*.toml"))
         files.extend(_DIR_CACHE[dkey])
-    key = tuple((str(f), f.stat().st_mtime_ns) for f in files if f.exists())
+    stamps = []
+    for f in files:
+        try:
+            stamps.append((str(f), os.stat(f).st_mtime_ns))
+        except OSError:  # gone since the folder was listed
+            continue
+    key = tuple(stamps)
     if key not in _MAP_CACHE:
         seen: dict[str, SkeletonMap] = {}
         for f in files:
