@@ -150,4 +150,7 @@ def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
     smap = smap if smap is not None else motion.smap
     if smap is None:
         smap = find_map(motion.rig)
-    return motion.positions[:, smap.indices(motion.rig, joints), :]
+    # np.take copies whole (x, y, z) rows into a C-contiguous array (fancy indexing of
+    # the middle axis gives a strided copy, several times slower, that the kernels copy
+    # again)
+    return np.take(motion.positions, smap.indices(motion.rig, joints), axis=1)

@@ -85,10 +85,11 @@ class SkeletonMap:
         names = set(names)
         return self.format == kind and all(n in names for n in self.detect)
 
-    @property
+    @functools.cached_property
     def digest(self) -> str:
         """SHA-256 of what the map says (not where it is): feature files record it, so
-        their features are recomputed when the map that made them changes."""
+        their features are recomputed when the map that made them changes (computed once
+        per map: a map does not change once read)."""
         import hashlib
         import json
 
