@@ -139,16 +139,23 @@ def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def whole_command(repeats: int, jobs: int = 2) -> dict:
+def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True) -> dict:
     """`mtanno features` as a whole command (process start-up, planning, workers, reading,
     writing) over many short clips into a new output folder: the marginal rate = native
     frames / (time for all files − time for one file), so the start-up is not counted
     (issue 12). Each figure is the median of ``repeats`` runs (all-files and one-file runs
     alternate, so a change of load hits both); the load average before and after is
-    printed, since other jobs on the machine change wall-clock figures. (Rewriting existing
-    outputs costs more: replacing a file on ext4 frees the old one's blocks, about 1.5 ms
-    here.)"""
+    printed, since other jobs on the machine change wall-clock figures, and so is the CPU
+    time (user + system, the command and its workers), which they change much less.
+
+    ``fresh``: every run writes into a folder of its own, all removed at the end. Otherwise
+    the one output folder is emptied before each run, as this benchmark did first; on an
+    ext4 file system without a journal (this machine's) that makes each new file's inode
+    allocation step over the inodes deleted in the last five minutes (``recently_deleted``
+    in the kernel's profile), a cost of the benchmark rather than of the command. (Rewriting
+    existing outputs costs more still: replacing a file frees the old one's blocks.)"""
     import os
+    import resource
     import shutil
     import subprocess
 
@@ -163,28 +170,45 @@ def whole_command(repeats: int, jobs: int = 2) -> dict:
     cmd = [str(exe), "features", "-q", "--force", "--jobs", str(jobs)]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    out = REPO / ".cache" / "bench" / "hdm05x3-out"
+    root = REPO / ".cache" / "bench" / "hdm05x3-out"
+    shutil.rmtree(root, ignore_errors=True)
+    runs = iter(range(1_000_000))
 
-    def wall(inputs) -> float:
-        shutil.rmtree(out, ignore_errors=True)  # new outputs, as for new clips (not timed)
+    def wall(inputs) -> tuple[float, float]:
+        """(wall s, CPU s) of one run."""
+        out = root / f"run{next(runs)}" if fresh else root
+        if not fresh:
+            shutil.rmtree(out, ignore_errors=True)  # (not timed)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t = time.perf_counter()
         subprocess.run([*cmd, *map(str, inputs), "-o", str(out)], check=True, env=env)
-        return time.perf_counter() - t
+        t = time.perf_counter() - t
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return t, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
 
     load_before = _load()
-    wall([one])  # warm the file cache and the kernels' on-disk cache
-    wall([tree])
-    t_alls, t_ones = [], []
-    for _ in range(max(3, repeats)):
-        t_alls.append(wall([tree]))
-        t_ones.append(wall([one]))
-    t_all, t_one = statistics.median(t_alls), statistics.median(t_ones)
+    try:
+        wall([one])  # warm the file cache and the kernels' on-disk cache
+        wall([tree])
+        alls, ones = [], []
+        for _ in range(max(3, repeats)):
+            alls.append(wall([tree]))
+            ones.append(wall([one]))
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    t_all, t_one = (statistics.median(t for t, _ in x) for x in (alls, ones))
+    c_all, c_one = (statistics.median(c for _, c in x) for x in (alls, ones))
     rate = frames / (t_all - t_one)
+    per_file = 1000 * (c_all - c_one) / (len(files) - 1)
+    how = "a new folder per run" if fresh else "one folder emptied before each run"
     print(f"whole command, {len(files)} files ({frames:,} native frames), --jobs {jobs}, "
-          f"median of {len(t_alls)}: {t_all:.2f} s (runs {' '.join(f'{t:.2f}' for t in t_alls)}"
-          f"); one file {t_one:.2f} s; marginal {rate:,.0f} native frames/s "
-          f"(target >= 100,000); load average before {load_before}, after {_load()}")
-    return {"files": len(files), "frames": frames, "all": t_all, "one": t_one, "rate": rate}
+          f"{how}, median of {len(alls)}: {t_all:.2f} s (runs "
+          f"{' '.join(f'{t:.2f}' for t, _ in alls)}); one file {t_one:.2f} s; marginal "
+          f"{rate:,.0f} native frames/s (target >= 100,000); CPU {c_all:.2f} s, one file "
+          f"{c_one:.2f} s: {per_file:.2f} ms per file; load average before {load_before}, "
+          f"after {_load()}")
+    return {"files": len(files), "frames": frames, "all": t_all, "one": t_one, "rate": rate,
+            "cpu_all": c_all, "cpu_one": c_one, "cpu_per_file_ms": per_file}
 
 
 def main() -> int:
@@ -200,6 +224,7 @@ def main() -> int:
     print(f"machine: {machine()}")
     if args.whole_only:
         whole_command(args.repeats)
+        whole_command(args.repeats, fresh=False)
         return 0
     print(f"repeats: {args.repeats} (median), one warm-up pass; single process (one core)\n")
     hdm = sorted((SHARED_DATA / "hdm05_cut").glob("*/*.amc"))
@@ -219,6 +244,7 @@ def main() -> int:
           f"mtanno on the original 6-channel files: {bvh['parse_fk']:,.0f} frames/s")
     if not args.quick:
         whole_command(args.repeats)
+        whole_command(args.repeats, fresh=False)
     return 0
 
 
