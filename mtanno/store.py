@@ -21,6 +21,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from mtanno import _parquet
 from mtanno.errors import MtannoError, read_input
 from mtanno.output import atomic_path, write_bytes
 
@@ -210,16 +211,28 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
                           path=str(path))
     meta = _check_meta({"schema": FEATURES_SCHEMA, **meta}, str(path))
     n = X.shape[1]
-    # every feature row as a boolean array over one buffer of packed bits (the arrays
-    # pa.array(row.astype(bool)) gives, without a copy and a conversion per row)
+    native_frames = np.asarray(native_frames, dtype=np.int32)
+    if native_frames.shape != (n,):
+        raise MtannoError(f"native_frames must have one frame per column ({n}), got "
+                          f"{native_frames.shape}", path=str(path))
+    text = json.dumps(meta, sort_keys=True)
+    schema = _schema(names).with_metadata({META_KEY: text})
+    # every feature row as packed bits, little-endian: Parquet's PLAIN booleans and Arrow's
+    # boolean arrays alike
     bits = np.packbits(X != 0, axis=1, bitorder="little")
+    short = 0 < n < min(COMPRESS_FROM_FRAMES, _parquet.MOST_ROWS)
+    created_by = _parquet.available() if short else None
+    if created_by is not None:  # a short clip: its bytes assembled directly (see _parquet)
+        write_bytes(path, _parquet.encode(names, native_frames, bits, n, META_KEY,
+                                          text.encode("utf-8"), _parquet.arrow_schema(schema),
+                                          created_by))
+        return
     buf = pa.py_buffer(bits)
     stride = bits.shape[1]
-    columns = [pa.array(np.asarray(native_frames, dtype=np.int32))]
+    columns = [pa.array(native_frames)]
     columns += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
                 for i in range(len(names))]
-    table = pa.Table.from_arrays(columns, schema=_schema(names).with_metadata(
-        {META_KEY: json.dumps(meta, sort_keys=True)}))
+    table = pa.Table.from_arrays(columns, schema=schema)
     # No column statistics or dictionaries (readers take whole 0/1 columns); zstd only for
     # documents long enough to gain from it: a clip of a few seconds compresses by a few
     # percent, and the codec's per-column set-up was most of its writing time (archives of

@@ -122,6 +122,10 @@ def instrument() -> None:
     for mod in (json_mod,):
         _patch(mod, "dumps", "write: metadata JSON")
     _patch(pq, "write_table", "write: Parquet encode")
+    import mtanno._parquet as direct
+
+    _patch(direct, "encode", "write: Parquet encode")
+    _patch(direct, "arrow_schema", "write: Parquet encode")
     _patch(pa, "table", "write: Arrow table build")
     fs_name = "write: file system (create, write, rename)"
     for mod in (store, output):
