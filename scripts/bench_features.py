@@ -139,7 +139,8 @@ def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True) -> dict:
+def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True, tree: Path | None = None,
+                  out: Path | None = None) -> dict:
     """`mtanno features` as a whole command (process start-up, planning, workers, reading,
     writing) over many short clips into a new output folder: the marginal rate = native
     frames / (time for all files − time for one file), so the start-up is not counted
@@ -153,13 +154,17 @@ def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True) -> dict:
     ext4 file system without a journal (this machine's) that makes each new file's inode
     allocation step over the inodes deleted in the last five minutes (``recently_deleted``
     in the kernel's profile), a cost of the benchmark rather than of the command. (Rewriting
-    existing outputs costs more still: replacing a file frees the old one's blocks.)"""
+    existing outputs costs more still: replacing a file frees the old one's blocks.)
+
+    ``tree`` (the clips) and ``out`` (the folder that receives the output folders) default
+    to ``.cache/bench`` of this checkout; give both to compare two checkouts on the same
+    files and folders."""
     import os
     import resource
     import shutil
     import subprocess
 
-    tree = tripled_tree(REPO / ".cache" / "bench" / "hdm05x3")
+    tree = tripled_tree(tree or REPO / ".cache" / "bench" / "hdm05x3")
     files = sorted(tree.rglob("*.amc"))
     one = files[0]
     from mtanno.io import read_motion
@@ -170,7 +175,7 @@ def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True) -> dict:
     cmd = [str(exe), "features", "-q", "--force", "--jobs", str(jobs)]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    root = REPO / ".cache" / "bench" / "hdm05x3-out"
+    root = out or REPO / ".cache" / "bench" / "hdm05x3-out"
     shutil.rmtree(root, ignore_errors=True)
     runs = iter(range(1_000_000))
 
@@ -217,14 +222,19 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="a few files only (smoke run)")
     ap.add_argument("--whole-only", action="store_true",
                     help="only the whole-command figure (issue 12)")
+    ap.add_argument("--tree", type=Path, help="the tripled HDM05 tree (whole command)")
+    ap.add_argument("--out", type=Path, help="where the whole command writes (removed after)")
+    ap.add_argument("--fresh-only", action="store_true",
+                    help="whole command into new folders only (not also into an emptied one)")
     args = ap.parse_args()
     if not SHARED_DATA.is_dir():
         print(f"bench_features: {SHARED_DATA} not found; the benchmark needs the real data")
         return 2
     print(f"machine: {machine()}")
     if args.whole_only:
-        whole_command(args.repeats)
-        whole_command(args.repeats, fresh=False)
+        whole_command(args.repeats, tree=args.tree, out=args.out)
+        if not args.fresh_only:
+            whole_command(args.repeats, fresh=False, tree=args.tree, out=args.out)
         return 0
     print(f"repeats: {args.repeats} (median), one warm-up pass; single process (one core)\n")
     hdm = sorted((SHARED_DATA / "hdm05_cut").glob("*/*.amc"))
@@ -243,8 +253,9 @@ def main() -> int:
           f"{peer:,.0f} frames/s = {same['parse_fk'] / peer:.1f}x (target >= 2x); "
           f"mtanno on the original 6-channel files: {bvh['parse_fk']:,.0f} frames/s")
     if not args.quick:
-        whole_command(args.repeats)
-        whole_command(args.repeats, fresh=False)
+        whole_command(args.repeats, tree=args.tree, out=args.out)
+        if not args.fresh_only:
+            whole_command(args.repeats, fresh=False, tree=args.tree, out=args.out)
     return 0
 
 
