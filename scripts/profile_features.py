@@ -80,7 +80,7 @@ def _timed_cm(name: str, cm_fn):
 
 
 def _patch(module, attr: str, name: str) -> None:
-    if hasattr(module, attr):
+    if module is not None and hasattr(module, attr):
         setattr(module, attr, _timed(name, getattr(module, attr)))
 
 
@@ -122,8 +122,10 @@ def instrument() -> None:
     for mod in (json_mod,):
         _patch(mod, "dumps", "write: metadata JSON")
     _patch(pq, "write_table", "write: Parquet encode")
-    import mtanno._parquet as direct
-
+    try:
+        import mtanno._parquet as direct
+    except ImportError:  # a checkout before the direct encoder
+        direct = None
     _patch(direct, "encode", "write: Parquet encode")
     _patch(direct, "arrow_schema", "write: Parquet encode")
     _patch(pa, "table", "write: Arrow table build")
@@ -137,24 +139,25 @@ def instrument() -> None:
     _patch(pathlib.Path, "write_bytes", fs_name)
 
 
-def worker_side(folder: Path, repeats: int) -> None:
-    """The batch in this process, one job, every stage timed; best total of ``repeats``."""
+def worker_side(folder: Path, repeats: int, where: Path | None = None) -> None:
+    """The batch in this process, one job, every stage timed; best total of ``repeats``.
+    Each pass writes into a new folder (all removed at the end: see bench_features.py on
+    files deleted just before)."""
     from mtanno.features.extract import plan_batch, run_batch
 
-    out = Path(tempfile.mkdtemp(prefix="mtanno-profile-"))
+    out = Path(tempfile.mkdtemp(prefix="mtanno-profile-", dir=where))
     try:
-        jobs = plan_batch([folder], out)
+        jobs = plan_batch([folder], out / "warm")
         run_batch(jobs[:20], force=True)  # load kernels, caches of the ASF files
         instrument()
         import mtanno.features.extract as extract
 
         runs = []
-        for _ in range(repeats):
+        for k in range(repeats):
             TOTALS.clear()
             CALLS.clear()
-            shutil.rmtree(out, ignore_errors=True)
             t0 = time.process_time()
-            jobs = extract.plan_batch([folder], out)
+            jobs = extract.plan_batch([folder], out / f"pass{k}")
             s = extract.run_batch(jobs, force=True)
             total = time.process_time() - t0
             runs.append((total, dict(TOTALS), s))
@@ -184,14 +187,14 @@ def _report_at_exit(folder: str) -> None:
     util.Finalize(None, report, exitpriority=10)
 
 
-def pool_side(folder: Path, jobs: int) -> None:
+def pool_side(folder: Path, jobs: int, where: Path | None = None) -> None:
     """The batch in a pool of ``jobs`` workers started here (the timers inherited through
     fork); each worker reports its timers and its whole CPU time at exit, so the time
     outside the timed stages (task passing, result pickling, the pool's threads) shows."""
     import mtanno.workers as workers
     from mtanno.features.extract import plan_batch, run_batch
 
-    out = Path(tempfile.mkdtemp(prefix="mtanno-profile-"))
+    out = Path(tempfile.mkdtemp(prefix="mtanno-profile-", dir=where))
     reports = Path(tempfile.mkdtemp(prefix="mtanno-profile-reports-"))
     init = workers._init_worker
 
@@ -201,8 +204,8 @@ def pool_side(folder: Path, jobs: int) -> None:
         _report_at_exit(str(reports))
 
     try:
-        jobs_list = plan_batch([folder], out)
-        run_batch(jobs_list[:20], force=True)  # kernels loaded before the workers fork
+        run_batch(plan_batch([folder], out / "warm")[:20], force=True)  # kernels loaded
+        jobs_list = plan_batch([folder], out / "run")
         instrument()
         workers._init_worker = init_and_report
         TOTALS.clear()
@@ -253,7 +256,6 @@ def _whole(inputs: list[str], out: Path, jobs: int) -> tuple[float, float, float
     """(wall s, parent CPU s, workers CPU s) of one whole command."""
     import os
 
-    shutil.rmtree(out, ignore_errors=True)
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     t = time.perf_counter()
     r = subprocess.run([sys.executable, "-c", _RUSAGE, "features", "-q", "--force",
@@ -265,13 +267,13 @@ def _whole(inputs: list[str], out: Path, jobs: int) -> tuple[float, float, float
     return wall, parent, children
 
 
-def whole_side(folder: Path, repeats: int, jobs: int) -> None:
+def whole_side(folder: Path, repeats: int, jobs: int, where: Path | None = None) -> None:
     files = sorted(folder.rglob("*.amc"))
-    out = Path(tempfile.mkdtemp(prefix="mtanno-profile-"))
+    out = Path(tempfile.mkdtemp(prefix="mtanno-profile-", dir=where))
     try:
-        _whole([str(files[0])], out, jobs)
-        alls = [_whole([str(folder)], out, jobs) for _ in range(repeats)]
-        ones = [_whole([str(files[0])], out, jobs) for _ in range(repeats)]
+        _whole([str(files[0])], out / "warm", jobs)
+        alls = [_whole([str(folder)], out / f"all{k}", jobs) for k in range(repeats)]
+        ones = [_whole([str(files[0])], out / f"one{k}", jobs) for k in range(repeats)]
     finally:
         shutil.rmtree(out, ignore_errors=True)
     med = [statistics.median(r[i] for r in alls) for i in range(3)]
@@ -294,16 +296,17 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--whole", action="store_true", help="also the whole command (parent side)")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", type=Path, help="folder for the outputs (default: a temporary one)")
     args = ap.parse_args()
     if not args.folder.is_dir():
         from bench_features import tripled_tree
 
         tripled_tree(args.folder)
     print(f"machine: {machine()}")
-    worker_side(args.folder, args.repeats)
-    pool_side(args.folder, args.jobs)
+    worker_side(args.folder, args.repeats, args.out)
+    pool_side(args.folder, args.jobs, args.out)
     if args.whole:
-        whole_side(args.folder, args.repeats, args.jobs)
+        whole_side(args.folder, args.repeats, args.jobs, args.out)
     print(json.dumps({"load_after": __import__("os").getloadavg()}))
     return 0
 
