@@ -163,7 +163,8 @@ def worker_side(folder: Path, repeats: int, where: Path | None = None) -> None:
             runs.append((total, dict(TOTALS), s))
         total, totals, s = min(runs, key=lambda r: r[0])
     finally:
-        shutil.rmtree(out, ignore_errors=True)
+        if where is None:  # a folder given is left as it is (deleting many files just
+            shutil.rmtree(out, ignore_errors=True)  # before slows the next ones' creation)
     n = len(jobs)
     frames = sum(o.frames for o in s.outcomes)
     known = sum(totals.values())
@@ -218,7 +219,8 @@ def pool_side(folder: Path, jobs: int, where: Path | None = None) -> None:
         got = [json.loads(p.read_text()) for p in reports.glob("*.json")]
     finally:
         workers._init_worker = init
-        shutil.rmtree(out, ignore_errors=True)
+        if where is None:  # a folder given is left as it is (deleting many files just
+            shutil.rmtree(out, ignore_errors=True)  # before slows the next ones' creation)
         shutil.rmtree(reports, ignore_errors=True)
     n = len(jobs_list)
     assert not s.failed
@@ -275,7 +277,8 @@ def whole_side(folder: Path, repeats: int, jobs: int, where: Path | None = None)
         alls = [_whole([str(folder)], out / f"all{k}", jobs) for k in range(repeats)]
         ones = [_whole([str(files[0])], out / f"one{k}", jobs) for k in range(repeats)]
     finally:
-        shutil.rmtree(out, ignore_errors=True)
+        if where is None:  # a folder given is left as it is (deleting many files just
+            shutil.rmtree(out, ignore_errors=True)  # before slows the next ones' creation)
     med = [statistics.median(r[i] for r in alls) for i in range(3)]
     one = [statistics.median(r[i] for r in ones) for i in range(3)]
     n = len(files) - 1
@@ -296,7 +299,8 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--whole", action="store_true", help="also the whole command (parent side)")
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--out", type=Path, help="folder for the outputs (default: a temporary one)")
+    ap.add_argument("--out", type=Path,
+                    help="folder for the outputs, kept (default: a temporary one, removed)")
     args = ap.parse_args()
     if not args.folder.is_dir():
         from bench_features import tripled_tree
