@@ -302,6 +302,8 @@ def main() -> int:
     ap.add_argument("--out", type=Path,
                     help="folder for the outputs, kept (default: a temporary one, removed)")
     args = ap.parse_args()
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
     if not args.folder.is_dir():
         from bench_features import tripled_tree
 
