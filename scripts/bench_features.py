@@ -158,7 +158,8 @@ def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True, tree: Path
 
     ``tree`` (the clips) and ``out`` (the folder that receives the output folders) default
     to ``.cache/bench`` of this checkout; give both to compare two checkouts on the same
-    files and folders."""
+    files and folders. Outputs written into a given ``out`` are left there, so that a run
+    that follows is not slowed by their deletion."""
     import os
     import resource
     import shutil
@@ -176,12 +177,13 @@ def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True, tree: Path
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
     root = out or REPO / ".cache" / "bench" / "hdm05x3-out"
-    shutil.rmtree(root, ignore_errors=True)
+    if out is None:
+        shutil.rmtree(root, ignore_errors=True)
     runs = iter(range(1_000_000))
 
     def wall(inputs) -> tuple[float, float]:
         """(wall s, CPU s) of one run."""
-        out = root / f"run{next(runs)}" if fresh else root
+        out = root / f"run{next(runs)}" if fresh else root / "emptied"
         if not fresh:
             shutil.rmtree(out, ignore_errors=True)  # (not timed)
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -200,7 +202,8 @@ def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True, tree: Path
             alls.append(wall([tree]))
             ones.append(wall([one]))
     finally:
-        shutil.rmtree(root, ignore_errors=True)
+        if out is None:
+            shutil.rmtree(root, ignore_errors=True)
     t_all, t_one = (statistics.median(t for t, _ in x) for x in (alls, ones))
     c_all, c_one = (statistics.median(c for _, c in x) for x in (alls, ones))
     rate = frames / (t_all - t_one)
