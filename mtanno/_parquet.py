@@ -26,9 +26,14 @@ import numpy as np
 MOST_ROWS = 1024
 
 _INT32, _BOOLEAN = 1, 0  # parquet physical types
+_BYTES = [bytes((i,)) for i in range(256)]
 
 
 def _varint(v: int) -> bytes:
+    if v < 0x80:
+        return _BYTES[v]
+    if v < 0x4000:
+        return bytes(((v & 0x7F) | 0x80, v >> 7))
     out = bytearray()
     while v >= 0x80:
         out.append((v & 0x7F) | 0x80)

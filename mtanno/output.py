@@ -277,13 +277,24 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
 
     folders: dict[str, str] = {}
 
-    def resolved(p: Path) -> str:
+    def in_folder(parent: str, name: str) -> str:
         # the folder resolved once per folder (batches name thousands of files in a few
         # folders); a file that is itself a link is caught by its inode below
-        parent = str(p.parent)
         if parent not in folders:
             folders[parent] = os.path.realpath(parent)
-        return os.path.join(folders[parent], p.name)
+        return os.path.join(folders[parent], name)
+
+    def resolved(p: Path) -> str:
+        return in_folder(str(p.parent), p.name)
+
+    def link_target(p: Path) -> str:
+        # where a symbolic link leads (os.path.realpath), its folder resolved once per
+        # folder as above; a link to a link is left to realpath
+        target = os.path.join(str(p.parent), os.readlink(p))
+        folder, name = os.path.split(target)
+        if name in ("", ".", "..") or os.path.islink(target):
+            return os.path.realpath(p)
+        return in_folder(folder or ".", name)
 
     by_path: dict[str, str] = {}
     by_inode: dict[tuple[int, int], str] = {}
@@ -295,7 +306,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
         try:
             st = os.lstat(p)
             if stat.S_ISLNK(st.st_mode):  # also where it leads
-                by_path.setdefault(os.path.realpath(p), str(item))
+                by_path.setdefault(link_target(p), str(item))
                 st = os.stat(p)
         except OSError:
             continue

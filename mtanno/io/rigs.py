@@ -166,10 +166,19 @@ def load_map(path: str | os.PathLike) -> SkeletonMap:
 
 def search_dirs() -> list[Path]:
     """Directories searched for skeleton maps, first match wins."""
-    dirs = [Path(p) for p in os.environ.get("MTANNO_SKELETON_PATH", "").split(os.pathsep) if p]
+    env = os.environ
+    return list(_search_dirs(env.get("MTANNO_SKELETON_PATH", ""), env.get("XDG_CONFIG_HOME", ""),
+                             env.get("HOME")))
+
+
+@functools.lru_cache(maxsize=8)
+def _search_dirs(extra: str, xdg: str, home: str | None) -> tuple[Path, ...]:
+    """:func:`search_dirs` for these values of the variables it depends on (a batch asks
+    once per file)."""
+    dirs = [Path(p) for p in extra.split(os.pathsep) if p]
     dirs.append(user_dir())
     dirs.append(builtin_dir())
-    return dirs
+    return tuple(dirs)
 
 
 _MAP_CACHE: dict[tuple, list[SkeletonMap]] = {}
