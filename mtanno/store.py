@@ -218,8 +218,9 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     text = json.dumps(meta, sort_keys=True)
     schema = _schema(names).with_metadata({META_KEY: text})
     # every feature row as packed bits, little-endian: Parquet's PLAIN booleans and Arrow's
-    # boolean arrays alike
-    bits = np.packbits(X != 0, axis=1, bitorder="little")
+    # boolean arrays alike; each row's bytes together, also for a matrix in Fortran order
+    # (packbits keeps the memory order of its input)
+    bits = np.ascontiguousarray(np.packbits(X != 0, axis=1, bitorder="little"))
     short = 0 < n < min(COMPRESS_FROM_FRAMES, _parquet.MOST_ROWS)
     created_by = _parquet.available() if short else None
     if created_by is not None:  # a short clip: its bytes assembled directly (see _parquet)

@@ -133,3 +133,15 @@ def test_write_rejects_duplicate_names_and_wrong_frames(tmp_path):
         write_features(tmp_path / "x.parquet", np.zeros((40, 5)), FEATURE_NAMES, np.arange(4) + 1,
                        {"analysis_fps": 30.0, "feature_set": "x"})
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("n", [50, 3000])
+def test_write_a_matrix_in_any_memory_order(tmp_path, n):
+    """A transposed (Fortran-order) matrix is written as its rows, short or long."""
+    X = (np.random.default_rng(5).random((n, 40)) < 0.5).astype(np.uint8).T
+    assert not X.flags.c_contiguous
+    meta = {"analysis_fps": 30.0, "feature_set": "mr06-ak40"}
+    write_features(tmp_path / "x.parquet", X, FEATURE_NAMES, np.arange(n) + 1, meta)
+    assert np.array_equal(read_features(tmp_path / "x.parquet").X, X)
+    assert (tmp_path / "x.parquet").read_bytes() == _pyarrow_bytes(X, FEATURE_NAMES,
+                                                                    np.arange(n) + 1, meta)
