@@ -228,14 +228,25 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
     if first is None:
         return None
     first_no, layout = first
-    names, offs, program, tokens_per_frame, dest, missing = _kernel_plan(layout, skel)
-    # Upper bound on the frame count: every frame has at least two bytes per token.
-    # np.zeros maps pages lazily, so the untouched rest of the bound costs no memory.
-    max_frames = len(body) // (2 * tokens_per_frame) + 2
-    ch = _empty_channels(max_frames, skel, fps, fill_offset=False)
-    frames, status, _ = _np.parse_frames(
-        np.frombuffer(body, dtype=np.uint8), *program, first_no, names, offs, *dest,
-        ch.angles, ch.trans, _np.POW10, False)
+    plan = _kernel_plan(layout, skel)
+    names, offs, program, tokens_per_frame, dest, missing, seen = plan
+    # Room for the frames: the upper bound is that every frame has at least two bytes per
+    # token, several times the real count (np.zeros maps its pages lazily, but a fresh
+    # mapping of that size costs more than the parse of a short clip). So first room for
+    # what the shortest frames of this layout seen so far (``seen``, bytes per frame) give,
+    # with a margin; a file with more frames than that is read again with the bound.
+    bound = len(body) // (2 * tokens_per_frame) + 2
+    guess = min(bound, int(len(body) / (0.75 * seen[0])) + 2) if seen[0] else bound
+    data = np.frombuffer(body, dtype=np.uint8)
+    for room in (guess, bound) if guess < bound else (bound,):
+        ch = _empty_channels(room, skel, fps, fill_offset=False)
+        frames, status, _ = _np.parse_frames(data, *program, first_no, names, offs, *dest,
+                                             ch.angles, ch.trans, _np.POW10, False)
+        if not (status == _np.BAD and frames == room):  # not stopped for want of room
+            break
+    if status == _np.OK and frames:
+        per_frame = len(body) / frames
+        seen[0] = min(seen[0], per_frame) if seen[0] else per_frame
     if status == _np.INEXACT:
         layout_values = _tokenised_parse(body, layout)
         return None if layout_values is None else _to_channels(*layout_values, skel, fps)
@@ -250,8 +261,8 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
 def _kernel_plan(layout, skel: AsfSkeleton):
     """What the parse kernel needs for frames of this layout: (bone names as bytes, their
     offsets, token program, tokens per frame, value destinations, root translation axes
-    without a channel). Cached on the skeleton per layout, as :func:`_destinations`: a
-    batch of files of one ASF builds it once."""
+    without a channel, [fewest bytes per frame seen so far]). Cached on the skeleton per
+    layout, as :func:`_destinations`: a batch of files of one ASF builds it once."""
     key = tuple(layout)
     cache = skel.__dict__.setdefault("_plan_cache", {})
     if key not in cache:
@@ -260,7 +271,7 @@ def _kernel_plan(layout, skel: AsfSkeleton):
         dest = _destinations(layout, skel)
         missing = sorted({0, 1, 2} - set(dest[2][dest[0] == _np.TO_TRANS].tolist()))
         cache[key] = (np.frombuffer(b"".join(encoded), np.uint8), offs, _program(layout),
-                      1 + sum(1 + n for _, n in layout), dest, missing)
+                      1 + sum(1 + n for _, n in layout), dest, missing, [0.0])
     return cache[key]
 
 
