@@ -54,7 +54,7 @@ def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
     """:func:`read_input` for a text format: also rejects an empty file and one with a NUL
     byte (binary), naming the line."""
     raw = read_input(path, what=what)
-    if not raw.strip():
+    if not raw or raw.isspace():  # (as ``not raw.strip()``, without copying the bytes)
         raise MtannoError("file is empty", path=str(path), line=1)
     nul = raw.find(b"\x00")
     if nul >= 0:

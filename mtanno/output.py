@@ -24,14 +24,13 @@ import contextlib
 import os
 import re
 import socket
-import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from mtanno.errors import MtannoError
 
 __all__ = ["atomic_path", "check_outputs", "current_umask", "remove_stale_temporaries",
-           "write_text"]
+           "write_bytes", "write_text"]
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
@@ -129,6 +128,65 @@ def make_folder(folder: str | os.PathLike) -> Path:
     return folder
 
 
+def _check_target(target: Path) -> bool:
+    """False if ``target`` exists and is not a regular file (``/dev/null``, a FIFO): it is
+    written in place, since renaming over a device would replace it. A folder, or a
+    location the file system refuses, is a :class:`MtannoError`."""
+    import stat
+
+    try:
+        st = os.stat(target)
+    except (FileNotFoundError, NotADirectoryError):
+        return True
+    except OSError as exc:
+        raise _write_error(target, exc) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise MtannoError("output is a folder, not a file", path=str(target))
+    return stat.S_ISREG(st.st_mode)
+
+
+def _temporary(target: Path, mode: int) -> tuple[int, str]:
+    """Create the temporary file beside ``target``: (open descriptor, its path).
+
+    Its name is ``.NAME.HOST-PID.XXXXXXXX.tmp`` (eight random characters); it is created
+    with ``O_EXCL`` and permissions ``mode``, which the kernel reduces by the umask as for
+    any ``open`` (no ``chmod`` afterwards). The folder is created when missing."""
+    remove_stale_temporaries(target.parent)
+    prefix = os.path.join(str(target.parent), f".{target.name}.{_HOST}-{os.getpid()}.")
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) \
+        | getattr(os, "O_BINARY", 0)
+    made_folder = False
+    for _ in range(100):  # as tempfile.mkstemp: another name when one is taken
+        tmp = prefix + os.urandom(5).hex()[:8] + TMP_SUFFIX
+        try:
+            return os.open(tmp, flags, mode), tmp
+        except FileExistsError:
+            continue
+        except FileNotFoundError as exc:  # the folder does not exist yet
+            if made_folder:
+                raise _write_error(target, exc) from None
+            make_folder(target.parent)
+            made_folder = True
+        except OSError as exc:
+            raise _write_error(target, exc) from None
+    raise _write_error(target, FileExistsError(f"no free temporary name beside {target}"))
+
+
+def _replace(tmp: str, target: Path, fd: int | None = None) -> None:
+    """Rename ``tmp`` over ``target`` (closing ``fd`` first); on any failure or
+    interruption the temporary file is removed and ``target`` left as it was."""
+    try:
+        if fd is not None:
+            os.close(fd)
+        os.replace(tmp, target)
+    except BaseException as exc:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise _write_error(target, exc) from None
+        raise
+
+
 @contextlib.contextmanager
 def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it over ``target`` on success.
@@ -140,37 +198,14 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
     file system (unwritable folder, a file where a folder should be, disk full) are raised
     as :class:`MtannoError` naming ``target``.
     """
-    import stat
-
     target = Path(target)
-    try:
-        st = os.stat(target)
-    except (FileNotFoundError, NotADirectoryError):
-        st = None
-    except OSError as exc:
-        raise _write_error(target, exc) from None
-    if st is not None and stat.S_ISDIR(st.st_mode):
-        raise MtannoError("output is a folder, not a file", path=str(target))
-    if st is not None and not stat.S_ISREG(st.st_mode):
+    if not _check_target(target):
         yield target
         return
-    remove_stale_temporaries(target.parent)
-    prefix = f".{target.name}.{_HOST}-{os.getpid()}."
+    fd, tmp = _temporary(target, mode)
     try:
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=TMP_SUFFIX, dir=target.parent)
-        except FileNotFoundError:  # the folder does not exist yet
-            make_folder(target.parent)
-            fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=TMP_SUFFIX, dir=target.parent)
-    except OSError as exc:
-        raise _write_error(target, exc) from None
-    try:
-        try:
-            os.fchmod(fd, mode & ~current_umask())
-        finally:
-            os.close(fd)
+        os.close(fd)
         yield Path(tmp)
-        os.replace(tmp, target)
     except OSError as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -179,6 +214,33 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    _replace(tmp, target)
+
+
+def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
+    """Write ``data`` (bytes or any buffer) to ``target`` atomically, as :func:`atomic_path`
+    does (same temporary file, same permissions, same errors), but through the descriptor
+    the temporary file was created with: one ``open`` per output, for writers of many
+    small files (``mtanno features``)."""
+    target = Path(target)
+    if not _check_target(target):  # written in place, as atomic_path's caller would
+        with open(target, "wb") as fh:
+            fh.write(data)
+        return
+    fd, tmp = _temporary(target, mode)
+    try:
+        view = memoryview(data).cast("B")
+        while view:
+            view = view[os.write(fd, view):]
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise _write_error(target, exc) from None
+        raise
+    _replace(tmp, target, fd)
 
 
 def write_text(target: str | os.PathLike, text: str) -> None:
@@ -211,15 +273,28 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
     Call it before any work: the command then fails at once, with one line, and writes
     nothing.
     """
+    import stat
+
     folders: dict[str, str] = {}
 
-    def resolved(p: Path) -> str:
+    def in_folder(parent: str, name: str) -> str:
         # the folder resolved once per folder (batches name thousands of files in a few
         # folders); a file that is itself a link is caught by its inode below
-        parent = str(p.parent)
         if parent not in folders:
-            folders[parent] = str(p.parent.resolve())
-        return os.path.join(folders[parent], p.name)
+            folders[parent] = os.path.realpath(parent)
+        return os.path.join(folders[parent], name)
+
+    def resolved(p: Path) -> str:
+        return in_folder(str(p.parent), p.name)
+
+    def link_target(p: Path) -> str:
+        # where a symbolic link leads (os.path.realpath), its folder resolved once per
+        # folder as above; a link to a link is left to realpath
+        target = os.path.join(str(p.parent), os.readlink(p))
+        folder, name = os.path.split(target)
+        if name in ("", ".", "..") or os.path.islink(target):
+            return os.path.realpath(p)
+        return in_folder(folder or ".", name)
 
     by_path: dict[str, str] = {}
     by_inode: dict[tuple[int, int], str] = {}
@@ -228,11 +303,15 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
             continue
         p = Path(item)
         by_path.setdefault(resolved(p), str(item))
-        if p.is_symlink():  # also where it leads
-            by_path.setdefault(str(p.resolve()), str(item))
-        ident = _identity(p)
-        if ident is not None and p.is_file():
-            by_inode.setdefault(ident, str(item))
+        try:
+            st = os.lstat(p)
+            if stat.S_ISLNK(st.st_mode):  # also where it leads
+                by_path.setdefault(link_target(p), str(item))
+                st = os.stat(p)
+        except OSError:
+            continue
+        if stat.S_ISREG(st.st_mode):
+            by_inode.setdefault((st.st_dev, st.st_ino), str(item))
     seen: dict[str, str] = {}
     for item in outputs:
         if item is None or str(item) == "-":

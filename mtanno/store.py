@@ -21,8 +21,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from mtanno import _parquet
 from mtanno.errors import MtannoError, read_input
-from mtanno.output import atomic_path
+from mtanno.output import atomic_path, write_bytes
 
 __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
            "common_layout", "document_files", "document_files_below", "feature_files",
@@ -204,22 +205,57 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     X = np.asarray(X)
     if X.ndim != 2 or X.shape[0] != len(names):
         raise MtannoError(f"feature matrix must be ({len(names)} × frames), got {X.shape}")
+    names = tuple(names)
+    if len(set(names)) != len(names) or "native_frame" in names:
+        raise MtannoError("feature names must be unique and differ from 'native_frame'",
+                          path=str(path))
     meta = _check_meta({"schema": FEATURES_SCHEMA, **meta}, str(path))
-    cols = {"native_frame": pa.array(np.asarray(native_frames, dtype=np.int32))}
-    for i, name in enumerate(names):
-        cols[name] = pa.array(X[i].astype(bool))
-    table = pa.table(cols)
-    table = table.replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True)})
+    n = X.shape[1]
+    native_frames = np.asarray(native_frames, dtype=np.int32)
+    if native_frames.shape != (n,):
+        raise MtannoError(f"native_frames must have one frame per column ({n}), got "
+                          f"{native_frames.shape}", path=str(path))
+    text = json.dumps(meta, sort_keys=True)
+    schema = _schema(names).with_metadata({META_KEY: text})
+    # every feature row as packed bits, little-endian: Parquet's PLAIN booleans and Arrow's
+    # boolean arrays alike; each row's bytes together, also for a matrix in Fortran order
+    # (packbits keeps the memory order of its input)
+    bits = np.ascontiguousarray(np.packbits(X != 0, axis=1, bitorder="little"))
+    short = 0 < n < min(COMPRESS_FROM_FRAMES, _parquet.MOST_ROWS)
+    created_by = _parquet.available() if short else None
+    if created_by is not None:  # a short clip: its bytes assembled directly (see _parquet)
+        write_bytes(path, _parquet.encode(names, native_frames, bits, n, META_KEY,
+                                          text.encode("utf-8"), _parquet.arrow_schema(schema),
+                                          created_by))
+        return
+    buf = pa.py_buffer(bits)
+    stride = bits.shape[1]
+    columns = [pa.array(native_frames)]
+    columns += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
+                for i in range(len(names))]
+    table = pa.Table.from_arrays(columns, schema=schema)
     # No column statistics or dictionaries (readers take whole 0/1 columns); zstd only for
     # documents long enough to gain from it: a clip of a few seconds compresses by a few
     # percent, and the codec's per-column set-up was most of its writing time (archives of
     # short clips are written thousands at a time).
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, write_statistics=False, use_dictionary=False,
-                   compression="zstd" if X.shape[1] >= COMPRESS_FROM_FRAMES else "none")
-    data = sink.getvalue()
-    with atomic_path(path) as tmp:
-        Path(tmp).write_bytes(data.to_pybytes())
+                   compression="zstd" if n >= COMPRESS_FROM_FRAMES else "none")
+    write_bytes(path, sink.getvalue())
+
+
+_SCHEMAS: dict[tuple[str, ...], pa.Schema] = {}
+
+
+def _schema(names: tuple[str, ...]) -> pa.Schema:
+    """The Arrow schema of a feature file with these feature columns (built once)."""
+    schema = _SCHEMAS.get(names)
+    if schema is None:
+        if len(_SCHEMAS) > 16:
+            _SCHEMAS.clear()
+        schema = _SCHEMAS[names] = pa.schema(
+            [pa.field("native_frame", pa.int32())] + [pa.field(nm, pa.bool_()) for nm in names])
+    return schema
 
 
 def _found_feature_files(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:

@@ -10,7 +10,7 @@ also timed on the original files.
 Every figure is the median over ``--repeats`` passes after one warm-up pass (which loads
 the numba kernels from their cache); the warm-up pass is reported as "cold". Run:
 
-    .venv/bin/python scripts/bench_features.py [--repeats 5] [--quick]
+    .venv/bin/python scripts/bench_features.py [--repeats 5] [--quick] [--whole-only]
 """
 
 from __future__ import annotations
@@ -133,48 +133,112 @@ def tripled_tree(dst: Path) -> Path:
     return dst
 
 
-def whole_command(repeats: int) -> None:
+def _load() -> str:
+    import os
+
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def whole_command(repeats: int, jobs: int = 2, *, fresh: bool = True, tree: Path | None = None,
+                  out: Path | None = None) -> dict:
     """`mtanno features` as a whole command (process start-up, planning, workers, reading,
     writing) over many short clips into a new output folder: the marginal rate = native
     frames / (time for all files − time for one file), so the start-up is not counted
-    (issue 12). (Rewriting existing outputs costs more: replacing a file on ext4 frees the
-    old one's blocks, about 1.5 ms here.)"""
+    (issue 12). Each figure is the median of ``repeats`` runs (all-files and one-file runs
+    alternate, so a change of load hits both); the load average before and after is
+    printed, since other jobs on the machine change wall-clock figures, and so is the CPU
+    time (user + system, the command and its workers), which they change much less.
+
+    ``fresh``: every run writes into a folder of its own, all removed at the end. Otherwise
+    the one output folder is emptied before each run, as this benchmark did first; on an
+    ext4 file system without a journal (this machine's) that makes each new file's inode
+    allocation step over the inodes deleted in the last five minutes (``recently_deleted``
+    in the kernel's profile), a cost of the benchmark rather than of the command. (Rewriting
+    existing outputs costs more still: replacing a file frees the old one's blocks.)
+
+    ``tree`` (the clips) and ``out`` (the folder that receives the output folders) default
+    to ``.cache/bench`` of this checkout; give both to compare two checkouts on the same
+    files and folders. Outputs written into a given ``out`` are left there, so that a run
+    that follows is not slowed by their deletion."""
+    import os
+    import resource
+    import shutil
     import subprocess
 
-    tree = tripled_tree(REPO / ".cache" / "bench" / "hdm05x3")
+    tree = tripled_tree(tree or REPO / ".cache" / "bench" / "hdm05x3")
     files = sorted(tree.rglob("*.amc"))
     one = files[0]
     from mtanno.io import read_motion
 
     frames = sum(read_motion(f).n_frames for f in files)
-    cmd = [str(REPO / ".venv" / "bin" / "mtanno"), "features", "-q", "--force", "--jobs", "2"]
-    out = REPO / ".cache" / "bench" / "hdm05x3-out"
+    # the command of this checkout (the venv's entry point, this tree first on the path)
+    exe = Path(sys.executable).with_name("mtanno")
+    cmd = [str(exe), "features", "-q", "--force", "--jobs", str(jobs)]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    root = out or REPO / ".cache" / "bench" / "hdm05x3-out"
+    if out is None:
+        shutil.rmtree(root, ignore_errors=True)
+    runs = iter(range(1_000_000))
 
-    def wall(inputs) -> float:
-        import shutil
-
-        shutil.rmtree(out, ignore_errors=True)  # new outputs, as for new clips (not timed)
+    def wall(inputs) -> tuple[float, float]:
+        """(wall s, CPU s) of one run."""
+        out = root / f"run{next(runs)}" if fresh else root / "emptied"
+        if not fresh:
+            shutil.rmtree(out, ignore_errors=True)  # (not timed)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t = time.perf_counter()
-        subprocess.run([*cmd, *map(str, inputs), "-o", str(out)], check=True)
-        return time.perf_counter() - t
+        subprocess.run([*cmd, *map(str, inputs), "-o", str(out)], check=True, env=env)
+        t = time.perf_counter() - t
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return t, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
 
-    wall([one])  # warm the file cache and the kernels' on-disk cache
-    t_all = statistics.median(wall([tree]) for _ in range(repeats))
-    t_one = statistics.median(wall([one]) for _ in range(repeats))
-    print(f"whole command, {len(files)} files ({frames:,} native frames), --jobs 2: "
-          f"{t_all:.2f} s; one file {t_one:.2f} s; marginal {frames / (t_all - t_one):,.0f} "
-          f"native frames/s (target >= 100,000)")
+    load_before = _load()
+    try:
+        wall([one])  # warm the file cache and the kernels' on-disk cache
+        wall([tree])
+        alls, ones = [], []
+        for _ in range(max(3, repeats)):
+            alls.append(wall([tree]))
+            ones.append(wall([one]))
+    finally:
+        if out is None:
+            shutil.rmtree(root, ignore_errors=True)
+    t_all, t_one = (statistics.median(t for t, _ in x) for x in (alls, ones))
+    c_all, c_one = (statistics.median(c for _, c in x) for x in (alls, ones))
+    rate = frames / (t_all - t_one)
+    per_file = 1000 * (c_all - c_one) / (len(files) - 1)
+    how = "a new folder per run" if fresh else "one folder emptied before each run"
+    print(f"whole command, {len(files)} files ({frames:,} native frames), --jobs {jobs}, "
+          f"{how}, median of {len(alls)}: {t_all:.2f} s (runs "
+          f"{' '.join(f'{t:.2f}' for t, _ in alls)}); one file {t_one:.2f} s; marginal "
+          f"{rate:,.0f} native frames/s (target >= 100,000); CPU {c_all:.2f} s, one file "
+          f"{c_one:.2f} s: {per_file:.2f} ms per file; load average before {load_before}, "
+          f"after {_load()}")
+    return {"files": len(files), "frames": frames, "all": t_all, "one": t_one, "rate": rate,
+            "cpu_all": c_all, "cpu_one": c_one, "cpu_per_file_ms": per_file}
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="a few files only (smoke run)")
+    ap.add_argument("--whole-only", action="store_true",
+                    help="only the whole-command figure (issue 12)")
+    ap.add_argument("--tree", type=Path, help="the tripled HDM05 tree (whole command)")
+    ap.add_argument("--out", type=Path, help="where the whole command writes (removed after)")
+    ap.add_argument("--fresh-only", action="store_true",
+                    help="whole command into new folders only (not also into an emptied one)")
     args = ap.parse_args()
     if not SHARED_DATA.is_dir():
         print(f"bench_features: {SHARED_DATA} not found; the benchmark needs the real data")
         return 2
     print(f"machine: {machine()}")
+    if args.whole_only:
+        whole_command(args.repeats, tree=args.tree, out=args.out)
+        if not args.fresh_only:
+            whole_command(args.repeats, fresh=False, tree=args.tree, out=args.out)
+        return 0
     print(f"repeats: {args.repeats} (median), one warm-up pass; single process (one core)\n")
     hdm = sorted((SHARED_DATA / "hdm05_cut").glob("*/*.amc"))
     set1 = bandai_clips("set1.tar.xz")
@@ -192,7 +256,9 @@ def main() -> int:
           f"{peer:,.0f} frames/s = {same['parse_fk'] / peer:.1f}x (target >= 2x); "
           f"mtanno on the original 6-channel files: {bvh['parse_fk']:,.0f} frames/s")
     if not args.quick:
-        whole_command(args.repeats)
+        whole_command(args.repeats, tree=args.tree, out=args.out)
+        if not args.fresh_only:
+            whole_command(args.repeats, fresh=False, tree=args.tree, out=args.out)
     return 0
 
 

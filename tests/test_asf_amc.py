@@ -227,3 +227,24 @@ def test_unknown_suffix(tmp_path):
     p.write_bytes(b"abc")
     with pytest.raises(MtannoError, match="unknown motion file type '.c3d'"):
         read_motion(p)
+
+
+def test_amc_room_for_frames_from_earlier_files(tmp_path):
+    """The parser sizes its arrays from the frames of earlier files of the same skeleton;
+    a file of much shorter frames (more frames for its size) is read again with room for
+    all, and reads as it does on its own."""
+    from mtanno.io import _cached_asf
+    from mtanno.io.amc import read_amc
+
+    long_ = synth.write_pair(tmp_path, stem="long", n_frames=20)
+    rounded = [ln if ln.isdigit() or ln.startswith((":", "#")) else
+               ln.split()[0] + " " + " ".join(str(round(float(v))) for v in ln.split()[1:])
+               for ln in synth.amc_text(400).splitlines()]
+    short = tmp_path / "short.amc"
+    short.write_text("\n".join(rounded) + "\n")
+    skel = _cached_asf(tmp_path / "synth.asf")
+    read_amc(long_, skel)  # the skeleton has seen 20 frames of long numbers
+    ch = read_amc(short, skel)
+    alone = read_amc(short, read_asf(tmp_path / "synth.asf"))
+    assert ch.n_frames == alone.n_frames == 400
+    assert np.array_equal(ch.angles, alone.angles) and np.array_equal(ch.trans, alone.trans)

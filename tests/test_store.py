@@ -78,3 +78,70 @@ def test_atomic_path_writes_a_fifo_in_place(tmp_path):
     reader.join()
     assert got == [b"hello"] and fifo.is_fifo()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]
+
+
+# ------------------------------------------------------- short files written directly (_parquet)
+
+def _pyarrow_bytes(X, names, native, meta) -> bytes:
+    """A feature file as pyarrow writes it with write_features' options (the reference)."""
+    table = pa.table({"native_frame": pa.array(np.asarray(native, dtype=np.int32)),
+                      **{nm: pa.array(X[i].astype(bool)) for i, nm in enumerate(names)}})
+    table = table.replace_schema_metadata(
+        {b"mtanno": json.dumps({"schema": "mtanno.features/1", **meta}, sort_keys=True)})
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink, write_statistics=False, use_dictionary=False,
+                   compression="zstd" if X.shape[1] >= 1024 else "none")
+    return sink.getvalue().to_pybytes()
+
+
+def test_short_files_are_byte_identical_to_pyarrow_for_every_length(tmp_path):
+    from mtanno import _parquet
+    from mtanno.features import get_feature_set
+
+    assert _parquet.available() is not None  # the direct encoder agrees with this pyarrow
+    rng = np.random.default_rng(3)
+    meta = {"analysis_fps": 30.0, "feature_set": "mr06-ak40", "source": "/d/ünï cödé.amc",
+            "native_frames": 0}
+    sets = [FEATURE_NAMES, get_feature_set("mrc05").names]
+    for n in range(1, 1030):
+        names = sets[n % 2]
+        X = (rng.random((len(names), n)) < rng.random()).astype(np.uint8)
+        native = np.arange(n) * 4 + 1
+        p = tmp_path / f"f{n}.parquet"
+        write_features(p, X, names, native, {**meta, "native_frames": 4 * n})
+        assert p.read_bytes() == _pyarrow_bytes(X, names, native, {**meta, "native_frames": 4 * n}), n
+    assert read_features(tmp_path / "f77.parquet").X.shape == (31, 77)
+
+
+def test_short_files_fall_back_to_pyarrow(tmp_path, monkeypatch):
+    from mtanno import _parquet
+
+    monkeypatch.setattr(_parquet, "_CHECKED", None)  # as if this pyarrow wrote other bytes
+    X = (np.random.default_rng(4).random((40, 9)) < 0.5).astype(np.uint8)
+    meta = {"analysis_fps": 30.0, "feature_set": "mr06-ak40"}
+    write_features(tmp_path / "x.parquet", X, FEATURE_NAMES, np.arange(9) + 1, meta)
+    assert (tmp_path / "x.parquet").read_bytes() == \
+        _pyarrow_bytes(X, FEATURE_NAMES, np.arange(9) + 1, meta)
+
+
+def test_write_rejects_duplicate_names_and_wrong_frames(tmp_path):
+    names = list(FEATURE_NAMES[:3]) + [FEATURE_NAMES[0]]
+    with pytest.raises(MtannoError, match="unique"):
+        write_features(tmp_path / "x.parquet", np.zeros((4, 5)), names, np.arange(5) + 1,
+                       {"analysis_fps": 30.0, "feature_set": "x"})
+    with pytest.raises(MtannoError, match="one frame per column"):
+        write_features(tmp_path / "x.parquet", np.zeros((40, 5)), FEATURE_NAMES, np.arange(4) + 1,
+                       {"analysis_fps": 30.0, "feature_set": "x"})
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("n", [50, 3000])
+def test_write_a_matrix_in_any_memory_order(tmp_path, n):
+    """A transposed (Fortran-order) matrix is written as its rows, short or long."""
+    X = (np.random.default_rng(5).random((n, 40)) < 0.5).astype(np.uint8).T
+    assert not X.flags.c_contiguous
+    meta = {"analysis_fps": 30.0, "feature_set": "mr06-ak40"}
+    write_features(tmp_path / "x.parquet", X, FEATURE_NAMES, np.arange(n) + 1, meta)
+    assert np.array_equal(read_features(tmp_path / "x.parquet").X, X)
+    assert (tmp_path / "x.parquet").read_bytes() == _pyarrow_bytes(X, FEATURE_NAMES,
+                                                                    np.arange(n) + 1, meta)

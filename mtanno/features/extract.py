@@ -83,12 +83,12 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
     src = Path(src)
     if src.suffix.lower() == ".amc" and asf is None:
         asf = find_asf(src)
-    motion = read_motion(src, asf=asf, skeleton=skeleton)
+    motion = read_motion(src, asf=asf, skeleton=skeleton, sha256=True)
     X, native = features_from_motion(motion, feature_set=fs, up=up)
     meta = {
         "document": src.stem,
         "source": str(src),
-        "source_sha256": sha256_file(src),
+        "source_sha256": motion.source_sha256,
         "skeleton_file": None if asf is None else str(asf),
         "skeleton_file_sha256": None if asf is None else _skeleton_digest(Path(asf)),
         "rig": motion.rig.kind,
@@ -187,7 +187,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     for item in inputs:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.rglob("*") if q.is_file() and _is_motion(q))
+            found = sorted(q for q in p.rglob("*") if _is_motion(q) and q.is_file())
             for q in found:
                 rel = q.relative_to(p).with_suffix(".parquet")
                 jobs.append(Job(q, outdir / rel))
@@ -264,16 +264,53 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
 
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
              up: str = "y") -> Outcome:
+    status, message, frames = _extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
+                                           up)
+    return Outcome(job, status, message, frames)
+
+
+def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
+                 feature_set: str, up: str) -> tuple[str, str, int]:
+    """One document: (status, message, analysis frames); every error is caught and
+    reported for this file alone, so the batch goes on."""
     try:
-        X, _ = extract_file(job.src, job.dst, asf=job.asf, skeleton=skeleton,
-                            feature_set=feature_set, up=up)
-        return Outcome(job, "written", frames=int(X.shape[1]))
+        X, _ = extract_file(src, dst, asf=asf, skeleton=skeleton, feature_set=feature_set,
+                            up=up)
+        return "written", "", int(X.shape[1])
     except MtannoError as exc:
-        return Outcome(job, "failed", str(exc))
+        return "failed", str(exc), 0
     except OSError as exc:  # a file system error not caught where it happened
-        return Outcome(job, "failed", f"{exc.filename or job.src}: {exc.strerror or exc}")
+        return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0
     except Exception as exc:  # a bug, reported per file so the batch goes on
-        return Outcome(job, "failed", f"{job.src}: internal error: {type(exc).__name__}: {exc}")
+        return "failed", f"{src}: internal error: {type(exc).__name__}: {exc}", 0
+
+
+def _run_chunk(items: list[tuple[Path, Path, Path | None]], skeleton: str | None,
+               feature_set: str, up: str) -> list[tuple[str, str, int]]:
+    """A task of a pool: several documents one after another, each failing alone. Tasks
+    carry paths and return (status, message, frames) per document: the parent keeps the
+    jobs, so nothing else crosses between the processes."""
+    return [_extract_one(src, dst, asf, skeleton, feature_set, up) for src, dst, asf in items]
+
+
+#: Most documents in one pool task. Short clips take a few milliseconds each, so one task
+#: per file spent much of its time passing tasks and results between processes; tasks of
+#: several files shrink that, and shrink towards the end of a batch (see :func:`_chunks`)
+#: so that no worker is left with a long task while the others are idle.
+CHUNK_FILES = 8
+
+
+def _chunks(n: int, workers: int, most: int = CHUNK_FILES) -> list[tuple[int, int]]:
+    """(start, stop) of the tasks for ``n`` documents on ``workers`` processes: up to
+    ``most`` documents per task, fewer as the batch nears its end (a task holds at most
+    1/(4 · workers) of what remains)."""
+    out = []
+    i = 0
+    while i < n:
+        size = max(1, min(most, (n - i) // (4 * max(1, workers))))
+        out.append((i, min(n, i + size)))
+        i += size
+    return out
 
 
 def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
@@ -289,26 +326,39 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     they stop with this process); ``scheduler`` sends them to a dask.distributed cluster
     instead (:class:`mtanno.workers.DaskPool`; same results). Outputs that are up to date
     (:func:`up_to_date`) are skipped unless ``force``. ``progress`` is called once per
-    finished job.
+    finished job, in the order of ``jobs``.
+
+    In a pool of local processes the first document is done here before the workers start:
+    the workers are forked from this process and inherit what it loaded (the compiled
+    kernels, the skeleton and its map) instead of each loading it again.
     """
-    from mtanno.workers import make_pool
+    from mtanno.workers import SerialPool, WorkerPool, make_pool
 
     feature_set = get_feature_set(feature_set).name
     to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work
     summary = Summary()
+
+    def record(o: Outcome) -> None:
+        summary.outcomes.append(o)
+        if progress:
+            progress(o)
+
     todo = []
     for j in jobs:
         if not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up):
-            o = Outcome(j, "skipped")
-            summary.outcomes.append(o)
-            if progress:
-                progress(o)
+            record(Outcome(j, "skipped"))
         else:
             todo.append(j)
     with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(todo)) as pool:
-        for o in pool.map(_run_one, [(j, skeleton, feature_set, up) for j in todo],
-                          chunksize=4):
-            summary.outcomes.append(o)
-            if progress:
-                progress(o)
+        if isinstance(pool, WorkerPool) and todo:
+            record(_run_one(todo[0], skeleton, feature_set, up))
+            todo = todo[1:]
+        # in this process one document per task, so progress is reported file by file
+        chunks = _chunks(len(todo), getattr(pool, "n_jobs", 1),
+                         1 if isinstance(pool, SerialPool) else CHUNK_FILES)
+        tasks = [([(j.src, j.dst, j.asf) for j in todo[a:b]], skeleton, feature_set, up)
+                 for a, b in chunks]
+        for (a, b), results in zip(chunks, pool.map(_run_chunk, tasks)):
+            for j, (status, message, frames) in zip(todo[a:b], results):
+                record(Outcome(j, status, message, frames))
     return summary

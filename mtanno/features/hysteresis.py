@@ -6,6 +6,7 @@ Spec: ``features.md`` §4 (``features_combine_robust``) and §6, ``algorithms.md
 from __future__ import annotations
 
 from fractions import Fraction
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -52,6 +53,12 @@ def hysteresis(on: np.ndarray, off: np.ndarray) -> np.ndarray:
     return out[0] if squeeze else out
 
 
+@lru_cache(maxsize=64)
+def _rate_ratio(fps: float, target_fps: float) -> Fraction:
+    """fps / target_fps as an exact fraction (each rate to within 1e-6, as written)."""
+    return Fraction(fps).limit_denominator(10**6) / Fraction(target_fps).limit_denominator(10**6)
+
+
 def analysis_frames(n_native: int, fps: float, target_fps: float = ANALYSIS_FPS) -> np.ndarray:
     """0-based native frame kept for each analysis frame (features.md §6).
 
@@ -61,7 +68,7 @@ def analysis_frames(n_native: int, fps: float, target_fps: float = ANALYSIS_FPS)
     """
     if n_native <= 0:
         return np.zeros(0, dtype=np.int64)
-    ratio = Fraction(fps).limit_denominator(10**6) / Fraction(target_fps).limit_denominator(10**6)
+    ratio = _rate_ratio(fps, target_fps)
     count = int((n_native - 1) / ratio) + 1  # k with k·ratio ≤ N − 1
     k = np.arange(count, dtype=np.int64)
     idx = (2 * k * ratio.numerator + ratio.denominator) // (2 * ratio.denominator)

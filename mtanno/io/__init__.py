@@ -50,7 +50,7 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
     """
     amc = Path(amc_path)
     stem = amc.stem
-    for folder in [amc.parent, *amc.resolve().parent.parents]:
+    for folder in _asf_folders(amc):
         asfs = _asf_files(folder)
         if not asfs:
             continue
@@ -69,16 +69,25 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
                       path=str(amc_path))
 
 
+def _asf_folders(amc: Path):
+    """Where :func:`find_asf` looks, in order: the AMC's folder as named, then the folders
+    above the folder of the file it resolves to (symbolic links followed only when the
+    first has no ASF)."""
+    yield amc.parent
+    yield from amc.resolve().parent.parents
+
+
 _ASF_CACHE: dict[tuple, object] = {}
 
 
 def _cached_asf(path: Path):
-    """read_asf, remembered per (path, size, mtime): a batch parses each skeleton once."""
+    """read_asf, remembered per (path, file identity, size, mtime): a batch parses each
+    skeleton once."""
     from mtanno.io.asf import read_asf
 
     try:
-        st = path.stat()
-        key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+        st = os.stat(path)
+        key = (str(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
     except OSError:
         return read_asf(path)  # raises the "file not found" error
     if key not in _ASF_CACHE:
@@ -89,8 +98,9 @@ def _cached_asf(path: Path):
 
 
 def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
-                  ) -> tuple[Rig, Channels]:
-    """Parse a motion file into its rig and per-frame channels (no kinematics yet)."""
+                  sha256: bool = False) -> tuple[Rig, Channels]:
+    """Parse a motion file into its rig and per-frame channels (no kinematics yet); with
+    ``sha256`` the channels carry the SHA-256 of the file's bytes as parsed."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix in MOCAP_SUFFIXES and not path.is_file():
@@ -101,16 +111,16 @@ def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = No
 
         asf_path = Path(asf) if asf is not None else find_asf(path)
         skel = _cached_asf(asf_path)
-        return skel.rig, read_amc(path, skel)
+        return skel.rig, read_amc(path, skel, sha256=sha256)
     if suffix == ".bvh":
         from mtanno.io.bvh import read_bvh
-        return read_bvh(path)
+        return read_bvh(path, sha256=sha256)
     raise MtannoError(f"unknown motion file type '{path.suffix}' (expected .amc or .bvh)",
                       path=str(path))
 
 
 def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
-                skeleton: str | os.PathLike | None = None) -> Motion:
+                skeleton: str | os.PathLike | None = None, sha256: bool = False) -> Motion:
     """Read a motion file and compute world positions of every node.
 
     Parameters
@@ -121,14 +131,17 @@ def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None
         The ASF skeleton of an AMC file; by default found with :func:`find_asf`.
     skeleton:
         A skeleton map (file or name) to use instead of the automatically detected one.
+    sha256:
+        Also give the SHA-256 of the file's bytes as parsed (``Motion.source_sha256``):
+        the file is read once for both.
     """
-    rig, ch = read_channels(path, asf=asf)
+    rig, ch = read_channels(path, asf=asf, sha256=sha256)
     smap = find_map(rig, skeleton)
     positions, heading = forward_kinematics(
         rig, ch.angles, ch.trans, ch.has_trans,
         heading_node=smap.heading_index(rig), heading_axis=smap.heading_axis)
     return Motion(rig=rig, positions=positions, heading=heading, fps=ch.fps, source=str(path),
-                  smap=smap)
+                  smap=smap, source_sha256=ch.sha256)
 
 
 def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
@@ -137,4 +150,7 @@ def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
     smap = smap if smap is not None else motion.smap
     if smap is None:
         smap = find_map(motion.rig)
-    return motion.positions[:, smap.indices(motion.rig, joints), :]
+    # np.take copies whole (x, y, z) rows into a C-contiguous array (fancy indexing of
+    # the middle axis gives a strided copy, several times slower, that the kernels copy
+    # again)
+    return np.take(motion.positions, smap.indices(motion.rig, joints), axis=1)

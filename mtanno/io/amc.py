@@ -12,6 +12,7 @@ a line-by-line parser whose only job is to name the first bad line.
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
@@ -61,8 +62,9 @@ def _header(raw: bytes, path: str) -> tuple[int, int, float]:
     return pos, nlines, fps
 
 
-def read_amc(path: str | os.PathLike, skel: AsfSkeleton) -> Channels:
-    """Read an AMC file against its ASF skeleton into :class:`Channels` (cm, radians)."""
+def read_amc(path: str | os.PathLike, skel: AsfSkeleton, *, sha256: bool = False) -> Channels:
+    """Read an AMC file against its ASF skeleton into :class:`Channels` (cm, radians);
+    with ``sha256`` the channels carry the SHA-256 of the bytes parsed."""
     spath = str(path)
     raw = read_text_input(path)
     body_at, header_lines, fps = _header(raw, spath)
@@ -71,6 +73,8 @@ def read_amc(path: str | os.PathLike, skel: AsfSkeleton) -> Channels:
         layout, values = _slow_parse(raw.decode("latin-1").splitlines(), header_lines, skel,
                                      spath)
         ch = _to_channels(layout, values, skel, fps)
+    if sha256:
+        ch.sha256 = hashlib.sha256(raw).hexdigest()
     return ch
 
 
@@ -121,18 +125,37 @@ def _first_layout(body: bytes, skel: AsfSkeleton):
         tokens = body.split()
     if not tokens or not _is_int(tokens[0]):
         return None
+    counts = _dof_counts(skel)
     layout: list[tuple[str, int]] = []
     i = 1
-    while i < len(tokens) and not _is_int(tokens[i]):
-        name = tokens[i].decode("latin-1")
-        n = _dof_count(skel, name)
+    n_tokens = len(tokens)
+    while i < n_tokens and not tokens[i].isdigit():
+        name = tokens[i]
+        n = counts.get(name)
         if n is None:
             return None
-        layout.append((name, n))
+        layout.append((name.decode("latin-1"), n))
         i += 1 + n
-    if not layout or i > len(tokens):
+    if not layout or i > n_tokens:
         return None
     return int(tokens[0]), layout
+
+
+def _dof_counts(skel: AsfSkeleton) -> dict[bytes, int]:
+    """:func:`_dof_count` of every bone, by its name as bytes (cached on the skeleton)."""
+    counts = skel.__dict__.get("_dof_counts")
+    if counts is None:
+        counts = {}
+        for name in ["root", *skel.dofs]:
+            n = _dof_count(skel, name)
+            try:
+                key = name.encode("latin-1")  # as the file's tokens are decoded
+            except UnicodeEncodeError:  # no token of an AMC file can name it
+                continue
+            if n is not None:
+                counts.setdefault(key, n)
+        skel.__dict__["_dof_counts"] = counts
+    return counts
 
 
 def _destinations(layout, skel: AsfSkeleton):
@@ -205,18 +228,25 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
     if first is None:
         return None
     first_no, layout = first
-    encoded = [name.encode("latin-1") for name, _ in layout]
-    offs = np.cumsum([0] + [len(e) for e in encoded]).astype(np.int64)
-    # Upper bound on the frame count: every frame has at least two bytes per token.
-    # np.zeros maps pages lazily, so the untouched rest of the bound costs no memory.
-    tokens_per_frame = 1 + sum(1 + n for _, n in layout)
-    max_frames = len(body) // (2 * tokens_per_frame) + 2
-    ch = _empty_channels(max_frames, skel, fps, fill_offset=False)
-    dest = _destinations(layout, skel)
-    frames, status, _ = _np.parse_frames(
-        np.frombuffer(body, dtype=np.uint8), *_program(layout), first_no,
-        np.frombuffer(b"".join(encoded), np.uint8), offs, *dest, ch.angles, ch.trans,
-        _np.POW10, False)
+    plan = _kernel_plan(layout, skel)
+    names, offs, program, tokens_per_frame, dest, missing, seen = plan
+    # Room for the frames: the upper bound is that every frame has at least two bytes per
+    # token, several times the real count (np.zeros maps its pages lazily, but a fresh
+    # mapping of that size costs more than the parse of a short clip). So first room for
+    # what the shortest frames of this layout seen so far (``seen``, bytes per frame) give,
+    # with a margin; a file with more frames than that is read again with the bound.
+    bound = len(body) // (2 * tokens_per_frame) + 2
+    guess = min(bound, int(len(body) / (0.75 * seen[0])) + 2) if seen[0] else bound
+    data = np.frombuffer(body, dtype=np.uint8)
+    for room in (guess, bound) if guess < bound else (bound,):
+        ch = _empty_channels(room, skel, fps, fill_offset=False)
+        frames, status, _ = _np.parse_frames(data, *program, first_no, names, offs, *dest,
+                                             ch.angles, ch.trans, _np.POW10, False)
+        if not (status == _np.BAD and frames == room):  # not stopped for want of room
+            break
+    if status == _np.OK and frames:
+        per_frame = len(body) / frames
+        seen[0] = min(seen[0], per_frame) if seen[0] else per_frame
     if status == _np.INEXACT:
         layout_values = _tokenised_parse(body, layout)
         return None if layout_values is None else _to_channels(*layout_values, skel, fps)
@@ -224,9 +254,25 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
         return None
     ch.angles = ch.angles[:frames]
     ch.trans = ch.trans[:frames]
-    missing = sorted({0, 1, 2} - set(dest[2][dest[0] == _np.TO_TRANS].tolist()))
     ch.trans[:, 0, missing] = skel.rig.offsets[0, missing]
     return ch
+
+
+def _kernel_plan(layout, skel: AsfSkeleton):
+    """What the parse kernel needs for frames of this layout: (bone names as bytes, their
+    offsets, token program, tokens per frame, value destinations, root translation axes
+    without a channel, [fewest bytes per frame seen so far]). Cached on the skeleton per
+    layout, as :func:`_destinations`: a batch of files of one ASF builds it once."""
+    key = tuple(layout)
+    cache = skel.__dict__.setdefault("_plan_cache", {})
+    if key not in cache:
+        encoded = [name.encode("latin-1") for name, _ in layout]
+        offs = np.cumsum([0] + [len(e) for e in encoded]).astype(np.int64)
+        dest = _destinations(layout, skel)
+        missing = sorted({0, 1, 2} - set(dest[2][dest[0] == _np.TO_TRANS].tolist()))
+        cache[key] = (np.frombuffer(b"".join(encoded), np.uint8), offs, _program(layout),
+                      1 + sum(1 + n for _, n in layout), dest, missing, [0.0])
+    return cache[key]
 
 
 def _tokenised_parse(body: bytes, layout):

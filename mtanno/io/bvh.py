@@ -27,6 +27,7 @@ NumPy's C text parser convert numbers outside the kernel's exact range. Every pr
 
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 import re
@@ -321,13 +322,15 @@ def _line_of(data: bytes, pos: int) -> int:
     return data.count(b"\n", 0, pos) + 1
 
 
-def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
+def read_bvh(path: str | os.PathLike, *, sha256: bool = False) -> tuple[Rig, Channels]:
     """Read a BVH file into its rig and per-frame channels (algorithms.md §1).
 
     Parameters
     ----------
     path:
         The ``.bvh`` file (ASCII, UTF-8 or Latin-1; LF, CRLF or CR line ends).
+    sha256:
+        Also give the SHA-256 of the file's bytes as read (``channels.sha256``).
 
     Returns
     -------
@@ -345,6 +348,7 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
     """
     spath = str(path)
     data = read_input(path)
+    digest = hashlib.sha256(data).hexdigest() if sha256 else None
     data = data.removeprefix(b"\xef\xbb\xbf").rstrip(b"\x1a")  # UTF-8 BOM, DOS end mark
     if not data.strip():
         raise MtannoError("the file is empty", path=spath, line=1)
@@ -504,7 +508,8 @@ def read_bvh(path: str | os.PathLike) -> tuple[Rig, Channels]:
             "n_channels": n_channels,
         },
     )
-    return rig, Channels(angles=angles, trans=trans, has_trans=has_trans, fps=fps)
+    return rig, Channels(angles=angles, trans=trans, has_trans=has_trans, fps=fps,
+                         sha256=digest)
 
 
 def _locate_bad_value(block: bytes, rows: np.ndarray, n_channels: int, first_data_line: int,

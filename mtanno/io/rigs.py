@@ -23,6 +23,7 @@ adds a rig by dropping a file there, or passes one with ``--skeleton``.
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 from dataclasses import dataclass
@@ -48,6 +49,7 @@ CANONICAL_JOINTS: tuple[str, ...] = (
 
 
 
+@functools.lru_cache(maxsize=1)
 def builtin_dir() -> Path:
     """Folder of the skeleton maps shipped with the package (package data)."""
     return Path(str(resources.files("mtanno") / "skeletons"))
@@ -83,10 +85,11 @@ class SkeletonMap:
         names = set(names)
         return self.format == kind and all(n in names for n in self.detect)
 
-    @property
+    @functools.cached_property
     def digest(self) -> str:
         """SHA-256 of what the map says (not where it is): feature files record it, so
-        their features are recomputed when the map that made them changes."""
+        their features are recomputed when the map that made them changes (computed once
+        per map: a map does not change once read)."""
         import hashlib
         import json
 
@@ -163,10 +166,19 @@ def load_map(path: str | os.PathLike) -> SkeletonMap:
 
 def search_dirs() -> list[Path]:
     """Directories searched for skeleton maps, first match wins."""
-    dirs = [Path(p) for p in os.environ.get("MTANNO_SKELETON_PATH", "").split(os.pathsep) if p]
+    env = os.environ
+    return list(_search_dirs(env.get("MTANNO_SKELETON_PATH", ""), env.get("XDG_CONFIG_HOME", ""),
+                             env.get("HOME")))
+
+
+@functools.lru_cache(maxsize=8)
+def _search_dirs(extra: str, xdg: str, home: str | None) -> tuple[Path, ...]:
+    """:func:`search_dirs` for these values of the variables it depends on (a batch asks
+    once per file)."""
+    dirs = [Path(p) for p in extra.split(os.pathsep) if p]
     dirs.append(user_dir())
     dirs.append(builtin_dir())
-    return dirs
+    return tuple(dirs)
 
 
 _MAP_CACHE: dict[tuple, list[SkeletonMap]] = {}
@@ -182,13 +194,19 @@ def available_maps() -> list[SkeletonMap]:
     files = []
     for d in search_dirs():
         try:
-            dkey = (str(d), d.stat().st_mtime_ns)
+            dkey = (str(d), os.stat(d).st_mtime_ns)
         except OSError:
             continue
         if dkey not in _DIR_CACHE:
             _DIR_CACHE[dkey] = sorted(d.glob("*.toml"))
         files.extend(_DIR_CACHE[dkey])
-    key = tuple((str(f), f.stat().st_mtime_ns) for f in files if f.exists())
+    stamps = []
+    for f in files:
+        try:
+            stamps.append((str(f), os.stat(f).st_mtime_ns))
+        except OSError:  # gone since the folder was listed
+            continue
+    key = tuple(stamps)
     if key not in _MAP_CACHE:
         seen: dict[str, SkeletonMap] = {}
         for f in files:

@@ -97,6 +97,9 @@ class Motion:
         Path of the motion file.
     smap:
         The :class:`~mtanno.io.rigs.SkeletonMap` used to find canonical joints.
+    source_sha256:
+        SHA-256 (hex) of the motion file's bytes as parsed, when the reader was asked for
+        it (``read_motion(..., sha256=True)``), else None.
     """
 
     rig: Rig
@@ -105,6 +108,7 @@ class Motion:
     fps: float
     source: str
     smap: Any = None
+    source_sha256: str | None = None
 
     @property
     def n_frames(self) -> int:
@@ -251,12 +255,15 @@ class Channels:
         (nodes,) bool: which nodes take their translation from ``trans``.
     fps:
         Native frame rate read from the file (frames per second).
+    sha256:
+        SHA-256 (hex) of the file's bytes as parsed, when the reader was asked for it.
     """
 
     angles: np.ndarray
     trans: np.ndarray
     has_trans: np.ndarray
     fps: float
+    sha256: str | None = None
 
     @property
     def n_frames(self) -> int:
