@@ -50,6 +50,32 @@ def scheduler_option(fn):
                              "docs/scaling.md.")(fn)
 
 
+def training_options(*, manifest_help: str, truth_help: str):
+    """``--manifest``, ``--features-dir``, ``--split`` and ``--truth``: where the training
+    examples of learn-mt, learn-keyframes and tune come from
+    (:func:`mtanno.templates.training.collect_sources`); ``manifest_help`` and ``truth_help``
+    say what each command makes of them."""
+    options = [
+        click.option("--manifest", type=click.Path(dir_okay=False), default=None,
+                     help=manifest_help),
+        click.option("--features-dir", type=click.Path(file_okay=False), default=None,
+                     help="With --manifest: folder holding the feature files, mirroring the "
+                          "manifest's file paths (DIR/<file>.parquet)."),
+        click.option("--split", default=None, metavar="NAME",
+                     help="With --manifest: use only rows whose split column is NAME "
+                          "(e.g. train)."),
+        click.option("--truth", type=click.Path(dir_okay=False), default=None,
+                     help=truth_help),
+    ]
+
+    def deco(fn):
+        for option in reversed(options):
+            fn = option(fn)
+        return fn
+
+    return deco
+
+
 def waiting_note(folder):
     """The ``on_wait`` callback of a folder lock: one line on standard error."""
     return lambda holder: click.echo(f"mtanno: waiting for {holder} to release {folder}",

@@ -14,6 +14,7 @@ from mtanno.commands._common import (
     lock_output,
     scheduler_option,
     show_progress,
+    training_options,
     user_errors,
     wait_option,
 )
@@ -29,15 +30,10 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
                    "refer to their columns.")
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
               help="Output folder; one CLASS.json keyframe query per class.")
-@click.option("--manifest", type=click.Path(dir_okay=False), default=None,
-              help="Manifest CSV (file,class[,split]) listing the training clips.")
-@click.option("--features-dir", type=click.Path(file_okay=False), default=None,
-              help="With --manifest: folder of the feature files (DIR/<file>.parquet).")
-@click.option("--split", default=None, metavar="NAME",
-              help="With --manifest: only rows whose split column is NAME.")
-@click.option("--truth", type=click.Path(dir_okay=False), default=None,
-              help="Truth table; every labelled segment of the TRAINING feature files is "
-                   "a training clip of its label.")
+@training_options(
+    manifest_help="Manifest CSV (file,class[,split]) listing the training clips.",
+    truth_help="Truth table; every labelled segment of the TRAINING feature files is a "
+               "training clip of its label.")
 @click.option("--method", type=click.Choice(["ga", "hard", "heuristic"]), default="ga",
               show_default=True,
               help="ga: genetic algorithm (MBS09 §6); hard: hard-template columns (thesis); "

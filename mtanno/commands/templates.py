@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mtanno.commands._common import lock_output, show_progress, user_errors, wait_option
+from mtanno.commands._common import lock_output, show_progress, training_options, user_errors, wait_option
 from mtanno.errors import MtannoError
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
@@ -27,17 +27,11 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
 @click.argument("training", nargs=-1, metavar="[TRAINING]...")
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
               help="Output folder; one CLASS.json per class is written there.")
-@click.option("--manifest", type=click.Path(dir_okay=False), default=None,
-              help="Manifest CSV with columns file,class[,split,...] listing the examples "
-                   "(no TRAINING arguments then).")
-@click.option("--features-dir", type=click.Path(file_okay=False), default=None,
-              help="With --manifest: folder holding the feature files, mirroring the "
-                   "manifest's file paths (DIR/<file>.parquet).")
-@click.option("--split", default=None, metavar="NAME",
-              help="With --manifest: use only rows whose split column is NAME (e.g. train).")
-@click.option("--truth", type=click.Path(dir_okay=False), default=None,
-              help="Truth table (doc,start,end,label[,fps]); every labelled segment of the "
-                   "TRAINING feature files is an example of its label.")
+@training_options(
+    manifest_help="Manifest CSV with columns file,class[,split,...] listing the examples (no "
+                  "TRAINING arguments then).",
+    truth_help="Truth table (doc,start,end,label[,fps]); every labelled segment of the "
+               "TRAINING feature files is an example of its label.")
 @click.option("--hard", is_flag=True,
               help="Learn hard templates (thesis §3.3: wildcard where examples disagree) "
                    "instead of soft ones (MR06 §4.1).")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import scheduler_option, user_errors
+from mtanno.commands._common import scheduler_option, training_options, user_errors
 from mtanno.tuning.cv import DOCUMENT_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
@@ -24,16 +24,11 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Class configuration to write (TOML); extra templates go to "
                    "CONFIG.templates/ beside it.")
-@click.option("--manifest", type=click.Path(dir_okay=False), default=None,
-              help="Manifest CSV (file,class[,actor,split]) listing the training clips; the "
-                   "actor column names the performers held out in turn.")
-@click.option("--features-dir", type=click.Path(file_okay=False), default=None,
-              help="With --manifest: folder of the feature files (DIR/<file>.parquet).")
-@click.option("--split", default=None, metavar="NAME",
-              help="With --manifest: only rows whose split column is NAME.")
-@click.option("--truth", type=click.Path(dir_okay=False), default=None,
-              help="Truth table; every labelled segment of the TRAINING feature files is an "
-                   "example, and each document is held out in turn.")
+@training_options(
+    manifest_help="Manifest CSV (file,class[,actor,split]) listing the training clips; the "
+                  "actor column names the performers held out in turn.",
+    truth_help="Truth table; every labelled segment of the TRAINING feature files is an "
+               "example, and each document is held out in turn.")
 @click.option("--documents", type=click.Choice(DOCUMENT_MODES), default="composed",
               show_default=True,
               help="How held-out clips become documents: composed (concatenated in random "
