@@ -167,10 +167,9 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     if weight > 0:
         if evidence is None or np.shape(evidence) != (P, L):
             raise MtannoError("a frame-evidence weight needs evidence of shape (labels × frames)")
-        if not (np.asarray(evidence) >= 0).all():
-            raise MtannoError("frame evidence must be ≥ 0 (relative_evidence gives that)")
         cum = np.empty((P, L + 1))
-        _prefix(np.ascontiguousarray(evidence, dtype=np.float64), cum)
+        if not _prefix(np.ascontiguousarray(evidence, dtype=np.float64), cum):
+            raise MtannoError("frame evidence must be ≥ 0 (relative_evidence gives that)")
     else:
         cum = np.zeros((P, 1))
     cuts = np.unique(np.asarray(boundaries, dtype=np.int64))
@@ -343,14 +342,20 @@ def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
 
 @numba.njit(cache=True)
 def _prefix(E, cum):
-    """cum[p, t] = E[p, 0] + … + E[p, t − 1], added in frame order."""
+    """cum[p, t] = E[p, 0] + … + E[p, t − 1], added in frame order; False if an entry is
+    negative or NaN (the decoder's pruning needs evidence ≥ 0)."""
     P, L = E.shape
+    ok = True
     for p in range(P):
         acc = 0.0
         cum[p, 0] = 0.0
         for t in range(L):
-            acc += E[p, t]
+            e = E[p, t]
+            if not e >= 0.0:
+                ok = False
+            acc += e
             cum[p, t + 1] = acc
+    return ok
 
 
 def relative_evidence(evidence: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
