@@ -623,14 +623,15 @@ def _class_delta(X, packed, c: ClassModel, windows, match_variant, delta, start)
                           f"{matcher.f}")
     L = X.shape[1]
     if windows is not None and c.name in windows:
-        starts, ends = _merged_spans(windows[c.name], L)
+        starts, ends = merged_spans(windows[c.name], L)
         matcher.match_spans(packed, starts, ends, out=(delta, start))
     else:
         matcher.run(packed, np.array([0, L], dtype=np.int64), out=(delta, start))
 
 
-def _merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
-    """Windows clipped to [0, L − 1], sorted, overlapping ones merged."""
+def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
+    """Windows (first, last frame; 0-based inclusive) clipped to [0, L − 1], sorted,
+    overlapping ones merged: (starts, ends), as the matchers take them."""
     merged: list[list[int]] = []
     for a, b in sorted((max(0, int(a)), min(L - 1, int(b))) for a, b in spans):
         if b < a:
@@ -685,7 +686,7 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
 
                 spans = None
                 if windows is not None and c.name in windows:  # only where c can be
-                    spans = _merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
+                    spans = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
                                            for a, b in windows[c.name]], L)
                 yield c.name, delta, start, frame_evidence(packed, c.values, spans=spans,
                                                            distinct=distinct)

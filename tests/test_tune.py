@@ -44,6 +44,28 @@ def test_tune_is_deterministic_for_a_seed(world, tmp_path):
         assert f.read_bytes() == (tmp_path / "b.templates" / f.name).read_bytes()
 
 
+def test_tune_with_keyframes_matches_inside_their_windows(world, tmp_path):
+    """tune --keyframes: held-out documents matched only inside the queries' windows (as
+    annotate --keyframes does); the same file whatever --jobs is, it lists the queries
+    among its inputs, and annotate reads it back with the same queries."""
+    kf = tmp_path / "kf"
+    r = cli("learn-keyframes", "--mt", world.mt, "--manifest", world.manifest,
+            "--features-dir", world.feats, "--split", "train", "--method", "hard", "-o", kf,
+            "-q")
+    assert r.exit_code == 0, r.output
+    train = ["--manifest", world.manifest, "--features-dir", world.feats, "--split", "train"]
+    for jobs in ("1", "2"):
+        r = cli("tune", "--mt", world.mt, "--keyframes", kf, *train, "-o",
+                tmp_path / f"t{jobs}.toml", "--jobs", jobs, "-q")
+        assert r.exit_code == 0, r.output
+    assert _config_body(tmp_path / "t1.toml") == _config_body(tmp_path / "t2.toml")
+    text = (tmp_path / "t1.toml").read_text()
+    assert all(str(q) in text for q in sorted(kf.glob("*.json")))
+    r = cli("annotate", "--mt", world.mt, "--classes", tmp_path / "t1.toml", "--keyframes", kf,
+            world.docfeats, "-o", tmp_path / "a.csv")
+    assert r.exit_code == 0, r.output
+
+
 def test_tuned_configuration_round_trips_through_annotate(world, tmp_path):
     cfg_path = tmp_path / "tuned.toml"
     r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",

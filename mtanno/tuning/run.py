@@ -75,18 +75,14 @@ def _learn_params(mt) -> dict:
 def _spans(windows_per_doc: list[list[tuple[int, int]]], offsets: np.ndarray, margin: int = 0):
     """Absolute merged spans of per-document windows, widened by ``margin`` within each
     document (as annotate widens a document's windows for the frame evidence)."""
-    starts, ends = [], []
+    from mtanno.annotate import merged_spans
+
+    starts, ends = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     for (a, b), wins in zip(zip(offsets[:-1], offsets[1:]), windows_per_doc):
-        for s, e in sorted(wins):
-            s, e = max(0, s - margin), min(int(b - a) - 1, e + margin)
-            if e < s:
-                continue
-            if starts and a + s <= ends[-1]:
-                ends[-1] = max(ends[-1], a + e)
-            else:
-                starts.append(a + s)
-                ends.append(a + e)
-    return np.array(starts, np.int64), np.array(ends, np.int64)
+        s, e = merged_spans([(s - margin, e + margin) for s, e in wins], int(b - a))
+        starts.append(s + a)
+        ends.append(e + a)
+    return np.concatenate(starts), np.concatenate(ends)
 
 
 def _final_groups(cls: str, examples: list[TrainingExample], k: int, learn: dict) -> list:
