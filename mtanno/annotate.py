@@ -337,23 +337,86 @@ def write_class_config(path: str | os.PathLike, cfg: ClassConfig, *,
 
 
 @numba.njit(cache=True)
-def _fill_from_minima(delta, start, order, tau, max_hits, dbar):
-    """Reference Δ̄: take Δ's minima in increasing order while ≤ τ; each fills the still-empty
-    frames of its span [start, end] with its cost and blocks ends inside that span."""
-    blocked = np.zeros(delta.shape[0], dtype=np.bool_)
+def _stable_order(delta, bits, cand):
+    """Indices ``cand`` (increasing) stably sorted by ``delta`` (not NaN; ``bits`` is its
+    uint64 view): an LSD radix sort, 11 bits per pass, of keys that order like the floats
+    (sign bit flipped for x ≥ 0, all bits for x < 0; ±0 as +0), so ties keep the earlier
+    frame first; passes where every key has the same digit are skipped."""
+    n = cand.shape[0]
+    keys = np.empty(n, np.uint64)
+    sign = np.uint64(1) << np.uint64(63)
+    for i in range(n):
+        x = delta[cand[i]]
+        b = bits[cand[i]]
+        keys[i] = sign if x == 0.0 else (b | sign if x > 0.0 else ~b)
+    idx = cand.copy()
+    tmp = np.empty(n, np.int64)
+    kt = np.empty(n, np.uint64)
+    count = np.empty(2049, np.int64)
+    mask = np.uint64(2047)
+    for sh in range(0, 64, 11):
+        shift = np.uint64(sh)
+        count[:] = 0
+        for i in range(n):
+            count[np.int64((keys[i] >> shift) & mask) + 1] += 1
+        if count.max() == n:
+            continue
+        for b in range(2048):
+            count[b + 1] += count[b]
+        for i in range(n):
+            k = np.int64((keys[i] >> shift) & mask)
+            tmp[count[k]] = idx[i]
+            kt[count[k]] = keys[i]
+            count[k] += 1
+        idx, tmp = tmp, idx
+        keys, kt = kt, keys
+    return idx
+
+
+@numba.njit(cache=True, inline="always")
+def _next_empty(nxt, k):
+    """The first frame ≥ k with nxt[f] == f, compressing the path walked."""
+    r = k
+    while nxt[r] != r:
+        r = nxt[r]
+    while nxt[k] != r:
+        following = nxt[k]
+        nxt[k] = r
+        k = following
+    return r
+
+
+@numba.njit(cache=True)
+def _reference_dbar(delta, bits, start, tau, max_hits, dbar):
+    """Reference Δ̄ into ``dbar`` (filled with ∞ by the caller): take Δ's values ≤ τ in
+    increasing order (ties: earliest frame); each fills the still-empty frames of its span
+    [start, end] with its cost and blocks ends inside that span. Returns the picks."""
+    L = delta.shape[0]
+    n = 0
+    for i in range(L):
+        if delta[i] <= tau:
+            n += 1
+    cand = np.empty(n, np.int64)
+    n = 0
+    for i in range(L):
+        if delta[i] <= tau:
+            cand[n] = i
+            n += 1
+    order = _stable_order(delta, bits, cand)
+    # a frame is blocked exactly when a pick has filled it; filled runs are skipped through
+    # path-compressed pointers to the next empty frame, so each frame is written once
+    nxt = np.arange(L + 1)
     hits = 0
     for i in range(order.shape[0]):
         end = order[i]
-        d = delta[end]
-        if not d <= tau:
-            break
-        if blocked[end]:
+        if nxt[end] != end:
             continue
-        s = start[end]
-        for k in range(s, end + 1):
-            blocked[k] = True
-            if dbar[k] == np.inf:
-                dbar[k] = d
+        d = delta[end]
+        k = _next_empty(nxt, start[end])
+        while k <= end:
+            dbar[k] = d
+            nxt[k] = k + 1
+            k = _next_empty(nxt, k + 1)
         hits += 1
         if hits >= max_hits:
             break
@@ -386,10 +449,8 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
         dbar = out
         dbar.fill(np.inf)
     if variant == "reference":
-        finite = np.flatnonzero(np.isfinite(delta) & (delta <= tau))
-        order = finite[np.argsort(delta[finite], kind="stable")]
         cap = np.iinfo(np.int64).max if max_hits is None else int(max_hits)
-        _fill_from_minima(delta, start, order, float(tau), cap, dbar)
+        _reference_dbar(delta, delta.view(np.uint64), start, float(tau), cap, dbar)
         return dbar
     if variant == "paper":
         d = np.where(np.isfinite(delta), delta, np.inf)
@@ -632,16 +693,19 @@ def _class_delta(X, packed, c: ClassModel, windows, match_variant, delta, start)
 def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
     """Windows (first, last frame; 0-based inclusive) clipped to [0, L − 1], sorted,
     overlapping ones merged: (starts, ends), as the matchers take them."""
-    merged: list[list[int]] = []
-    for a, b in sorted((max(0, int(a)), min(L - 1, int(b))) for a, b in spans):
-        if b < a:
-            continue
-        if merged and a <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b)
-        else:
-            merged.append([a, b])
-    arr = np.array(merged, dtype=np.int64).reshape(-1, 2)
-    return arr[:, 0], arr[:, 1]
+    arr = np.array(spans, dtype=np.int64).reshape(-1, 2)
+    a, b = np.maximum(arr[:, 0], 0), np.minimum(arr[:, 1], L - 1)
+    keep = b >= a
+    a, b = a[keep], b[keep]
+    if a.size == 0:
+        return a, b
+    order = np.lexsort((b, a))
+    a, b = a[order], b[order]
+    reach = np.maximum.accumulate(b)  # furthest end so far
+    first = np.ones(a.shape[0], dtype=bool)
+    first[1:] = a[1:] > reach[:-1]  # a window that starts after every earlier one ended
+    last = np.append(first[1:], True)
+    return a[first], reach[last]
 
 
 def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
@@ -649,7 +713,7 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                       windows: dict[str, list[tuple[int, int]]] | None = None,
                       dbar_variant: str = "reference", match_variant: str = "reference",
                       max_hits: int | None = None, extend: bool = True,
-                      single_label: bool = False,
+                      single_label: bool = False, packed: np.ndarray | None = None,
                       ) -> tuple[list[Annotation], list[str], np.ndarray]:
     """Annotate one document (MBS09 §4–5): returns (segments, label names, Δ̄ matrix).
 
@@ -661,7 +725,9 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     frames. Several :class:`ClassModel` of one name (a class with several templates) make
     one label, like a superclass. With ``config.resolve`` the segments come from the
     segment decoder (:func:`label_document`; already a partition) and the matrix holds
-    Δ/τ per label instead of Δ̄.
+    Δ/τ per label instead of Δ̄. ``packed``: X already bit-packed
+    (:func:`mtanno.templates.match.pack_document`, as for
+    :func:`mtanno.keyframes.class_windows`), to pack it once.
     """
     config = config or ClassConfig()
     if not classes:
@@ -669,7 +735,10 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     from mtanno.templates.match import pack_document
 
     L = X.shape[1]
-    packed = pack_document(X, X.shape[0])
+    if packed is None:
+        packed = pack_document(X, X.shape[0])
+    elif packed.shape[0] != L:
+        raise MtannoError(f"packed document has {packed.shape[0]} frames, X {L}")
     # one Δ buffer for all classes: documents can be hours long
     delta, start = np.empty(L), np.empty(L, np.int64)
     evidence = config.resolve and config.frame_weight > 0
@@ -1073,22 +1142,26 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     import time
 
     from mtanno.store import check_layout, read_features
+    from mtanno.templates.match import pack_document
 
     try:
         ff = read_features(path, sha256=True)
         check_layout(ff, layout)
         t0 = time.perf_counter()
         windows = None
+        packed = pack_document(ff.X, ff.X.shape[0])  # once, for keyframes and templates
         if keyframes:
             from mtanno.keyframes import class_windows
 
             try:
-                windows = class_windows(ff.X, ff.names, keyframes, feature_set=layout.feature_set)
+                windows = class_windows(ff.X, ff.names, keyframes,
+                                        feature_set=layout.feature_set, packed=packed)
             except MtannoError as exc:
                 raise MtannoError(exc.message, path=ff.path) from None
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
                                        windows=windows, dbar_variant=dbar_variant,
-                                       match_variant=match_variant, single_label=single_label)
+                                       match_variant=match_variant, single_label=single_label,
+                                       packed=packed)
     except MtannoError as exc:
         return str(exc)
     return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0

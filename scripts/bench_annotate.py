@@ -68,6 +68,7 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
     from mtanno.annotate import annotate_document, load_class_models
     from mtanno.keyframes import class_windows, load_keyframe_folder
     from mtanno.store import read_features
+    from mtanno.templates.match import pack_document
 
     kf = out / "kf"
     if not kf.is_dir():
@@ -84,9 +85,10 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
     def plain():
         annotate_document(ff.document, ff.X, models)
 
-    def with_keyframes():
-        w = class_windows(ff.X, ff.names, queries)
-        annotate_document(ff.document, ff.X, models, windows=w)
+    def with_keyframes():  # the document packed once for both, as `mtanno annotate` does
+        packed = pack_document(ff.X, ff.X.shape[0])
+        w = class_windows(ff.X, ff.names, queries, packed=packed)
+        annotate_document(ff.document, ff.X, models, windows=w, packed=packed)
 
     def median(fn):
         ts = []

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from nojit import run_without_jit
 
 from mtanno.annotate import (
     Annotation,
     ClassConfig,
     label_frames,
     load_class_config,
+    merged_spans,
     modified_delta,
     read_annotations,
     segments_from_labels,
@@ -150,6 +152,53 @@ def test_reference_dbar_matches_naive(seed):
     cap = None if seed % 3 else 3
     assert np.array_equal(modified_delta(delta, start, tau=0.13, max_hits=cap),
                           naive_dbar(delta, start, 0.13, cap))
+
+
+def check_reference_dbar(seed: int) -> None:
+    """The radix-sorted picks of the reference Δ̄ against the naive reading, on values that
+    exercise every key digit: ties, ±0, negatives, tiny and huge magnitudes, ∞ and NaN."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    pool = np.array([0.0, -0.0, 0.05, 0.05, 1e-300, 5e-324, -0.01, -1e10, 0.1299, 0.13,
+                     0.130001, INF, np.nan, 2.0**-40])
+    delta = np.where(rng.random(n) < 0.5, rng.random(n) * 0.2, rng.choice(pool, n))
+    start = np.array([max(0, i - int(rng.integers(0, 12))) for i in range(n)])
+    cap = None if seed % 4 else int(rng.integers(1, 20))
+    got = modified_delta(delta, start, tau=0.13, max_hits=cap)
+    want = naive_dbar(np.where(np.isnan(delta), INF, delta), start, 0.13, cap)
+    assert np.array_equal(got, want), seed
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_reference_dbar_radix_order(seed):
+    check_reference_dbar(seed)
+
+
+def test_reference_dbar_without_jit():
+    run_without_jit("test_annotate", "check_reference_dbar", (0,), (3,), (4,))
+
+
+def naive_merged(spans, L):
+    merged = []
+    for a, b in sorted((max(0, a), min(L - 1, b)) for a, b in spans):
+        if b < a:
+            continue
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    return merged
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_merged_spans_matches_naive(seed):
+    rng = np.random.default_rng(seed)
+    L = int(rng.integers(1, 80))
+    spans = [(int(a), int(a + rng.integers(-3, 15))) for a in rng.integers(-10, L + 5,
+                                                                           rng.integers(0, 12))]
+    starts, ends = merged_spans(spans, L)
+    assert [[a, b] for a, b in zip(starts.tolist(), ends.tolist())] == naive_merged(spans, L)
+    assert starts.dtype == ends.dtype == np.int64
 
 
 def test_paper_dbar_local_minima():
