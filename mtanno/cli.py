@@ -12,20 +12,11 @@ import importlib
 import os
 import pkgutil
 import sys
-from pathlib import Path
 
 import click
 
 import mtanno.commands
 from mtanno import __version__
-from mtanno.commands._common import (
-    lock_output,
-    scheduler_option,
-    show_progress,
-    user_errors,
-    wait_option,
-)
-from mtanno.errors import MtannoError
 
 #: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
@@ -72,146 +63,6 @@ def main() -> None:
     feature files (40 boolean relational features per frame at 30 Hz), which later stages
     read. Run `mtanno COMMAND --help` for each command.
     """
-
-
-@main.command("features")
-@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
-@click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
-              help="Output directory; outputs mirror the input tree.")
-@click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
-              help="Number of worker processes.")
-@click.option("--skeleton", "skeleton", default=None, metavar="MAP",
-              help="Skeleton map (TOML file or map name) instead of the detected one.")
-@click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
-              help="ASF skeleton for every AMC input (default: found beside or above it).")
-@click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
-@click.option("--feature-set", "feature_set", default="ak40", show_default=True,
-              type=click.Choice(["ak40", "mrc05", "mrc05-reference"]),
-              help="ak40: the 40 annotation features (MR06 + F40); mrc05: the 31 features "
-                   "of MRC05 (reference bugs fixed, docs/index.md); mrc05-reference: as the "
-                   "reference implementation computes them.")
-@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
-              help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
-                   "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-@wait_option
-@scheduler_option
-@user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait,
-                 scheduler):
-    """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
-    annotation features, or the 31 MRC05 features with --feature-set mrc05.
-
-    INPUT is a motion file (.amc, .bvh), a directory (searched recursively) or `-` to read
-    file names from standard input, one per line. A file FILE.amc gives OUTDIR/FILE.parquet;
-    a file found in directory DIR gives OUTDIR/<its path below DIR>.parquet. The document
-    is named by the file's stem everywhere.
-
-    An AMC file's ASF is taken from --asf, else from its folder or the nearest folder above
-    it: the ASF whose name begins the AMC's name (HDM_bd.asf for HDM_bd_squat1Reps_001_120.amc,
-    02.asf for 02_05.amc), else the only ASF there.
-
-    An output is up to date, and skipped unless --force, when the provenance it records
-    matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
-    up axis and the extractor version. Files that fail are reported as `path:line: what is wrong` and
-    the others are still written. Exit code: 0 all written or up to date, 1 some files
-    failed, 2 usage error, 3 OUTDIR locked by another run (see --wait), 130 interrupted
-    (finished outputs stay, no partial file).
-
-    Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
-    """
-    from tqdm import tqdm
-
-    from mtanno.features.extract import plan_batch, run_batch
-
-    items: list[str] = []
-    for item in inputs:
-        if item == "-":
-            items.extend(line.strip() for line in sys.stdin if line.strip())
-        else:
-            items.append(item)
-    from mtanno.output import make_folder
-
-    jobs_list = plan_batch(items, outdir, asf=asf)
-    if not jobs_list:
-        raise MtannoError("no .amc or .bvh files found in the inputs")
-    make_folder(outdir)
-    bar = tqdm(total=len(jobs_list), unit="file", disable=not show_progress(quiet),
-               desc="features")
-
-    def progress(outcome):
-        bar.update(1)
-        if outcome.status == "failed":
-            bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
-
-    with lock_output(outdir, wait=wait):
-        summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                            progress=progress, feature_set=feature_set, up=up,
-                            scheduler=scheduler)
-    bar.close()
-    if not quiet:
-        click.echo(f"features: {summary.line()} -> {outdir}", err=True)
-    sys.exit(1 if summary.failed else 0)
-
-
-@main.command("info")
-@click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
-              help="ASF skeleton of an AMC file (default: found beside or above it).")
-@click.option("--skeleton", default=None, metavar="MAP",
-              help="Skeleton map (TOML file or name) instead of the detected one.")
-@click.option("--features", "list_features", is_flag=True,
-              help="Feature file: list its features (id, name, index group) instead.")
-@user_errors(2)
-def info_cmd(file, asf, skeleton, list_features):
-    """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
-    or a feature file (.parquet: its metadata; --features lists its features with ids and
-    groups, the names `mtanno show` and `mtanno query --features` take). Exit code 2 for a
-    file that cannot be read."""
-    path = Path(file)
-    if list_features and path.suffix.lower() != ".parquet":
-        raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
-    if path.suffix.lower() == ".parquet":
-        from mtanno.store import read_features
-
-        ff = read_features(path)
-        if list_features:
-            from mtanno.inspect import feature_rows
-
-            rows = feature_rows(ff)
-            width = max(len(r["name"]) for r in rows)
-            click.echo(f"{'id':<4} {'name':<{width}}  group")
-            for r in rows:
-                click.echo(f"{r['id']:<4} {r['name']:<{width}}  {r['group']}")
-            return
-        m = ff.meta
-        click.echo(f"feature file   {path}")
-        click.echo(f"document       {ff.document}")
-        click.echo(f"source         {m.get('source')} (sha256 {str(m.get('source_sha256'))[:12]}…)")
-        click.echo(f"feature set    {m.get('feature_set')} v{m.get('feature_set_version')}, "
-                   f"{len(ff.names)} features")
-        click.echo(f"frames         {ff.X.shape[1]} at {m.get('analysis_fps')} Hz "
-                   f"({m.get('native_frames')} native at {m.get('native_fps')} Hz)")
-        click.echo(f"skeleton map   {m.get('skeleton_map')}")
-        click.echo(f"mtanno         {m.get('mtanno_version')}")
-        return
-    from mtanno.io import read_motion
-    from mtanno.io.rigs import CANONICAL_JOINTS
-
-    motion = read_motion(path, asf=asf, skeleton=skeleton)
-    rig = motion.rig
-    cov = motion.smap.coverage(rig)
-    missing = [j for j in CANONICAL_JOINTS if cov[j] is None]
-    click.echo(f"file           {path}")
-    click.echo(f"rig            {rig.kind.upper()} ({rig.source}), {rig.n_nodes} nodes")
-    click.echo(f"frame rate     {motion.fps:g} Hz")
-    click.echo(f"frames         {motion.n_frames}")
-    click.echo(f"duration       {motion.n_frames / motion.fps:.2f} s")
-    click.echo(f"skeleton map   {motion.smap.name} ({motion.smap.path})")
-    click.echo(f"map coverage   {len(CANONICAL_JOINTS) - len(missing)}/{len(CANONICAL_JOINTS)}"
-               + (f" (missing: {', '.join(missing)})" if missing else ""))
-    for j in CANONICAL_JOINTS:
-        click.echo(f"  {j:<10} <- {cov[j] or 'MISSING'}")
 
 
 def _register_command_modules() -> None:

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.io.skeleton import Motion
 from mtanno.store import FeatureFile
 
 #: Characters of a timeline cell: the feature is off in every frame of the cell, on in
@@ -22,6 +23,47 @@ from mtanno.store import FeatureFile
 OFF, ON, MIXED = ".", "#", "+"
 #: Default number of timeline columns (frames per column grow to fit).
 DEFAULT_WIDTH = 100
+
+
+def describe_feature_file(ff: FeatureFile) -> list[str]:
+    """The lines ``mtanno info FILE.parquet`` prints: document, source motion file (with
+    the start of its SHA-256), feature set and count, frames at the analysis and the native
+    rate, skeleton map and the mtanno version that wrote it (the file's metadata)."""
+    m = ff.meta
+    return [
+        f"feature file   {ff.path}",
+        f"document       {ff.document}",
+        f"source         {m.get('source')} (sha256 {str(m.get('source_sha256'))[:12]}…)",
+        f"feature set    {m.get('feature_set')} v{m.get('feature_set_version')}, "
+        f"{len(ff.names)} features",
+        f"frames         {ff.X.shape[1]} at {m.get('analysis_fps')} Hz "
+        f"({m.get('native_frames')} native at {m.get('native_fps')} Hz)",
+        f"skeleton map   {m.get('skeleton_map')}",
+        f"mtanno         {m.get('mtanno_version')}",
+    ]
+
+
+def describe_motion(motion: Motion) -> list[str]:
+    """The lines ``mtanno info MOTION`` prints for a motion read by
+    :func:`mtanno.io.read_motion`: rig, frame rate, length in frames and seconds, skeleton
+    map, and which rig joint each canonical joint of the map comes from (MISSING where the
+    map finds none)."""
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    rig = motion.rig
+    cov = motion.smap.coverage(rig)
+    missing = [j for j in CANONICAL_JOINTS if cov[j] is None]
+    lines = [
+        f"file           {motion.source}",
+        f"rig            {rig.kind.upper()} ({rig.source}), {rig.n_nodes} nodes",
+        f"frame rate     {motion.fps:g} Hz",
+        f"frames         {motion.n_frames}",
+        f"duration       {motion.n_frames / motion.fps:.2f} s",
+        f"skeleton map   {motion.smap.name} ({motion.smap.path})",
+        f"map coverage   {len(CANONICAL_JOINTS) - len(missing)}/{len(CANONICAL_JOINTS)}"
+        + (f" (missing: {', '.join(missing)})" if missing else ""),
+    ]
+    return lines + [f"  {j:<10} <- {cov[j] or 'MISSING'}" for j in CANONICAL_JOINTS]
 
 
 def feature_rows(ff: FeatureFile) -> list[dict]:

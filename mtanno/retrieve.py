@@ -33,11 +33,18 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.templates.match import DEFAULT_STEP_WEIGHTS, DEFAULT_STEPS, PreparedTemplate
 
-__all__ = ["MODES", "Hit", "HitList", "RetrievalBatch", "extract_hits", "hit_table", "retrieve",
+__all__ = ["DEFAULT_DELTA", "DEFAULT_MAX_HITS", "DEFAULT_TAU", "HIT_MODES", "Hit", "HitList",
+           "RetrievalBatch", "extract_hits", "hit_table", "retrieve",
            "retrieve_files", "write_hits"]
 
-MODES = ("retrieval", "classification")
+#: How hits are picked from Δ (:func:`extract_hits`).
+HIT_MODES = ("retrieval", "classification")
+#: Hit cap per document.
 DEFAULT_MAX_HITS = 1000
+#: Quality threshold of retrieval: hits have Δ ≤ τ (MR06 §5.4).
+DEFAULT_TAU = 0.06
+#: Quantization δ of templates for retrieval (MR06 §5.2).
+DEFAULT_DELTA = 0.1
 
 
 @dataclass(frozen=True)
@@ -90,8 +97,8 @@ def _check_options(tau, mode, max_hits) -> float:
         raise MtannoError(f"tau must be a number, got {tau!r}") from None
     if math.isnan(tau):
         raise MtannoError("tau must be a number, got NaN")
-    if mode not in MODES:
-        raise MtannoError(f"unknown hit mode {mode!r} (choose from {', '.join(MODES)})")
+    if mode not in HIT_MODES:
+        raise MtannoError(f"unknown hit mode {mode!r} (choose from {', '.join(HIT_MODES)})")
     if isinstance(max_hits, bool) or not isinstance(max_hits, (int, np.integer)) or max_hits < 1:
         raise MtannoError(f"max_hits must be a positive integer, got {max_hits!r}")
     return tau

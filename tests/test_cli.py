@@ -239,3 +239,21 @@ def test_features_up_z_on_a_rotated_clip(world, tmp_path, cls):
     assert "1 written" in r.output
     r = run(["features", str(rotated), "-o", str(tmp_path / "z"), "--up", "x"])
     assert r.exit_code == 2 and "'x' is not one of 'y', 'z'" in r.output
+
+
+def test_describe_api_gives_the_info_lines(tree, tmp_path):
+    """`mtanno info` prints exactly the lines of the API functions it calls."""
+    from mtanno.inspect import describe_feature_file, describe_motion
+    from mtanno.io import read_motion
+
+    amc = tree / "a" / "walk1.amc"
+    lines = describe_motion(read_motion(amc))
+    assert lines[0] == f"file           {amc}" and "frames         24" in lines
+    assert len(lines) == 7 + 22 and all(" <- " in x for x in lines[7:])
+    assert run(["info", str(amc)]).output.splitlines() == lines
+    run(["features", str(amc), "-o", str(tmp_path / "o")])
+    ff = read_features(tmp_path / "o" / "walk1.parquet")
+    lines = describe_feature_file(ff)
+    assert lines[1] == "document       walk1" and lines[3].endswith("40 features")
+    assert lines[4].startswith(f"frames         {ff.X.shape[1]} at 30")
+    assert run(["info", str(tmp_path / "o" / "walk1.parquet")]).output.splitlines() == lines

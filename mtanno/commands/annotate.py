@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from mtanno.annotate import load_class_models
+from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, load_class_models
 from mtanno.commands._common import (
     lock_output,
     scheduler_option,
@@ -15,6 +15,7 @@ from mtanno.commands._common import (
     wait_option,
 )
 from mtanno.errors import MtannoError
+from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.store import check_layout, document_files
 from mtanno.templates.model import template_files
 
@@ -45,10 +46,10 @@ check_features = check_layout
               help="Class configuration (TOML): per-class tau, superclasses, and the methods "
                    "`mtanno tune` writes (docs/annotation.md).")
 @click.option("--tau", type=float, default=None,
-              help="Threshold tau for every class without its own [default: 0.13].")
+              help=f"Threshold tau for every class without its own [default: {DEFAULT_TAU:g}].")
 @click.option("--delta", type=float, default=None,
               help="Quantization delta of the templates [default: [decoder] delta of "
-                   "--classes, else 0.05].")
+                   f"--classes, else {DEFAULT_DELTA:g}].")
 @click.option("--variant", type=click.Choice(["reference", "paper"]), default="reference",
               show_default=True, help="Modified-distance variant (algorithms.md §7).")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
@@ -250,8 +251,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
 @click.option("--truth", "truth_path", required=True,
               type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth of the documents (doc,start,end,label[,fps]).")
-@click.option("--delta", type=float, default=0.1, show_default=True,
-              help="Quantization delta of the templates (MR06 retrieval: 0.1).")
+@click.option("--delta", type=float, default=RETRIEVAL_DELTA, show_default=True,
+              help=f"Quantization delta of the templates (MR06 retrieval: {RETRIEVAL_DELTA:g}).")
 @click.option("--max-hits", default=2000, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")
 @click.option("--class", "classes", multiple=True, help="Only these classes.")

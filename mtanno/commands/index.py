@@ -12,6 +12,8 @@ import click
 
 from mtanno.commands._common import parse_frames, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
+from mtanno.index.query import QUERY_MODES
+from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 
 
 class _IndexGroup(click.Group):
@@ -207,7 +209,7 @@ def _example(index, example: str):
 def load_template_for(index, path: str):
     """(values f×K, weights K, feature names) of a motion-template JSON file for ranking:
     read with :func:`mtanno.templates.model.load_template`, checked against the index's
-    feature set, quantized with δ = 0.1 (MR06 §5.2 retrieval setting) unless it already is."""
+    feature set, quantized with the retrieval δ (0.1, MR06 §5.2) unless it already is."""
     from mtanno.templates.model import load_template, quantize
 
     mt = load_template(path)
@@ -219,7 +221,7 @@ def load_template_for(index, path: str):
         raise MtannoError(f"template feature '{missing[0]}' is not in the index's feature set",
                           path=path)
     if not mt.quantized:
-        mt = quantize(mt, 0.1)
+        mt = quantize(mt, RETRIEVAL_DELTA)
     return mt.values, mt.weights, list(mt.feature_names)
 
 
@@ -240,7 +242,7 @@ def load_template_for(index, path: str):
 @click.option("--windows", is_flag=True,
               help="With --keyframes: write the candidate windows (hits widened by the "
                    "query's extension, merged) that annotate matches templates in.")
-@click.option("--mode", type=click.Choice(["exact", "fuzzy", "adaptive"]), default=None,
+@click.option("--mode", type=click.Choice(QUERY_MODES), default=None,
               help="Hit type (default: adaptive, or the query file's mode).")
 @click.option("--mismatches", type=click.IntRange(min=0), default=None, metavar="M",
               help="Allow up to M query segments to disagree (exact and fuzzy modes).")

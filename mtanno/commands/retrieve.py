@@ -12,6 +12,7 @@ import click
 
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
+from mtanno.retrieve import DEFAULT_DELTA, DEFAULT_MAX_HITS, DEFAULT_TAU
 from mtanno.store import feature_files
 
 
@@ -21,10 +22,10 @@ from mtanno.store import feature_files
 @click.option("--mt", "mt_path", required=True, type=click.Path(dir_okay=False),
               help="Template JSON of the class (from learn-mt; quantized with its delta, or "
                    "with --delta, when it is not quantized yet).")
-@click.option("--tau", default=0.06, show_default=True, type=float,
+@click.option("--tau", default=DEFAULT_TAU, show_default=True, type=float,
               help="Quality threshold: hits have cost Δ ≤ tau (MR06: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
-@click.option("--max-hits", default=1000, show_default=True, type=click.IntRange(min=1),
+@click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Report at most this many hits (a note on stderr says when the cap cut "
                    "hits off).")
 @click.option("--variant", default="reference", show_default=True,
@@ -33,7 +34,8 @@ from mtanno.store import feature_files
                    "template) or the papers' as written (docs/retrieval.md).")
 @click.option("--delta", "qdelta", default=None, type=click.FloatRange(0, 0.5),
               help="Quantize an unquantized template with this δ (default: the template's "
-                   "own delta, else 0.1 as in MR06). A quantized template keeps its own delta.")
+                   f"own delta, else {DEFAULT_DELTA:g} as in MR06). A quantized template keeps "
+                   "its own delta.")
 @click.option("-o", "--output", default="-", show_default=True,
               type=click.Path(dir_okay=False, allow_dash=True),
               help="Hit table: .csv, .parquet or .jsonl (with provenance, docs/formats.md), "
@@ -71,7 +73,7 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
                               "--delta only applies to unquantized templates", path=mt_path)
     else:
         mt = quantize(mt, qdelta if qdelta is not None else (mt.delta if mt.delta is not None
-                                                              else 0.1))
+                                                              else DEFAULT_DELTA))
     layout = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
                            f"template {mt_path}")
     bar = tqdm(total=len(files), unit="file", disable=not show_progress(quiet), desc="retrieve")

@@ -13,6 +13,7 @@ import numpy as np
 
 from mtanno.commands._common import lock_output, show_progress, training_options, user_errors, wait_option
 from mtanno.errors import MtannoError
+from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
@@ -144,7 +145,7 @@ _PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
               help="Quantization δ for the feature ranking and picture of an unquantized "
-                   "template  [default: 0.1, MR06]")
+                   f"template  [default: {RETRIEVAL_DELTA:g}, MR06]")
 @click.option("--top", default=10, show_default=True, type=click.IntRange(min=0),
               help="How many features to list.")
 @click.option("--picture", is_flag=True,
@@ -167,7 +168,7 @@ def mt_show_cmd(template, delta, top, picture, files):
         q, d = mt, mt.delta
         state = f"quantized, δ = {mt.delta:g}"
     else:
-        d = 0.1 if delta is None else delta
+        d = RETRIEVAL_DELTA if delta is None else delta
         q = quantize(mt, d)
         state = "not quantized"
     w = mt.weights

@@ -27,7 +27,7 @@ from mtanno.index.core import (
     segment,
 )
 from mtanno.index.query import (
-    MODES,
+    QUERY_MODES,
     FuzzySet,
     GroupHits,
     GroupQuery,
@@ -44,7 +44,7 @@ from mtanno.index.query import (
 from mtanno.index.storage import INDEX_FORMAT, CorruptIndex
 
 __all__ = [
-    "INDEX_FORMAT", "MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits", "GroupIndex",
+    "INDEX_FORMAT", "QUERY_MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits", "GroupIndex",
     "GroupQuery", "Hits", "Index", "Query", "UpdateReport", "add_documents", "build_index",
     "example_query", "frame_codes", "index_from_matrices", "load_query", "open_index",
     "parse_query", "rank_by_template", "remove_documents", "resolve_features", "run_group",

@@ -52,7 +52,7 @@ from mtanno.errors import MtannoError
 from mtanno.index import _kernels
 from mtanno.index.core import GroupIndex, Index, segment
 
-MODES = ("exact", "fuzzy", "adaptive")
+QUERY_MODES = ("exact", "fuzzy", "adaptive")
 
 
 @dataclass(frozen=True)
@@ -159,8 +159,9 @@ class Query:
     min_segment: int = 1
 
     def __post_init__(self):
-        if self.mode not in MODES:
-            raise MtannoError(f"unknown query mode '{self.mode}' (one of {', '.join(MODES)})")
+        if self.mode not in QUERY_MODES:
+            raise MtannoError(f"unknown query mode '{self.mode}' (one of "
+                              f"{', '.join(QUERY_MODES)})")
         if self.mismatches < 0:
             raise MtannoError("mismatches must be ≥ 0")
         if not isinstance(self.min_segment, int) or self.min_segment < 1:
