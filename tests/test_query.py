@@ -479,3 +479,19 @@ def test_rank_by_template_orders_hits_by_cost():
     assert names[0] == "b" and names[-1] == "c" and np.isinf(ranked.cost[-1])
     assert ranked.unfit == 1 and hits.unfit == 0
     assert [r.get("mt_cost") for r in ranked.rows(idx)][-1] is None
+
+
+def test_group_sizes_and_example_matrix_in_memory():
+    """index info's rows and query --example's source on an index without files."""
+    from mtanno.index import example_matrix, group_sizes
+
+    X = np.array([[0, 0, 1, 1, 1, 0], [1, 1, 1, 0, 0, 0]], np.uint8)
+    idx = index_from_matrices({"d": X, "e": X[:, ::-1].copy()}, ["a", "b"], {"g": ["a", "b"]})
+    (row,) = group_sizes(idx)
+    # d has the codes (b), (b), (a b), (a), (a), () -> 4 segments; e the mirror -> 4
+    assert (row["group"], row["features"], row["frames"], row["segments"]) == ("g", 2, 12, 8)
+    assert row["possible_lists"] == 4 and row["bytes"] == 0 and row["segments_per_frame"] == 8 / 12
+    M, names, label = example_matrix(idx, "e")
+    assert names == ["a", "b"] and label == "e" and np.array_equal(M, X[:, ::-1])
+    with pytest.raises(MtannoError, match="neither a feature file nor an indexed document"):
+        example_matrix(idx, "nope")

@@ -13,7 +13,6 @@ import click
 from mtanno.commands._common import parse_frames, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
-from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 
 
 class _IndexGroup(click.Group):
@@ -119,23 +118,6 @@ def remove_cmd(index_dir, docs, quiet, wait):
         click.echo(f"index remove: {report.line()}; {_summary(index)}", err=True)
 
 
-def info_rows(index) -> list[dict]:
-    """Per group: features, frames, segments, lists, bytes and bytes per segment."""
-    from mtanno.index.storage import read_manifest
-
-    files = read_manifest(index.root)["files"] if index.root is not None else {}
-    rows = []
-    for g in index.groups.values():
-        size = sum(files.get(f"{k}-{g.name}.parquet", {}).get("bytes", 0)
-                   for k in ("segments", "lists"))
-        rows.append({"group": g.name, "features": len(g.features), "frames": index.frames,
-                     "segments": g.n_segments, "lists": g.n_lists,
-                     "possible_lists": 2 ** len(g.features), "bytes": size,
-                     "bytes_per_segment": size / g.n_segments if g.n_segments else 0.0,
-                     "segments_per_frame": g.n_segments / index.frames if index.frames else 0.0})
-    return rows
-
-
 @index_group.command("info")
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object instead.")
@@ -148,7 +130,7 @@ def info_cmd(index_dir, as_json, output):
     import pyarrow as pa
 
     from mtanno.index import open_index
-    from mtanno.index.storage import index_files, read_manifest
+    from mtanno.index.storage import group_sizes, index_files, read_manifest
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, provenance, table_format, write_table
 
@@ -157,7 +139,7 @@ def info_cmd(index_dir, as_json, output):
     index = open_index(index_dir)
     manifest = read_manifest(index.root)
     total = sum(e["bytes"] for e in manifest["files"].values())
-    rows = info_rows(index)
+    rows = group_sizes(index)
     if output is not None:
         check_outputs(output_files(output), index_files(index.root))
         write_table(output, pa.Table.from_pylist(rows), provenance=provenance(
@@ -185,44 +167,6 @@ def info_cmd(index_dir, as_json, output):
         click.echo(f"{r['group']:<8} {r['features']:>3} {r['segments']:>9} "
                    f"{r['segments_per_frame']:>9.3f} {r['lists']:>6} {r['possible_lists']:>8} "
                    f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}")
-
-
-def _example(index, example: str):
-    """(matrix, names, label) of an example: a feature file, or an indexed document name."""
-    from mtanno.index.core import doc_layout, read_feature_doc
-    from mtanno.store import FeatureLayout, check_layout
-
-    p = Path(example)
-    if p.is_file():
-        doc = read_feature_doc(p)
-        check_layout(doc_layout(doc), FeatureLayout(index.feature_set, tuple(index.features),
-                                                    float(index.fps), f"the index {index.root}"),
-                     path=str(p))
-        return doc.X, doc.names, str(p)
-    if example in {d.name for d in index.documents}:
-        covered = {f for g in index.groups.values() for f in g.features}
-        names = [f for f in index.features if f in covered]
-        return index.feature_matrix(example, names), names, example
-    raise MtannoError("example is neither a feature file nor an indexed document", path=example)
-
-
-def load_template_for(index, path: str):
-    """(values f×K, weights K, feature names) of a motion-template JSON file for ranking:
-    read with :func:`mtanno.templates.model.load_template`, checked against the index's
-    feature set, quantized with the retrieval δ (0.1, MR06 §5.2) unless it already is."""
-    from mtanno.templates.model import load_template, quantize
-
-    mt = load_template(path)
-    if mt.feature_set != index.feature_set:
-        raise MtannoError(f"template is for feature set '{mt.feature_set}' but the index holds "
-                          f"'{index.feature_set}'", path=path)
-    missing = [n for n in mt.feature_names if n not in index.features]
-    if missing:
-        raise MtannoError(f"template feature '{missing[0]}' is not in the index's feature set",
-                          path=path)
-    if not mt.quantized:
-        mt = quantize(mt, RETRIEVAL_DELTA)
-    return mt.values, mt.weights, list(mt.feature_names)
 
 
 @click.command("query")
@@ -290,7 +234,7 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     import time
 
     from mtanno.index import example_query, load_query, open_index, search
-    from mtanno.index.query import DEFAULT_MIN_SEGMENT, resolve_features, warm_up
+    from mtanno.index.query import DEFAULT_MIN_SEGMENT, example_matrix, resolve_features, warm_up
     from mtanno.index.storage import index_files
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, table_format
@@ -312,7 +256,7 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     if example is not None:
         if not feature_list:
             raise MtannoError("--example needs --features NAME,...")
-        X, names, _ = _example(index, example)
+        X, names, _ = example_matrix(index, example)
         feats = resolve_features(index, feature_list.split(","))
         rng = parse_frames(frames, X.shape[1])
         query = example_query(index, X, names, feats, frames=rng, mode=mode or "adaptive",
@@ -330,40 +274,28 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     t0 = time.perf_counter()
     hits = search(index, query)
     elapsed = time.perf_counter() - t0
-    _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top,
+    _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top, quiet=quiet,
                 inputs=[i for i in (example, query_file) if i is not None and Path(i).is_file()],
                 mode=query.mode, mismatches=query.mismatches, min_segment=query.min_segment,
-                frames=frames, features=feature_list, example=example, quiet=quiet)
+                frames=frames, features=feature_list, example=example)
     if not quiet:
         segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
         click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
                    f"segments: {segs})" + (f" -> {output}" if output != "-" else ""), err=True)
 
 
-def _write_hits(index, hits, *, output, rank_mt, top, inputs, quiet=False, **record) -> None:
-    """Rank the hits by a template (``--rank-mt``; a note counts the hits it cannot fit),
-    cut them (``--top``) and write the hit table with its provenance (the query's inputs,
-    the index generation, ``record``)."""
-    from mtanno.index import rank_by_template
-    from mtanno.index.query import hit_table
-    from mtanno.tables import file_record, provenance, write_table
+def _write_hits(index, hits, *, output, rank_mt, top, quiet, inputs, **record) -> None:
+    """Rank the hits by the ``--rank-mt`` template (a note counts the hits it cannot fit)
+    and write them (:func:`mtanno.index.query.write_hits`)."""
+    from mtanno.index.query import rank_by_template_file, write_hits
 
     if rank_mt is not None:
-        values, weights, mt_names = load_template_for(index, rank_mt)
-        hits = rank_by_template(index, hits, values, weights, mt_names)
+        hits, columns = rank_by_template_file(index, hits, rank_mt)
         if hits.unfit and not quiet:
-            click.echo(f"query: note: the template ({values.shape[1]} columns) cannot fit "
+            click.echo(f"query: note: the template ({columns} columns) cannot fit "
                        f"{hits.unfit} of {len(hits)} hits (too few frames for its steps); "
                        "they have no mt_cost and are ranked last", err=True)
-    rows = hits.rows(index)
-    if top is not None:
-        rows = rows[:top]
-    write_table(output, hit_table(rows, with_mt=rank_mt is not None,
-                                  with_span=hits.span_start is not None), provenance=provenance(
-        inputs=[file_record(i) for i in inputs] + [{"path": str(index.root / "manifest.json"),
-                                                    "generation": index.generation}],
-        templates=[file_record(rank_mt)] if rank_mt else (), top=top,
-        feature_set=index.feature_set, **record))
+    write_hits(output, index, hits, top=top, inputs=inputs, ranked_by=rank_mt, **record)
 
 
 def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):

@@ -8,7 +8,9 @@
   keyframe search uses (:meth:`GroupIndex.intervals`).
 * :func:`search` with a :class:`Query` (:mod:`~mtanno.index.query`): exact, fuzzy, adaptive
   fuzzy and m-mismatch hits over one or several groups; :func:`example_query` (query by
-  example), :func:`load_query` (JSON), :func:`rank_by_template`.
+  example; :func:`example_matrix` reads its source), :func:`load_query` (JSON),
+  :func:`rank_by_template` (:func:`rank_by_template_file` with a template file),
+  :func:`write_hits` (the hit table); :func:`group_sizes` (``index info``).
 """
 
 from mtanno.index.build import (
@@ -33,20 +35,24 @@ from mtanno.index.query import (
     GroupQuery,
     Hits,
     Query,
+    example_matrix,
     example_query,
     load_query,
     parse_query,
     rank_by_template,
+    rank_by_template_file,
     resolve_features,
     run_group,
     search,
+    write_hits,
 )
-from mtanno.index.storage import INDEX_FORMAT, CorruptIndex
+from mtanno.index.storage import INDEX_FORMAT, CorruptIndex, group_sizes
 
 __all__ = [
-    "INDEX_FORMAT", "QUERY_MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits", "GroupIndex",
-    "GroupQuery", "Hits", "Index", "Query", "UpdateReport", "add_documents", "build_index",
-    "example_query", "frame_codes", "index_from_matrices", "load_query", "open_index",
-    "parse_query", "rank_by_template", "remove_documents", "resolve_features", "run_group",
-    "search", "segment",
+    "INDEX_FORMAT", "QUERY_MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits",
+    "GroupIndex", "GroupQuery", "Hits", "Index", "Query", "UpdateReport", "add_documents",
+    "build_index", "example_matrix", "example_query", "frame_codes", "group_sizes",
+    "index_from_matrices", "load_query", "open_index", "parse_query", "rank_by_template",
+    "rank_by_template_file", "remove_documents", "resolve_features", "run_group", "search",
+    "segment", "write_hits",
 ]

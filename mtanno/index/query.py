@@ -439,6 +439,72 @@ def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.n
     return hits.take(order)
 
 
+def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
+                          ) -> tuple[Hits, int]:
+    """:func:`rank_by_template` with a motion-template JSON file (``query --rank-mt``):
+    read with :func:`mtanno.templates.model.load_template`, checked against the index's
+    feature set, quantized with the retrieval δ (:data:`mtanno.retrieve.DEFAULT_DELTA`,
+    MR06 §5.2) unless it already is. Returns (ranked hits, the template's columns)."""
+    from mtanno.retrieve import DEFAULT_DELTA
+    from mtanno.templates.model import load_template, quantize
+
+    mt = load_template(path)
+    if mt.feature_set != index.feature_set:
+        raise MtannoError(f"template is for feature set '{mt.feature_set}' but the index holds "
+                          f"'{index.feature_set}'", path=str(path))
+    missing = [n for n in mt.feature_names if n not in index.features]
+    if missing:
+        raise MtannoError(f"template feature '{missing[0]}' is not in the index's feature set",
+                          path=str(path))
+    if not mt.quantized:
+        mt = quantize(mt, DEFAULT_DELTA)
+    ranked = rank_by_template(index, hits, mt.values, mt.weights, list(mt.feature_names))
+    return ranked, int(mt.values.shape[1])
+
+
+def write_hits(path: str | os.PathLike, index: Index, hits: Hits, *, top: int | None = None,
+               inputs: Sequence[str | os.PathLike] = (), ranked_by: str | os.PathLike | None = None,
+               **record) -> None:
+    """Write the hit table of ``hits`` (:meth:`Hits.rows`, the best ``top`` only) atomically
+    in the format of ``path``'s suffix (``-``: CSV on standard output), with its provenance:
+    the query's ``inputs`` and the index generation, the ranking template ``ranked_by``
+    (its cost column is written when the hits were ranked), ``top`` and ``record``."""
+    from mtanno.tables import file_record, provenance, write_table
+
+    rows = hits.rows(index)
+    if top is not None:
+        rows = rows[:top]
+    write_table(path, hit_table(rows, with_mt=hits.cost is not None,
+                                with_span=hits.span_start is not None), provenance=provenance(
+        inputs=[file_record(i) for i in inputs] + [{"path": str(index.root / "manifest.json"),
+                                                    "generation": index.generation}],
+        templates=[file_record(ranked_by)] if ranked_by else (), top=top,
+        feature_set=index.feature_set, **record))
+
+
+def example_matrix(index: Index, example: str | os.PathLike
+                   ) -> tuple[np.ndarray, list[str], str]:
+    """(features × frames matrix, feature names, label) of a query-by-example source
+    (``query --example``): a feature file (checked against the index's feature set, names
+    and rate), or the name of an indexed document (its features that some group holds)."""
+    from mtanno.index.core import doc_layout, read_feature_doc
+    from mtanno.store import FeatureLayout, check_layout
+
+    p = Path(example)
+    if p.is_file():
+        doc = read_feature_doc(p)
+        check_layout(doc_layout(doc), FeatureLayout(index.feature_set, tuple(index.features),
+                                                    float(index.fps), f"the index {index.root}"),
+                     path=str(p))
+        return doc.X, doc.names, str(p)
+    if str(example) in {d.name for d in index.documents}:
+        covered = {f for g in index.groups.values() for f in g.features}
+        names = [f for f in index.features if f in covered]
+        return index.feature_matrix(str(example), names), names, str(example)
+    raise MtannoError("example is neither a feature file nor an indexed document",
+                      path=str(example))
+
+
 # --- building queries ----------------------------------------------------------------------
 
 def _projection(index: Index, features: Sequence[str]) -> dict[str, list[tuple[int, int]]]:

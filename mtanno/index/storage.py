@@ -341,3 +341,20 @@ def is_index_dir(root: Path) -> bool:
 def index_bytes(root: Path, manifest: dict) -> dict[str, int]:
     """Bytes on disk per file of the current generation (from the manifest)."""
     return {name: int(e["bytes"]) for name, e in manifest["files"].items()}
+
+
+def group_sizes(index: Index) -> list[dict]:
+    """Per group of an index (``index info``): features, frames, segments, inverted lists
+    (and how many 2^f are possible), bytes on disk (segments and lists tables, from the
+    manifest; 0 for an index in memory), bytes per segment and segments per frame."""
+    files = read_manifest(index.root)["files"] if index.root is not None else {}
+    rows = []
+    for g in index.groups.values():
+        size = sum(files.get(f"{k}-{g.name}.parquet", {}).get("bytes", 0)
+                   for k in ("segments", "lists"))
+        rows.append({"group": g.name, "features": len(g.features), "frames": index.frames,
+                     "segments": g.n_segments, "lists": g.n_lists,
+                     "possible_lists": 2 ** len(g.features), "bytes": size,
+                     "bytes_per_segment": size / g.n_segments if g.n_segments else 0.0,
+                     "segments_per_frame": g.n_segments / index.frames if index.frames else 0.0})
+    return rows
