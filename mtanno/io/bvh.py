@@ -349,17 +349,7 @@ def read_bvh(path: str | os.PathLike, *, sha256: bool = False) -> tuple[Rig, Cha
     spath = str(path)
     data = read_input(path)
     digest = hashlib.sha256(data).hexdigest() if sha256 else None
-    data = data.removeprefix(b"\xef\xbb\xbf").rstrip(b"\x1a")  # UTF-8 BOM, DOS end mark
-    if not data.strip():
-        raise MtannoError("the file is empty", path=spath, line=1)
-    # fast test (bytes.translate deletes every text byte), regex only to locate the culprit
-    bad = _BINARY.search(data) if data.translate(None, _TEXT_BYTES) else None
-    if bad is not None:
-        raise MtannoError(f"not a text file (byte 0x{bad.group()[0]:02x}): binary or "
-                          f"corrupt", path=spath, line=_line_of(data, bad.start()))
-    if b"\n" not in data and b"\r" in data:  # classic Mac line ends
-        data = data.replace(b"\r", b"\n")
-
+    data = _checked_text(data, spath)
     m = _MOTION.search(data)
     header = data[: m.start()] if m is not None else data
     try:
@@ -370,12 +360,67 @@ def read_bvh(path: str | os.PathLike, *, sha256: bool = False) -> tuple[Rig, Cha
     if m is None:
         raise MtannoError("no MOTION section after the hierarchy", path=spath,
                           line=text.rstrip().count("\n") + 1)
+    head = _motion_header(data, m, spath)
+    layout = _ChannelLayout.of(nodes)
+    block = data[head.pos:] if head.pos < len(data) else b""
+    angles, trans = _motion_values(block, layout, head, spath)
+    n_nodes = len(nodes)
+    rig = Rig(
+        kind="bvh",
+        names=[n.name for n in nodes],
+        parents=np.array([n.parent for n in nodes], dtype=np.int64),
+        offsets=layout.offsets,
+        axes=layout.axes,
+        pre=np.tile(np.eye(3), (n_nodes, 1, 1)),
+        post=np.tile(np.eye(3), (n_nodes, 1, 1)),
+        end_point=False,
+        source=spath,
+        meta={
+            "channels": {n.name: ["XYZ"[a] + ("position" if k == "pos" else "rotation")
+                                  for k, a in n.channels] for n in nodes if n.channels},
+            "end_sites": [n.name for n in nodes if n.end_site],
+            "frame_time": float(head.frame_time),
+            "n_channels": layout.n_channels,
+        },
+    )
+    return rig, Channels(angles=angles, trans=trans, has_trans=layout.has_trans, fps=head.fps,
+                         sha256=digest)
 
-    # --- MOTION header: "Frames:" and "Frame Time:" lines ------------------------------
-    motion_line = _line_of(data, m.start())
+
+def _checked_text(data: bytes, spath: str) -> bytes:
+    """The file's bytes without a UTF-8 BOM and DOS end mark, classic Mac line ends made
+    LF; an error for an empty or binary file."""
+    data = data.removeprefix(b"\xef\xbb\xbf").rstrip(b"\x1a")
+    if not data.strip():
+        raise MtannoError("the file is empty", path=spath, line=1)
+    # fast test (bytes.translate deletes every text byte), regex only to locate the culprit
+    bad = _BINARY.search(data) if data.translate(None, _TEXT_BYTES) else None
+    if bad is not None:
+        raise MtannoError(f"not a text file (byte 0x{bad.group()[0]:02x}): binary or "
+                          f"corrupt", path=spath, line=_line_of(data, bad.start()))
+    if b"\n" not in data and b"\r" in data:
+        data = data.replace(b"\r", b"\n")
+    return data
+
+
+@dataclass(frozen=True)
+class _MotionHeader:
+    """The MOTION section's header: where its data starts (byte ``pos``), the frame count
+    and rate, the Frame Time as written, and the lines of both fields."""
+
+    pos: int
+    n_frames: int
+    frames_line: int
+    fps: float
+    frame_time: str
+    frame_time_line: int
+
+
+def _motion_header(data: bytes, m: re.Match, spath: str) -> _MotionHeader:
+    """Parse the "Frames:" and "Frame Time:" lines after MOTION (``m`` its match)."""
     nl = data.find(b"\n", m.end())
     pos = len(data) if nl < 0 else nl + 1  # start of the line after MOTION
-    line_no = motion_line
+    line_no = _line_of(data, m.start())
     fields: list[tuple[str, int]] = []
     while len(fields) < 2:
         if pos >= len(data):
@@ -409,107 +454,113 @@ def read_bvh(path: str | os.PathLike, *, sha256: bool = False) -> tuple[Rig, Cha
     except ValueError:
         raise MtannoError(f"Frame Time '{tm.group(1)}' is not a positive number of seconds",
                           path=spath, line=ft_line) from None
+    return _MotionHeader(pos, n_frames, frames_line, fps, tm.group(1), ft_line)
 
-    # --- channel layout ------------------------------------------------------------------
-    n_nodes = len(nodes)
-    offsets = np.array([n.offset for n in nodes], dtype=np.float64).reshape(n_nodes, 3)
-    axes = np.tile(np.arange(3, dtype=np.int64), (n_nodes, 1))
-    has_trans = np.zeros(n_nodes, dtype=np.bool_)
-    rot_col, rot_node, rot_slot = [], [], []
-    pos_col, pos_node, pos_comp = [], [], []
-    col = 0
-    for j, node in enumerate(nodes):
-        rots = [a for kind, a in node.channels if kind == "rot"]
-        # unused axes fill the remaining slots with zero angles
-        axes[j] = rots + [a for a in range(3) if a not in rots]
-        slot = 0
-        for kind, a in node.channels:
-            if kind == "rot":
-                rot_col.append(col)
-                rot_node.append(j)
-                rot_slot.append(slot)
-                slot += 1
-            else:
-                pos_col.append(col)
-                pos_node.append(j)
-                pos_comp.append(a)
-                has_trans[j] = True
-            col += 1
-    n_channels = col
 
-    # --- MOTION data: fast path ----------------------------------------------------------
-    block = data[pos:] if pos < len(data) else b""
-    first_data_line = ft_line + 1
+@dataclass(frozen=True)
+class _ChannelLayout:
+    """Where each channel of a frame row goes: rotation channel columns ``rot_col`` to
+    (node, slot in the node's rotation order), position columns ``pos_col`` to (node,
+    component); per node its offset, rotation axes (unused axes fill the remaining slots
+    with zero angles) and whether it has position channels."""
+
+    offsets: np.ndarray
+    axes: np.ndarray
+    has_trans: np.ndarray
+    rot_col: list[int]
+    rot_node: list[int]
+    rot_slot: list[int]
+    pos_col: list[int]
+    pos_node: list[int]
+    pos_comp: list[int]
+    n_channels: int
+
+    @classmethod
+    def of(cls, nodes) -> _ChannelLayout:
+        n_nodes = len(nodes)
+        offsets = np.array([n.offset for n in nodes], dtype=np.float64).reshape(n_nodes, 3)
+        axes = np.tile(np.arange(3, dtype=np.int64), (n_nodes, 1))
+        has_trans = np.zeros(n_nodes, dtype=np.bool_)
+        rot_col, rot_node, rot_slot, pos_col, pos_node, pos_comp = [], [], [], [], [], []
+        col = 0
+        for j, node in enumerate(nodes):
+            rots = [a for kind, a in node.channels if kind == "rot"]
+            axes[j] = rots + [a for a in range(3) if a not in rots]
+            slot = 0
+            for kind, a in node.channels:
+                if kind == "rot":
+                    rot_col.append(col)
+                    rot_node.append(j)
+                    rot_slot.append(slot)
+                    slot += 1
+                else:
+                    pos_col.append(col)
+                    pos_node.append(j)
+                    pos_comp.append(a)
+                    has_trans[j] = True
+                col += 1
+        return cls(offsets, axes, has_trans, rot_col, rot_node, rot_slot, pos_col, pos_node,
+                   pos_comp, col)
+
+
+def _motion_values(block: bytes, lay: _ChannelLayout, head: _MotionHeader, spath: str
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(angles in radians, translations) of every frame from the MOTION data ``block``.
+
+    Fast path: a numba kernel, one row per line, bit-identical to float() (Clinger's exact
+    fast path). Slow path: name the line with a wrong value count, a wrong frame count or a
+    bad value; or convert numbers outside the kernel's exact range with NumPy's correctly
+    rounded parser."""
+    n_frames, n_channels = head.n_frames, lay.n_channels
+    n_nodes = lay.offsets.shape[0]
+    first_data_line = head.frame_time_line + 1
     angles = np.zeros((n_frames, n_nodes, 3), dtype=np.float64)
     trans = np.empty((n_frames, n_nodes, 3), dtype=np.float64)
-    trans[:] = offsets  # components without a channel keep the offset's value
+    trans[:] = lay.offsets  # components without a channel keep the offset's value
     status, frames = _numparse.BAD, -1
     if n_frames and n_channels:
-        # numba kernel: one row per line, bit-identical to float() (Clinger's exact fast
-        # path); numbers outside that path go through NumPy's correctly rounded parser
         dst_kind = np.full(n_channels, _numparse.TO_ANGLES, dtype=np.int64)
-        dst_kind[pos_col] = _numparse.TO_TRANS
+        dst_kind[lay.pos_col] = _numparse.TO_TRANS
         dst_node = np.zeros(n_channels, dtype=np.int64)
         dst_slot = np.zeros(n_channels, dtype=np.int64)
-        dst_node[rot_col], dst_slot[rot_col] = rot_node, rot_slot
-        dst_node[pos_col], dst_slot[pos_col] = pos_node, pos_comp
+        dst_node[lay.rot_col], dst_slot[lay.rot_col] = lay.rot_node, lay.rot_slot
+        dst_node[lay.pos_col], dst_slot[lay.pos_col] = lay.pos_node, lay.pos_comp
         dst_scale = np.full(n_channels, np.pi / 180.0)  # = np.deg2rad
-        dst_scale[pos_col] = 1.0
+        dst_scale[lay.pos_col] = 1.0
         frames, status, _ = _numparse.parse_frames(
             np.frombuffer(block, dtype=np.uint8), np.full(n_channels, _numparse.VALUE),
             np.arange(n_channels), 0, np.zeros(0, np.uint8), np.zeros(1, np.int64),
             dst_kind, dst_node, dst_slot, dst_scale, np.zeros(n_channels), angles, trans,
             _numparse.POW10, True)
-    if status != _numparse.OK or frames != n_frames:
-        # slow path: name the line with a wrong value count, a wrong frame count or a bad
-        # value; or convert numbers outside the kernel's exact range
-        counts = _tokens_per_line(np.frombuffer(block, dtype=np.uint8))
-        rows = np.flatnonzero(counts)  # line index (within block) of every non-blank line
-        wrong = np.flatnonzero(counts[rows] != n_channels)
-        if wrong.size:
-            k = rows[wrong[0]]
-            got = int(counts[k])
-            which = "few" if got < n_channels else "many"
-            raise MtannoError(f"too {which} values: motion frame {wrong[0] + 1} has {got} but "
-                              f"the hierarchy declares {n_channels} channels", path=spath,
-                              line=first_data_line + int(k))
-        if rows.size != n_frames:
-            raise MtannoError(f"'Frames: {n_frames}' but the file has {rows.size} rows of "
-                              f"motion data", path=spath, line=frames_line)
-        if n_frames and n_channels:
-            values = None
-            if status == _numparse.INEXACT:
-                try:
-                    values = np.loadtxt(io.BytesIO(block), dtype=np.float64, ndmin=2,
-                                        comments=None, encoding="latin-1"
-                                        ).reshape(n_frames, n_channels)
-                except ValueError as exc:
-                    _locate_bad_value(block, rows, n_channels, first_data_line, spath, str(exc))
-            if values is None or not np.isfinite(values).all():
-                _locate_bad_value(block, rows, n_channels, first_data_line, spath, "")
-            angles[:, rot_node, rot_slot] = np.deg2rad(values[:, rot_col])
-            trans[:, pos_node, pos_comp] = values[:, pos_col]
-
-    rig = Rig(
-        kind="bvh",
-        names=[n.name for n in nodes],
-        parents=np.array([n.parent for n in nodes], dtype=np.int64),
-        offsets=offsets,
-        axes=axes,
-        pre=np.tile(np.eye(3), (n_nodes, 1, 1)),
-        post=np.tile(np.eye(3), (n_nodes, 1, 1)),
-        end_point=False,
-        source=spath,
-        meta={
-            "channels": {n.name: ["XYZ"[a] + ("position" if k == "pos" else "rotation")
-                                  for k, a in n.channels] for n in nodes if n.channels},
-            "end_sites": [n.name for n in nodes if n.end_site],
-            "frame_time": float(tm.group(1)),
-            "n_channels": n_channels,
-        },
-    )
-    return rig, Channels(angles=angles, trans=trans, has_trans=has_trans, fps=fps,
-                         sha256=digest)
+    if status == _numparse.OK and frames == n_frames:
+        return angles, trans
+    counts = _tokens_per_line(np.frombuffer(block, dtype=np.uint8))
+    rows = np.flatnonzero(counts)  # line index (within block) of every non-blank line
+    wrong = np.flatnonzero(counts[rows] != n_channels)
+    if wrong.size:
+        k = rows[wrong[0]]
+        got = int(counts[k])
+        which = "few" if got < n_channels else "many"
+        raise MtannoError(f"too {which} values: motion frame {wrong[0] + 1} has {got} but "
+                          f"the hierarchy declares {n_channels} channels", path=spath,
+                          line=first_data_line + int(k))
+    if rows.size != n_frames:
+        raise MtannoError(f"'Frames: {n_frames}' but the file has {rows.size} rows of "
+                          f"motion data", path=spath, line=head.frames_line)
+    if n_frames and n_channels:
+        values = None
+        if status == _numparse.INEXACT:
+            try:
+                values = np.loadtxt(io.BytesIO(block), dtype=np.float64, ndmin=2,
+                                    comments=None, encoding="latin-1"
+                                    ).reshape(n_frames, n_channels)
+            except ValueError as exc:
+                _locate_bad_value(block, rows, n_channels, first_data_line, spath, str(exc))
+        if values is None or not np.isfinite(values).all():
+            _locate_bad_value(block, rows, n_channels, first_data_line, spath, "")
+        angles[:, lay.rot_node, lay.rot_slot] = np.deg2rad(values[:, lay.rot_col])
+        trans[:, lay.pos_node, lay.pos_comp] = values[:, lay.pos_col]
+    return angles, trans
 
 
 def _locate_bad_value(block: bytes, rows: np.ndarray, n_channels: int, first_data_line: int,
