@@ -214,8 +214,10 @@ def test_load_rejects_quantized_without_delta(tmp_path):
         load_template(_write(tmp_path, d))
 
 
-@pytest.mark.parametrize("literal", ["NaN", "Infinity", "-Infinity"])
-def test_load_rejects_non_finite_values_with_line(tmp_path, literal):
+@pytest.mark.parametrize("literal, match", [("NaN", "finite"), ("Infinity", "finite"),
+                                            ("-Infinity", "finite"),
+                                            ("1.5", "is 1.5, outside"), ("-0.25", "is -0.25")])
+def test_load_rejects_bad_values_with_line(tmp_path, literal, match):
     p = tmp_path / "t.json"
     save_template(p, make_mt())
     lines = p.read_text().splitlines()
@@ -223,7 +225,7 @@ def test_load_rejects_non_finite_values_with_line(tmp_path, literal):
     lines[row] = lines[row].replace("[", f"[{literal}, ", 1)
     lines[row] = lines[row].rsplit(",", 2)[0] + ("]," if lines[row].endswith(",") else "]")
     p.write_text("\n".join(lines))
-    with pytest.raises(MtannoError, match="row 3 .* finite") as info:
+    with pytest.raises(MtannoError, match=f"row 3 .* {match}") as info:
         load_template(p)
     assert info.value.line == row + 1
 

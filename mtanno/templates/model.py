@@ -151,68 +151,75 @@ class MotionTemplate:
 MAX_WEIGHT = 1e6
 
 
-def _validate(mt: MotionTemplate, path: str | None = None) -> None:
-    def bad(msg: str) -> MtannoError:
-        return MtannoError(msg, path=path)
+def _validate(mt: MotionTemplate, path: str | None = None, *, line_of=None) -> None:
+    """Check every field of a template; an error names ``path`` and, when ``line_of``
+    (key, values row or None → line number or None; from :func:`load_template`) is given,
+    the line of the offending field or values row."""
+
+    def bad(msg: str, key: str | None = None, row: int | None = None) -> MtannoError:
+        line = line_of(key, row) if line_of is not None and key is not None else None
+        return MtannoError(msg, path=path, line=line)
 
     if not isinstance(mt.class_name, str) or not mt.class_name.strip():
-        raise bad("class name must be a non-empty string")
+        raise bad("class name must be a non-empty string", "class")
     if not mt.feature_names or not all(isinstance(n, str) and n for n in mt.feature_names):
-        raise bad("feature_names must be a non-empty list of names")
+        raise bad("feature_names must be a non-empty list of names", "feature_names")
     if len(set(mt.feature_names)) != len(mt.feature_names):
         dup = sorted({n for n in mt.feature_names if mt.feature_names.count(n) > 1})
-        raise bad(f"duplicate feature names: {', '.join(dup)}")
+        raise bad(f"duplicate feature names: {', '.join(dup)}", "feature_names")
     V, w = mt.values, mt.weights
     if V.ndim != 2 or V.shape[0] != len(mt.feature_names):
         raise bad(f"values must be ({len(mt.feature_names)} features × columns), got shape "
-                  f"{V.shape}")
+                  f"{V.shape}", "values")
     if V.shape[1] == 0:
-        raise bad("template has no columns")
+        raise bad("template has no columns", "values")
     if w.shape != (V.shape[1],):
-        raise bad(f"weights must have one entry per column ({V.shape[1]}), got {w.size}")
+        raise bad(f"weights must have one entry per column ({V.shape[1]}), got {w.size}",
+                  "weights")
     if not np.isfinite(V).all():
         r, c = np.argwhere(~np.isfinite(V))[0]
         raise bad(f"values row {r + 1} ({mt.feature_names[r]}) column {c + 1} is not a "
-                  f"finite number")
+                  f"finite number", "values", int(r))
     if (V < 0).any() or (V > 1).any():
         r, c = np.argwhere((V < 0) | (V > 1))[0]
         raise bad(f"values row {r + 1} ({mt.feature_names[r]}) column {c + 1} is "
-                  f"{V[r, c]!r}, outside [0, 1]")
+                  f"{float(V[r, c])!r}, outside [0, 1]", "values", int(r))
     if not np.isfinite(w).all() or (w <= 0).any() or (w > MAX_WEIGHT).any():
         c = int(np.argwhere(~np.isfinite(w) | (w <= 0) | (w > MAX_WEIGHT))[0][0])
-        raise bad(f"weight {c + 1} is {w[c]!r}; weights must be positive, finite and at "
-                  f"most {MAX_WEIGHT:g}")
+        raise bad(f"weight {c + 1} is {float(w[c])!r}; weights must be positive, finite and at "
+                  f"most {MAX_WEIGHT:g}", "weights")
     if mt.kind not in KINDS:
-        raise bad(f"kind must be one of {', '.join(KINDS)}, got {mt.kind!r}")
+        raise bad(f"kind must be one of {', '.join(KINDS)}, got {mt.kind!r}", "kind")
     if not isinstance(mt.feature_set, str) or not mt.feature_set:
-        raise bad("feature_set must be a non-empty string")
+        raise bad("feature_set must be a non-empty string", "feature_set")
     if not _is_number(mt.fps) or not math.isfinite(mt.fps) or mt.fps <= 0:
-        raise bad(f"fps must be a positive number, got {mt.fps!r}")
+        raise bad(f"fps must be a positive number, got {mt.fps!r}", "fps")
     if not isinstance(mt.quantized, bool):
-        raise bad("quantized must be true or false")
+        raise bad("quantized must be true or false", "quantized")
     if mt.delta is not None and (not _is_number(mt.delta) or not 0 <= mt.delta <= 0.5):
-        raise bad(f"delta must be null or a number in [0, 0.5], got {mt.delta!r}")
+        raise bad(f"delta must be null or a number in [0, 0.5], got {mt.delta!r}", "delta")
     if mt.quantized:
         if mt.delta is None:
-            raise bad("a quantized template needs the delta it was quantized with")
+            raise bad("a quantized template needs the delta it was quantized with", "delta")
         off = ~np.isin(V, (0.0, WILDCARD, 1.0))
         if off.any():
             r, c = np.argwhere(off)[0]
-            raise bad(f"quantized template has value {V[r, c]!r} at row {r + 1} column "
-                      f"{c + 1} (only 0, 0.5, 1 allowed)")
+            raise bad(f"quantized template has value {float(V[r, c])!r} at row {r + 1} column "
+                      f"{c + 1} (only 0, 0.5, 1 allowed)", "values", int(r))
     if not isinstance(mt.iterations, int) or isinstance(mt.iterations, bool) \
             or mt.iterations < 0:
-        raise bad(f"iterations must be an integer ≥ 0, got {mt.iterations!r}")
+        raise bad(f"iterations must be an integer ≥ 0, got {mt.iterations!r}", "iterations")
     if not _is_number(mt.final_cost) or not math.isfinite(mt.final_cost) \
             or mt.final_cost < 0:
-        raise bad(f"final_cost must be a finite number ≥ 0, got {mt.final_cost!r}")
+        raise bad(f"final_cost must be a finite number ≥ 0, got {mt.final_cost!r}",
+                  "final_cost")
     if not isinstance(mt.params, dict):
-        raise bad("params must be an object")
+        raise bad("params must be an object", "params")
     if not isinstance(mt.history, dict) or not all(
             isinstance(v, list) and all(_is_number(x) for x in v) for v in mt.history.values()):
-        raise bad("history must be an object of number lists")
+        raise bad("history must be an object of number lists", "history")
     if not isinstance(mt.training, list):
-        raise bad("training must be a list")
+        raise bad("training must be a list", "training")
     for n, t in enumerate(mt.training, 1):
         if not isinstance(t, dict):
             raise bad(f"training entry {n} must be an object")
@@ -334,16 +341,15 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
             raise field_error(key, f"{key} must be a number")
     vline = _line_of(text, "values")
     lines = text.splitlines()
-    for r, row in enumerate(values):
-        bad = [c for c, x in enumerate(row) if not (math.isfinite(x) and 0.0 <= x <= 1.0)]
-        if bad:
-            line = vline
-            if vline is not None and vline + r < len(lines) and \
-                    lines[vline + r].lstrip().startswith("["):
-                line = vline + r + 1  # one row per line, as save_template writes them
-            raise MtannoError(f"values row {r + 1} ({names[r]}) column {bad[0] + 1} is "
-                              f"{row[bad[0]]!r}; values must be finite and in [0, 1]",
-                              path=spath, line=line)
+
+    def line_of(key: str, row: int | None) -> int | None:
+        """The line of a field, or of a values row when the rows are one per line (as
+        :func:`save_template` writes them)."""
+        if key == "values" and row is not None and vline is not None \
+                and vline + row < len(lines) and lines[vline + row].lstrip().startswith("["):
+            return vline + row + 1
+        return _line_of(text, key)
+
     mt = MotionTemplate.__new__(MotionTemplate)
     mt.class_name = d["class"]
     mt.feature_names = list(names)
@@ -360,7 +366,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     mt.final_cost = d.get("final_cost", 0.0)
     mt.history = d.get("history", {})
     mt.path = spath
-    _validate(mt, spath)
+    _validate(mt, spath, line_of=line_of)
     mt.fps = float(mt.fps)
     mt.final_cost = float(mt.final_cost)
     mt.delta = None if mt.delta is None else float(mt.delta)
