@@ -43,7 +43,7 @@ for seed in $SEEDS; do
   "$MTANNO" features "$d/docs" -o "$d/features" --jobs 2 -q
   for run in reference paper kf_reference kf_ga kf_hard kf_heuristic; do
     case $run in
-      reference|paper) extra=(--variant "$run") ;;
+      reference|paper) extra=(--dbar "$run") ;;
       *) extra=(--keyframes "$OUT/$run") ;;
     esac
     "$MTANNO" annotate --mt "$OUT/mt" "${extra[@]}" "$d/features" -o "$d/annotation_$run.csv" \

@@ -119,6 +119,10 @@ def test_annotate_paper_variant_and_classes_config(pipeline):
 
     labels = {row["label"] for row in csv.DictReader((d / "b.csv").open())}
     assert "legs" in labels and not labels & {"squat", "kickLFront"}
+    # --dbar is the option's name now, --variant its former one: the same table
+    r = run("annotate", "--mt", d / "mt", d / "docfeats", "-o", d / "c.csv", "--classes", cfg,
+            "--dbar", "paper", "-q")
+    assert r.exit_code == 0 and (d / "c.csv").read_text() == (d / "b.csv").read_text()
 
 
 def test_evaluate_retrieval(pipeline):

@@ -132,9 +132,10 @@ def test_unquantized_template_is_quantized(setup, tmp_path):
     assert r.exit_code == 2 and "already quantized" in r.stderr
 
 
-def test_paper_variant_option(setup):
+@pytest.mark.parametrize("option", ["--match", "--variant"])  # --variant: former name
+def test_paper_variant_option(setup, option):
     tmp, mt, docs = setup
-    r = run(["retrieve", "--mt", str(tmp / "hop.json"), str(tmp / "C.parquet"), "--variant",
+    r = run(["retrieve", "--mt", str(tmp / "hop.json"), str(tmp / "C.parquet"), option,
              "paper", "--tau", "0.2"])
     assert r.exit_code == 0
     d, s = match_naive(mt.values, mt.weights, docs["C.parquet"], variant="paper")

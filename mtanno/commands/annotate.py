@@ -50,8 +50,10 @@ check_features = check_layout
 @click.option("--delta", type=float, default=None,
               help="Quantization delta of the templates [default: [decoder] delta of "
                    f"--classes, else {DEFAULT_DELTA:g}].")
-@click.option("--variant", type=click.Choice(["reference", "paper"]), default="reference",
-              show_default=True, help="Modified-distance variant (algorithms.md §7).")
+@click.option("--dbar", "--variant", "variant", type=click.Choice(["reference", "paper"]),
+              default="reference", show_default=True,
+              help="Modified-distance (Δ̄) variant (algorithms.md §7); --variant is its "
+                   "former name.")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True, help="Matching cost variant (§3.4).")
 @click.option("--single-label", is_flag=True,

@@ -28,10 +28,11 @@ from mtanno.store import feature_files
 @click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Report at most this many hits (a note on stderr says when the cap cut "
                    "hits off).")
-@click.option("--variant", default="reference", show_default=True,
+@click.option("--match", "--variant", "variant", default="reference", show_default=True,
               type=click.Choice(["reference", "paper"]),
-              help="Matching variant: the reference implementation's (weights expand the "
-                   "template) or the papers' as written (docs/retrieval.md).")
+              help="Matching variant (as annotate --match): the reference implementation's "
+                   "(weights expand the template) or the papers' as written "
+                   "(docs/retrieval.md); --variant is its former name.")
 @click.option("--delta", "qdelta", default=None, type=click.FloatRange(0, 0.5),
               help="Quantize an unquantized template with this δ (default: the template's "
                    f"own delta, else {DEFAULT_DELTA:g} as in MR06). A quantized template keeps "
