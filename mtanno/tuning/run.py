@@ -34,6 +34,7 @@ from mtanno.tuning.search import (
     check_methods,
     prepare_fold_class,
 )
+from mtanno.tuning.tempo import TEMPO_SCALES, time_scaled
 
 __all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
 
@@ -182,7 +183,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                 "deltas": _deltas(methods, templates), "groups": GROUPS
                 if "templates" in methods else (), "learn": learn[c], "spans": spans,
                 "evidence": "frames" in methods and "resolve" in methods,
-                "evidence_spans": ev_spans}))
+                "evidence_spans": ev_spans,
+                "scales": TEMPO_SCALES if "templates" in methods else ()}))
     prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
                                                           scheduler=scheduler, shared=shared)))
     tuner = Tuner(folds, prepared, classes=classes, methods=methods,
@@ -206,8 +208,15 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     learned = {key: g for key, g in zip(wanted, got) if g}
 
     def extra_of(p: Params) -> dict:
-        return {c: learned[(c, p.groups[c])] for c in classes
-                if (c, p.groups.get(c, 1)) in learned}
+        """Per class its further templates: the groups', then the time-scaled copies of
+        its template."""
+        out = {}
+        for c in classes:
+            mts = [*learned.get((c, p.groups.get(c, 1)), []),
+                   *(time_scaled(templates[c], f) for f in p.scales.get(c, ()))]
+            if mts:
+                out[c] = mts
+        return out
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     if keyframes_dir is not None:
