@@ -401,3 +401,29 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
     assert res.exit_code == 0, res.output
     prov = json.loads((tmp_path / "a.csv.meta.json").read_text())
     assert sum(str(f) in json.dumps(prov) for f in files) == 2
+
+
+def test_matched_columns_are_what_the_matcher_expands_to():
+    from mtanno.templates.match import PreparedTemplate
+    from mtanno.tuning.tempo import matched_columns
+
+    w = np.array([0.4, 1.5, 2.49, 2.5, 1.0])
+    assert matched_columns(w) == 1 + 2 + 2 + 3 + 1
+    V = np.array([[0.0, 1.0, 0.5, 1.0, 0.0]])
+    assert PreparedTemplate(V, w).K == matched_columns(w)
+
+
+@pytest.mark.parametrize("cost, kept", [(3, {"a": (0.6,)}), (4, {})])
+def test_time_scaled_copies_stay_within_their_column_budget(cost, kept):
+    """All copies together may have 15 % of the templates' columns (here 3 of 20): a copy
+    of 4 columns is not tried, however much it would raise J."""
+    fold, prepared = _fold_data()
+    columns = {"a": 10, "b": 10, ("a", 0.6): cost, ("a", 1.6): 16, ("b", 0.6): 1,
+               ("b", 1.6): 1}
+    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0,
+                  columns=columns)
+    params, _, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
+    assert params.scales == kept
+    used = cost if kept else 0
+    assert any(s.startswith(f"time-scaled templates {kept or 'none'} ({used} of 3 columns)")
+               for s in steps), steps

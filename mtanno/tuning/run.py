@@ -34,7 +34,7 @@ from mtanno.tuning.search import (
     check_methods,
     prepare_fold_class,
 )
-from mtanno.tuning.tempo import TEMPO_SCALES, time_scaled
+from mtanno.tuning.tempo import TEMPO_SCALES, matched_columns, time_scaled
 
 __all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
 
@@ -187,8 +187,11 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                 "scales": TEMPO_SCALES if "templates" in methods else ()}))
     prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
                                                           scheduler=scheduler, shared=shared)))
+    columns = {c: matched_columns(templates[c].weights) for c in classes}
+    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
+                    for c in classes for f in TEMPO_SCALES})
     tuner = Tuner(folds, prepared, classes=classes, methods=methods,
-                  unknown_weight=unknown_weight, log=log)
+                  unknown_weight=unknown_weight, log=log, columns=columns)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
     reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), 0.13), per_class=True)

@@ -25,8 +25,11 @@ The search, in this order, each step only over the methods switched on
    :data:`SEGMENT_COSTS` together with the one τ again (λ shifts the threshold);
 3. several templates per class (``templates``): each class split into 2 or 3 groups of
    examples (:mod:`mtanno.tuning.cluster`), kept where J rises by more than :data:`EPS`;
-   then time-scaled copies of each class's template (:mod:`mtanno.tuning.tempo`: a
-   faster, a slower or both of :data:`~mtanno.tuning.tempo.TEMPO_SCALES`), kept alike;
+   then time-scaled copies of the classes' templates (:mod:`mtanno.tuning.tempo`: a
+   faster, a slower or both of :data:`~mtanno.tuning.tempo.TEMPO_SCALES`), greedily: the
+   class and copies that raise J most (by more than :data:`EPS`) first, as long as all
+   copies together match at most :data:`~mtanno.tuning.tempo.COPY_BUDGET` times the
+   templates' columns (they cost annotation time in proportion);
 4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
    where J rises by more than :data:`EPS`;
 5. rejection (``reject``): a ceiling ρ_p = m·τ_p (m in :data:`REJECT_STEPS`) per class,
@@ -52,7 +55,7 @@ from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_e
 from mtanno.errors import MtannoError
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, count, covered_fraction
-from mtanno.tuning.tempo import TEMPO_SCALES, time_scaled
+from mtanno.tuning.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 
 __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
            "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
@@ -254,8 +257,13 @@ class Tuner:
 
     def __init__(self, folds: Sequence[Fold], prepared: dict[tuple[str, str], dict], *,
                  classes: Sequence[str], methods: Sequence[str] = METHODS,
-                 unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None):
+                 unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None,
+                 columns: dict | None = None):
+        """``columns``: the matching columns (:func:`mtanno.tuning.tempo.matched_columns`)
+        of each class's template (key: class) and of its time-scaled copies (key: (class,
+        factor)), for the copies' budget; None: no budget."""
         self.classes = list(classes)
+        self.columns = columns
         self.methods = set(methods)
         self.unknown_weight = float(unknown_weight)
         self.log = log or (lambda msg: None)
@@ -466,13 +474,11 @@ class Tuner:
                     cur, cur_ev = got, ev
             split = {c: k for c, k in cur.groups.items() if k > 1}
             note(f"templates {split or 'one per class'}", cur_ev)
-            for c in self.classes:
-                got, ev = self._best([cur.copy(scales={**cur.scales, c: fs})
-                                      for fs in SCALE_SETS], cur_ev, EPS)
-                if got is not None:
-                    cur, cur_ev = got, ev
+            cur, cur_ev, used = self._copies(cur, cur_ev)
             scaled = {c: fs for c, fs in cur.scales.items() if fs}
-            note(f"time-scaled templates {scaled or 'none'}", cur_ev)
+            budget = "" if self.columns is None else \
+                f" ({used} of {self._budget()} columns)"
+            note(f"time-scaled templates {scaled or 'none'}{budget}", cur_ev)
         # 4. per-class τ
         if "tau" in on:
             for _ in range(2):
@@ -508,6 +514,35 @@ class Tuner:
             cur, cur_ev = got, ev
         note("final", cur_ev)
         return cur, self.evaluate(cur, per_class=True), steps
+
+
+    def _budget(self) -> int:
+        """Columns all time-scaled copies together may have."""
+        return int(COPY_BUDGET * sum(self.columns[c] for c in self.classes))
+
+    def _copies(self, cur: Params, cur_ev: Evaluation) -> tuple[Params, Evaluation, int]:
+        """Step 3's time-scaled copies: repeatedly, of every class without copies yet and
+        every set of :data:`SCALE_SETS` that fits into the budget, the one of highest J
+        (the first of equals) is kept if it raises J by more than :data:`EPS`. Returns the
+        parameters, their evaluation and the columns the copies use."""
+        used = 0
+        while True:
+            cands, costs = [], []
+            for c in self.classes:
+                if cur.scales.get(c):
+                    continue
+                for fs in SCALE_SETS:
+                    cost = 0 if self.columns is None else \
+                        sum(self.columns[(c, f)] for f in fs)
+                    if self.columns is not None and used + cost > self._budget():
+                        continue
+                    cands.append(cur.copy(scales={**cur.scales, c: fs}))
+                    costs.append(cost)
+            got, ev = self._best(cands, cur_ev, EPS)
+            if got is None:
+                return cur, cur_ev, used
+            used += costs[cands.index(got)]
+            cur, cur_ev = got, ev
 
 
 def _round(x: float) -> float:

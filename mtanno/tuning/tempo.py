@@ -20,10 +20,15 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.templates.model import MotionTemplate
 
-__all__ = ["TEMPO_SCALES", "scale_columns", "time_scaled"]
+__all__ = ["COPY_BUDGET", "TEMPO_SCALES", "matched_columns", "scale_columns", "time_scaled"]
 
 #: Tempo factors tried for a class's time-scaled templates (template length × f).
 TEMPO_SCALES = (0.6, 1.6)
+#: The columns all time-scaled copies together may have, as a fraction of the columns of
+#: the classes' templates: matching takes most of an annotation's time and grows with the
+#: columns matched, and a tuned annotation should take at most about 1.2 times as long as
+#: the untuned one.
+COPY_BUDGET = 0.15
 
 
 def scale_columns(n: int, factor: float) -> np.ndarray:
@@ -34,6 +39,13 @@ def scale_columns(n: int, factor: float) -> np.ndarray:
                           f"and factor {factor!r}")
     m = max(2, int(round(n * factor)))
     return np.minimum(n - 1, np.floor((np.arange(m) + 0.5) * n / m).astype(np.int64))
+
+
+def matched_columns(weights: np.ndarray) -> int:
+    """The columns a template of these column weights is matched with (the reference
+    matcher repeats column i max(1, round(w_i)) times, round half up): what its matching
+    costs per document frame."""
+    return int(np.maximum(1.0, np.floor(np.asarray(weights, np.float64) + 0.5)).sum())
 
 
 def time_scaled(mt: MotionTemplate, factor: float) -> MotionTemplate:
