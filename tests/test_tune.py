@@ -261,3 +261,169 @@ def test_tune_without_examples_of_a_class(world, tmp_path):
             "--split", "train", "-o", tmp_path / "t.toml")
     line = assert_one_line(r, "squat", codes=(2,))
     assert "no training examples of class(es) squat" in line
+
+
+def test_time_scaled_template_keeps_the_nearest_columns():
+    from mtanno.templates.model import MotionTemplate
+    from mtanno.tuning.tempo import scale_columns, time_scaled
+
+    assert scale_columns(10, 0.6).tolist() == [0, 2, 4, 5, 7, 9]
+    assert scale_columns(4, 1.5).tolist() == [0, 1, 1, 2, 3, 3]
+    assert scale_columns(3, 0.1).tolist() == [0, 2]  # never fewer than 2 columns
+    V = np.array([[0.0, 1.0, 0.5, 1.0, 0.0], [1.0, 1.0, 0.0, 0.0, 0.25]])
+    mt = MotionTemplate("c", ["f1", "f2"], V, np.array([1.0, 2.0, 1.0, 0.5, 1.5]),
+                        params={"examples": 3})
+    s = time_scaled(mt, 0.6)
+    assert s.values.tolist() == V[:, [0, 2, 4]].tolist()
+    assert s.weights.tolist() == [1.0, 1.0, 1.5]
+    assert s.class_name == "c" and s.params == {"examples": 3, "time_scale": 0.6}
+    assert mt.values.shape == (2, 5) and "time_scale" not in mt.params  # a copy
+    with pytest.raises(Exception, match="factor"):
+        time_scaled(mt, 0.0)
+
+
+def test_time_scaled_template_matches_a_fast_performance(world):
+    """A performance three times faster than the training examples is shorter than half
+    the template, so the template cannot match it (DTW steps (1,1), (1,2), (2,1)); its
+    copy at 0.6 times the length can, and prepare_fold_class matches both."""
+    from mtanno.templates.match import PreparedTemplate, pack_document
+    from mtanno.templates.model import quantize
+    from mtanno.templates.training import load_examples
+    from mtanno.tuning.search import prepare_fold_class
+    from mtanno.tuning.tempo import time_scaled
+
+    examples = load_examples(_sources(world))
+    cls = examples[0].class_name
+    train = [e for e in examples if e.class_name == cls]
+    fast = np.ascontiguousarray(train[0].X[:, ::3])
+    offsets = np.array([0, fast.shape[1]])
+    got = prepare_fold_class(cls, train, fast, offsets, deltas=[0.05], groups=(), learn={},
+                             spans=None, evidence=True, scales=(0.6, 1.6))
+    m = got["match"]
+    assert set(m) == {(0.05, 1, 0), (0.05, 0, 0.6), (0.05, 0, 1.6)}
+    assert m[(0.05, 1, 0)][2] is not None and m[(0.05, 0, 0.6)][2] is None
+    assert np.isinf(m[(0.05, 1, 0)][0]).all()
+    assert np.isfinite(m[(0.05, 0, 0.6)][0][-1])
+    from mtanno.templates.learn import learn_template
+
+    q = quantize(time_scaled(learn_template(train, class_name=cls), 0.6), 0.05)
+    d, _ = PreparedTemplate(q.values, q.weights).run(pack_document(fast, fast.shape[0]),
+                                                     offsets)
+    np.testing.assert_array_equal(m[(0.05, 0, 0.6)][0], d)
+
+
+def _with_scaled(prepared, L=60):
+    """The fold data of :func:`_fold_data` with time-scaled curves of class a: the copy at
+    0.6 finds the second document's a (frames 45–59), which no template of a reaches."""
+    match = prepared[("f", "a")]["match"]
+    for k in (1, 2):
+        d, s, e = match[(0.05, k, 0)]
+        d = d.copy()
+        d[59] = math.inf
+        match[(0.05, k, 0)] = (d, s, e)
+    d, s = np.full(L, math.inf), np.full(L, -1, np.int64)
+    d[59], s[59] = 0.02, 45
+    match[(0.05, 0, 0.6)] = (d, s, None)
+    d2 = np.full(L, math.inf)
+    d2[20], s2 = 0.01, np.where(np.arange(L) == 20, 16, -1)
+    match[(0.05, 0, 1.6)] = (d2, s2, None)  # a false match inside b
+    for f in (0.6, 1.6):  # b's copies match nothing
+        prepared[("f", "b")]["match"][(0.05, 0, f)] = (np.full(L, math.inf),
+                                                       np.full(L, -1, np.int64), None)
+    return prepared
+
+
+@pytest.mark.parametrize("resolve", [True, False])
+def test_tuner_matches_time_scaled_templates_as_annotate_does(resolve):
+    fold, prepared = _fold_data()
+    prepared = _with_scaled(prepared)
+    tuner = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.0)
+    p = Params(delta=0.05, resolve=resolve, tau={"a": 0.1, "b": 0.13},
+               groups={"a": 1, "b": 1}, scales={"a": (0.6,)}, frame_weight=0.5 * resolve)
+    assert tuner._templates(tuner.folds[0], "a", p) == [(1, 0), (0, 0.6)]
+    got = tuner._segments(tuner.folds[0], p, ["a", "b"])
+    cfg = ClassConfig(tau={"a": 0.1, "b": 0.13}, resolve=resolve,
+                      frame_weight=0.5 * resolve)
+    want = []
+    for a, b in ((0, 30), (30, 60)):
+        names, arrays = [], []
+        for cls, k in (("a", (1, 0)), ("a", (0, 0.6)), ("b", (1, 0))):
+            d, s, e = prepared[("f", cls)]["match"][(0.05, *k)]
+            ev = prepared[("f", cls)]["match"][(0.05, 1, 0)][2]  # a copy's evidence
+            names.append(cls)
+            arrays.append((cls, d[a:b], np.where(s[a:b] >= 0, s[a:b] - a, -1), ev[a:b]))
+        rows, _, _ = label_document("x", names, iter(arrays), b - a, config=cfg)
+        want += [(["a", "b"].index(r.label), r.start + a, r.end + a) for r in rows]
+    assert sorted(got) == sorted(want)
+    assert (0, 45, 59) in got
+
+
+def test_search_keeps_a_time_scaled_template_only_where_it_pays():
+    fold, prepared = _fold_data()
+    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0)
+    params, ev, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
+    assert params.scales == {"a": (0.6,)}  # not 1.6: its match lies inside a b
+    assert any(s.startswith("time-scaled templates {'a': (0.6,)}") for s in steps)
+    without = tuner.search(delta=0.05, methods=["resolve"])[1]
+    assert ev.J > without.J
+
+
+def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_path,
+                                                                   monkeypatch):
+    """The chosen tempo factors become further templates of the class: its template from
+    MT/ time-scaled, written beside the configuration and read back by annotate."""
+    from mtanno.templates.model import load_template, load_template_folder
+    from mtanno.tuning.tempo import time_scaled
+
+    original = Tuner.search
+
+    def search(self, **kw):
+        p, ev, steps = original(self, **kw)  # (tempo not matched: templates are off)
+        return p.copy(scales={self.classes[0]: (0.6, 1.6)}), ev, steps
+
+    monkeypatch.setattr(Tuner, "search", search)
+    r = tune(_sources(world), world.mt, seed=0, methods=[m for m in METHODS
+                                                        if m != "templates"])
+    c = r.classes[0]
+    mt = load_template_folder(world.mt)[c]
+    assert [x.params["time_scale"] for x in r.extra_templates[c]] == [0.6, 1.6]
+    for got, f in zip(r.extra_templates[c], (0.6, 1.6)):
+        want = time_scaled(mt, f)
+        np.testing.assert_array_equal(got.values, want.values)
+        np.testing.assert_array_equal(got.weights, want.weights)
+    cfg_path = tmp_path / "t.toml"
+    write_tuned(cfg_path, r)
+    cfg = load_class_config(cfg_path)
+    files = cfg.template_paths()[c]
+    assert [load_template(f).params["time_scale"] for f in files] == [0.6, 1.6]
+    out = tmp_path / "a.csv"
+    res = cli("annotate", "--mt", world.mt, "--classes", cfg_path, world.docfeats, "-o", out)
+    assert res.exit_code == 0, res.output
+    prov = json.loads((tmp_path / "a.csv.meta.json").read_text())
+    assert sum(str(f) in json.dumps(prov) for f in files) == 2
+
+
+def test_matched_columns_are_what_the_matcher_expands_to():
+    from mtanno.templates.match import PreparedTemplate
+    from mtanno.tuning.tempo import matched_columns
+
+    w = np.array([0.4, 1.5, 2.49, 2.5, 1.0])
+    assert matched_columns(w) == 1 + 2 + 2 + 3 + 1
+    V = np.array([[0.0, 1.0, 0.5, 1.0, 0.0]])
+    assert PreparedTemplate(V, w).K == matched_columns(w)
+
+
+@pytest.mark.parametrize("cost, kept", [(3, {"a": (0.6,)}), (4, {})])
+def test_time_scaled_copies_stay_within_their_column_budget(cost, kept):
+    """All copies together may have 15 % of the templates' columns (here 3 of 20): a copy
+    of 4 columns is not tried, however much it would raise J."""
+    fold, prepared = _fold_data()
+    columns = {"a": 10, "b": 10, ("a", 0.6): cost, ("a", 1.6): 16, ("b", 0.6): 1,
+               ("b", 1.6): 1}
+    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0,
+                  columns=columns)
+    params, _, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
+    assert params.scales == kept
+    used = cost if kept else 0
+    assert any(s.startswith(f"time-scaled templates {kept or 'none'} ({used} of 3 columns)")
+               for s in steps), steps

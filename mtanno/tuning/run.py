@@ -34,6 +34,7 @@ from mtanno.tuning.search import (
     check_methods,
     prepare_fold_class,
 )
+from mtanno.tuning.tempo import TEMPO_SCALES, matched_columns, time_scaled
 
 __all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
 
@@ -182,11 +183,15 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                 "deltas": _deltas(methods, templates), "groups": GROUPS
                 if "templates" in methods else (), "learn": learn[c], "spans": spans,
                 "evidence": "frames" in methods and "resolve" in methods,
-                "evidence_spans": ev_spans}))
+                "evidence_spans": ev_spans,
+                "scales": TEMPO_SCALES if "templates" in methods else ()}))
     prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
                                                           scheduler=scheduler, shared=shared)))
+    columns = {c: matched_columns(templates[c].weights) for c in classes}
+    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
+                    for c in classes for f in TEMPO_SCALES})
     tuner = Tuner(folds, prepared, classes=classes, methods=methods,
-                  unknown_weight=unknown_weight, log=log)
+                  unknown_weight=unknown_weight, log=log, columns=columns)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
     reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), 0.13), per_class=True)
@@ -206,8 +211,15 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     learned = {key: g for key, g in zip(wanted, got) if g}
 
     def extra_of(p: Params) -> dict:
-        return {c: learned[(c, p.groups[c])] for c in classes
-                if (c, p.groups.get(c, 1)) in learned}
+        """Per class its further templates: the groups', then the time-scaled copies of
+        its template."""
+        out = {}
+        for c in classes:
+            mts = [*learned.get((c, p.groups.get(c, 1)), []),
+                   *(time_scaled(templates[c], f) for f in p.scales.get(c, ()))]
+            if mts:
+                out[c] = mts
+        return out
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     if keyframes_dir is not None:

@@ -25,6 +25,11 @@ The search, in this order, each step only over the methods switched on
    :data:`SEGMENT_COSTS` together with the one τ again (λ shifts the threshold);
 3. several templates per class (``templates``): each class split into 2 or 3 groups of
    examples (:mod:`mtanno.tuning.cluster`), kept where J rises by more than :data:`EPS`;
+   then time-scaled copies of the classes' templates (:mod:`mtanno.tuning.tempo`: a
+   faster, a slower or both of :data:`~mtanno.tuning.tempo.TEMPO_SCALES`), greedily: the
+   class and copies that raise J most (by more than :data:`EPS`) first, as long as all
+   copies together match at most :data:`~mtanno.tuning.tempo.COPY_BUDGET` times the
+   templates' columns (they cost annotation time in proportion);
 4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
    where J rises by more than :data:`EPS`;
 5. rejection (``reject``): a ceiling ρ_p = m·τ_p (m in :data:`REJECT_STEPS`) per class,
@@ -50,10 +55,11 @@ from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_e
 from mtanno.errors import MtannoError
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, count, covered_fraction
+from mtanno.tuning.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 
-__all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_STEPS",
-           "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS", "UNKNOWN_WEIGHT", "Evaluation", "Params",
-           "Tuner", "prepare_fold_class"]
+__all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
+           "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
+           "UNKNOWN_WEIGHT", "Evaluation", "Params", "Tuner", "prepare_fold_class"]
 
 #: The methods ``tune`` can switch on (all by default); ``--disable`` names them.
 METHODS = ("tau", "reject", "refine", "resolve", "segments", "templates", "frames", "delta")
@@ -73,6 +79,8 @@ REJECT_STEPS = (0.3, 0.45, 0.6, 0.8)
 FRAME_WEIGHTS = (0.0, 0.1, 0.3, 1.0)
 #: Group counts tried for several templates per class.
 GROUPS = (2, 3)
+#: Sets of tempo factors tried for a class's time-scaled templates (each alone, then all).
+SCALE_SETS = (*((f,) for f in TEMPO_SCALES), tuple(TEMPO_SCALES))
 #: Factors on all τ and ρ tried at the end.
 SCALE_STEPS = (0.8, 0.9, 1.1, 1.25)
 #: Smallest rise of J for which a per-class change is kept (guards against noise).
@@ -83,8 +91,9 @@ UNKNOWN_WEIGHT = 0.02
 
 @dataclass
 class Params:
-    """A point of the search: δ, decoder, refinement, and per class τ, ρ and the number of
-    template groups (1: the class's template only)."""
+    """A point of the search: δ, decoder, refinement, and per class τ, ρ, the number of
+    template groups (1: the class's template only) and the tempo factors of its
+    time-scaled templates."""
 
     delta: float = DEFAULT_DELTA
     resolve: bool = False
@@ -93,12 +102,13 @@ class Params:
     tau: dict[str, float] = field(default_factory=dict)
     reject: dict[str, float] = field(default_factory=dict)
     groups: dict[str, int] = field(default_factory=dict)
+    scales: dict[str, tuple[float, ...]] = field(default_factory=dict)
     frame_weight: float = 0.0
     segment_cost: float = 0.0
 
     def copy(self, **changes) -> Params:
         out = replace(self, tau=dict(self.tau), reject=dict(self.reject),
-                      groups=dict(self.groups))
+                      groups=dict(self.groups), scales=dict(self.scales))
         for k, v in changes.items():
             setattr(out, k, v)
         return out
@@ -142,7 +152,8 @@ class Evaluation:
 def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray, *,
                        deltas: Sequence[float], groups: Sequence[int], learn: dict,
                        spans: tuple[np.ndarray, np.ndarray] | None, evidence: bool,
-                       evidence_spans: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+                       evidence_spans: tuple[np.ndarray, np.ndarray] | None = None,
+                       scales: Sequence[float] = ()) -> dict:
     """One class of one fold (a worker task): its templates learned from ``train`` (all
     examples, and per group for each group count of ``groups``), quantized with each δ,
     matched against the held-out documents (``offsets``; only inside ``spans`` — absolute
@@ -150,7 +161,9 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
     inside ``evidence_spans``, the windows widened as annotate widens them). Returns ``{"groups": {k: k'},
     "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
     for k asked (fewer when a group would be too small); template (1, 0) is the one learned
-    from all examples, (k', i) group i of a split into k'."""
+    from all examples, (k', i) group i of a split into k', and (0, f) for each f of
+    ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.tuning.tempo.time_scaled`;
+    evidence None: it equals the template's)."""
     from mtanno.decode import distinct_frames, frame_evidence
     from mtanno.templates.learn import learn_template
     from mtanno.templates.match import PreparedTemplate, pack_document
@@ -158,6 +171,8 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
     from mtanno.tuning.cluster import example_distances, group_examples
 
     templates = {(1, 0): learn_template(train, class_name=cls, **learn)}
+    for f in scales:
+        templates[(0, float(f))] = time_scaled(templates[(1, 0)], float(f))
     made = {1: 1}
     if groups:
         D = example_distances(train)
@@ -185,7 +200,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
             else:
                 d, s = prep.match_spans(packed, spans[0], spans[1])
             ev = frame_evidence(packed, q.values, spans=evidence_spans,
-                                distinct=distinct) if evidence else None
+                                distinct=distinct) if evidence and key[0] else None
             out[(float(delta), *key)] = (d, s, ev)
     return {"groups": made, "match": out}
 
@@ -199,6 +214,7 @@ class _FoldData:
     truth: list[tuple[int, int, int]]       # (label id, first, last)
     truth_by_class: dict[str, list[tuple[int, int]]]
     match: dict                             # (δ, class, k, i) -> (Δ, starts, evidence)
+                                            # (k = 0: time-scaled by i, evidence None)
     groups: dict                            # (class, k) -> groups made
     hidden: dict = field(default_factory=dict)  # class -> _FoldData of its documents only
 
@@ -241,8 +257,13 @@ class Tuner:
 
     def __init__(self, folds: Sequence[Fold], prepared: dict[tuple[str, str], dict], *,
                  classes: Sequence[str], methods: Sequence[str] = METHODS,
-                 unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None):
+                 unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None,
+                 columns: dict | None = None):
+        """``columns``: the matching columns (:func:`mtanno.tuning.tempo.matched_columns`)
+        of each class's template (key: class) and of its time-scaled copies (key: (class,
+        factor)), for the copies' budget; None: no budget."""
         self.classes = list(classes)
+        self.columns = columns
         self.methods = set(methods)
         self.unknown_weight = float(unknown_weight)
         self.log = log or (lambda msg: None)
@@ -284,7 +305,8 @@ class Tuner:
     def _templates(self, fd: _FoldData, c: str, params: Params) -> list[tuple[int, int]]:
         k = params.groups.get(c, 1)
         n = fd.groups.get((c, k), 1) if k > 1 else 1
-        return [(1, 0)] + ([(n, i) for i in range(n)] if n > 1 else [])
+        return ([(1, 0)] + ([(n, i) for i in range(n)] if n > 1 else [])
+                + [(0, f) for f in params.scales.get(c, ())])
 
     def _arrays(self, fd: _FoldData, params: Params):
         """Δ/τ (ρ applied), starts and frame evidence per class of the fold (segment
@@ -299,7 +321,7 @@ class Tuner:
             for k, i in self._templates(fd, c, params):
                 d, s, e = fd.match[(params.delta, c, k, i)]
                 fold_label(mat[p], st[p], d, s, tau=tau, reject=rho)
-                if ev is not None:
+                if ev is not None and e is not None:  # a time-scaled copy's equals (1, 0)'s
                     np.minimum(ev[p], e, out=ev[p])
         return mat, st, ev
 
@@ -452,6 +474,11 @@ class Tuner:
                     cur, cur_ev = got, ev
             split = {c: k for c, k in cur.groups.items() if k > 1}
             note(f"templates {split or 'one per class'}", cur_ev)
+            cur, cur_ev, used = self._copies(cur, cur_ev)
+            scaled = {c: fs for c, fs in cur.scales.items() if fs}
+            budget = "" if self.columns is None else \
+                f" ({used} of {self._budget()} columns)"
+            note(f"time-scaled templates {scaled or 'none'}{budget}", cur_ev)
         # 4. per-class τ
         if "tau" in on:
             for _ in range(2):
@@ -487,6 +514,35 @@ class Tuner:
             cur, cur_ev = got, ev
         note("final", cur_ev)
         return cur, self.evaluate(cur, per_class=True), steps
+
+
+    def _budget(self) -> int:
+        """Columns all time-scaled copies together may have."""
+        return int(COPY_BUDGET * sum(self.columns[c] for c in self.classes))
+
+    def _copies(self, cur: Params, cur_ev: Evaluation) -> tuple[Params, Evaluation, int]:
+        """Step 3's time-scaled copies: repeatedly, of every class without copies yet and
+        every set of :data:`SCALE_SETS` that fits into the budget, the one of highest J
+        (the first of equals) is kept if it raises J by more than :data:`EPS`. Returns the
+        parameters, their evaluation and the columns the copies use."""
+        used = 0
+        while True:
+            cands, costs = [], []
+            for c in self.classes:
+                if cur.scales.get(c):
+                    continue
+                for fs in SCALE_SETS:
+                    cost = 0 if self.columns is None else \
+                        sum(self.columns[(c, f)] for f in fs)
+                    if self.columns is not None and used + cost > self._budget():
+                        continue
+                    cands.append(cur.copy(scales={**cur.scales, c: fs}))
+                    costs.append(cost)
+            got, ev = self._best(cands, cur_ev, EPS)
+            if got is None:
+                return cur, cur_ev, used
+            used += costs[cands.index(got)]
+            cur, cur_ev = got, ev
 
 
 def _round(x: float) -> float:
