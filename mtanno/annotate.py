@@ -708,6 +708,23 @@ def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
     return a[first], reach[last]
 
 
+def evidence_covered(classes: Sequence[ClassModel]) -> set[int]:
+    """Indices of the templates whose frame evidence another template of the same class
+    already gives: every column of theirs is a column of the other one (a time-scaled copy,
+    :mod:`mtanno.tuning.tempo`, or a duplicate), so their evidence — the best column
+    anywhere in the template — is never lower, and the class's minimum stays the other's.
+    Of templates with the same columns the first is kept."""
+    cols = [{c.values[:, k].tobytes() for k in range(c.values.shape[1])} for c in classes]
+    out = set()
+    for i, a in enumerate(classes):
+        for j, b in enumerate(classes):
+            if j != i and a.name == b.name and a.values.shape[0] == b.values.shape[0] \
+                    and cols[i] <= cols[j] and (cols[i] != cols[j] or j < i):
+                out.add(i)
+                break
+    return out
+
+
 def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                       config: ClassConfig | None = None,
                       windows: dict[str, list[tuple[int, int]]] | None = None,
@@ -747,11 +764,14 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
         from mtanno.decode import EVIDENCE_MARGIN, distinct_frames, frame_evidence
 
         distinct = distinct_frames(packed)  # once for all templates
+        covered = evidence_covered(classes)
 
     def matches():
-        for c in classes:
+        for i, c in enumerate(classes):
             _class_delta(X, packed, c, windows, match_variant, delta, start)
-            if evidence:
+            if evidence and i in covered:
+                yield c.name, delta, start, None  # its columns are another template's
+            elif evidence:
 
                 spans = None
                 if windows is not None and c.name in windows:  # only where c can be
@@ -779,7 +799,9 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     template in that order, (class, Δ, start frames, frame evidence or None) — Δ and the
     starts as :func:`mtanno.templates.match.match_template` gives them (the arrays may be
     reused buffers: each is read before the next is asked for), the evidence of
-    :func:`mtanno.decode.frame_evidence` where ``config.frame_weight`` is used.
+    :func:`mtanno.decode.frame_evidence` where ``config.frame_weight`` is used (None for
+    a template whose evidence another of its class gives, :func:`evidence_covered`; at
+    least one template per class must give it).
 
     * Default (MBS09, the reference implementation): Δ̄ per class with τ (at most the
       class's rejection ceiling ρ), labels, extension (``config.refine``: only over
@@ -838,6 +860,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     label_tau = {k: next(iter(t)) for k, t in member_taus.items() if len(t) == 1}
     tau_rows = {k: np.ones(L) for k in member_taus if k not in label_tau}
     ev = np.full((P, L), np.inf) if config.frame_weight > 0 else None
+    has_evidence: set[int] = set()
     for name, delta, start, evidence in matches:
         lab = member_of.get(name, name)
         tau, rho = limits(name, lab)
@@ -851,10 +874,12 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             before = mat[k].copy()
             fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
             tau_rows[k][mat[k] < before] = tau
-        if ev is not None:
-            if evidence is None:
-                raise MtannoError("frame_weight > 0 needs each template's frame evidence")
+        if ev is not None and evidence is not None:
             np.minimum(ev[k], evidence, out=ev[k])
+            has_evidence.add(k)
+    if ev is not None and len(has_evidence) < len(member_taus):
+        raise MtannoError("frame_weight > 0 needs the frame evidence of a template of every "
+                          "class")
     decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
                               else 0, evidence=None if ev is None else
                               relative_evidence(ev, out=ev),

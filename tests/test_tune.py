@@ -15,6 +15,7 @@ import pytest
 from world import assert_one_line, cli
 
 from mtanno.annotate import ClassConfig, label_document, load_class_config
+from mtanno.errors import MtannoError
 from mtanno.evaluate import evaluate_annotations
 from mtanno.templates.training import collect_sources
 from mtanno.truth import Segment
@@ -427,3 +428,40 @@ def test_time_scaled_copies_stay_within_their_column_budget(cost, kept):
     used = cost if kept else 0
     assert any(s.startswith(f"time-scaled templates {kept or 'none'} ({used} of 3 columns)")
                for s in steps), steps
+
+
+def test_annotate_skips_the_evidence_that_a_copy_cannot_change():
+    """A time-scaled copy's columns are its template's, so annotate does not compute its
+    frame evidence; the rows equal those with every template's evidence taken."""
+    from mtanno.annotate import ClassModel, annotate_document, class_deltas, evidence_covered
+    from mtanno.decode import frame_evidence
+    from mtanno.templates.match import pack_document
+    from mtanno.tuning.tempo import scale_columns
+
+    rng = np.random.default_rng(3)
+    f, K = 12, 20
+
+    def template():
+        V = rng.integers(0, 2, size=(f, K)).astype(float)
+        V[rng.random((f, K)) < 0.3] = 0.5
+        return V
+
+    Va, Vb = template(), template()
+    idx = scale_columns(K, 0.6)
+    models = [ClassModel("a", Va, np.ones(K)), ClassModel("b", Vb, np.ones(K)),
+              ClassModel("a", Va[:, idx].copy(), np.ones(len(idx))),
+              ClassModel("a", Va.copy(), np.ones(K)), ClassModel("b", Va, np.ones(K))]
+    assert evidence_covered(models) == {2, 3}  # the copy, and the duplicate after the first
+    X = np.concatenate([Va, Vb[:, ::2], Va[:, ::2], Vb], axis=1)
+    X = np.where(X == 0.5, rng.integers(0, 2, size=X.shape), X).astype(np.uint8)
+    cfg = ClassConfig(default_tau=0.3, resolve=True, refine=True, frame_weight=0.5)
+    rows, _, _ = annotate_document("d", X, models, config=cfg)
+    packed = pack_document(X, f)
+    full = [(c.name, d, s, frame_evidence(packed, c.values))
+            for c, (d, s) in zip(models, class_deltas(X, models))]
+    want, _, _ = label_document("d", [c.name for c in models], iter(full), X.shape[1],
+                                config=cfg)
+    assert rows == want and rows
+    with pytest.raises(MtannoError, match="evidence of a template of every class"):
+        label_document("d", ["a"], iter([("a", full[0][1], full[0][2], None)]), X.shape[1],
+                       config=cfg)
