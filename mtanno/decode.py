@@ -258,24 +258,53 @@ def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start:
           float(reject), 1.0 / float(tau), row, row_start)
 
 
+@numba.njit(cache=True)
+def _distinct_words(x, inverse):
+    """Distinct values of ``x`` (uint64) in order of first appearance; ``inverse[i]`` the
+    index of x[i] among them. Open addressing with linear probing on a table of at least
+    twice as many slots as values (the key folded by shifts, so no multiply wraps)."""
+    n = x.shape[0]
+    size = 2
+    while size < 2 * n:
+        size *= 2
+    mask = np.uint64(size - 1)
+    keys = np.empty(size, np.uint64)
+    ids = np.full(size, -1, np.int64)
+    uniq = np.empty(n, np.uint64)
+    m = 0
+    for i in range(n):
+        v = x[i]
+        h = (v ^ (v >> np.uint64(17)) ^ (v >> np.uint64(31)) ^ (v >> np.uint64(47))) & mask
+        j = np.int64(h)
+        while ids[j] >= 0 and keys[j] != v:
+            j = (j + 1) & (size - 1)
+        if ids[j] < 0:
+            keys[j] = v
+            ids[j] = m
+            uniq[m] = v
+            m += 1
+        inverse[i] = ids[j]
+    return uniq[:m]
+
+
 def distinct_frames(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct rows of a bit-packed document (:func:`mtanno.templates.match.
     pack_document`) and, per frame, the index of its row: feature vectors repeat for many
     frames in a row, so the evidence of every template is computed once per distinct
-    vector. Computed once per document (one word per frame — up to 64 features — is a
-    plain sort of integers)."""
+    vector. Computed once per document: runs of equal rows first (poses hold for many
+    frames), then, for one word per frame (up to 64 features), a hash table over the
+    runs' values (rows in order of first appearance); wider rows go through a sort."""
     P = np.ascontiguousarray(packed)
     L = P.shape[0]
     if L == 0:
         return P[:0], np.zeros(0, np.int64)
-    # runs of equal rows first (poses hold for many frames), then the distinct run values
     new = np.ones(L, dtype=bool)
     new[1:] = (P[1:] != P[:-1]).any(axis=1)
     heads = np.flatnonzero(new)
     lengths = np.diff(np.append(heads, L))
     if P.shape[1] == 1:
-        u, inv = np.unique(P[heads, 0], return_inverse=True)
-        u = u.reshape(-1, 1)
+        inv = np.empty(heads.shape[0], np.int64)
+        u = _distinct_words(np.ascontiguousarray(P[heads, 0]), inv).reshape(-1, 1)
     else:
         u, inv = np.unique(P[heads], axis=0, return_inverse=True)
     return np.ascontiguousarray(u), np.repeat(inv.reshape(-1), lengths)

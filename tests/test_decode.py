@@ -184,6 +184,13 @@ def check_seeded(seed):
     want = [[E[p, t] - low[t] if np.isfinite(E[p, t]) else 0.0 for t in range(L)]
             for p in range(P)]
     assert relative_evidence(E).tolist() == want
+    # distinct frames (the hash table over run values)
+    from mtanno.decode import distinct_frames
+
+    X = rng.choice(np.array([0, 3, 1 << 40, 2 ** 64 - 1], np.uint64),
+                   size=(int(rng.integers(1, 30)), 1))
+    rows, inv = distinct_frames(X)
+    assert np.array_equal(rows[inv], X) and len(rows) == len(np.unique(X))
 
 
 def test_decoder_without_jit():
@@ -204,6 +211,13 @@ def test_distinct_frames_rebuild_the_document():
         assert len({tuple(r) for r in rows.tolist()}) == len(rows)
     rows, inv = distinct_frames(np.zeros((0, 1), np.uint64))
     assert rows.shape == (0, 1) and inv.shape == (0,)
+    # values that collide in the hash table (equal after folding the shifts) and many runs
+    base = np.array([0, 1, 1 << 17, 1 << 31, 1 << 47, (1 << 17) ^ 1, (1 << 63) | 5,
+                     2 ** 64 - 1], dtype=np.uint64)
+    vals = np.concatenate([base, rng.integers(0, 2 ** 63, 3000, dtype=np.uint64) << np.uint64(1)])
+    P = rng.choice(vals, size=20000).reshape(-1, 1)
+    rows, inv = distinct_frames(P)
+    assert np.array_equal(rows[inv], P) and len(rows) == len(np.unique(P))
 
 
 def test_frame_evidence_equals_its_definition():
