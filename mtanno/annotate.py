@@ -825,13 +825,13 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     L = int(n_frames)
     P = len(labels)
     count = {lab: sum(member_of.get(n, n) == lab for n in names) for lab in labels}
-    mat = np.full((P, L), np.inf)
 
     def limits(name: str, lab: str) -> tuple[float, float]:
         return (config.tau.get(name, config.tau_for(lab)),
                 config.reject.get(name, config.reject_for(lab)))
 
     if not config.resolve:
+        mat = np.full((P, L), np.inf)
         tmp = np.empty(L)
         for name, delta, start, _ in matches:
             lab = member_of.get(name, name)
@@ -848,9 +848,13 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             rows = single_label_segments(doc, labels, mat, rows)
         return rows, labels, mat
 
-    from mtanno.decode import decode_segments, fold_label, relative_evidence
+    from mtanno.decode import decode_segments, evidence_sums, fold_label
 
-    starts = np.full((P, L), -1, dtype=np.int64)
+    # written in full by each label's first template (fold_label(first=True)), so the
+    # (labels × frames) arrays of long documents are not filled twice
+    mat = np.empty((P, L))
+    starts = np.empty((P, L), dtype=np.int64)
+    folded: set[int] = set()
     # τ of each label for the cost column; a label whose members have different τ (a
     # superclass) keeps, per frame, the τ of the template that gives the minimum
     member_taus: dict[int, set[float]] = {}
@@ -859,7 +863,9 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
         member_taus.setdefault(labels.index(lab), set()).add(limits(n, lab)[0])
     label_tau = {k: next(iter(t)) for k, t in member_taus.items() if len(t) == 1}
     tau_rows = {k: np.ones(L) for k in member_taus if k not in label_tau}
-    ev = np.full((P, L), np.inf) if config.frame_weight > 0 else None
+    # each label's evidence in ev[:, 1:] (its first template's copied, further ones folded
+    # by np.minimum), turned into the decoder's running sums in place
+    ev = np.empty((P, L + 1)) if config.frame_weight > 0 else None
     has_evidence: set[int] = set()
     for name, delta, start, evidence in matches:
         lab = member_of.get(name, name)
@@ -869,20 +875,25 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                               path=config.path)
         k = labels.index(lab)
         if k in label_tau:
-            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
+            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho,
+                       first=k not in folded)
         else:
-            before = mat[k].copy()
-            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho)
+            before = mat[k].copy() if k in folded else np.full(L, np.inf)
+            fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho,
+                       first=k not in folded)
             tau_rows[k][mat[k] < before] = tau
+        folded.add(k)
         if ev is not None and evidence is not None:
-            np.minimum(ev[k], evidence, out=ev[k])
+            if k in has_evidence:
+                np.minimum(ev[k, 1:], evidence, out=ev[k, 1:])
+            else:
+                ev[k, 1:] = evidence
             has_evidence.add(k)
     if ev is not None and len(has_evidence) < len(member_taus):
         raise MtannoError("frame_weight > 0 needs the frame evidence of a template of every "
                           "class")
     decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
-                              else 0, evidence=None if ev is None else
-                              relative_evidence(ev, out=ev),
+                              else 0, evidence=None if ev is None else evidence_sums(ev),
                               weight=config.frame_weight, segment_cost=config.segment_cost)
     # cost: Δ at the segment's end, back from Δ/τ (to 12 digits: the division's rounding)
     def tau_at(k: int, t: int) -> float:

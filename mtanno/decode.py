@@ -31,6 +31,7 @@ Frames are 0-based inside this module.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numba
@@ -38,8 +39,9 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 
-__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "decode_segments", "distinct_frames",
-           "fold_label", "frame_evidence", "relative_evidence"]
+__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceSums", "decode_segments",
+           "distinct_frames", "evidence_sums", "fold_label", "frame_evidence",
+           "relative_evidence"]
 
 #: Frames a segment start may move from its match's start (boundary refinement).
 DEFAULT_SLACK = 3
@@ -140,7 +142,8 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
         after its match's start a_ℓ (0: exactly at a_ℓ).
     evidence, weight:
         Frame-wise evidence (labels × frames, ≥ 0, small where the frame looks like the
-        label; :func:`relative_evidence`) and its weight per frame; 0 ignores it.
+        label; :func:`relative_evidence`), or its running sums (:class:`EvidenceSums`, one
+        array less for long documents), and its weight per frame; 0 ignores it.
     segment_cost:
         λ ≥ 0, added once per match (in units of an unlabelled frame's cost): a match of n
         frames pays off only where its mean Δ/τ is below 1 − λ/n; 0 (default) is the
@@ -164,7 +167,11 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     if not segment_cost >= 0 or not np.isfinite(segment_cost):
         raise MtannoError(f"segment cost must be a finite number ≥ 0, got {segment_cost!r}")
     P, L = deltas.shape
-    if weight > 0:
+    if weight > 0 and isinstance(evidence, EvidenceSums):
+        if evidence.cum.shape != (P, L + 1):
+            raise MtannoError("evidence sums of another shape than (labels × frames + 1)")
+        cum = evidence.cum
+    elif weight > 0:
         if evidence is None or np.shape(evidence) != (P, L):
             raise MtannoError("a frame-evidence weight needs evidence of shape (labels × frames)")
         cum = np.empty((P, L + 1))
@@ -235,10 +242,14 @@ def _best_column(packed, masks, vals, inv_nnz, starts, ends, out):
 
 
 @numba.njit(cache=True)
-def _fold(delta, start, ceiling, inv_tau, row, row_start):
-    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima."""
+def _fold(delta, start, ceiling, inv_tau, row, row_start, first):
+    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima;
+    ``first``: as if row were ∞ and row_start −1 before (they are written everywhere)."""
     for t in range(delta.shape[0]):
         d = delta[t]
+        if first:
+            row[t] = np.inf
+            row_start[t] = -1
         if d <= ceiling:
             v = d * inv_tau
             if v < row[t]:
@@ -247,15 +258,16 @@ def _fold(delta, start, ceiling, inv_tau, row, row_start):
 
 
 def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start: np.ndarray, *,
-               tau: float, reject: float = np.inf) -> None:
+               tau: float, reject: float = np.inf, first: bool = False) -> None:
     """Fold one template's match into its label's row of the decoder's input, in place:
     ``row`` = min(``row``, Δ/τ) over the frames where Δ ≤ ``reject`` (Δ·(1/τ), the decoder's
     rounding), ``row_start`` the start frames of the minima (several templates of a class,
-    or the classes of a superclass, make one label)."""
+    or the classes of a superclass, make one label). ``first``: the label's first template,
+    written as if the rows held ∞ and −1 (they may then be uninitialised, ``np.empty``)."""
     if not tau > 0:
         raise MtannoError(f"tau must be > 0 for the segment decoder, got {tau!r}")
     _fold(np.ascontiguousarray(delta, dtype=np.float64), np.ascontiguousarray(start, np.int64),
-          float(reject), 1.0 / float(tau), row, row_start)
+          float(reject), 1.0 / float(tau), row, row_start, bool(first))
 
 
 @numba.njit(cache=True)
@@ -385,6 +397,47 @@ def _prefix(E, cum):
             acc += e
             cum[p, t + 1] = acc
     return ok
+
+
+@dataclass(frozen=True)
+class EvidenceSums:
+    """Running sums of the relative evidence per label, ``cum[p, t]`` = the sum over frames
+    0…t−1 (labels × frames + 1), as :func:`decode_segments` uses them; made by
+    :func:`evidence_sums`, which checks them."""
+
+    cum: np.ndarray
+
+
+def evidence_sums(buffer: np.ndarray) -> EvidenceSums:
+    """In place: ``buffer`` (labels × frames + 1) holds each label's frame evidence in
+    ``buffer[:, 1:]`` (∞ where not computed; column 0 is free); it becomes the relative
+    evidence's (:func:`relative_evidence`) running sums per label — the same numbers as
+    :func:`relative_evidence` followed by :func:`decode_segments`' own sums, without a
+    second labels × frames array. Entries that are not finite (∞: not computed, e.g.
+    outside a class's keyframe windows) take no part in a frame's minimum and add 0."""
+    if not (isinstance(buffer, np.ndarray) and buffer.ndim == 2 and buffer.dtype == np.float64
+            and buffer.flags.c_contiguous and buffer.shape[1] >= 1):
+        raise MtannoError("evidence buffer must be a C-contiguous float64 (labels × frames + 1) "
+                          "array")
+    _relative_sums(buffer)
+    return EvidenceSums(buffer)
+
+
+@numba.njit(cache=True)
+def _relative_sums(buf):
+    """buf[:, 1:] evidence → buf[p, t] = Σ_{s < t} (buf[p, s + 1] − least finite entry of
+    frame s; 0 where not finite), added in frame order (every term is ≥ 0)."""
+    P, L1 = buf.shape
+    for p in range(P):
+        buf[p, 0] = 0.0
+    for t in range(1, L1):
+        low = np.inf
+        for p in range(P):
+            if buf[p, t] < low:  # False for ∞ and NaN
+                low = buf[p, t]
+        for p in range(P):
+            e = buf[p, t]
+            buf[p, t] = buf[p, t - 1] + (e - low if np.isfinite(e) else 0.0)
 
 
 def relative_evidence(evidence: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:

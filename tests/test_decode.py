@@ -184,6 +184,30 @@ def check_seeded(seed):
     want = [[E[p, t] - low[t] if np.isfinite(E[p, t]) else 0.0 for t in range(L)]
             for p in range(P)]
     assert relative_evidence(E).tolist() == want
+    # running sums in place: the same numbers as relative evidence + the decoder's sums
+    from mtanno.decode import EvidenceSums, evidence_sums
+
+    buf = np.empty((P, L + 1))
+    buf[:, 1:] = E
+    sums = evidence_sums(buf)
+    assert isinstance(sums, EvidenceSums) and sums.cum is buf
+    want_cum = np.zeros((P, L + 1))
+    for t in range(L):
+        want_cum[:, t + 1] = want_cum[:, t] + np.array(want)[:, t]
+    assert np.array_equal(buf, want_cum)
+    D = np.where(rng.random((P, L)) < 0.6, rng.choice([0.01, 0.05, 0.1], (P, L)), INF)
+    S = np.where(np.isfinite(D), 0, -1)
+    kw = dict(tau=[0.13] * P, slack=1, weight=0.5)
+    assert decode_segments(D, S, evidence=sums, **kw) == \
+        decode_segments(D, S, evidence=relative_evidence(E), **kw)
+    # folding a label's first template into rows that hold anything
+    from mtanno.decode import fold_label
+
+    row, row_start = np.full(L, INF), np.full(L, -1, np.int64)
+    fold_label(row, row_start, D[0], S[0], tau=0.1, reject=0.05)
+    junk, junk_start = rng.random(L) - 5, rng.integers(-9, 9, L)
+    fold_label(junk, junk_start, D[0], S[0], tau=0.1, reject=0.05, first=True)
+    assert np.array_equal(junk, row) and np.array_equal(junk_start, row_start)
     # distinct frames (the hash table over run values)
     from mtanno.decode import distinct_frames
 
@@ -278,3 +302,17 @@ def test_refined_extension_stops_at_frames_of_another_class():
                                                             ("b", 5, 7)}
     with pytest.raises(MtannoError, match="extend must be"):
         segments_from_labels("d", ["a", "b"], np.vstack([a, b]), extend="sometimes")
+
+
+def test_evidence_sums_bad_input():
+    from mtanno.decode import evidence_sums
+
+    with pytest.raises(MtannoError, match="C-contiguous float64"):
+        evidence_sums(np.zeros((2, 3), np.float32))
+    with pytest.raises(MtannoError, match="C-contiguous float64"):
+        evidence_sums(np.zeros((3, 2)).T)
+    buf = np.array([[0.0, 0.2, 0.1, 0.3], [0.0, 0.5, np.nan, 0.1]])  # NaN: not computed
+    assert np.allclose(evidence_sums(buf).cum, [[0.0, 0.0, 0.0, 0.2], [0.0, 0.3, 0.3, 0.3]])
+    with pytest.raises(MtannoError, match="evidence sums of another shape"):
+        decode_segments(np.zeros((2, 4)), np.zeros((2, 4), np.int64), tau=[0.1, 0.1],
+                        weight=0.5, evidence=evidence_sums(np.zeros((2, 3))))
