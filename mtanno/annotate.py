@@ -652,6 +652,15 @@ class ClassModel:
                                                        variant=variant)
         return self._prepared[variant]
 
+    def evidence_columns(self):
+        """The template's :class:`mtanno.decode.EvidenceColumns` (frame evidence), made
+        once."""
+        from mtanno.decode import evidence_columns
+
+        if "evidence" not in self._prepared:
+            self._prepared["evidence"] = evidence_columns(self.values)
+        return self._prepared["evidence"]
+
 
 def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
                  windows: dict[str, list[tuple[int, int]]] | None = None,
@@ -761,7 +770,7 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     evidence = config.resolve and config.frame_weight > 0
 
     if evidence:
-        from mtanno.decode import EVIDENCE_MARGIN, distinct_frames, frame_evidence
+        from mtanno.decode import EVIDENCE_MARGIN, distinct_frames, row_evidence
 
         distinct = distinct_frames(packed)  # once for all templates
         covered = evidence_covered(classes)
@@ -777,8 +786,8 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                 if windows is not None and c.name in windows:  # only where c can be
                     spans = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
                                            for a, b in windows[c.name]], L)
-                yield c.name, delta, start, frame_evidence(packed, c.values, spans=spans,
-                                                           distinct=distinct)
+                yield c.name, delta, start, row_evidence(packed, c.evidence_columns(),
+                                                         spans=spans, distinct=distinct)
             else:
                 yield c.name, delta, start, None
 
@@ -799,9 +808,10 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     template in that order, (class, Δ, start frames, frame evidence or None) — Δ and the
     starts as :func:`mtanno.templates.match.match_template` gives them (the arrays may be
     reused buffers: each is read before the next is asked for), the evidence of
-    :func:`mtanno.decode.frame_evidence` where ``config.frame_weight`` is used (None for
-    a template whose evidence another of its class gives, :func:`evidence_covered`; at
-    least one template per class must give it).
+    :func:`mtanno.decode.frame_evidence` where ``config.frame_weight`` is used (an
+    array, or a :class:`mtanno.decode.RowEvidence`, written into the decoder's buffer
+    without a temporary; None for a template whose evidence another of its class gives,
+    :func:`evidence_covered`; at least one template per class must give it).
 
     * Default (MBS09, the reference implementation): Δ̄ per class with τ (at most the
       class's rejection ceiling ρ), labels, extension (``config.refine``: only over
@@ -848,7 +858,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             rows = single_label_segments(doc, labels, mat, rows)
         return rows, labels, mat
 
-    from mtanno.decode import decode_segments, evidence_sums, fold_label
+    from mtanno.decode import RowEvidence, decode_segments, evidence_sums, fold_label
 
     # written in full by each label's first template (fold_label(first=True)), so the
     # (labels × frames) arrays of long documents are not filled twice
@@ -885,7 +895,10 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
         folded.add(k)
         if ev is not None and evidence is not None:
             if k in has_evidence:
-                np.minimum(ev[k, 1:], evidence, out=ev[k, 1:])
+                frames = evidence.frames() if isinstance(evidence, RowEvidence) else evidence
+                np.minimum(ev[k, 1:], frames, out=ev[k, 1:])
+            elif isinstance(evidence, RowEvidence):
+                evidence.write(ev[k, 1:])
             else:
                 ev[k, 1:] = evidence
             has_evidence.add(k)

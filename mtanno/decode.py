@@ -39,9 +39,9 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 
-__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceSums", "decode_segments",
-           "distinct_frames", "evidence_sums", "fold_label", "frame_evidence",
-           "relative_evidence"]
+__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "EvidenceSums",
+           "RowEvidence", "decode_segments", "distinct_frames", "evidence_columns",
+           "evidence_sums", "fold_label", "frame_evidence", "relative_evidence", "row_evidence"]
 
 #: Frames a segment start may move from its match's start (boundary refinement).
 DEFAULT_SLACK = 3
@@ -118,6 +118,38 @@ def _check_labels(deltas, starts, tau, reject):
     return deltas, starts, tau, reject
 
 
+@numba.njit(cache=True)
+def _segments(back_k, back_p, deltas, first, lab, seg_start, seg_end, cost):
+    """The decoded segments from the back pointers, in frame order, touching segments of
+    one label in one document merged (cost: the smallest Δ at their ends); returns their
+    number."""
+    n = 0
+    j = back_k.shape[0] - 1
+    while j > 0:
+        k, p = back_k[j], back_p[j]
+        if p >= 0:
+            lab[n], seg_start[n], seg_end[n], cost[n] = p, k, j - 1, deltas[p, j - 1]
+            n += 1
+        j = k
+    for i in range(n // 2):  # the walk went backwards
+        r = n - 1 - i
+        lab[i], lab[r] = lab[r], lab[i]
+        seg_start[i], seg_start[r] = seg_start[r], seg_start[i]
+        seg_end[i], seg_end[r] = seg_end[r], seg_end[i]
+        cost[i], cost[r] = cost[r], cost[i]
+    m = 0
+    for i in range(n):  # in place: m ≤ i
+        p, a, b, c = lab[i], seg_start[i], seg_end[i], cost[i]
+        if m > 0 and lab[m - 1] == p and seg_end[m - 1] + 1 == a \
+                and first[a] == first[seg_end[m - 1]]:
+            seg_end[m - 1] = b
+            cost[m - 1] = min(cost[m - 1], c)
+        else:
+            lab[m], seg_start[m], seg_end[m], cost[m] = p, a, b, c
+            m += 1
+    return m
+
+
 def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[float] | np.ndarray,
                     reject: Sequence[float] | np.ndarray | None = None,
                     slack: int = DEFAULT_SLACK, evidence: np.ndarray | None = None,
@@ -190,23 +222,13 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
     back_p = np.full(L + 1, -1, dtype=np.int64)
     _decode(deltas, starts, 1.0 / tau, reject, cum, weight, segment_cost, int(slack), first,
             best, back_k, back_p)
-    out: list[Decoded] = []
-    j = L
-    while j > 0:
-        k, p = int(back_k[j]), int(back_p[j])
-        if p >= 0:
-            out.append(Decoded(p, k, j - 1, float(deltas[p, j - 1])))
-        j = k
-    out.reverse()
-    merged: list[Decoded] = []
-    for s in out:
-        if merged and merged[-1].label == s.label and merged[-1].end + 1 == s.start \
-                and first[s.start] == first[merged[-1].end]:
-            last = merged[-1]
-            merged[-1] = Decoded(s.label, last.start, s.end, min(last.cost, s.cost))
-        else:
-            merged.append(s)
-    return merged
+    lab = np.empty(L, np.int64)
+    seg_start = np.empty(L, np.int64)
+    seg_end = np.empty(L, np.int64)
+    cost = np.empty(L)
+    m = _segments(back_k, back_p, deltas, first, lab, seg_start, seg_end, cost)
+    return [Decoded(*row) for row in zip(lab[:m].tolist(), seg_start[:m].tolist(),
+                                         seg_end[:m].tolist(), cost[:m].tolist())]
 
 
 # --------------------------------------------------------------------------- evidence
@@ -322,38 +344,28 @@ def distinct_frames(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(u), np.repeat(inv.reshape(-1), lengths)
 
 
-def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
-                   spans: tuple[np.ndarray, np.ndarray] | None = None,
-                   distinct: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Frame-wise evidence of one quantized template: for every frame of a bit-packed
-    document (:func:`mtanno.templates.match.pack_document`), the smallest fraction of
-    disagreeing fixed entries over the template's columns — 0 where the frame's pose is
-    one the template holds anywhere, whatever the order (a "bag of columns"; wildcard-only
-    columns are skipped, a template of only those gives 0). ``values`` is the (features ×
-    K) quantized template (0, 1, 0.5 = wildcard). With ``spans`` (first and last frames,
-    0-based inclusive, e.g. a class's candidate windows widened by
-    :data:`EVIDENCE_MARGIN`) only those frames are computed, the others are ∞.
-    ``distinct``: :func:`distinct_frames` of ``packed``, when the caller has it (one
-    document, many templates)."""
+@dataclass(frozen=True)
+class EvidenceColumns:
+    """A quantized template's distinct columns with a fixed entry, in kernel form (bit
+    masks of the fixed rows, bit values, 1 / number of fixed rows): what
+    :func:`frame_evidence` compares every frame with. Made once per template
+    (:func:`evidence_columns`; :class:`mtanno.annotate.ClassModel` keeps it)."""
+
+    masks: np.ndarray
+    vals: np.ndarray
+    inv_nnz: np.ndarray
+    n_features: int
+
+
+def evidence_columns(values: np.ndarray) -> EvidenceColumns:
+    """:class:`EvidenceColumns` of a (features × K) quantized template (0, 1, 0.5 =
+    wildcard); wildcard-only columns are left out (none left: every frame gets 0)."""
     V = np.asarray(values)
     fixed = V != 0.5
     keep = fixed.any(axis=0)
-    L = packed.shape[0]
-    if spans is None:
-        starts, ends = np.array([0], np.int64), np.array([L - 1], np.int64)
-    else:
-        starts = np.clip(np.asarray(spans[0], np.int64), 0, L)
-        ends = np.clip(np.asarray(spans[1], np.int64), -1, L - 1)
-    if not keep.any():
-        out = np.full(L, np.inf)
-        for a, b in zip(starts.tolist(), ends.tolist()):
-            out[a:b + 1] = 0.0
-        return out
     fixed = fixed[:, keep]
     ones = (V[:, keep] == 1.0) & fixed
-    words = packed.shape[1]
-    if V.shape[0] > 64 * words:
-        raise MtannoError(f"template has {V.shape[0]} features, the document {64 * words} bits")
+    words = (V.shape[0] + 63) // 64
     weights = np.uint64(1) << np.arange(64, dtype=np.uint64)
     masks = np.zeros((fixed.shape[1], words), dtype=np.uint64)
     vals = np.zeros_like(masks)
@@ -362,23 +374,81 @@ def frame_evidence(packed: np.ndarray, values: np.ndarray, *,
         n = rows.stop - rows.start
         masks[:, w] = (fixed[rows].T.astype(np.uint64) * weights[:n]).sum(axis=1, dtype=np.uint64)
         vals[:, w] = (ones[rows].T.astype(np.uint64) * weights[:n]).sum(axis=1, dtype=np.uint64)
-    pairs = np.unique(np.concatenate([masks, vals], axis=1), axis=0)  # distinct columns
-    masks, vals = np.ascontiguousarray(pairs[:, :words]), np.ascontiguousarray(pairs[:, words:])
+    if masks.shape[0]:
+        pairs = np.unique(np.concatenate([masks, vals], axis=1), axis=0)  # distinct columns
+        masks = np.ascontiguousarray(pairs[:, :words])
+        vals = np.ascontiguousarray(pairs[:, words:])
     nnz = np.array([sum(bin(int(x)).count("1") for x in row) for row in masks], dtype=np.float64)
-    if spans is not None and not (ends >= starts).any():
-        return np.full(L, np.inf)
+    return EvidenceColumns(masks, vals, 1.0 / nnz, int(V.shape[0]))
+
+
+@dataclass(frozen=True)
+class RowEvidence:
+    """A template's frame evidence kept per distinct frame (:func:`distinct_frames`):
+    ``per_row[r]`` for the frames whose row is r (``inverse``), inside ``spans`` (first and
+    last frames, 0-based inclusive; None: everywhere) and ∞ outside. :meth:`frames` gives
+    the array :func:`frame_evidence` returns; :meth:`write` writes it into a buffer
+    without temporaries (the decoder's evidence rows of long documents)."""
+
+    per_row: np.ndarray
+    inverse: np.ndarray
+    spans: tuple[np.ndarray, np.ndarray] | None
+
+    def write(self, out: np.ndarray) -> None:
+        """out[t] = the evidence of frame t (float64, one entry per frame)."""
+        if self.spans is None:
+            np.take(self.per_row, self.inverse, out=out)
+            return
+        out.fill(np.inf)
+        for a, b in zip(self.spans[0].tolist(), self.spans[1].tolist()):
+            if b >= a:
+                np.take(self.per_row, self.inverse[a:b + 1], out=out[a:b + 1])
+
+    def frames(self) -> np.ndarray:
+        out = np.empty(self.inverse.shape[0])
+        self.write(out)
+        return out
+
+
+def row_evidence(packed: np.ndarray, values: np.ndarray | EvidenceColumns, *,
+                 spans: tuple[np.ndarray, np.ndarray] | None = None,
+                 distinct: tuple[np.ndarray, np.ndarray] | None = None) -> RowEvidence:
+    """:func:`frame_evidence` as a :class:`RowEvidence` (computed per distinct frame,
+    spread over the frames only when written); ``values`` may be the template's
+    :class:`EvidenceColumns` already made."""
+    cols = values if isinstance(values, EvidenceColumns) else evidence_columns(values)
+    L = packed.shape[0]
+    words = packed.shape[1]
+    if cols.n_features > 64 * words:
+        raise MtannoError(f"template has {cols.n_features} features, the document "
+                          f"{64 * words} bits")
+    if spans is not None:
+        spans = (np.clip(np.asarray(spans[0], np.int64), 0, L),
+                 np.clip(np.asarray(spans[1], np.int64), -1, L - 1))
     rows, inverse = distinct if distinct is not None else distinct_frames(packed)
     if rows.shape[1] != words or inverse.shape[0] != L:
         raise MtannoError("distinct frames of another document")
-    got = np.empty(rows.shape[0])
-    n = np.array([rows.shape[0] - 1], np.int64)
-    _best_column(rows, masks, vals, 1.0 / nnz, np.zeros(1, np.int64), n, got)
-    if spans is None:
-        return got[inverse]
-    out = np.full(L, np.inf)
-    for a, b in zip(starts.tolist(), ends.tolist()):
-        out[a:b + 1] = got[inverse[a:b + 1]]
-    return out
+    got = np.zeros(rows.shape[0])
+    if cols.masks.shape[0] and rows.shape[0]:
+        n = np.array([rows.shape[0] - 1], np.int64)
+        _best_column(rows, cols.masks, cols.vals, cols.inv_nnz, np.zeros(1, np.int64), n, got)
+    return RowEvidence(got, inverse, spans)
+
+
+def frame_evidence(packed: np.ndarray, values: np.ndarray | EvidenceColumns, *,
+                   spans: tuple[np.ndarray, np.ndarray] | None = None,
+                   distinct: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Frame-wise evidence of one quantized template: for every frame of a bit-packed
+    document (:func:`mtanno.templates.match.pack_document`), the smallest fraction of
+    disagreeing fixed entries over the template's columns — 0 where the frame's pose is
+    one the template holds anywhere, whatever the order (a "bag of columns"; wildcard-only
+    columns are skipped, a template of only those gives 0). ``values`` is the (features ×
+    K) quantized template (0, 1, 0.5 = wildcard), or its :class:`EvidenceColumns`. With
+    ``spans`` (first and last frames, 0-based inclusive, e.g. a class's candidate windows
+    widened by :data:`EVIDENCE_MARGIN`) only those frames are computed, the others are ∞.
+    ``distinct``: :func:`distinct_frames` of ``packed``, when the caller has it (one
+    document, many templates)."""
+    return row_evidence(packed, values, spans=spans, distinct=distinct).frames()
 
 
 @numba.njit(cache=True)

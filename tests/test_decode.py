@@ -268,6 +268,20 @@ def test_frame_evidence_equals_its_definition():
     assert relative_evidence(E, out=E) is E and np.allclose(E, rel)  # in place
     with pytest.raises(MtannoError, match="out must be"):
         relative_evidence(E, out=np.empty((3, 2)))
+    # kept per distinct frame, with the template's columns made once: the same numbers,
+    # written into a buffer (junk before) without a temporary
+    from mtanno.decode import RowEvidence, evidence_columns, row_evidence
+
+    packed, cols = pack_document(X, 70), evidence_columns(V)
+    for spans in (None, (np.array([2, 20, 9]), np.array([5, 40, 3]))):
+        want = frame_evidence(packed, V, spans=spans)
+        got = row_evidence(packed, cols, spans=spans)
+        buf = np.full(30, -7.0)
+        got.write(buf)
+        assert isinstance(got, RowEvidence) and np.array_equal(buf, want)
+        assert np.array_equal(got.frames(), want)
+    with pytest.raises(MtannoError, match="the document 64 bits"):
+        row_evidence(pack_document(X[:40], 40), cols)
 
 
 def test_label_document_applies_tau_reject_and_several_templates():
