@@ -408,6 +408,8 @@ def _reference_dbar(delta, bits, start, tau, max_hits, dbar):
     nxt = np.arange(L + 1)
     hits = 0
     for i in range(order.shape[0]):
+        if hits >= max_hits:
+            break
         end = order[i]
         if nxt[end] != end:
             continue
@@ -418,8 +420,6 @@ def _reference_dbar(delta, bits, start, tau, max_hits, dbar):
             nxt[k] = k + 1
             k = _next_empty(nxt, k + 1)
         hits += 1
-        if hits >= max_hits:
-            break
     return hits
 
 

@@ -139,6 +139,8 @@ def test_reference_dbar_hand_made():
     # picks: 0.04 at 6 (span 5..6), 0.05 at 3 (span 1..3), 0.10 at 2 blocked, 0.08 at 4
     # (span 2..4: fills 4), 0.12 at 7 (span 6..7: fills 7)
     assert got.tolist() == [INF, 0.05, 0.05, 0.05, 0.08, 0.04, 0.04, 0.12]
+    assert modified_delta(delta, start, tau=0.13, max_hits=1).tolist() == [INF] * 5 + [0.04] * 2 + [INF]
+    assert np.isinf(modified_delta(delta, start, tau=0.13, max_hits=0)).all()
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -163,7 +165,7 @@ def check_reference_dbar(seed: int) -> None:
                      0.130001, INF, np.nan, 2.0**-40])
     delta = np.where(rng.random(n) < 0.5, rng.random(n) * 0.2, rng.choice(pool, n))
     start = np.array([max(0, i - int(rng.integers(0, 12))) for i in range(n)])
-    cap = None if seed % 4 else int(rng.integers(1, 20))
+    cap = None if seed % 4 else int(rng.integers(0, 20))  # 0: no picks at all
     got = modified_delta(delta, start, tau=0.13, max_hits=cap)
     want = naive_dbar(np.where(np.isnan(delta), INF, delta), start, 0.13, cap)
     assert np.array_equal(got, want), seed
