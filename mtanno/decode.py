@@ -69,7 +69,9 @@ def _decode(delta, start, scale, ceiling, cum_ev, weight, seg_cost, slack, first
     at k ∈ [a − slack, a + slack] ∩ [first[ℓ], ℓ] (a = start[p, ℓ]; ``first`` holds the
     first frame of ℓ's document when several are decoded at once) and costs
     (ℓ − k + 1)·delta[p, ℓ]·scale[p] + weight·(cum_ev[p, ℓ + 1] − cum_ev[p, k]) + seg_cost;
-    an unlabelled frame costs 1. Only strictly cheaper choices replace earlier ones."""
+    an unlabelled frame costs 1. Only strictly cheaper choices replace earlier ones.
+    Matches too short to pay their segment cost are skipped without trying their starts
+    (exact: best[ℓ] ≤ best[k] + ℓ − k, as the unlabelled frames show)."""
     P, L = delta.shape
     best[0] = 0.0
     for ell in range(L):
@@ -88,6 +90,13 @@ def _decode(delta, start, scale, ceiling, cum_ev, weight, seg_cost, slack, first
                 continue
             lo = max(first[ell], a - slack)
             hi = min(ell, a + slack)
+            # a match of n ≤ ell − lo + 1 frames costs at least n·per + seg_cost more than
+            # best[k], and leaving its frames unlabelled costs n: it cannot win where
+            # n·(1 − per) < seg_cost (less a bound on the rounding of both sums)
+            n = ell - lo + 1
+            if n * (1.0 - per) < seg_cost - 2.3e-16 * (1.01 * (ell + 1) + n + seg_cost + 1.0) \
+                    * (n + 6):
+                continue
             for k in range(lo, hi + 1):
                 c = best[k] + (ell - k + 1) * per + seg_cost
                 if weight != 0.0:
