@@ -261,3 +261,23 @@ def test_mirror_mrc05_template():
     m = mirror(make_mt(feature_set="mrc05", feature_names=names, values=values, K=2,
                        weights=np.ones(2)))
     assert m.values[b].tolist() == [1.0, 1.0] and m.values[a].tolist() == [0.0, 0.0]
+
+
+def test_rank_features_most_fixed_entries_first():
+    from mtanno.templates.model import rank_features
+
+    V = np.full((len(FEATURE_NAMES), 4), 0.5)
+    V[5] = [1, 1, 0, 0.5]      # 3 fixed, 2 ones
+    V[2] = [0, 0, 0, 0.5]      # 3 fixed, 0 ones
+    V[7] = [1, 1, 1, 1]        # 4 fixed, 4 ones
+    V[1] = [0, 1, 0.5, 0.5]    # 2 fixed, 1 one
+    mt = make_mt(K=4, values=V)
+    q = quantize(mt, 0.0)
+    ranked = rank_features(q)
+    names = mt.feature_names
+    assert [(f.name, f.fixed, f.ones) for f in ranked[:4]] == [
+        (names[7], 4, 4), (names[5], 3, 2), (names[2], 3, 0), (names[1], 2, 1)]
+    assert [f.name for f in ranked[4:]] == [n for i, n in enumerate(names)
+                                            if i not in (1, 2, 5, 7)]
+    with pytest.raises(MtannoError, match="quantized"):
+        rank_features(mt)

@@ -161,7 +161,7 @@ def mt_show_cmd(template, delta, top, picture, files):
     with the most non-wildcard entries after quantization (those the matching relies
     on); --picture draws the quantized template.
     """
-    from mtanno.templates.model import load_template, quantize
+    from mtanno.templates.model import load_template, quantize, rank_features
 
     mt = load_template(template)
     if mt.quantized:
@@ -192,16 +192,12 @@ def mt_show_cmd(template, delta, top, picture, files):
              f"sha256 {str(t.get('sha256'))[:12]}")
     if len(shown) < n:
         echo(f"  ... {n - len(shown)} more (--files lists them all)")
-    V = q.values
-    nonwild = (V != 0.5).sum(axis=1)
-    ones = (V == 1.0).sum(axis=1)
-    order = sorted(range(mt.n_features), key=lambda r: (-nonwild[r], -ones[r], r))
     if top:
         echo(f"features with most non-wildcard entries (δ = {d:g}; of {mt.length} columns):")
         width = max(len(x) for x in mt.feature_names)
-        for r in order[:top]:
-            echo(f"  {mt.feature_names[r]:<{width}}  {nonwild[r]:>4}  "
-                 f"(1: {ones[r]}, 0: {nonwild[r] - ones[r]})")
+        for f in rank_features(q)[:top]:
+            echo(f"  {f.name:<{width}}  {f.fixed:>4}  (1: {f.ones}, 0: {f.fixed - f.ones})")
+    V = q.values
     if picture:
         echo(f"quantized template (δ = {d:g}): '#' 1, '.' 0, '~' wildcard")
         width = max(len(x) for x in mt.feature_names)

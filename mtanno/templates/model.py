@@ -30,8 +30,8 @@ from mtanno.errors import MtannoError, read_input
 from mtanno.store import atomic_path
 
 __all__ = [
-    "SCHEMA", "KINDS", "MIRROR_SUFFIX", "MotionTemplate", "load_template", "mirror",
-    "quantize", "save_template",
+    "SCHEMA", "KINDS", "MIRROR_SUFFIX", "FeatureRank", "MotionTemplate", "load_template",
+    "mirror", "quantize", "rank_features", "save_template",
 ]
 
 #: Schema identifier written into (and required from) every template file.
@@ -394,6 +394,28 @@ def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
     return replace(mt, values=Q, weights=mt.weights.copy(), quantized=True, delta=delta,
                    training=[dict(t) for t in mt.training], params=dict(mt.params),
                    history={k: list(v) for k, v in mt.history.items()})
+
+
+@dataclass(frozen=True)
+class FeatureRank:
+    """How much a quantized template relies on one feature: its entries that are not
+    wildcards (``fixed``), of which ``ones`` are 1."""
+
+    name: str
+    fixed: int
+    ones: int
+
+
+def rank_features(q: MotionTemplate) -> list[FeatureRank]:
+    """The features of a quantized template, those with the most non-wildcard entries
+    first (the ones the matching relies on; ties: more 1 entries, then feature order) —
+    what ``mtanno mt show`` lists."""
+    if not q.quantized:
+        raise MtannoError("rank_features needs a quantized template (quantize it first)")
+    fixed = (q.values != WILDCARD).sum(axis=1)
+    ones = (q.values == 1.0).sum(axis=1)
+    order = sorted(range(q.n_features), key=lambda r: (-fixed[r], -ones[r], r))
+    return [FeatureRank(q.feature_names[r], int(fixed[r]), int(ones[r])) for r in order]
 
 
 def mirror_names(feature_set: str) -> dict[str, str]:
