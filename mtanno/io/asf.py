@@ -85,10 +85,10 @@ def _floats(tokens: list[str], n: int, what: str, path: str, line: int) -> list[
     return vals
 
 
-def read_asf(path: str | os.PathLike) -> AsfSkeleton:
-    """Parse an ASF file into an :class:`AsfSkeleton` (lengths in cm, angles in radians)."""
-    spath = str(path)
-    lines = read_text_lines(path)
+def _sections(lines: list[str], spath: str):
+    """The ASF's sections: units (length divisor, angle unit), the root's fields (tokens
+    and line), the bone blocks (dicts with their line) and the hierarchy lines; errors for
+    malformed blocks, a file without bones or without a hierarchy."""
     units = {"length": 1.0, "angle": "deg"}
     root: dict[str, tuple[list[str], int]] = {}
     bones: list[dict] = []
@@ -158,10 +158,12 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
                           line=1)
     if not hierarchy:
         raise MtannoError("no ':hierarchy' section", path=spath, line=len(lines))
+    return units, root, bones, hierarchy
 
-    length_scale = INCH_CM / units["length"]
-    angle_scale = np.pi / 180.0 if units["angle"] == "deg" else 1.0
 
+def _bone_order(bones: list[dict], hierarchy: list, spath: str):
+    """(bone names in a topological order — the file's where it already is one — with
+    the root first; each bone's parent), checking names and the hierarchy."""
     names = ["root"] + [b["name"] for b in bones]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
@@ -196,6 +198,16 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
                 order.append(n)
                 placed.add(n)
         pending = [n for n in pending if n not in placed]
+    return order, parent_of
+
+
+def read_asf(path: str | os.PathLike) -> AsfSkeleton:
+    """Parse an ASF file into an :class:`AsfSkeleton` (lengths in cm, angles in radians)."""
+    spath = str(path)
+    units, root, bones, hierarchy = _sections(read_text_lines(path), spath)
+    length_scale = INCH_CM / units["length"]
+    angle_scale = np.pi / 180.0 if units["angle"] == "deg" else 1.0
+    order, parent_of = _bone_order(bones, hierarchy, spath)
     by_name = {b["name"]: b for b in bones}
 
     n = len(order)
