@@ -59,9 +59,11 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     held-out examples are composed into documents and annotated, and the parameters that
     score best over all folds are kept — per-class tau, a rejection ceiling per class,
     the segment decoder (overlap resolution) and its cost per segment, boundary
-    refinement, several templates per class, frame-wise tie-breaking, the quantization
-    delta. The objective is
-    (F1 + F2)/2 − w·U with U the unknown-class rate (each class left out in turn).
+    refinement, several templates per class (groups of similar examples, and copies
+    time-scaled to 0.6 or 1.6 times the length for faster or slower performances, within
+    a budget of 15 % more matched columns), frame-wise tie-breaking, the quantization
+    delta. The objective is (F1 + F2)/2 − w·U with U the unknown-class rate (each class
+    left out in turn).
 
     Training examples come as for learn-mt (a manifest with --features-dir, --truth with
     feature files, or CLASS/ folders). Writes CONFIG (TOML: [decoder], [tau], [reject],
