@@ -652,6 +652,14 @@ class ClassModel:
                                                        variant=variant)
         return self._prepared[variant]
 
+    def column_keys(self) -> frozenset:
+        """The template's distinct columns (as bytes), made once: what
+        :func:`evidence_covered` compares."""
+        if "columns" not in self._prepared:
+            V = np.ascontiguousarray(self.values.T)
+            self._prepared["columns"] = frozenset(row.tobytes() for row in V)
+        return self._prepared["columns"]
+
     def evidence_columns(self):
         """The template's :class:`mtanno.decode.EvidenceColumns` (frame evidence), made
         once."""
@@ -723,7 +731,7 @@ def evidence_covered(classes: Sequence[ClassModel]) -> set[int]:
     :mod:`mtanno.tuning.tempo`, or a duplicate), so their evidence — the best column
     anywhere in the template — is never lower, and the class's minimum stays the other's.
     Of templates with the same columns the first is kept."""
-    cols = [{c.values[:, k].tobytes() for k in range(c.values.shape[1])} for c in classes]
+    cols = [c.column_keys() for c in classes]
     out = set()
     for i, a in enumerate(classes):
         for j, b in enumerate(classes):
