@@ -48,8 +48,8 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 
-__all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate", "match_documents",
-           "match_template"]
+__all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate",
+           "column_repeats", "match_documents", "match_template"]
 
 DEFAULT_STEPS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (2, 1))
 DEFAULT_STEP_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 2.0)
@@ -329,6 +329,15 @@ def _check_steps(steps, step_weights) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return st[:, 0].astype(np.int64), st[:, 1].astype(np.int64), sw
 
 
+def column_repeats(weights: np.ndarray) -> np.ndarray:
+    """How often the reference matching repeats each template column (features.md App. A):
+    max(1, round(w_i)), round half away from zero (weights are non-negative). Their sum is
+    the number of columns matched, what matching costs per document frame. Floats: a
+    template with absurd weights can be told (and refused) before counting overflows."""
+    w = np.asarray(weights, dtype=np.float64)
+    return np.maximum(1.0, np.floor(w + 0.5))
+
+
 class PreparedTemplate:
     """A quantized template in kernel form (packed columns, cost table, steps), to match
     many documents without preparing the template again each time.
@@ -349,7 +358,7 @@ class PreparedTemplate:
         if variant == "reference":
             # expand (features.md App. A): column i repeated max(1, round(w_i)) times, round
             # half away from zero (weights are non-negative), each copy of weight w_i / r_i
-            reps = np.maximum(1.0, np.floor(w + 0.5))
+            reps = column_repeats(w)
             if reps.sum() > MAX_TEMPLATE_COLUMNS:
                 raise MtannoError(f"template weights (largest {w.max():.3g}) expand it to "
                                   f"{reps.sum():.3g} columns, more than the "

@@ -42,10 +42,12 @@ def scale_columns(n: int, factor: float) -> np.ndarray:
 
 
 def matched_columns(weights: np.ndarray) -> int:
-    """The columns a template of these column weights is matched with (the reference
-    matcher repeats column i max(1, round(w_i)) times, round half up): what its matching
-    costs per document frame."""
-    return int(np.maximum(1.0, np.floor(np.asarray(weights, np.float64) + 0.5)).sum())
+    """The columns a template of these column weights is matched with
+    (:func:`mtanno.templates.match.column_repeats`): what its matching costs per document
+    frame."""
+    from mtanno.templates.match import column_repeats
+
+    return int(column_repeats(weights).sum())
 
 
 def time_scaled(mt: MotionTemplate, factor: float) -> MotionTemplate:
