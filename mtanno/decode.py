@@ -369,20 +369,17 @@ class EvidenceColumns:
 def evidence_columns(values: np.ndarray) -> EvidenceColumns:
     """:class:`EvidenceColumns` of a (features × K) quantized template (0, 1, 0.5 =
     wildcard); wildcard-only columns are left out (none left: every frame gets 0)."""
+    from mtanno.templates.match import pack_document
+
     V = np.asarray(values)
     fixed = V != 0.5
     keep = fixed.any(axis=0)
     fixed = fixed[:, keep]
     ones = (V[:, keep] == 1.0) & fixed
     words = (V.shape[0] + 63) // 64
-    weights = np.uint64(1) << np.arange(64, dtype=np.uint64)
-    masks = np.zeros((fixed.shape[1], words), dtype=np.uint64)
-    vals = np.zeros_like(masks)
-    for w in range(words):
-        rows = slice(64 * w, min(V.shape[0], 64 * w + 64))
-        n = rows.stop - rows.start
-        masks[:, w] = (fixed[rows].T.astype(np.uint64) * weights[:n]).sum(axis=1, dtype=np.uint64)
-        vals[:, w] = (ones[rows].T.astype(np.uint64) * weights[:n]).sum(axis=1, dtype=np.uint64)
+    # the columns packed as document frames are: bit i of word i // 64 for feature i
+    masks = pack_document(fixed.astype(np.uint8), V.shape[0])
+    vals = pack_document(ones.astype(np.uint8), V.shape[0])
     if masks.shape[0]:
         pairs = np.unique(np.concatenate([masks, vals], axis=1), axis=0)  # distinct columns
         masks = np.ascontiguousarray(pairs[:, :words])
