@@ -286,8 +286,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
 
 def _write_hits(index, hits, *, output, rank_mt, top, quiet, inputs, **record) -> None:
     """Rank the hits by the ``--rank-mt`` template (a note counts the hits it cannot fit)
-    and write them (:func:`mtanno.index.query.write_hits`)."""
-    from mtanno.index.query import rank_by_template_file, write_hits
+    and write them (:func:`mtanno.index.query.write_query_hits`)."""
+    from mtanno.index.query import rank_by_template_file, write_query_hits
 
     if rank_mt is not None:
         hits, columns = rank_by_template_file(index, hits, rank_mt)
@@ -295,7 +295,7 @@ def _write_hits(index, hits, *, output, rank_mt, top, quiet, inputs, **record) -
             click.echo(f"query: note: the template ({columns} columns) cannot fit "
                        f"{hits.unfit} of {len(hits)} hits (too few frames for its steps); "
                        "they have no mt_cost and are ranked last", err=True)
-    write_hits(output, index, hits, top=top, inputs=inputs, ranked_by=rank_mt, **record)
+    write_query_hits(output, index, hits, top=top, inputs=inputs, ranked_by=rank_mt, **record)
 
 
 def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):

@@ -10,7 +10,7 @@
   fuzzy and m-mismatch hits over one or several groups; :func:`example_query` (query by
   example; :func:`example_matrix` reads its source), :func:`load_query` (JSON),
   :func:`rank_by_template` (:func:`rank_by_template_file` with a template file),
-  :func:`write_hits` (the hit table); :func:`group_sizes` (``index info``).
+  :func:`write_query_hits` (the hit table); :func:`group_sizes` (``index info``).
 """
 
 from mtanno.index.build import (
@@ -44,7 +44,7 @@ from mtanno.index.query import (
     resolve_features,
     run_group,
     search,
-    write_hits,
+    write_query_hits,
 )
 from mtanno.index.storage import INDEX_FORMAT, CorruptIndex, group_sizes
 
@@ -54,5 +54,5 @@ __all__ = [
     "build_index", "example_matrix", "example_query", "frame_codes", "group_sizes",
     "index_from_matrices", "load_query", "open_index", "parse_query", "rank_by_template",
     "rank_by_template_file", "remove_documents", "resolve_features", "run_group", "search",
-    "segment", "write_hits",
+    "segment", "write_query_hits",
 ]

@@ -462,7 +462,7 @@ def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
     return ranked, int(mt.values.shape[1])
 
 
-def write_hits(path: str | os.PathLike, index: Index, hits: Hits, *, top: int | None = None,
+def write_query_hits(path: str | os.PathLike, index: Index, hits: Hits, *, top: int | None = None,
                inputs: Sequence[str | os.PathLike] = (), ranked_by: str | os.PathLike | None = None,
                **record) -> None:
     """Write the hit table of ``hits`` (:meth:`Hits.rows`, the best ``top`` only) atomically
