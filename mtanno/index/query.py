@@ -462,9 +462,9 @@ def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
     return ranked, int(mt.values.shape[1])
 
 
-def write_query_hits(path: str | os.PathLike, index: Index, hits: Hits, *, top: int | None = None,
-               inputs: Sequence[str | os.PathLike] = (), ranked_by: str | os.PathLike | None = None,
-               **record) -> None:
+def write_query_hits(path: str | os.PathLike, index: Index, hits: Hits, *,
+                     top: int | None = None, inputs: Sequence[str | os.PathLike] = (),
+                     ranked_by: str | os.PathLike | None = None, **record) -> None:
     """Write the hit table of ``hits`` (:meth:`Hits.rows`, the best ``top`` only) atomically
     in the format of ``path``'s suffix (``-``: CSV on standard output), with its provenance:
     the query's ``inputs`` and the index generation, the ranking template ``ranked_by``
