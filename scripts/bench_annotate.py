@@ -65,6 +65,55 @@ def timed(args: list[str], repeats: int) -> tuple[float, float]:
     return statistics.median(walls), rss
 
 
+def median_wall(fn, n: int = 7) -> float:
+    """Median wall seconds of ``n`` calls of ``fn``."""
+    ts = []
+    for _ in range(n):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return statistics.median(ts)
+
+
+def interleaved_cpu(fns, n: int = 15) -> list[float]:
+    """Median process CPU seconds of each of ``fns``, called in turn ``n`` times: ratios
+    between them less exposed to other jobs on a 2-core machine than wall times of one
+    function after another."""
+    cpu: list[list[float]] = [[] for _ in fns]
+    for _ in range(n):
+        for i, fn in enumerate(fns):
+            t = time.process_time()
+            fn()
+            cpu[i].append(time.process_time() - t)
+    return [statistics.median(c) for c in cpu]
+
+
+def learned_keyframes(out: Path, clips: Path) -> Path:
+    """The GA keyframe queries of the 11 classes, learned from the train split once under
+    ``out``."""
+    kf = out / "kf"
+    if not kf.is_dir():
+        run(["learn-keyframes", "--mt", str(out / "mt"), "--manifest", str(clips),
+             "--features-dir", str(out / "features"), "--split", "train", "-o", str(kf),
+             "--jobs", "2", "-q"])
+    return kf
+
+
+def bench_setup(name: str, doc: str):
+    """The options of the annotation benchmarks (--repeats, --out), the data check and the
+    inputs made once (:func:`prepare`): (options, output folder, manifest, the document's
+    features), or None when the real data is missing (a line says so)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--out", default=str(REPO / ".cache" / "bench" / "annotate"))
+    args = ap.parse_args()
+    if not SHARED.is_dir():
+        print(f"{name}: {SHARED} not found; the benchmark needs the real data")
+        return None
+    out = Path(args.out)
+    return (args, out, *prepare(out))
+
+
 def keyframes(out: Path, clips: Path, repeats: int) -> None:
     """Annotation of the 60-minute document with and without GA keyframes (issue 7)."""
     from mtanno.annotate import annotate_document, load_class_models
@@ -72,11 +121,7 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
     from mtanno.store import read_features
     from mtanno.templates.match import pack_document
 
-    kf = out / "kf"
-    if not kf.is_dir():
-        run(["learn-keyframes", "--mt", str(out / "mt"), "--manifest", str(clips),
-             "--features-dir", str(out / "features"), "--split", "train", "-o", str(kf),
-             "--jobs", "2", "-q"])
+    kf = learned_keyframes(out, clips)
     doc = out / "doc_60min.parquet"
     ff = read_features(doc)
     models, _ = load_class_models(out / "mt")
@@ -92,25 +137,9 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
         w = class_windows(ff.X, ff.names, queries, packed=packed)
         annotate_document(ff.document, ff.X, models, windows=w, packed=packed)
 
-    def median(fn):
-        ts = []
-        for _ in range(7):
-            t = time.perf_counter()
-            fn()
-            ts.append(time.perf_counter() - t)
-        return statistics.median(ts)
-
-    t0, t1 = median(plain), median(with_keyframes)
-    scan = median(lambda: class_windows(ff.X, ff.names, queries))
-    # the same pair less exposed to other jobs on a 2-core machine: process CPU time,
-    # the two runs interleaved, median of 15 each
-    cpu: tuple[list[float], list[float]] = ([], [])
-    for _ in range(15):
-        for i, fn in enumerate((plain, with_keyframes)):
-            t = time.process_time()
-            fn()
-            cpu[i].append(time.process_time() - t)
-    c0, c1 = statistics.median(cpu[0]), statistics.median(cpu[1])
+    t0, t1 = median_wall(plain), median_wall(with_keyframes)
+    scan = median_wall(lambda: class_windows(ff.X, ff.names, queries))
+    c0, c1 = interleaved_cpu((plain, with_keyframes))
     w = class_windows(ff.X, ff.names, queries)
     L = ff.X.shape[1]
     cover = {c: sum(b - a + 1 for a, b in v) / L for c, v in w.items()}
@@ -142,15 +171,10 @@ def prepare(out: Path) -> tuple[Path, Path]:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--out", default=str(REPO / ".cache" / "bench" / "annotate"))
-    args = ap.parse_args()
-    if not SHARED.is_dir():
-        print(f"bench_annotate: {SHARED} not found; the benchmark needs the real data")
+    got = bench_setup("bench_annotate", __doc__)
+    if got is None:
         return 2
-    out = Path(args.out)
-    clips, src = prepare(out)
+    args, out, clips, src = got
     print(f"machine: {machine()}; templates: 11 HDM05 classes")
     for minutes, jobs in ((60, 1), (60, 2)):
         doc = tiled(src, out / f"doc_{minutes}min.parquet", minutes * 60 * 30)

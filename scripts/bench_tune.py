@@ -18,7 +18,6 @@ configuration no slower than 1.2× the untuned one).
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import subprocess
 import sys
@@ -27,32 +26,24 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine  # noqa: E402
-from bench_annotate import REPO, SHARED, prepare, run, tiled, timed  # noqa: E402
-
-
-def median_of(fn, n: int = 7) -> float:
-    ts = []
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
+from bench_annotate import (  # noqa: E402
+    REPO,
+    bench_setup,
+    interleaved_cpu,
+    learned_keyframes,
+    median_wall,
+    run,
+    tiled,
+    timed,
+)
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--out", default=str(REPO / ".cache" / "bench" / "annotate"))
-    args = ap.parse_args()
-    if not SHARED.is_dir():
-        print(f"bench_tune: {SHARED} not found; the benchmark needs the real data")
+    got = bench_setup("bench_tune", __doc__)
+    if got is None:
         return 2
-    out = Path(args.out)
-    clips, src = prepare(out)
-    if not (out / "kf").is_dir():
-        run(["learn-keyframes", "--mt", str(out / "mt"), "--manifest", str(clips),
-             "--features-dir", str(out / "features"), "--split", "train", "-o",
-             str(out / "kf"), "--jobs", "2", "-q"])
+    args, out, clips, src = got
+    kf_dir = learned_keyframes(out, clips)
     print(f"machine: {machine()}")
     train = ["--manifest", str(clips), "--features-dir", str(out / "features"), "--split",
              "train", "--jobs", "2"]
@@ -63,41 +54,34 @@ def main() -> int:
         walls.append(time.perf_counter() - t)
     print(f"tune, 11 HDM05 classes, 188 clips, --jobs 2: {statistics.median(walls):.1f} s wall "
           f"(median of {args.repeats}: {', '.join(f'{w:.1f}' for w in walls)}; target < 60 s)")
-    run(["tune", "--mt", str(out / "mt"), "--keyframes", str(out / "kf"), *train, "-o",
+    run(["tune", "--mt", str(out / "mt"), "--keyframes", str(kf_dir), *train, "-o",
          str(out / "tuned_kf.toml")])
 
-    from mtanno.annotate import (
-        DEFAULT_DELTA,
-        annotate_document,
-        load_class_config,
-        load_class_models,
-        load_config_templates,
-    )
+    from mtanno.annotate import annotate_document, load_annotation_setup
     from mtanno.keyframes import class_windows, load_keyframe_folder
     from mtanno.store import read_features
+    from mtanno.templates.match import pack_document
 
     doc = tiled(src, out / "doc_60min.parquet", 60 * 60 * 30)
     ff = read_features(doc)
-    queries = load_keyframe_folder(out / "kf")
+    queries = load_keyframe_folder(kf_dir)
     rows, runners = [], []
     for name, cfg_path, kf in (("untuned", None, False), ("tuned", out / "tuned.toml", False),
                                ("untuned, keyframes", None, True),
                                ("tuned with keyframes, keyframes", out / "tuned_kf.toml", True)):
-        cfg = load_class_config(cfg_path) if cfg_path else None
-        delta = cfg.delta if cfg is not None and cfg.delta is not None else DEFAULT_DELTA
-        models, layout = load_class_models(out / "mt", delta=delta)
-        if cfg is not None:
-            models += load_config_templates(cfg, layout, delta=delta)
+        setup = load_annotation_setup(out / "mt", config_path=cfg_path)  # as annotate reads
+        models, cfg = setup.models, setup.config
         annotate_document("w", ff.X[:, :3000], models, config=cfg)  # kernels loaded
 
-        def once(models=models, cfg=cfg, kf=kf):
-            w = class_windows(ff.X, ff.names, queries) if kf else None
-            annotate_document(ff.document, ff.X, models, config=cfg, windows=w)
+        def once(models=models, cfg=cfg, kf=kf):  # packed once, as `mtanno annotate` does
+            packed = pack_document(ff.X, ff.X.shape[0])
+            w = class_windows(ff.X, ff.names, queries, packed=packed) if kf else None
+            annotate_document(ff.document, ff.X, models, config=cfg, windows=w, packed=packed)
 
-        inproc = median_of(once)
+        inproc = median_wall(once)
         runners.append(once)
         extra = (["--classes", str(cfg_path)] if cfg_path else []) + \
-            (["--keyframes", str(out / "kf")] if kf else [])
+            (["--keyframes", str(kf_dir)] if kf else [])
         wall, _ = timed(["annotate", "--mt", str(out / "mt"), *extra, str(doc), "-o",
                          str(out / "ann_tune.csv"), "-q"], args.repeats)
         rows.append((name, inproc, wall, len({m.name for m in models}), len(models)))
@@ -121,15 +105,7 @@ def main() -> int:
     print(f"tuned / untuned: {tuned[1] / base[1]:.2f}x in one process, {tuned[2] / base[2]:.2f}x "
           f"whole command; with keyframes {ktuned[1] / kbase[1]:.2f}x and "
           f"{ktuned[2] / kbase[2]:.2f}x (target ≤ 1.2x)")
-    # the same ratio less exposed to other jobs on a 2-core machine: process CPU time of
-    # untuned and tuned runs interleaved, median of 15 each
-    cpu: list[list[float]] = [[], [], [], []]
-    for _ in range(15):
-        for i, fn in enumerate(runners):
-            t = time.process_time()
-            fn()
-            cpu[i].append(time.process_time() - t)
-    med = [statistics.median(c) for c in cpu]
+    med = interleaved_cpu(runners)
     print(f"tuned / untuned, CPU time interleaved (median of 15): {med[1] / med[0]:.2f}x "
           f"({med[0] * 1000:.0f} / {med[1] * 1000:.0f} ms); with keyframes "
           f"{med[3] / med[2]:.2f}x ({med[2] * 1000:.0f} / {med[3] * 1000:.0f} ms)")
