@@ -786,18 +786,15 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     def matches():
         for i, c in enumerate(classes):
             _class_delta(X, packed, c, windows, match_variant, delta, start)
-            if evidence and i in covered:
-                yield c.name, delta, start, None  # its columns are another template's
-            elif evidence:
-
-                spans = None
-                if windows is not None and c.name in windows:  # only where c can be
-                    spans = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
-                                           for a, b in windows[c.name]], L)
-                yield c.name, delta, start, row_evidence(packed, c.evidence_columns(),
-                                                         spans=spans, distinct=distinct)
-            else:
+            if not evidence or i in covered:  # covered: its columns are another template's
                 yield c.name, delta, start, None
+                continue
+            spans = None
+            if windows is not None and c.name in windows:  # only where c can be
+                spans = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
+                                      for a, b in windows[c.name]], L)
+            yield c.name, delta, start, row_evidence(packed, c.evidence_columns(),
+                                                     spans=spans, distinct=distinct)
 
     return label_document(doc, [c.name for c in classes], matches(), L, config=config,
                           dbar_variant=dbar_variant, max_hits=max_hits, extend=extend,
