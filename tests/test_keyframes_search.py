@@ -153,3 +153,67 @@ def test_mismatch_tolerance():
     assert list(zip(hi.start.tolist(), hi.end.tolist())) == [(1, 1), (3, 3)]
     with pytest.raises(MtannoError, match="mismatch"):
         KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "11***", 1, 1)], [], 2)
+
+
+def _naive_runs(X, rows, values, tol):
+    """Runs of frames of X (features × frames) with at most ``tol`` of ``rows`` differing
+    from ``values``."""
+    from naive_keyframes import runs
+
+    bad = (X[rows, :] != np.asarray(values, np.uint8)[:, None]).sum(axis=0)
+    return runs(bad <= tol)
+
+
+def check_keyframe_sets(seed):
+    """Many keyframes matched in one pass (the cached kernel behind ``class_windows``)
+    equal a naive scan per keyframe: more than 64 features (two words a frame), more
+    than 64 keyframes (two passes), and documents with more distinct frame vectors than
+    the cache keeps."""
+    from mtanno.keyframes.search import _Scanner
+    from mtanno.templates.match import pack_document
+
+    rng = np.random.default_rng(seed)
+    f = int(rng.choice([7, 70]))
+    names = [f"x{i}" for i in range(f)]
+    L = int(rng.choice([1, 50, 7000]))  # 7000 random frames overflow the cache
+    p = 0.5 if L == 7000 else 0.1
+    X = (np.cumsum(rng.random((f, L)) < p, axis=1) % 2).astype(np.uint8)
+    n = int(rng.choice([7, 70]))
+    want, queries = [], {}
+    for k in range(n):
+        rows = rng.choice(f, size=int(rng.integers(1, min(f, 6) + 1)), replace=False)
+        vals = rng.integers(0, 2, size=rows.size)
+        tol = int(rng.integers(0, 2)) if rows.size >= 4 else 0
+        want.append(_naive_runs(X, rows, vals, tol))
+        group = tuple(names[r] for r in rows)
+        queries[k] = KeyframeQuery(f"c{k}", "custom", {"g": group},
+                                   [Keyframe("g", "".join(map(str, vals)), 1, tol)], [], 2)
+    scan = _Scanner.joined([_Scanner(q, names) for q in queries.values()])
+    got = scan.levels(pack_document(X, f), 3)
+    for (d, s, e), w in zip(got, want):
+        assert list(zip(s.tolist(), e.tolist())) == w
+        assert np.all(d == 3)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_keyframe_sets_in_one_pass(seed):
+    check_keyframe_sets(seed)
+
+
+def test_keyframe_sets_without_jit():
+    from nojit import run_without_jit
+
+    run_without_jit("test_keyframes_search", "check_keyframe_sets", *[(s,) for s in range(4)])
+
+
+@given(st.integers(0, 10_000))
+@settings(max_examples=30, deadline=None)
+def test_class_windows_equal_each_querys_windows(seed):
+    """Windows of several classes found together equal each query's own windows."""
+    from mtanno.keyframes import class_windows, document_windows
+
+    rng = np.random.default_rng(seed)
+    X = _docs(rng, 1, p=0.15)["d0"]
+    queries = {f"c{i}": random_query(rng, GROUPS) for i in range(int(rng.integers(1, 6)))}
+    got = class_windows(X, NAMES, queries)
+    assert got == {c: document_windows(X, NAMES, q) for c, q in queries.items()}

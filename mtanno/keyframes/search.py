@@ -283,41 +283,70 @@ def search_index(index, query: KeyframeQuery) -> KeyframeHits:
 
 # --------------------------------------------------------------------------- direct scan
 
+#: Up to this many keyframes, one pass over the frames each is faster than one pass
+#: over the frames for all of them (which tests each distinct frame vector once).
+_ONE_BY_ONE = 6
+
+
 class _Scanner:
-    """Matches a query's keyframes against bit-packed feature frames (a direct scan): each
-    keyframe is a (mask, value) pair over the packed words of the feature rows, matched by
-    one kernel pass over the frames (:func:`mtanno.keyframes._kernels.keyframe_runs`)."""
+    """Matches keyframes against bit-packed feature frames (a direct scan): each keyframe
+    is a (mask, value) pair over the packed words of the feature rows; the keyframes of
+    one query, or of several queries joined with :meth:`joined`, are matched by
+    :meth:`levels`."""
 
     def __init__(self, query: KeyframeQuery, names: Sequence[str]):
         check_features_known(query, names, feature_set=None, what="feature file")
         pos = {n: i for i, n in enumerate(names)}
-        self.n_features = len(names)
         W = (len(names) + 63) // 64
-        self.masks, self.values, self.tol = [], [], []
-        for kf in query.keyframes:
+        n = len(query.keyframes)
+        self.masks = np.zeros((n, W), np.uint64)
+        self.values = np.zeros((n, W), np.uint64)
+        self.tol = np.array([int(kf.mismatches) for kf in query.keyframes], np.int64)
+        for i, kf in enumerate(query.keyframes):
             feats = query.groups[kf.group]
-            m = np.zeros(W, np.uint64)
-            v = np.zeros(W, np.uint64)
             for k, c in enumerate(kf.vector):
                 if c != "*":
                     r = pos[feats[k]]
-                    m[r // 64] |= np.uint64(1) << np.uint64(r % 64)
+                    bit = np.uint64(1) << np.uint64(r % 64)
+                    self.masks[i, r // 64] |= bit
                     if c == "1":
-                        v[r // 64] |= np.uint64(1) << np.uint64(r % 64)
-            self.masks.append(m)
-            self.values.append(v)
-            self.tol.append(int(kf.mismatches))
+                        self.values[i, r // 64] |= bit
+
+    @staticmethod
+    def joined(scanners: Sequence[_Scanner]) -> _Scanner:
+        """One scanner of all the keyframes of ``scanners``, in order."""
+        out = object.__new__(_Scanner)
+        out.masks = np.concatenate([s.masks for s in scanners])
+        out.values = np.concatenate([s.values for s in scanners])
+        out.tol = np.concatenate([s.tol for s in scanners])
+        return out
 
     def levels(self, packed: np.ndarray, d: int) -> list[Intervals]:
-        """Interval lists of every keyframe in one packed document (number ``d``)."""
-        L = packed.shape[0]
-        out = []
-        s = np.empty(L + 1, np.int64)
-        e = np.empty(L + 1, np.int64)
-        for m, v, tol in zip(self.masks, self.values, self.tol):
-            k = _kernels.keyframe_runs(packed, m, v, tol, s, e)
-            out.append((np.full(k, d, np.int64), s[:k].copy(), e[:k].copy()))
-        return out
+        """Interval lists of every keyframe in one packed document (number ``d``): a pass
+        over the frames per keyframe, or, for more than a few keyframes, one pass per 64
+        of them (:func:`mtanno.keyframes._kernels.keyframe_set_runs`)."""
+        n = self.masks.shape[0]
+        if n <= _ONE_BY_ONE:
+            L = packed.shape[0]
+            s, e = np.empty(L + 1, np.int64), np.empty(L + 1, np.int64)
+            runs = []
+            for k in range(n):
+                c = _kernels.keyframe_runs(packed, self.masks[k], self.values[k],
+                                           int(self.tol[k]), s, e)
+                runs.append((s[:c].copy(), e[:c].copy()))
+        else:
+            runs = []
+            none = np.zeros(0, np.int64)
+            for a in range(0, n, 64):
+                m, v, t = self.masks[a:a + 64], self.values[a:a + 64], self.tol[a:a + 64]
+                counts = _kernels.keyframe_set_runs(packed, m, v, t, none, none, none)
+                offsets = np.zeros(counts.shape[0] + 1, np.int64)
+                np.cumsum(counts, out=offsets[1:])
+                s, e = np.empty(offsets[-1], np.int64), np.empty(offsets[-1], np.int64)
+                _kernels.keyframe_set_runs(packed, m, v, t, offsets[:-1], s, e)
+                runs += [(s[i:j], e[i:j]) for i, j in zip(offsets[:-1].tolist(),
+                                                          offsets[1:].tolist())]
+        return [(np.full(s.shape[0], d, np.int64), s, e) for s, e in runs]
 
 
 def search_documents(documents: Iterable[tuple[str, np.ndarray]], names: Sequence[str],
@@ -366,11 +395,14 @@ def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, Keyfra
 
     if packed is None:
         packed = pack_document(X, len(names))
+    for q in queries.values():
+        check_features_known(q, names, feature_set=feature_set, what="feature file")
+    # the keyframes of all classes in one pass over the frames
+    levels = _Scanner.joined([_Scanner(q, names) for q in queries.values()]).levels(packed, 0)
     out = {}
     for cls, q in queries.items():
-        check_features_known(q, names, feature_set=feature_set, what="feature file")
-        levels = _Scanner(q, names).levels(packed, 0)
-        hits = _run(q, levels, ["doc"], [X.shape[1]])
+        hits = _run(q, levels[:q.n], ["doc"], [X.shape[1]])
+        del levels[:q.n]
         _, s, e = hits.windows()
         out[cls] = [(int(a), int(b)) for a, b in zip(s, e)]
     return out
