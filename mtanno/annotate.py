@@ -387,25 +387,32 @@ def _next_empty(nxt, k):
 
 
 @numba.njit(cache=True)
-def _reference_dbar(delta, bits, start, tau, max_hits, dbar):
+def _reference_dbar(delta, bits, start, tau, max_hits, dbar, span_first, span_last):
     """Reference Δ̄ into ``dbar`` (filled with ∞ by the caller): take Δ's values ≤ τ in
     increasing order (ties: earliest frame); each fills the still-empty frames of its span
-    [start, end] with its cost and blocks ends inside that span. Returns the picks."""
-    L = delta.shape[0]
+    [start, end] with its cost and blocks ends inside that span. Δ is read only inside the
+    spans [span_first[i], span_last[i]] (sorted, disjoint; matches never leave them).
+    Returns the picks."""
     n = 0
-    for i in range(L):
-        if delta[i] <= tau:
-            n += 1
+    for w in range(span_first.shape[0]):
+        for i in range(span_first[w], span_last[w] + 1):
+            if delta[i] <= tau:
+                n += 1
     cand = np.empty(n, np.int64)
     n = 0
-    for i in range(L):
-        if delta[i] <= tau:
-            cand[n] = i
-            n += 1
+    for w in range(span_first.shape[0]):
+        for i in range(span_first[w], span_last[w] + 1):
+            if delta[i] <= tau:
+                cand[n] = i
+                n += 1
     order = _stable_order(delta, bits, cand)
     # a frame is blocked exactly when a pick has filled it; filled runs are skipped through
     # path-compressed pointers to the next empty frame, so each frame is written once
-    nxt = np.arange(L + 1)
+    # (pointers set inside the spans and one frame past each: a fill stops there)
+    nxt = np.empty(delta.shape[0] + 1, np.int64)
+    for w in range(span_first.shape[0]):
+        for i in range(span_first[w], span_last[w] + 2):
+            nxt[i] = i
     hits = 0
     for i in range(order.shape[0]):
         if hits >= max_hits:
@@ -425,7 +432,8 @@ def _reference_dbar(delta, bits, start, tau, max_hits, dbar):
 
 def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
                    variant: str = "reference", max_hits: int | None = None,
-                   out: np.ndarray | None = None) -> np.ndarray:
+                   out: np.ndarray | None = None,
+                   spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Δ̄ from a distance curve Δ and start frames (algorithms.md §7 step 2; MBS09 §4).
 
     ``variant="reference"`` (default, what the reference implementation does): repeatedly
@@ -434,7 +442,10 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
     ``max_hits`` caps the picks (the reference used 2000). ``variant="paper"`` (MBS09 as
     written): for every local minimum ℓ of Δ below τ, Δ̄(k) = min(Δ̄(k), Δ(ℓ)) on [a_ℓ, ℓ].
     Frames are 0-based; Δ = ∞ where no match ends. ``out`` (float64, Δ's length) receives
-    Δ̄ instead of a new array (a batch reuses one buffer).
+    Δ̄ instead of a new array (a batch reuses one buffer). ``spans``: (firsts, lasts),
+    the sorted disjoint frame ranges (0-based inclusive, :func:`merged_spans`) outside
+    which Δ is ∞, such as keyframe windows; the reference variant then reads Δ only
+    inside them, so a short window costs little in a long document.
     """
     delta = np.ascontiguousarray(delta, dtype=np.float64)
     start = np.ascontiguousarray(start, dtype=np.int64)
@@ -450,7 +461,11 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
         dbar.fill(np.inf)
     if variant == "reference":
         cap = np.iinfo(np.int64).max if max_hits is None else int(max_hits)
-        _reference_dbar(delta, delta.view(np.uint64), start, float(tau), cap, dbar)
+        if spans is None:
+            first, last = np.zeros(1, np.int64), np.full(1, delta.shape[0] - 1, np.int64)
+        else:
+            first, last = (np.asarray(x, np.int64) for x in spans)
+        _reference_dbar(delta, delta.view(np.uint64), start, float(tau), cap, dbar, first, last)
         return dbar
     if variant == "paper":
         d = np.where(np.isfinite(delta), delta, np.inf)
@@ -686,25 +701,31 @@ def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
     L = X.shape[1]
     out = []
     packed = pack_document(X, X.shape[0]) if classes else None
+    spans = _class_spans(windows, L)
     for c in classes:
         delta, start = np.empty(L), np.empty(L, np.int64)
-        _class_delta(X, packed, c, windows, match_variant, delta, start)
+        _class_delta(X, packed, c, spans.get(c.name), match_variant, delta, start)
         out.append((delta, start))
     return out
 
 
-def _class_delta(X, packed, c: ClassModel, windows, match_variant, delta, start) -> None:
-    """Δ and starts of one class into ``delta``/``start`` (in its windows, if it has)."""
+def _class_spans(windows: dict[str, list[tuple[int, int]]] | None, L: int,
+                 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each class's windows merged once (:func:`merged_spans`), for all its templates."""
+    return {name: merged_spans(w, L) for name, w in (windows or {}).items()}
+
+
+def _class_delta(X, packed, c: ClassModel, spans, match_variant, delta, start) -> None:
+    """Δ and starts of one class into ``delta``/``start`` (inside ``spans``, merged
+    windows, if not None)."""
     matcher = c.matcher(match_variant)
     if matcher.f != X.shape[0]:
         raise MtannoError(f"document has {X.shape[0]} features but template '{c.name}' "
                           f"{matcher.f}")
-    L = X.shape[1]
-    if windows is not None and c.name in windows:
-        starts, ends = merged_spans(windows[c.name], L)
-        matcher.match_spans(packed, starts, ends, out=(delta, start))
+    if spans is not None:
+        matcher.match_spans(packed, *spans, out=(delta, start))
     else:
-        matcher.run(packed, np.array([0, L], dtype=np.int64), out=(delta, start))
+        matcher.run(packed, np.array([0, X.shape[1]], dtype=np.int64), out=(delta, start))
 
 
 def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
@@ -783,28 +804,31 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
         distinct = distinct_frames(packed)  # once for all templates
         covered = evidence_covered(classes)
 
+    spans = _class_spans(windows, L)
+
     def matches():
         for i, c in enumerate(classes):
-            _class_delta(X, packed, c, windows, match_variant, delta, start)
+            _class_delta(X, packed, c, spans.get(c.name), match_variant, delta, start)
             if not evidence or i in covered:  # covered: its columns are another template's
                 yield c.name, delta, start, None
                 continue
-            spans = None
+            near = None
             if windows is not None and c.name in windows:  # only where c can be
-                spans = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
-                                      for a, b in windows[c.name]], L)
+                near = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
+                                     for a, b in windows[c.name]], L)
             yield c.name, delta, start, row_evidence(packed, c.evidence_columns(),
-                                                     spans=spans, distinct=distinct)
+                                                     spans=near, distinct=distinct)
 
     return label_document(doc, [c.name for c in classes], matches(), L, config=config,
                           dbar_variant=dbar_variant, max_hits=max_hits, extend=extend,
-                          single_label=single_label)
+                          single_label=single_label, spans=spans)
 
 
 def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                    config: ClassConfig | None = None, dbar_variant: str = "reference",
                    max_hits: int | None = None, extend: bool = True,
                    single_label: bool = False,
+                   spans: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
                    ) -> tuple[list[Annotation], list[str], np.ndarray]:
     """Segments of one document from its templates' distance functions (algorithms.md
     §7 steps 2–4, or the methods of issue 10 that ``config`` switches on).
@@ -816,7 +840,9 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     :func:`mtanno.decode.frame_evidence` where ``config.frame_weight`` is used (an
     array, or a :class:`mtanno.decode.RowEvidence`, written into the decoder's buffer
     without a temporary; None for a template whose evidence another of its class gives,
-    :func:`evidence_covered`; at least one template per class must give it).
+    :func:`evidence_covered`; at least one template per class must give it). ``spans``:
+    per class, the merged windows outside which its Δ is ∞ (keyframe preselection), so
+    that Δ̄ reads only inside them.
 
     * Default (MBS09, the reference implementation): Δ̄ per class with τ (at most the
       class's rejection ceiling ρ), labels, extension (``config.refine``: only over
@@ -854,7 +880,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             k = labels.index(lab)
             out = mat[k] if count[lab] == 1 else tmp
             modified_delta(delta, start, tau=min(tau, rho), variant=dbar_variant,
-                           max_hits=max_hits, out=out)
+                           max_hits=max_hits, out=out, spans=(spans or {}).get(name))
             if count[lab] > 1:
                 np.minimum(mat[k], tmp, out=mat[k])
         mode: bool | str = "unclaimed" if (extend and config.refine) else extend

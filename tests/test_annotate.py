@@ -169,6 +169,21 @@ def check_reference_dbar(seed: int) -> None:
     got = modified_delta(delta, start, tau=0.13, max_hits=cap)
     want = naive_dbar(np.where(np.isnan(delta), INF, delta), start, 0.13, cap)
     assert np.array_equal(got, want), seed
+    # with spans (keyframe windows): Δ is ∞ outside them and not read there
+    cuts = np.sort(rng.choice(n + 1, size=min(n + 1, 6), replace=False))
+    firsts, lasts = cuts[:-1:2], cuts[1::2] - 1
+    keep = lasts >= firsts
+    firsts, lasts = firsts[keep], lasts[keep]
+    inside = np.zeros(n, bool)
+    for a, b in zip(firsts, lasts):
+        inside[a:b + 1] = True
+    d2 = np.where(inside, delta, INF)
+    s2 = np.maximum(start, np.repeat(firsts, lasts - firsts + 1)[np.cumsum(inside) - 1]
+                    if inside.any() else start)  # matches stay inside their span
+    want = naive_dbar(np.where(np.isnan(d2), INF, d2), s2, 0.13, cap)
+    junk = np.where(inside, d2, -1.0)  # outside the spans: values that must not be read
+    got = modified_delta(junk, s2, tau=0.13, max_hits=cap, spans=(firsts, lasts))
+    assert np.array_equal(got, want), seed
 
 
 @pytest.mark.parametrize("seed", range(30))
