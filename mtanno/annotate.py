@@ -715,15 +715,16 @@ def _class_spans(windows: dict[str, list[tuple[int, int]]] | None, L: int,
     return {name: merged_spans(w, L) for name, w in (windows or {}).items()}
 
 
-def _class_delta(X, packed, c: ClassModel, spans, match_variant, delta, start) -> None:
+def _class_delta(X, packed, c: ClassModel, spans, match_variant, delta, start, *,
+                 clear: bool = True) -> None:
     """Δ and starts of one class into ``delta``/``start`` (inside ``spans``, merged
-    windows, if not None)."""
+    windows, if not None; outside them ∞ and −1, or, without ``clear``, as they were)."""
     matcher = c.matcher(match_variant)
     if matcher.f != X.shape[0]:
         raise MtannoError(f"document has {X.shape[0]} features but template '{c.name}' "
                           f"{matcher.f}")
     if spans is not None:
-        matcher.match_spans(packed, *spans, out=(delta, start))
+        matcher.match_spans(packed, *spans, out=(delta, start), clear=clear)
     else:
         matcher.run(packed, np.array([0, X.shape[1]], dtype=np.int64), out=(delta, start))
 
@@ -805,10 +806,13 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
         covered = evidence_covered(classes)
 
     spans = _class_spans(windows, L)
+    # the reference Δ̄ reads Δ inside the windows only: the buffer is not cleared outside
+    clear = config.resolve or dbar_variant != "reference"
 
     def matches():
         for i, c in enumerate(classes):
-            _class_delta(X, packed, c, spans.get(c.name), match_variant, delta, start)
+            _class_delta(X, packed, c, spans.get(c.name), match_variant, delta, start,
+                         clear=clear)
             if not evidence or i in covered:  # covered: its columns are another template's
                 yield c.name, delta, start, None
                 continue
@@ -872,8 +876,12 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                 config.reject.get(name, config.reject_for(lab)))
 
     if not config.resolve:
-        mat = np.full((P, L), np.inf)
+        mat = np.empty((P, L))  # rows written by modified_delta; folded rows start at ∞
+        for k, lab in enumerate(labels):
+            if count[lab] > 1:
+                mat[k].fill(np.inf)
         tmp = np.empty(L)
+        written = set()
         for name, delta, start, _ in matches:
             lab = member_of.get(name, name)
             tau, rho = limits(name, lab)
@@ -883,6 +891,9 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                            max_hits=max_hits, out=out, spans=(spans or {}).get(name))
             if count[lab] > 1:
                 np.minimum(mat[k], tmp, out=mat[k])
+            written.add(k)
+        for k in set(range(P)) - written:  # a label whose templates gave no Δ
+            mat[k].fill(np.inf)
         mode: bool | str = "unclaimed" if (extend and config.refine) else extend
         rows = segments_from_labels(doc, labels, mat, extend=mode)
         if single_label:

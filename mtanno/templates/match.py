@@ -409,18 +409,20 @@ class PreparedTemplate:
         return [(delta[b:e], start[b:e]) for b, e in zip(offsets[:-1], offsets[1:])]
 
     def match_spans(self, packed: np.ndarray, starts: np.ndarray, ends: np.ndarray, *,
-                    out: tuple[np.ndarray, np.ndarray] | None = None,
+                    out: tuple[np.ndarray, np.ndarray] | None = None, clear: bool = True,
                     ) -> tuple[np.ndarray, np.ndarray]:
         """(delta, start) over a whole packed document (:func:`pack_document`) of which only
         the disjoint spans [starts[i], ends[i]] (0-based inclusive) are matched, each as a
         document of its own; starts are frames of the whole document; Δ = ∞ and start = −1
         elsewhere. One kernel call for all spans, nothing copied (MBS09 §5: templates
         matched only inside keyframe windows). ``out``: (delta, start) arrays of length L
-        to write into instead of new ones."""
+        to write into instead of new ones; with ``clear=False`` their frames outside the
+        spans are left as they are (for a reader that looks inside the spans only)."""
         L = packed.shape[0]
         delta, start = _outputs(out, L)
-        delta.fill(np.inf)
-        start.fill(-1)
+        if clear:
+            delta.fill(np.inf)
+            start.fill(-1)
         self._kernel(packed, np.asarray(starts, np.int64), np.asarray(ends, np.int64) + 1,
                      True, delta, start)
         return delta, start
