@@ -22,7 +22,7 @@ from mtanno.truth import Segment
 from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
-from mtanno.tuning.search import MIN_SUPPORT, Params, Tuner
+from mtanno.tuning.search import Params, Tuner
 
 
 def _sources(world):
@@ -361,29 +361,12 @@ def test_tuner_matches_time_scaled_templates_as_annotate_does(resolve):
 
 def test_search_keeps_a_time_scaled_template_only_where_it_pays():
     fold, prepared = _fold_data()
-    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0,
-                  min_support=1)
+    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0)
     params, ev, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
     assert params.scales == {"a": (0.6,)}  # not 1.6: its match lies inside a b
     assert any(s.startswith("time-scaled templates {'a': (0.6,)}") for s in steps)
     without = tuner.search(delta=0.05, methods=["resolve"])[1]
     assert ev.J > without.J
-
-
-def test_classes_with_few_held_out_segments_keep_the_shared_parameters():
-    """Two held-out segments of a class are too few to tune its own parameters (the
-    default :data:`MIN_SUPPORT` is 3): the copy that pays on them is not even tried, and the
-    search log names the class."""
-    fold, prepared = _fold_data()
-    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0)
-    assert MIN_SUPPORT == 3 and tuner.support == {"a": 2, "b": 2} and tuner.tunable == []
-    params, _, steps = tuner.search(delta=0.05, methods=["templates", "resolve", "tau"])
-    assert params.scales == {} and len(set(params.tau.values())) == 1
-    assert "shared parameters only (fewer than 3 held-out segments): a, b" in steps
-    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0,
-                  min_support=2)
-    assert tuner.search(delta=0.05, methods=["templates", "resolve"])[0].scales == \
-        {"a": (0.6,)}
 
 
 def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_path,
@@ -439,7 +422,7 @@ def test_time_scaled_copies_stay_within_their_column_budget(cost, kept):
     columns = {"a": 10, "b": 10, ("a", 0.6): cost, ("a", 1.6): 16, ("b", 0.6): 1,
                ("b", 1.6): 1}
     tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0,
-                  columns=columns, min_support=1)
+                  columns=columns)
     params, _, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
     assert params.scales == kept
     used = cost if kept else 0

@@ -32,9 +32,6 @@ The search, in this order, each step only over the methods switched on
    templates' columns (they cost annotation time in proportion);
 4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
    where J rises by more than :data:`EPS`;
-
-   (steps 3–5 tune a class's own parameters only where cross-validation has at least
-   :data:`MIN_SUPPORT` of its segments);
 5. rejection (``reject``): a ceiling ρ_p = m·τ_p (m in :data:`REJECT_STEPS`) per class,
    kept where J rises by more than :data:`EPS`;
 6. frame-wise tie-breaking (``frames``): the evidence weight (:data:`FRAME_WEIGHTS`), kept
@@ -60,8 +57,8 @@ from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, count, covered_fraction
 from mtanno.tuning.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 
-__all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "MIN_SUPPORT", "REJECT_STEPS",
-           "SCALE_SETS", "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
+__all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
+           "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
            "UNKNOWN_WEIGHT", "Evaluation", "Params", "Tuner", "prepare_fold_class"]
 
 #: The methods ``tune`` can switch on (all by default); ``--disable`` names them.
@@ -90,11 +87,6 @@ SCALE_STEPS = (0.8, 0.9, 1.1, 1.25)
 EPS = 0.002
 #: Default weight of the unknown-class rate in the objective.
 UNKNOWN_WEIGHT = 0.02
-#: Fewest held-out segments of a class (over the folds where it has a template) for its
-#: own parameters (τ_p, ρ_p, template groups, time-scaled copies) to be tuned: one or two
-#: examples decide a per-class choice by chance, and it does not carry over to new
-#: documents; such a class keeps the parameters shared by all classes.
-MIN_SUPPORT = 3
 
 
 @dataclass
@@ -266,11 +258,10 @@ class Tuner:
     def __init__(self, folds: Sequence[Fold], prepared: dict[tuple[str, str], dict], *,
                  classes: Sequence[str], methods: Sequence[str] = METHODS,
                  unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None,
-                 columns: dict | None = None, min_support: int = MIN_SUPPORT):
+                 columns: dict | None = None):
         """``columns``: the matching columns (:func:`mtanno.tuning.tempo.matched_columns`)
         of each class's template (key: class) and of its time-scaled copies (key: (class,
-        factor)), for the copies' budget; None: no budget. ``min_support``: see
-        :data:`MIN_SUPPORT`."""
+        factor)), for the copies' budget; None: no budget."""
         self.classes = list(classes)
         self.columns = columns
         self.methods = set(methods)
@@ -308,11 +299,6 @@ class Tuner:
                     fd.hidden[c] = _subset(fd, docs)
             self.folds.append(fd)
         self.evaluations = 0
-        #: held-out segments of each class where it has a template (:data:`MIN_SUPPORT`)
-        self.support = {c: sum(len(fd.truth_by_class.get(c, [])) for fd in self.folds
-                               if c in fd.classes) for c in self.classes}
-        self.min_support = int(min_support)
-        self.tunable = [c for c in self.classes if self.support[c] >= self.min_support]
 
     # ------------------------------------------------------------------ scoring
 
@@ -450,12 +436,6 @@ class Tuner:
         ref_ev = self.evaluate(self._with_tau(base.copy(resolve=False, refine=False),
                                               DEFAULT_TAU))
         note(f"reference (tau {DEFAULT_TAU}, delta {delta})", ref_ev)
-        few = [c for c in self.classes if c not in self.tunable]
-        if few:
-            line = (f"shared parameters only (fewer than {self.min_support} held-out "
-                    f"segments): {', '.join(few)}")
-            steps.append(line)
-            self.log(line)
         # 1. one τ, per δ and decoder
         deltas = [float(d) for d in DELTA_GRID] if "delta" in on else [float(delta)]
         decoders = [True, False] if "resolve" in on else [False]
@@ -487,7 +467,7 @@ class Tuner:
                  cur_ev)
         # 3. several templates per class
         if "templates" in on:
-            for c in self.tunable:
+            for c in self.classes:
                 got, ev = self._best([cur.copy(groups={**cur.groups, c: k}) for k in GROUPS],
                                      cur_ev, EPS)
                 if got is not None:
@@ -503,7 +483,7 @@ class Tuner:
         if "tau" in on:
             for _ in range(2):
                 changed = False
-                for c in self.tunable:
+                for c in self.classes:
                     got, ev = self._best([cur.copy(tau={**cur.tau, c: _round(cur.tau[c] * f)})
                                           for f in TAU_STEPS], cur_ev, EPS)
                     if got is not None:
@@ -513,7 +493,7 @@ class Tuner:
             note("per-class tau", cur_ev)
         # 5. rejection ceilings
         if "reject" in on:
-            for c in self.tunable:
+            for c in self.classes:
                 got, ev = self._best([cur.copy(reject={**cur.reject, c: _round(cur.tau[c] * m)})
                                       for m in REJECT_STEPS], cur_ev, EPS)
                 if got is not None:
@@ -548,7 +528,7 @@ class Tuner:
         used = 0
         while True:
             cands, costs = [], []
-            for c in self.tunable:
+            for c in self.classes:
                 if cur.scales.get(c):
                     continue
                 for fs in SCALE_SETS:
