@@ -392,7 +392,7 @@ def _reference_dbar(delta, bits, start, tau, max_hits, dbar, span_first, span_la
     increasing order (ties: earliest frame); each fills the still-empty frames of its span
     [start, end] with its cost and blocks ends inside that span. Δ is read only inside the
     spans [span_first[i], span_last[i]] (sorted, disjoint; matches never leave them).
-    Returns the picks."""
+    Returns the picks, or −1 if a pick's start lies before its span or after its end."""
     n = 0
     for w in range(span_first.shape[0]):
         for i in range(span_first[w], span_last[w] + 1):
@@ -410,9 +410,12 @@ def _reference_dbar(delta, bits, start, tau, max_hits, dbar, span_first, span_la
     # path-compressed pointers to the next empty frame, so each frame is written once
     # (pointers set inside the spans and one frame past each: a fill stops there)
     nxt = np.empty(delta.shape[0] + 1, np.int64)
+    low = np.empty(delta.shape[0], np.int64)  # first frame of each frame's span
     for w in range(span_first.shape[0]):
-        for i in range(span_first[w], span_last[w] + 2):
+        for i in range(span_first[w], span_last[w] + 1):
             nxt[i] = i
+            low[i] = span_first[w]
+        nxt[span_last[w] + 1] = span_last[w] + 1
     hits = 0
     for i in range(order.shape[0]):
         if hits >= max_hits:
@@ -421,7 +424,10 @@ def _reference_dbar(delta, bits, start, tau, max_hits, dbar, span_first, span_la
         if nxt[end] != end:
             continue
         d = delta[end]
-        k = _next_empty(nxt, start[end])
+        a = start[end]
+        if a < low[end] or a > end:
+            return -1
+        k = _next_empty(nxt, a)
         while k <= end:
             dbar[k] = d
             nxt[k] = k + 1
@@ -461,11 +467,17 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
         dbar.fill(np.inf)
     if variant == "reference":
         cap = np.iinfo(np.int64).max if max_hits is None else int(max_hits)
+        L = delta.shape[0]
         if spans is None:
-            first, last = np.zeros(1, np.int64), np.full(1, delta.shape[0] - 1, np.int64)
+            first, last = np.zeros(1, np.int64), np.full(1, L - 1, np.int64)
         else:
-            first, last = (np.asarray(x, np.int64) for x in spans)
-        _reference_dbar(delta, delta.view(np.uint64), start, float(tau), cap, dbar, first, last)
+            from mtanno.templates.match import check_spans
+
+            first, last = check_spans(*spans, L)
+        if _reference_dbar(delta, delta.view(np.uint64), start, float(tau), cap, dbar, first,
+                           last) < 0:
+            raise MtannoError("a match with Δ ≤ τ starts before its window or after its end "
+                              "frame")
         return dbar
     if variant == "paper":
         d = np.where(np.isfinite(delta), delta, np.inf)
@@ -806,8 +818,9 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
         covered = evidence_covered(classes)
 
     spans = _class_spans(windows, L)
-    # the reference Δ̄ reads Δ inside the windows only: the buffer is not cleared outside
-    clear = config.resolve or dbar_variant != "reference"
+    # the reference Δ̄ and the decoder's rows read Δ inside the windows only: the buffer is
+    # not cleared outside them
+    clear = not config.resolve and dbar_variant != "reference"
 
     def matches():
         for i, c in enumerate(classes):
@@ -846,7 +859,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     without a temporary; None for a template whose evidence another of its class gives,
     :func:`evidence_covered`; at least one template per class must give it). ``spans``:
     per class, the merged windows outside which its Δ is ∞ (keyframe preselection), so
-    that Δ̄ reads only inside them.
+    that Δ̄ and the decoder's rows read Δ only inside them.
 
     * Default (MBS09, the reference implementation): Δ̄ per class with τ (at most the
       class's rejection ceiling ρ), labels, extension (``config.refine``: only over
@@ -926,13 +939,14 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             raise MtannoError(f"tau of {name} must be > 0 for the segment decoder, got {tau!r}",
                               path=config.path)
         k = labels.index(lab)
+        span = (spans or {}).get(name)
         if k in label_tau:
             fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho,
-                       first=k not in folded)
+                       first=k not in folded, spans=span)
         else:
             before = mat[k].copy() if k in folded else np.full(L, np.inf)
             fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho,
-                       first=k not in folded)
+                       first=k not in folded, spans=span)
             tau_rows[k][mat[k] < before] = tau
         folded.add(k)
         if ev is not None and evidence is not None:

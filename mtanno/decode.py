@@ -38,6 +38,7 @@ import numba
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.templates.match import check_spans
 
 __all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "EvidenceSums",
            "RowEvidence", "decode_segments", "distinct_frames", "evidence_columns",
@@ -273,32 +274,44 @@ def _best_column(packed, masks, vals, inv_nnz, starts, ends, out):
 
 
 @numba.njit(cache=True)
-def _fold(delta, start, ceiling, inv_tau, row, row_start, first):
-    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima;
-    ``first``: as if row were ∞ and row_start −1 before (they are written everywhere)."""
-    for t in range(delta.shape[0]):
-        d = delta[t]
-        if first:
-            row[t] = np.inf
-            row_start[t] = -1
-        if d <= ceiling:
-            v = d * inv_tau
-            if v < row[t]:
-                row[t] = v
-                row_start[t] = start[t]
+def _fold(delta, start, ceiling, inv_tau, row, row_start, first, span_first, span_last):
+    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima,
+    over the frames of the spans [span_first[i], span_last[i]] (Δ is ∞ elsewhere and not
+    read); ``first``: as if row were ∞ and row_start −1 before (they are written
+    everywhere)."""
+    if first:
+        row[:] = np.inf
+        row_start[:] = -1
+    for i in range(span_first.shape[0]):
+        for t in range(span_first[i], span_last[i] + 1):
+            d = delta[t]
+            if d <= ceiling:
+                v = d * inv_tau
+                if v < row[t]:
+                    row[t] = v
+                    row_start[t] = start[t]
 
 
 def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start: np.ndarray, *,
-               tau: float, reject: float = np.inf, first: bool = False) -> None:
+               tau: float, reject: float = np.inf, first: bool = False,
+               spans: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Fold one template's match into its label's row of the decoder's input, in place:
     ``row`` = min(``row``, Δ/τ) over the frames where Δ ≤ ``reject`` (Δ·(1/τ), the decoder's
     rounding), ``row_start`` the start frames of the minima (several templates of a class,
     or the classes of a superclass, make one label). ``first``: the label's first template,
-    written as if the rows held ∞ and −1 (they may then be uninitialised, ``np.empty``)."""
+    written as if the rows held ∞ and −1 (they may then be uninitialised, ``np.empty``).
+    ``spans``: (firsts, lasts), the sorted disjoint frame ranges (0-based inclusive) outside
+    which Δ is ∞ (keyframe windows), read only inside them."""
     if not tau > 0:
         raise MtannoError(f"tau must be > 0 for the segment decoder, got {tau!r}")
+    if spans is None:
+        first_, last = np.zeros(1, np.int64), np.full(1, len(delta) - 1, np.int64)
+    else:
+        first_, last = check_spans(*spans, len(delta))
+    if not (len(row) == len(row_start) == len(delta) == len(start)):
+        raise MtannoError("row, row_start, delta and start must have one entry per frame")
     _fold(np.ascontiguousarray(delta, dtype=np.float64), np.ascontiguousarray(start, np.int64),
-          float(reject), 1.0 / float(tau), row, row_start, bool(first))
+          float(reject), 1.0 / float(tau), row, row_start, bool(first), first_, last)
 
 
 @numba.njit(cache=True)
@@ -405,15 +418,21 @@ class RowEvidence:
         if self.spans is None:
             np.take(self.per_row, self.inverse, out=out)
             return
-        out.fill(np.inf)
-        for a, b in zip(self.spans[0].tolist(), self.spans[1].tolist()):
-            if b >= a:
-                np.take(self.per_row, self.inverse[a:b + 1], out=out[a:b + 1])
+        _take_spans(self.per_row, self.inverse, self.spans[0], self.spans[1], out)
 
     def frames(self) -> np.ndarray:
         out = np.empty(self.inverse.shape[0])
         self.write(out)
         return out
+
+
+@numba.njit(cache=True)
+def _take_spans(per_row, inverse, firsts, lasts, out):
+    """out = ∞, and out[t] = per_row[inverse[t]] for the frames t of the spans."""
+    out[:] = np.inf
+    for i in range(firsts.shape[0]):
+        for t in range(firsts[i], lasts[i] + 1):
+            out[t] = per_row[inverse[t]]
 
 
 def row_evidence(packed: np.ndarray, values: np.ndarray | EvidenceColumns, *,

@@ -186,6 +186,35 @@ def check_reference_dbar(seed: int) -> None:
     assert np.array_equal(got, want), seed
 
 
+def test_modified_delta_refuses_starts_outside_their_span():
+    """Start frames that no matcher gives (after the end, before the window) and windows
+    outside the document are refused instead of being followed out of the arrays."""
+    from mtanno.decode import fold_label
+    from mtanno.templates.match import PreparedTemplate
+
+    delta = np.array([INF, 0.05, 0.02, INF, 0.01])
+    with pytest.raises(MtannoError, match="starts before its window or after its end"):
+        modified_delta(delta, np.array([0, 0, 9, 0, 3]), tau=0.13)
+    with pytest.raises(MtannoError, match="starts before its window"):
+        modified_delta(delta, np.array([0, 0, -1, 0, 3]), tau=0.13)
+    with pytest.raises(MtannoError, match="starts before its window"):
+        modified_delta(delta, np.array([0, 0, 1, 0, 2]), tau=0.13,
+                       spans=(np.array([0, 3]), np.array([2, 4])))
+    got = modified_delta(delta, np.array([0, 0, 1, 0, 3]), tau=0.13,
+                         spans=(np.array([0, 3]), np.array([2, 4])))
+    assert got.tolist() == [INF, 0.02, 0.02, 0.01, 0.01]
+    for bad in ((np.array([1, 0]), np.array([2, 4])), (np.array([0]), np.array([5])),
+                (np.array([-1]), np.array([2])), (np.array([0, 2]), np.array([2, 4]))):
+        with pytest.raises(MtannoError, match="spans must be sorted disjoint"):
+            modified_delta(delta, np.zeros(5, np.int64), tau=0.13, spans=bad)
+        with pytest.raises(MtannoError, match="spans must be sorted disjoint"):
+            fold_label(np.empty(5), np.empty(5, np.int64), delta, np.zeros(5, np.int64),
+                       tau=0.1, spans=bad)
+        with pytest.raises(MtannoError, match="spans must be sorted disjoint"):
+            PreparedTemplate(np.ones((40, 2)), np.ones(2)).match_spans(
+                np.zeros((5, 1), np.uint64), *bad)
+
+
 @pytest.mark.parametrize("seed", range(30))
 def test_reference_dbar_radix_order(seed):
     check_reference_dbar(seed)
@@ -313,6 +342,47 @@ def test_class_deltas_with_candidate_windows():
         assert np.array_equal(dw[a:b + 1], d)
         assert np.array_equal(sw[a:b + 1][np.isfinite(d)], s[np.isfinite(d)] + a)
     assert np.isinf(dw[51:90]).all() and np.isinf(dw[4:10]).all()
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("resolve", [False, True])
+def test_annotate_document_in_windows_equals_masked_distances(seed, resolve):
+    """Annotation with keyframe windows equals the labelling of distance functions that are
+    ∞ outside the windows, although the shared Δ buffer is not reset there (templates
+    matched everywhere before leave finite values in it): the default decoder and the
+    segment decoder (several templates of a class, frame evidence) read inside the spans."""
+    from mtanno.annotate import ClassModel, annotate_document, class_deltas, label_document
+    from mtanno.decode import EVIDENCE_MARGIN
+    from mtanno.templates.match import pack_document
+
+    rng = np.random.default_rng(seed)
+    L = int(rng.integers(60, 200))
+    X = (np.cumsum(rng.random((40, L)) < 0.08, axis=1) % 2).astype(np.uint8)
+    names = ["a", "b", "a", "c"]
+    models = [ClassModel(n, X[:, s:s + k].astype(float), np.ones(k))
+              for n, s, k in zip(names, rng.integers(0, L - 12, 4), rng.integers(4, 12, 4))]
+    windows = {"a": [(int(x), int(x) + int(rng.integers(5, 40))) for x in rng.integers(0, L, 3)],
+               "c": [] if seed % 3 == 0 else [(0, int(rng.integers(10, L)))]}
+    config = ClassConfig(resolve=resolve, refine=resolve, slack=2, frame_weight=0.5 * resolve,
+                         tau={"a": 0.2, "b": 0.1, "c": 0.15})
+    got = annotate_document("d", X, models, windows=windows, config=config)
+    masked = class_deltas(X, models, windows=windows)  # fresh arrays, ∞ outside
+    if resolve:
+        from mtanno.decode import frame_evidence
+
+        ev = [frame_evidence(pack_document(X, 40), m.values) for m in models]
+        for i, m in enumerate(models):  # evidence only near the windows, as annotate has it
+            if m.name in windows:
+                keep = np.zeros(L, bool)
+                for a, b in windows[m.name]:
+                    keep[max(0, a - EVIDENCE_MARGIN):b + EVIDENCE_MARGIN + 1] = True
+                ev[i] = np.where(keep, ev[i], np.inf)
+    else:
+        ev = [None] * 4
+    want = label_document("d", names, ((m.name, d, s, e) for m, (d, s), e in
+                                       zip(models, masked, ev)), L, config=config)
+    assert got[0] == want[0]
+    assert np.array_equal(got[2], want[2])
 
 
 def test_segments_without_jit():

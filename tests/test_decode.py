@@ -208,6 +208,20 @@ def check_seeded(seed):
     junk, junk_start = rng.random(L) - 5, rng.integers(-9, 9, L)
     fold_label(junk, junk_start, D[0], S[0], tau=0.1, reject=0.05, first=True)
     assert np.array_equal(junk, row) and np.array_equal(junk_start, row_start)
+    # with spans (keyframe windows): Δ outside them is not read
+    cut = int(rng.integers(0, L + 1))
+    firsts, lasts = np.array([0, cut + 1]), np.array([cut - 1, L - 1])
+    keep = lasts >= firsts
+    firsts, lasts = firsts[keep], lasts[keep]
+    inside = np.zeros(L, bool)
+    for a, b in zip(firsts, lasts):
+        inside[a:b + 1] = True
+    row, row_start = np.full(L, INF), np.full(L, -1, np.int64)
+    fold_label(row, row_start, np.where(inside, D[-1], INF), S[-1], tau=0.1)
+    junk, junk_start = rng.random(L) - 5, rng.integers(-9, 9, L)
+    fold_label(junk, junk_start, np.where(inside, D[-1], -1.0), S[-1], tau=0.1, first=True,
+               spans=(firsts, lasts))
+    assert np.array_equal(junk, row) and np.array_equal(junk_start, row_start)
     # distinct frames (the hash table over run values)
     from mtanno.decode import distinct_frames
 

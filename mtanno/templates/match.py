@@ -49,7 +49,7 @@ import numpy as np
 from mtanno.errors import MtannoError
 
 __all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate",
-           "column_repeats", "match_documents", "match_template"]
+           "check_spans", "column_repeats", "match_documents", "match_template"]
 
 DEFAULT_STEPS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (2, 1))
 DEFAULT_STEP_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 2.0)
@@ -419,12 +419,12 @@ class PreparedTemplate:
         to write into instead of new ones; with ``clear=False`` their frames outside the
         spans are left as they are (for a reader that looks inside the spans only)."""
         L = packed.shape[0]
+        starts, ends = check_spans(starts, ends, L)
         delta, start = _outputs(out, L)
         if clear:
             delta.fill(np.inf)
             start.fill(-1)
-        self._kernel(packed, np.asarray(starts, np.int64), np.asarray(ends, np.int64) + 1,
-                     True, delta, start)
+        self._kernel(packed, starts, ends + 1, True, delta, start)
         return delta, start
 
     def run(self, packed: np.ndarray, offsets: np.ndarray, *,
@@ -453,6 +453,19 @@ def _outputs(out, L: int) -> tuple[np.ndarray, np.ndarray]:
             or start.dtype != np.int64:
         raise MtannoError(f"out must be (float64, int64) arrays of the document's {L} frames")
     return delta, start
+
+
+def check_spans(firsts, lasts, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frame ranges [firsts[i], lasts[i]] (0-based inclusive; empty when lasts[i] =
+    firsts[i] − 1) checked to be sorted, disjoint and inside ``n_frames`` frames, as int64
+    arrays: the windows that :meth:`PreparedTemplate.match_spans` matches and the readers
+    of its output look inside (:func:`mtanno.merged_spans` makes them)."""
+    a, b = np.ascontiguousarray(firsts, np.int64), np.ascontiguousarray(lasts, np.int64)
+    if a.shape != b.shape or a.ndim != 1 or (len(a) and (
+            a[0] < 0 or b[-1] >= n_frames or np.any(b < a - 1) or np.any(a[1:] <= b[:-1]))):
+        raise MtannoError(f"spans must be sorted disjoint frame ranges inside the {n_frames} "
+                          "frames")
+    return a, b
 
 
 def pack_document(X: np.ndarray, n_features: int) -> np.ndarray:
