@@ -805,8 +805,9 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     L = X.shape[1]
     if packed is None:
         packed = pack_document(X, X.shape[0])
-    elif packed.shape[0] != L:
-        raise MtannoError(f"packed document has {packed.shape[0]} frames, X {L}")
+    elif np.shape(packed) != (L, (X.shape[0] + 63) // 64) or packed.dtype != np.uint64:
+        raise MtannoError(f"packed document must be uint64 ({L} frames × "
+                          f"{(X.shape[0] + 63) // 64} words), got {np.shape(packed)}")
     # one Δ buffer for all classes: documents can be hours long
     delta, start = np.empty(L), np.empty(L, np.int64)
     evidence = config.resolve and config.frame_weight > 0

@@ -215,6 +215,24 @@ def test_modified_delta_refuses_starts_outside_their_span():
                 np.zeros((5, 1), np.uint64), *bad)
 
 
+def test_packed_documents_of_another_width_are_refused():
+    """A bit-packed document narrower than the template (or of another dtype) would be
+    read past its rows by the matcher."""
+    from mtanno.annotate import ClassModel, annotate_document
+    from mtanno.templates.match import PreparedTemplate
+
+    prep = PreparedTemplate(np.ones((70, 3)), np.ones(3))
+    for packed in (np.zeros((9, 1), np.uint64), np.zeros((9, 2), np.int64), np.zeros(9)):
+        with pytest.raises(MtannoError, match="packed document must be uint64"):
+            prep.run(packed, np.array([0, 9]))
+        with pytest.raises(MtannoError, match="packed document must be uint64"):
+            prep.match_spans(packed, [0], [8])
+    X = np.zeros((70, 9), np.uint8)
+    with pytest.raises(MtannoError, match="packed document must be uint64"):
+        annotate_document("d", X, [ClassModel("a", np.ones((70, 3)), np.ones(3))],
+                          packed=np.zeros((9, 1), np.uint64))
+
+
 @pytest.mark.parametrize("seed", range(30))
 def test_reference_dbar_radix_order(seed):
     check_reference_dbar(seed)

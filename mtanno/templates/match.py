@@ -436,6 +436,11 @@ class PreparedTemplate:
         return delta, start
 
     def _kernel(self, packed, starts, ends, absolute, delta, start) -> None:
+        if not (isinstance(packed, np.ndarray) and packed.dtype == np.uint64
+                and packed.ndim == 2 and packed.shape[1] >= self.words):
+            raise MtannoError(f"packed document must be uint64 (frames × at least {self.words} "
+                              f"words) for a template of {self.f} features, got "
+                              f"{getattr(packed, 'dtype', None)} {np.shape(packed)}")
         if self.fast:
             _dtw_default_steps(packed[:, 0], starts, ends, absolute, self.masks[:, 0],
                                self.vals[:, 0], self.table, self.sel, self.add, self.divisor,
