@@ -257,8 +257,9 @@ def _popcount(x):
 @numba.njit(cache=True)
 def _best_column(packed, masks, vals, inv_nnz, starts, ends, out):
     """out[t] = min over columns k of (disagreements of frame t on k's fixed rows) / nnz_k,
-    for the frames t of the spans [starts[i], ends[i]]."""
-    words = packed.shape[1]
+    for the frames t of the spans [starts[i], ends[i]]; the template's words only (a
+    document may have more)."""
+    words = masks.shape[1]
     K = masks.shape[0]
     for i in range(starts.shape[0]):
         for t in range(starts[i], ends[i] + 1):
@@ -351,6 +352,8 @@ def distinct_frames(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     frames), then, for one word per frame (up to 64 features), a hash table over the
     runs' values (rows in order of first appearance); wider rows go through a sort."""
     P = np.ascontiguousarray(packed)
+    if P.ndim != 2:
+        raise MtannoError(f"a packed document is (frames × words), got shape {P.shape}")
     L = P.shape[0]
     if L == 0:
         return P[:0], np.zeros(0, np.int64)
@@ -377,6 +380,14 @@ class EvidenceColumns:
     vals: np.ndarray
     inv_nnz: np.ndarray
     n_features: int
+
+    def __post_init__(self):
+        # the kernel reads vals and inv_nnz by the rows of masks
+        m, v, w = (np.asarray(a) for a in (self.masks, self.vals, self.inv_nnz))
+        if m.ndim != 2 or v.shape != m.shape or w.shape != (m.shape[0],):
+            raise MtannoError(f"evidence columns need masks and vals of one (columns × words) "
+                              f"shape and one 1/nnz per column, got {m.shape}, {v.shape} and "
+                              f"{w.shape}")
 
 
 def evidence_columns(values: np.ndarray) -> EvidenceColumns:
@@ -415,10 +426,20 @@ class RowEvidence:
 
     def write(self, out: np.ndarray) -> None:
         """out[t] = the evidence of frame t (float64, one entry per frame)."""
+        L = self.inverse.shape[0]
+        if out.shape != (L,):
+            raise MtannoError(f"out must have one entry per frame ({L}), got shape {out.shape}")
         if self.spans is None:
-            np.take(self.per_row, self.inverse, out=out)
-            return
-        _take_spans(self.per_row, self.inverse, self.spans[0], self.spans[1], out)
+            firsts, lasts = np.zeros(1, np.int64), np.full(1, L - 1, np.int64)
+        else:
+            firsts, lasts = _span_arrays(self.spans)
+        err = _take_spans(self.per_row, self.inverse, firsts, lasts, out)
+        if err == 1:
+            raise MtannoError(f"frame evidence spans must lie inside the {L} frames")
+        if err == 2:
+            raise MtannoError(f"frame evidence: a frame's row is not one of the "
+                              f"{self.per_row.shape[0]} distinct rows (distinct frames of "
+                              "another document?)")
 
     def frames(self) -> np.ndarray:
         out = np.empty(self.inverse.shape[0])
@@ -428,11 +449,34 @@ class RowEvidence:
 
 @numba.njit(cache=True)
 def _take_spans(per_row, inverse, firsts, lasts, out):
-    """out = ∞, and out[t] = per_row[inverse[t]] for the frames t of the spans."""
+    """out = ∞, and out[t] = per_row[inverse[t]] for the frames t of the spans. Returns 0,
+    or (out partly written) 1 where a non-empty span leaves the frames of ``out``, 2 where a
+    frame's row is not one of ``per_row`` (checked here, in the pass that reads them)."""
+    L = out.shape[0]
+    n = per_row.shape[0]
     out[:] = np.inf
     for i in range(firsts.shape[0]):
-        for t in range(firsts[i], lasts[i] + 1):
-            out[t] = per_row[inverse[t]]
+        a = firsts[i]
+        b = lasts[i]
+        if b >= a and (a < 0 or b >= L):
+            return 1
+        for t in range(a, b + 1):
+            r = inverse[t]
+            if r < 0 or r >= n:
+                return 2
+            out[t] = per_row[r]
+    return 0
+
+
+def _span_arrays(spans) -> tuple[np.ndarray, np.ndarray]:
+    """(firsts, lasts) as int64 arrays of one length."""
+    if len(spans) != 2:
+        raise MtannoError("spans must be a pair (first frames, last frames)")
+    a, b = np.ascontiguousarray(spans[0], np.int64), np.ascontiguousarray(spans[1], np.int64)
+    if a.ndim != 1 or a.shape != b.shape:
+        raise MtannoError(f"spans need one last frame per first frame, got shapes {a.shape} "
+                          f"and {b.shape}")
+    return a, b
 
 
 def row_evidence(packed: np.ndarray, values: np.ndarray | EvidenceColumns, *,
@@ -442,16 +486,19 @@ def row_evidence(packed: np.ndarray, values: np.ndarray | EvidenceColumns, *,
     spread over the frames only when written); ``values`` may be the template's
     :class:`EvidenceColumns` already made."""
     cols = values if isinstance(values, EvidenceColumns) else evidence_columns(values)
+    if np.ndim(packed) != 2:
+        raise MtannoError(f"a packed document is (frames × words), got shape {np.shape(packed)}")
     L = packed.shape[0]
     words = packed.shape[1]
-    if cols.n_features > 64 * words:
+    if cols.n_features > 64 * words or cols.masks.shape[1] > words:
         raise MtannoError(f"template has {cols.n_features} features, the document "
                           f"{64 * words} bits")
     if spans is not None:
-        spans = (np.clip(np.asarray(spans[0], np.int64), 0, L),
-                 np.clip(np.asarray(spans[1], np.int64), -1, L - 1))
+        first, last = _span_arrays(spans)
+        spans = (np.clip(first, 0, L), np.clip(last, -1, L - 1))
     rows, inverse = distinct if distinct is not None else distinct_frames(packed)
-    if rows.shape[1] != words or inverse.shape[0] != L:
+    if np.ndim(rows) != 2 or np.ndim(inverse) != 1 or rows.shape[1] != words \
+            or inverse.shape[0] != L:
         raise MtannoError("distinct frames of another document")
     got = np.zeros(rows.shape[0])
     if cols.masks.shape[0] and rows.shape[0]:
@@ -542,6 +589,8 @@ def relative_evidence(evidence: np.ndarray, *, out: np.ndarray | None = None) ->
     cannot claim frames) take no part in the minimum and become 0. ``out`` (float64, the
     evidence's shape; may be the evidence array itself) receives the result."""
     E = np.ascontiguousarray(evidence, dtype=np.float64)
+    if E.ndim != 2:
+        raise MtannoError(f"evidence must be (labels × frames), got shape {E.shape}")
     if out is None:
         out = np.empty_like(E)
     elif out.shape != E.shape or out.dtype != np.float64 or not out.flags.c_contiguous:

@@ -256,6 +256,39 @@ def test_align_refuses_what_cannot_be_compared():
             np.array([0, 1]), np.array([1, 3]), 5))
 
 
+def test_pair_area_refuses_pairs_outside_the_segments():
+    """Segment numbers past either motion's segments, ragged pairs and segments without
+    frames raise instead of reading past the arrays in the kernel; so do warping paths
+    outside their matrix."""
+    from mtanno.align.coarse import pair_area
+
+    rng = np.random.default_rng(3)
+    co = coarse_alignment(rng.integers(0, 4, 60), rng.integers(0, 4, 50), n_features=2, band=2)
+    sa, sb, pairs = co.segments_a, co.segments_b, co.pairs
+    area = pair_area(sa, sb, pairs, band=2)
+    assert np.array_equal(area.lo, co.area.lo) and np.array_equal(area.hi, co.area.hi)
+    bad = [(pairs.a + len(sa), pairs.b), (pairs.a, pairs.b - len(sb)),
+           (np.zeros(10**6, np.int64), np.zeros(1, np.int64)), (pairs.a[:0], pairs.b[:0])]
+    for a, b in bad:
+        path = WarpingPath(a, b, 0.0, 1.0, 1, len(sa), len(sb))
+        with pytest.raises(MtannoError, match="segment pairs must number segments of A"):
+            pair_area(sa, sb, path, band=2)
+    with pytest.raises(MtannoError, match="segments of A need one start frame per length"):
+        pair_area(Segments(sa.start, sa.length[:3], sa.code), sb, pairs, band=2)
+    with pytest.raises(MtannoError, match="segments of B need one start frame per length"):
+        pair_area(sa, Segments.of(np.zeros(0)), pairs, band=2)
+    # paths whose cells leave the matrix (numpy would take −1 from the end)
+    codes = (rng.integers(0, 4, 6), rng.integers(0, 4, 5))
+    p = warp_codes(*codes, n_features=2)
+    assert path_agreement(p, p) == 1.0
+    for a, b in [(p.a - 1, p.b), (p.a, p.b + 1), (p.a[:2], p.b)]:
+        off = WarpingPath(a, b, p.total, p.weight, p.cells, p.n, p.m)
+        with pytest.raises(MtannoError, match="must lie in the 6 × 5 matrix"):
+            local_costs(off, codes=codes, n_features=2)
+        with pytest.raises(MtannoError, match="must lie in the 6 × 5 matrix"):
+            path_agreement(p, off)
+
+
 # --------------------------------------------------------------------------- command line
 
 

@@ -344,3 +344,47 @@ def test_evidence_sums_bad_input():
     with pytest.raises(MtannoError, match="evidence sums of another shape"):
         decode_segments(np.zeros((2, 4)), np.zeros((2, 4), np.int64), tau=[0.1, 0.1],
                         weight=0.5, evidence=evidence_sums(np.zeros((2, 3))))
+
+
+def test_frame_evidence_refuses_what_would_read_past_its_arrays():
+    """Spans, distinct frames, buffers and template columns that do not fit the document
+    raise instead of reading or writing past the arrays in the kernels."""
+    from mtanno.decode import (
+        EvidenceColumns,
+        RowEvidence,
+        distinct_frames,
+        evidence_columns,
+        row_evidence,
+    )
+
+    rng = np.random.default_rng(5)
+    X = rng.integers(0, 2, (100, 50)).astype(np.uint8)
+    packed = pack_document(X, 100)
+    V = rng.integers(0, 2, (10, 4)).astype(float)
+    # a template of fewer words than the document is compared with its first rows
+    want = frame_evidence(pack_document(X[:10], 10), V)
+    assert np.array_equal(frame_evidence(packed, V), want)
+    assert np.array_equal(frame_evidence(packed, np.vstack([V, np.full((90, 4), 0.5)])), want)
+    with pytest.raises(MtannoError, match="one last frame per first frame"):
+        row_evidence(packed, V, spans=(np.arange(0, 40, 2), np.array([5])))
+    rows, inverse = distinct_frames(packed)
+    whole = (np.array([0]), np.array([49]))
+    with pytest.raises(MtannoError, match="not one of the .* distinct rows"):
+        row_evidence(packed, V, spans=whole, distinct=(rows, inverse + len(rows))).frames()
+    with pytest.raises(MtannoError, match="not one of the .* distinct rows"):
+        row_evidence(packed, V, distinct=(rows, inverse - len(rows) - 1)).frames()
+    with pytest.raises(MtannoError, match="distinct frames of another document"):
+        row_evidence(packed, V, distinct=(rows[:, 0], inverse))
+    ev = row_evidence(packed, V, spans=whole)
+    with pytest.raises(MtannoError, match="one entry per frame"):
+        ev.write(np.empty(10))
+    with pytest.raises(MtannoError, match="inside the 50 frames"):
+        RowEvidence(ev.per_row, ev.inverse, (np.array([0]), np.array([10**6]))).write(
+            np.empty(50))
+    cols = evidence_columns(V)
+    with pytest.raises(MtannoError, match="evidence columns need"):
+        EvidenceColumns(np.vstack([cols.masks, cols.masks]), cols.vals, cols.inv_nnz, 10)
+    with pytest.raises(MtannoError, match="frames × words"):
+        distinct_frames(packed[:, 0])
+    with pytest.raises(MtannoError, match="labels × frames"):
+        relative_evidence(np.zeros(5))

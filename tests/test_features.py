@@ -128,6 +128,39 @@ def test_compute_features_rejects_bad_shapes():
         compute_features_native(np.zeros((0, 22, 3)), np.zeros((0, 3)), 120.0)
 
 
+def test_feature_tables_the_kernel_cannot_evaluate_are_refused():
+    """A custom table row with fewer joints than its measure reads (the kernel would read
+    past its joint table), or an unknown measure, joint or unit, and rates that are not
+    positive raise; a single-joint ``fast`` row is fine (no second joint)."""
+    from mtanno.features import Feature, compute_features
+
+    J = np.random.default_rng(0).normal(size=(20, 22, 3))
+    H = np.tile([0.0, 0.0, 1.0], (20, 1))
+
+    def row(measure, joints, unit=None, params=()):
+        return Feature("X1", "x", "x", "upper", None, measure, joints, unit, ("<=", 1.0),
+                       ("<=", 0.5), 100, params)
+
+    fast = compute_features_native(J, H, 120.0, features=(row("fast", ("rwrist",)),))
+    two = compute_features_native(J, H, 120.0, features=(row("fast", ("rwrist", "rwrist")),))
+    assert np.array_equal(fast, two)
+    for f, msg in [(row("angle_max", ("rwrist", "relbow")), "'angle_max' needs 8 joints, got 2"),
+                   (row("plane_diff", ("rwrist",)), "'plane_diff' needs 5 joints, got 1"),
+                   (row("touch", ("rwrist", "relbow", "lwrist")), "touch feature needs"),
+                   (row("bogus", ()), "unknown measure 'bogus'"),
+                   (row("height", ("rwrist", "nose")), "unknown joint 'nose'"),
+                   (row("height", ("rwrist", "relbow"), unit="cm"), "unknown unit 'cm'")]:
+        with pytest.raises(MtannoError, match=msg):
+            compute_features_native(J, H, 120.0, features=(f,))
+    with pytest.raises(MtannoError, match="no features"):
+        compute_features_native(J, H, 120.0, features=())
+    for fps in (0.0, -120.0, float("nan"), float("inf")):
+        with pytest.raises(MtannoError, match="frame rate must be a positive number"):
+            compute_features(J, H, fps)
+    with pytest.raises(MtannoError, match="analysis frame rate must be a positive number"):
+        compute_features(J, H, 120.0, target_fps=0.0)
+
+
 def _synthetic_motion(tmp_path, n=300, seed=0):
     return read_motion(synthetic.write_pair(tmp_path, n_frames=n, seed=seed))
 

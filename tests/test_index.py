@@ -122,6 +122,19 @@ def test_intervals_are_merged_runs_of_matching_frames():
         assert list(zip(doc.tolist(), start.tolist(), end.tolist())) == want
 
 
+def test_document_numbers_outside_the_index_are_refused():
+    """rows/segments and feature_matrix of a document number the index lacks raise (−1
+    would read the row count as a first row)."""
+    idx = index_from_matrices({"d": np.array([[0, 1, 1]], np.uint8)}, ["a"], {"g": ["a"]})
+    g = idx.groups["g"]
+    assert g.rows(0) == range(0, 2) and idx.feature_matrix(0).tolist() == [[0, 1, 1]]
+    for d in (1, -1):
+        with pytest.raises(MtannoError, match=rf"document number {d} outside 0\.\.0"):
+            g.segments(d)
+        with pytest.raises(MtannoError, match=rf"document number {d} outside 0\.\.0"):
+            idx.feature_matrix(d)
+
+
 # --- files, manifest, incremental updates ------------------------------------------------
 
 def _write_docs(folder, docs, feature_set=MRC05):

@@ -217,3 +217,52 @@ def test_class_windows_equal_each_querys_windows(seed):
     queries = {f"c{i}": random_query(rng, GROUPS) for i in range(int(rng.integers(1, 6)))}
     got = class_windows(X, NAMES, queries)
     assert got == {c: document_windows(X, NAMES, q) for c, q in queries.items()}
+
+
+def test_interval_lists_that_would_read_past_their_arrays_are_refused():
+    """Interval lists whose doc, start and end arrays differ in length (the kernels read
+    them together), gaps out of order, document numbers outside the lengths and packed
+    documents of another shape raise instead of reading past the arrays."""
+    from mtanno.keyframes.search import chain_levels, first_chains, widen
+
+    lv = [(np.array([0, 0]), np.array([0, 10]), np.array([1, 12])),
+          (np.array([0]), np.array([5]), np.array([5]))]
+    ragged = (np.zeros(1000, np.int64), np.array([0]), np.array([3]))
+    with pytest.raises(MtannoError, match="level 1: doc, start and end must be 1-D arrays of one"):
+        chain_hits([ragged, lv[1]], [(3, 5)])
+    with pytest.raises(MtannoError, match="level 2: doc, start and end"):
+        chain_levels([lv[0], ragged], [(3, 5)])
+    with pytest.raises(MtannoError, match="must satisfy 0 ≤ dmin ≤ dmax"):
+        chain_hits(lv, [(5, 3)])
+    with pytest.raises(MtannoError, match="must satisfy 0 ≤ dmin ≤ dmax"):
+        chain_hits(lv, [(0, 2**64)])
+    with pytest.raises(MtannoError, match="at least one level"):
+        chain_hits([], [])
+    B = chain_levels(lv, [(3, 5)])
+    hits = chain_hits(lv, [(3, 5)])
+    assert first_chains(B, [(3, 5)], hits).tolist() == [[0, 5]]
+    with pytest.raises(MtannoError, match="hits: doc, start and end"):
+        first_chains(B, [(3, 5)], (np.array([0, 0]), np.array([0]), np.array([5])))
+    with pytest.raises(MtannoError, match="has no chain through the levels"):
+        first_chains(B, [(3, 5)], (np.array([1]), np.array([0]), np.array([5])))
+    with pytest.raises(MtannoError, match="2 levels need 1 gaps"):
+        first_chains(B, [], hits)
+    lengths = np.array([15, 5])
+    with pytest.raises(MtannoError, match="intervals: doc, start and end"):
+        widen(np.zeros(1000, np.int64), np.array([2]), np.full(1000, 3), 1, 1, lengths)
+    for doc in (2, -1):
+        with pytest.raises(MtannoError, match=r"document numbers must lie in 0\.\.1"):
+            widen(np.array([doc]), np.array([2]), np.array([3]), 1, 1, lengths)
+    from mtanno.keyframes import class_windows
+    from mtanno.templates.match import pack_document
+
+    X = np.zeros((len(NAMES), 20), np.uint8)
+    q = KeyframeQuery("c", "custom", GROUPS, [Keyframe("g", "0****", 1)], [], 2)
+    assert class_windows(X, NAMES, {"c": q}, packed=pack_document(X, len(NAMES))) == {
+        "c": [(0, 19)]}
+    for packed in (np.zeros((20, 3), np.uint64), np.zeros((10, 1), np.uint64),
+                   np.zeros(20, np.uint64), np.zeros((20, 1), np.int64)):
+        with pytest.raises(MtannoError, match="packed document must be uint64"):
+            class_windows(X, NAMES, {"c": q}, packed=packed)
+    with pytest.raises(MtannoError, match=r"matrix must be \(7 × frames\)"):
+        class_windows(X[0], NAMES, {"c": q}, packed=pack_document(X, len(NAMES)))

@@ -481,6 +481,45 @@ def test_rank_by_template_orders_hits_by_cost():
     assert [r.get("mt_cost") for r in ranked.rows(idx)][-1] is None
 
 
+def test_queries_refuse_documents_modes_and_sets_outside_the_index():
+    """Hits outside their documents, document numbers past the index, unknown modes,
+    intersecting neighbours in adaptive mode and ragged mismatch flags raise (the kernels
+    and the boundaries after them assume they fit)."""
+    from mtanno.index import rank_by_template
+    from mtanno.index.query import Hits
+
+    X = np.array([[0, 1, 0, 1, 0, 1], [0, 0, 1, 1, 0, 0]], np.uint8)
+    idx = index_from_matrices({"d": X, "e": X}, ["a", "b"], {"g": ["a", "b"]})
+    values, weights = np.array([[0.0, 1.0], [0.5, 0.5]]), np.ones(2)
+
+    def hits(doc, start, end):
+        return Hits(np.array(doc), np.array(start), np.array(end), np.full(len(doc), np.nan))
+
+    assert len(rank_by_template(idx, hits([1], [0], [5]), values, weights, ["a", "b"])) == 1
+    for h, msg in [(hits([2], [0], [3]), "document numbers must lie in 0..1"),
+                   (hits([-1], [0], [3]), "document numbers must lie in 0..1"),
+                   (hits([0], [4], [2]), "inside their document"),
+                   (hits([0], [-1], [2]), "inside their document"),
+                   (hits([0], [0], [6]), "inside their document"),
+                   (hits([0, 1], [0], [2]), "one document number, start and end per hit")]:
+        with pytest.raises(MtannoError, match=msg):
+            rank_by_template(idx, h, values, weights, ["a", "b"])
+    for d in (2, -1):
+        with pytest.raises(MtannoError, match=rf"document number {d} outside 0\.\.1"):
+            idx.feature_matrix(d)
+    q = GroupQuery("g", (FuzzySet.exact(0, 2), FuzzySet.exact(3, 2)))
+    with pytest.raises(MtannoError, match="unknown query mode 'exakt'"):
+        run_group(idx, q, mode="exakt")
+    loose = GroupQuery("g", (FuzzySet(((0, 0),)), FuzzySet.exact(3, 2)))
+    with pytest.raises(MtannoError, match="neighbouring fuzzy sets must be disjoint"):
+        run_group(idx, loose, mode="adaptive", min_segment=3)
+    assert len(run_group(idx, loose.normalized(), mode="adaptive", min_segment=3)) == 2
+    ragged = GroupQuery("g", q.sets)
+    object.__setattr__(ragged, "allowed", (True,))  # past GroupQuery's own check
+    with pytest.raises(MtannoError, match="1 allowed flags for 2 fuzzy sets"):
+        run_group(idx, ragged, mode="fuzzy", mismatches=1)
+
+
 def test_group_sizes_and_example_matrix_in_memory():
     """index info's rows and query --example's source on an index without files."""
     from mtanno.index import example_matrix, group_sizes

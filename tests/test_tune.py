@@ -172,6 +172,28 @@ def test_scores_equal_evaluate():
                                            rep["segment"]["F"]))
 
 
+def test_scores_refuse_segments_outside_the_labels_and_frames():
+    """A negative label or frame would be taken from the end of the arrays without a word,
+    one past them raise IndexError: both are refused, as are reversed segments."""
+    from mtanno.tuning.score import covered_fraction
+
+    truth = [(0, 0, 9), (1, 10, 25)]
+    assert count(truth, [(1, 10, 39)], n_labels=3, n_frames=40).frame_correct == 16
+    for bad in ([(3, 0, 5)], [(-1, 0, 5)], [(0, -3, 5)], [(0, 5, 40)], [(0, 6, 4)]):
+        with pytest.raises(MtannoError, match=r"output segments need labels in 0\.\.2, "):
+            count(truth, bad, n_labels=3, n_frames=40)
+        with pytest.raises(MtannoError, match="truth segments need"):
+            count(bad, truth, n_labels=3, n_frames=40)
+    for bad in ([(0, 5)], [(0, 5, 6), (1, 2)]):
+        with pytest.raises(MtannoError, match=r"must be \(label, first, last\) tuples"):
+            count(truth, bad, n_labels=3, n_frames=40)
+    assert covered_fraction([(0, 9)], [(1, 5, 20)], 40) == (5, 10)
+    with pytest.raises(MtannoError, match="spans need 0 ≤ first ≤ last < 40"):
+        covered_fraction([(30, 40)], [], 40)
+    with pytest.raises(MtannoError, match="output segments need 0 ≤ first ≤ last < 40"):
+        covered_fraction([(0, 9)], [(1, -5, 3)], 40)
+
+
 def _fold_data(L=60):
     """One fold with two held-out documents and hand-made Δ curves of two classes (two
     templates of class a)."""

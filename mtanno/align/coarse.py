@@ -161,12 +161,30 @@ def pair_area(segments_a: Segments, segments_b: Segments, pairs: WarpingPath, *,
     """The union of the rectangles of the matched segment pairs, each widened by ``band``
     frames on all four sides and clipped to the matrix (module docstring)."""
     band = _check_band(band)
-    n = int(segments_a.end[-1] + 1)
+    start_a, end_a = _segment_frames(segments_a, "A")
+    start_b, end_b = _segment_frames(segments_b, "B")
+    pa = np.ascontiguousarray(pairs.a, np.int64)
+    pb = np.ascontiguousarray(pairs.b, np.int64)
+    # the kernel reads the segments by these numbers, unchecked
+    if pa.ndim != 1 or pa.shape != pb.shape or not len(pa) or pa.min() < 0 \
+            or pa.max() >= len(start_a) or pb.min() < 0 or pb.max() >= len(start_b):
+        raise MtannoError(f"segment pairs must number segments of A (0..{len(start_a) - 1}) "
+                          f"and of B (0..{len(start_b) - 1}), one of each per pair")
+    n = int(end_a[-1] + 1)
     lo = np.empty(n, dtype=np.int64)
     hi = np.empty(n, dtype=np.int64)
-    _k.pair_area(pairs.a, pairs.b, segments_a.start, segments_a.end, segments_b.start,
-                 segments_b.end, band, lo, hi)
-    return Area(lo, hi, int(segments_b.end[-1] + 1)).check()
+    _k.pair_area(pa, pb, start_a, end_a, start_b, end_b, band, lo, hi)
+    return Area(lo, hi, int(end_b[-1] + 1)).check()
+
+
+def _segment_frames(segments: Segments, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """(first, last frames) of a motion's segments, int64, at least one segment."""
+    start = np.ascontiguousarray(segments.start, np.int64)
+    length = np.ascontiguousarray(segments.length, np.int64)
+    if start.ndim != 1 or start.shape != length.shape or not len(start):
+        raise MtannoError(f"segments of {what} need one start frame per length (at least "
+                          f"one segment), got shapes {start.shape} and {length.shape}")
+    return start, start + length - 1
 
 
 def coarse_alignment(codes_a: np.ndarray, codes_b: np.ndarray, *, n_features: int,

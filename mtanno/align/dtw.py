@@ -279,14 +279,26 @@ def local_costs(path: WarpingPath, *, poses: tuple[np.ndarray, np.ndarray] | Non
     (``codes``, ``n_features``, ``phases``, ``tie``) it was computed from."""
     if poses is not None:
         A, B = (np.asarray(P, dtype=np.float64) for P in poses)
+        _check_path(path, len(A), len(B))
         return np.linalg.norm(A[path.a] - B[path.b], axis=2).mean(axis=1)
     if codes is None or n_features is None:
         raise MtannoError("local_costs needs poses, or codes and n_features")
     CA, CB = (np.asarray(C, dtype=np.int64) for C in codes)
+    _check_path(path, len(CA), len(CB))
     out = _popcount(CA[path.a] ^ CB[path.b]) / n_features
     if phases is not None:
         out = out + tie * np.abs(np.asarray(phases[0])[path.a] - np.asarray(phases[1])[path.b])
     return out
+
+
+def _check_path(path: WarpingPath, n: int, m: int) -> None:
+    """The cells of ``path`` lie in an n × m matrix (numpy takes a negative frame from the
+    end without a word)."""
+    a, b = np.asarray(path.a), np.asarray(path.b)
+    if a.ndim != 1 or a.shape != b.shape or not len(a) or a.min() < 0 or a.max() >= n \
+            or b.min() < 0 or b.max() >= m:
+        raise MtannoError(f"the warping path's cells must lie in the {n} × {m} matrix of "
+                          "its motions")
 
 
 def _intervals(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
@@ -306,6 +318,8 @@ def path_agreement(p: WarpingPath, q: WarpingPath, *, tolerance: int = 0) -> flo
     and likewise for a frame of B."""
     if (p.n, p.m) != (q.n, q.m):
         raise MtannoError(f"paths of different matrices ({p.n} × {p.m}, {q.n} × {q.m})")
+    _check_path(p, p.n, p.m)
+    _check_path(q, q.n, q.m)
     same_a = np.all(np.abs(_intervals(p.a, p.b, p.n) - _intervals(q.a, q.b, q.n))
                     <= tolerance, axis=1)
     same_b = np.all(np.abs(_intervals(p.b, p.a, p.m) - _intervals(q.b, q.a, q.m))

@@ -56,6 +56,15 @@ MEASURE_CODES = {
     "extent_xz": _k.EXTENT_XZ, "heading_rate": _k.HEADING_RATE, "height": _k.HEIGHT,
     "angle_max": _k.ANGLE_MAX, "touch": _k.TOUCH,
 }
+#: Joints the kernel reads for each measure (``fast``: a second one if given; ``touch``:
+#: (a, b, q) triples, each with a (c, ball_a, ball_b) triple of ``params``). Fewer would
+#: make it read past a row of its joint table.
+MEASURE_JOINTS = {
+    "plane": 4, "plane_diff": 5, "nplane": 4, "nplane_abs": 4, "move_plane": 4,
+    "move_dir": 4, "move_diff": 4, "crossover": 4, "angle": 4, "angle_up": 2, "fast": 1,
+    "raised": 1, "extent_y": 0, "extent_xz": 0, "heading_rate": 0, "height": 2,
+    "angle_max": 8, "touch": 3,
+}
 
 
 @dataclass(frozen=True)
@@ -138,10 +147,14 @@ class _Compiled:
     ``lo (<|≤) value (<|≤) hi``."""
 
     def __init__(self, features: tuple[Feature, ...]):
+        if not features:
+            raise MtannoError("no features to compute")
+        for f in features:
+            _check_feature(f)
         self.features = features
         n = len(features)
         self.kinds = np.array([MEASURE_CODES[f.measure] for f in features], dtype=np.int64)
-        width = max(1, max(len(f.joints) for f in features))
+        width = max(2, max(len(f.joints) for f in features))  # fast: −1 for no second joint
         self.joints = np.full((n, width), -1, dtype=np.int64)
         for r, f in enumerate(features):
             self.joints[r, :len(f.joints)] = [CANONICAL_JOINTS.index(j) for j in f.joints]
@@ -176,6 +189,28 @@ class _Compiled:
         return b, inc
 
 
+def _check_feature(f: Feature) -> None:
+    """A table row the kernel can evaluate without reading past its joint and parameter
+    tables: a known measure and unit, known joints, as many as the measure reads."""
+    need = MEASURE_JOINTS.get(f.measure)
+    if need is None:
+        raise MtannoError(f"feature {f.id}: unknown measure '{f.measure}' (known: "
+                          f"{', '.join(MEASURE_JOINTS)})")
+    bad = [j for j in f.joints if j not in CANONICAL_JOINTS]
+    if bad:
+        raise MtannoError(f"feature {f.id}: unknown joint '{bad[0]}'")
+    if len(f.joints) < need:
+        raise MtannoError(f"feature {f.id}: measure '{f.measure}' needs {need} joints, got "
+                          f"{len(f.joints)}")
+    if f.measure == "touch" and (len(f.joints) % 3 or len(tuple(f.params)) != len(f.joints)):
+        raise MtannoError(f"feature {f.id}: a touch feature needs (a, b, q) joint triples "
+                          f"and one (c, ball_a, ball_b) parameter triple each")
+    if f.unit is not None and f.unit not in _UNITS:
+        raise MtannoError(f"feature {f.id}: unknown unit '{f.unit}' (known: "
+                          f"{', '.join(_UNITS)})")
+
+
+_UNITS = tuple(body_units(np.zeros((1, len(CANONICAL_JOINTS), 3))))
 _COMPILED: dict[int, _Compiled] = {}
 
 
@@ -204,6 +239,7 @@ def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float,
     """
     joints = np.ascontiguousarray(joints, dtype=np.float64)
     heading = np.ascontiguousarray(heading, dtype=np.float64)
+    _check_rate(fps, "frame rate")
     if joints.ndim != 3 or joints.shape[1:] != (len(CANONICAL_JOINTS), 3):
         raise MtannoError(f"joints must be (frames × {len(CANONICAL_JOINTS)} × 3), "
                           f"got {joints.shape}")
@@ -224,6 +260,16 @@ def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float,
     return out
 
 
+def _check_rate(fps, what: str) -> None:
+    """A finite rate > 0 (0 or NaN would divide by zero further on, ∞ never end)."""
+    try:
+        ok = not isinstance(fps, bool) and 0 < float(fps) < np.inf
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise MtannoError(f"{what} must be a positive number of frames per second, got {fps!r}")
+
+
 def compute_features(joints: np.ndarray, heading: np.ndarray, fps: float, *,
                      target_fps: float = ANALYSIS_FPS,
                      features: tuple[Feature, ...] = FEATURES) -> tuple[np.ndarray, np.ndarray]:
@@ -233,6 +279,7 @@ def compute_features(joints: np.ndarray, heading: np.ndarray, fps: float, *,
 
     The kept native frames are 0-based (see :func:`analysis_frames`).
     """
+    _check_rate(target_fps, "analysis frame rate")
     native = compute_features_native(joints, heading, fps, features=features)
     keep = analysis_frames(native.shape[1], fps, target_fps)
     return np.ascontiguousarray(native[:, keep]), keep

@@ -110,6 +110,9 @@ class GroupIndex:
 
     def rows(self, d: int) -> range:
         """Segment rows of document number ``d``."""
+        n = len(self.doc_offsets) - 1
+        if not 0 <= d < n:  # −1 would read the row count as a first row
+            raise MtannoError(f"document number {d} outside 0..{n - 1}")
         return range(int(self.doc_offsets[d]), int(self.doc_offsets[d + 1]))
 
     def segments(self, d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -297,7 +300,9 @@ class Index:
                        ) -> np.ndarray:
         """(features × frames) uint8 matrix of an indexed document, rebuilt from the group
         segments (default: every feature of the set that some group covers, in set order)."""
-        d = doc if isinstance(doc, int) else self.doc_number(doc)
+        d = doc if isinstance(doc, (int, np.integer)) else self.doc_number(doc)
+        if not 0 <= d < len(self.documents):
+            raise MtannoError(f"document number {d} outside 0..{len(self.documents) - 1}")
         if features is None:
             covered = {f for g in self.groups.values() for f in g.features}
             features = [f for f in self.features if f in covered]

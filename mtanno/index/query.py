@@ -279,6 +279,8 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
     the runs of an adaptive hit)."""
     if gq.group not in index.groups:
         raise MtannoError(f"unknown group '{gq.group}' (index groups: {', '.join(index.groups)})")
+    if mode not in QUERY_MODES:
+        raise MtannoError(f"unknown query mode '{mode}' (one of {', '.join(QUERY_MODES)})")
     g = index.groups[gq.group]
     n_bits = len(g.features)
     for s in gq.sets:
@@ -292,6 +294,10 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
             raise MtannoError(f"exact mode needs every feature of group '{g.name}' fixed at "
                               "every position (use --mode fuzzy or adaptive)")
     L = len(gq.sets)
+    if mode == "adaptive" and any(a.intersects(b) for a, b in zip(gq.sets, gq.sets[1:])):
+        # the runs of intersecting neighbours overlap: a run may end past its document
+        raise MtannoError(f"adaptive query of group '{g.name}': neighbouring fuzzy sets must "
+                          "be disjoint (GroupQuery.normalized merges them)")
     if mismatches and mismatches >= L:
         raise MtannoError(f"{mismatches} mismatches allowed in a query of {L} segments "
                           f"(group '{g.name}'); must be fewer")
@@ -308,6 +314,9 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
         _kernels.adaptive_bounds(firsts, member, g.seg_list, g.doc, g.doc_offsets, rows)
     else:
         allowed = np.ones(L, np.uint8) if gq.allowed is None else np.array(gq.allowed, np.uint8)
+        if allowed.shape != (L,):  # the kernel reads one flag per position
+            raise MtannoError(f"query for group '{g.name}': {allowed.size} allowed flags for "
+                              f"{L} fuzzy sets")
         if mismatches == 0:
             src = [int(np.argmin(sizes))]
         else:
@@ -421,6 +430,7 @@ def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.n
     from the index's groups)."""
     from mtanno.templates.match import match_documents
 
+    _check_hits(index, hits)
     names = list(features)
     cache: dict[int, np.ndarray] = {}
     docs = []
@@ -437,6 +447,21 @@ def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.n
     hits = replace(hits, cost=costs)
     order = np.lexsort((hits.start, hits.doc, costs))
     return hits.take(order)
+
+
+def _check_hits(index: Index, hits: Hits) -> None:
+    """Hits of ``index``: one document number and frame range per hit, inside it."""
+    doc, start, end = (np.asarray(a) for a in (hits.doc, hits.start, hits.end))
+    if doc.ndim != 1 or start.shape != doc.shape or end.shape != doc.shape:
+        raise MtannoError("hits need one document number, start and end per hit")
+    if not len(doc):
+        return
+    if doc.min() < 0 or doc.max() >= len(index.documents):
+        raise MtannoError(f"hit document numbers must lie in 0..{len(index.documents) - 1}")
+    frames = np.array([d.frames for d in index.documents], np.int64)[doc]
+    if np.any(start < 0) or np.any(end < start) or np.any(end >= frames):
+        raise MtannoError("hit frames must lie inside their document (0 ≤ start ≤ end < "
+                          "frames)")
 
 
 def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike

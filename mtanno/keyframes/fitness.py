@@ -235,13 +235,13 @@ class TrainingSet:
     def hits(self, genes: Sequence[Gene], gaps: Sequence[Bounds], mismatches: int = 0):
         """Raw hits (doc, start, end) of the query in the sequences; keyframes with enough
         fixed bits tolerate ``mismatches`` (:func:`keyframe_tolerance`)."""
-        from mtanno.keyframes.search import chain_hits
+        from mtanno.keyframes.search import _chain_hits
 
         levels = [self.intervals(g[1], g[2], g[3], keyframe_tolerance(g[2], mismatches))
                   for g in genes]
         bounds = [(lo, UNBOUNDED if hi is None else hi) for lo, hi in gaps]
         self.evaluations += 1
-        return chain_hits(levels, bounds)
+        return _chain_hits(levels, bounds)  # made here: not checked again
 
     def score(self, genes: Sequence[Gene], gaps: Sequence[Bounds], positives: np.ndarray,
               beta: float, *, within: np.ndarray | None = None, mismatches: int = 0,

@@ -32,7 +32,12 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.keyframes import _kernels
-from mtanno.keyframes.model import KeyframeQuery, check_features_known, tolerant_patterns
+from mtanno.keyframes.model import (
+    UNBOUNDED,
+    KeyframeQuery,
+    check_features_known,
+    tolerant_patterns,
+)
 
 __all__ = ["Intervals", "KeyframeHits", "chain_hits", "class_windows", "document_windows",
            "search_documents", "search_index"]
@@ -44,6 +49,31 @@ Intervals = tuple[np.ndarray, np.ndarray, np.ndarray]
 def _empty() -> Intervals:
     z = np.zeros(0, np.int64)
     return z, z.copy(), z.copy()
+
+
+def _intervals(iv, what: str) -> Intervals:
+    """An interval list as three int64 arrays of one length (the kernels read the three
+    together, past the shorter ones if they differ)."""
+    if len(iv) != 3:
+        raise MtannoError(f"{what} must be (doc, start, end) arrays")
+    doc, start, end = (np.ascontiguousarray(a, np.int64) for a in iv)
+    if doc.ndim != 1 or start.shape != doc.shape or end.shape != doc.shape:
+        raise MtannoError(f"{what}: doc, start and end must be 1-D arrays of one length, got "
+                          f"shapes {doc.shape}, {start.shape} and {end.shape}")
+    return doc, start, end
+
+
+def _check_gaps(gaps, n: int) -> list[tuple[int, int]]:
+    """Gaps (dmin, dmax) between n levels, as integers 0 ≤ dmin ≤ dmax ≤ UNBOUNDED."""
+    if n < 1:
+        raise MtannoError("a chain needs at least one level")
+    if len(gaps) != n - 1:
+        raise MtannoError(f"{n} levels need {n - 1} gaps")
+    out = [(int(lo), int(hi)) for lo, hi in gaps]
+    for lo, hi in out:
+        if not 0 <= lo <= hi <= UNBOUNDED:
+            raise MtannoError(f"gap ({lo}, {hi}) must satisfy 0 ≤ dmin ≤ dmax ≤ {UNBOUNDED}")
+    return out
 
 
 def _dilate(iv: Intervals, lo: int, hi: int) -> Intervals:
@@ -86,8 +116,14 @@ def chain_levels(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]],
                  ) -> list[Intervals]:
     """B_1 … B_n: for each level the frames t_j that lie on a complete chain (passes 1 and
     2 of the module docstring). ``gaps[j] = (dmin, dmax)`` between levels j and j+1."""
-    if len(gaps) != len(levels) - 1:
-        raise MtannoError(f"{len(levels)} levels need {len(levels) - 1} gaps")
+    gaps = _check_gaps(gaps, len(levels))
+    return _chain_levels([_intervals(lv, f"level {j + 1}") for j, lv in enumerate(levels)], gaps)
+
+
+def _chain_levels(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]],
+                  ) -> list[Intervals]:
+    """:func:`chain_levels` of levels and gaps made by this package (not checked again:
+    the keyframe GA chains a few short levels per evaluation, many times)."""
     F = [levels[0]]
     for j, (lo, hi) in enumerate(gaps):
         if not len(F[-1][0]):
@@ -104,7 +140,13 @@ def chain_levels(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]],
 def chain_hits(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]]) -> Intervals:
     """The union of the spans [t_1, t_n] of all chains through ``levels`` (interval lists
     I_1 … I_n) with ``gaps`` (dmin, dmax), as maximal runs: the keyframe hits."""
-    B = chain_levels(levels, gaps)
+    gaps = _check_gaps(gaps, len(levels))
+    return _chain_hits([_intervals(lv, f"level {j + 1}") for j, lv in enumerate(levels)], gaps)
+
+
+def _chain_hits(levels: Sequence[Intervals], gaps: Sequence[tuple[int, int]]) -> Intervals:
+    """:func:`chain_hits` of levels and gaps made by this package (not checked again)."""
+    B = _chain_levels(levels, gaps)
     if len(B) == 1:
         return B[0]
     parts = [_pair_spans(B[j], B[j + 1], lo, hi) for j, (lo, hi) in enumerate(gaps)]
@@ -117,6 +159,10 @@ def first_chains(B: Sequence[Intervals], gaps: Sequence[tuple[int, int]], hits: 
     frame of B_1 in the hit, then the first frame of B_{j+1} at least dmin_j later; every
     frame of B_j continues to a complete chain, so the greedy choice never fails)."""
     n = len(B)
+    if n and len(gaps) != n - 1:
+        raise MtannoError(f"{n} levels need {n - 1} gaps")
+    B = [_intervals(b, f"level {j + 1}") for j, b in enumerate(B)]
+    hits = _intervals(hits, "hits")
     out = np.empty((len(hits[0]), n), np.int64)
     keys = [(b[0] << 32) | b[1] for b in B]
     for h in range(len(hits[0])):
@@ -129,6 +175,9 @@ def first_chains(B: Sequence[Intervals], gaps: Sequence[tuple[int, int]], hits: 
             i = int(np.searchsorted(keys[j], (d << 32) | lo, side="right")) - 1
             if i < 0 or B[j][0][i] != d or ends[i] < lo:
                 i += 1
+            if i >= len(ends) or B[j][0][i] != d:
+                raise MtannoError(f"hit {h + 1} (document {d}, frame {int(hits[1][h])}) has no "
+                                  f"chain through the levels")
             t = max(lo, int(B[j][1][i]))
             out[h, j] = t
     return out
@@ -215,9 +264,12 @@ def widen(doc: np.ndarray, start: np.ndarray, end: np.ndarray, left: int, right:
     document and merged where they overlap or touch."""
     if left < 0 or right < 0:
         raise MtannoError("window widths must be ≥ 0")
-    doc = np.asarray(doc, np.int64)
-    s = np.maximum(np.asarray(start, np.int64) - left, 0)
-    e = np.minimum(np.asarray(end, np.int64) + right, np.asarray(lengths, np.int64)[doc] - 1)
+    doc, start, end = _intervals((doc, start, end), "intervals")
+    lengths = np.asarray(lengths, np.int64)
+    if len(doc) and (doc.min() < 0 or doc.max() >= len(lengths)):
+        raise MtannoError(f"interval document numbers must lie in 0..{len(lengths) - 1}")
+    s = np.maximum(start - left, 0)
+    e = np.minimum(end + right, lengths[doc] - 1)
     out = tuple(np.empty(len(doc), np.int64) for _ in range(3))
     k = _kernels.merge_sorted(doc, s, e, *out)
     return out[0][:k], out[1][:k], out[2][:k]
@@ -228,8 +280,8 @@ def _gaps(query: KeyframeQuery) -> list[tuple[int, int]]:
 
 
 def _run(query: KeyframeQuery, levels: list[Intervals], names, lengths) -> KeyframeHits:
-    gaps = _gaps(query)
-    B = chain_levels(levels, gaps)
+    gaps = _gaps(query)  # checked by Gap
+    B = _chain_levels(levels, gaps)  # int64 interval lists of one document set
     if len(B) == 1:
         hits = B[0]
     else:
@@ -393,8 +445,16 @@ def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, Keyfra
     bit-packed (:func:`mtanno.templates.match.pack_document`), to reuse it."""
     from mtanno.templates.match import pack_document
 
+    X = np.asarray(X)
+    if X.ndim != 2 or X.shape[0] != len(names):
+        raise MtannoError(f"matrix must be ({len(names)} × frames), got shape {X.shape}")
     if packed is None:
         packed = pack_document(X, len(names))
+    elif np.shape(packed) != (X.shape[1], (len(names) + 63) // 64) \
+            or packed.dtype != np.uint64:
+        raise MtannoError(f"packed document must be uint64 ({X.shape[1]} frames × "
+                          f"{(len(names) + 63) // 64} words) for {len(names)} features, got "
+                          f"{np.shape(packed)}")
     for q in queries.values():
         check_features_known(q, names, feature_set=feature_set, what="feature file")
     # the keyframes of all classes in one pass over the frames

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mtanno.errors import MtannoError
+
 __all__ = ["Counts", "count", "covered_fraction"]
 
 
@@ -53,6 +55,29 @@ class Counts:
         return p, r, self._f(p, r)
 
 
+def _check(segs: Sequence[tuple[int, ...]], n_labels: int | None, n_frames: int, what: str,
+           ) -> None:
+    """Segments (label, first, last), or spans (first, last) without ``n_labels``, inside
+    the labels and frames: numpy would take a negative label or frame from the end
+    without a word (and count wrong), and a first frame after the last one uncovers
+    frames."""
+    if not len(segs):
+        return
+    width = 2 if n_labels is None else 3
+    try:
+        a = np.asarray(segs, dtype=np.int64)
+    except (TypeError, ValueError):  # ragged
+        a = np.zeros(0)
+    if a.ndim != 2 or a.shape[1] != width:
+        raise MtannoError(f"{what} must be ({'' if n_labels is None else 'label, '}first, "
+                          f"last) tuples")
+    first, last = a[:, -2], a[:, -1]
+    if (n_labels is not None and (a[:, 0].min() < 0 or a[:, 0].max() >= n_labels)) \
+            or first.min() < 0 or np.any(last < first) or last.max() >= n_frames:
+        labels = "" if n_labels is None else f"labels in 0..{n_labels - 1}, "
+        raise MtannoError(f"{what} need {labels}0 ≤ first ≤ last < {n_frames}")
+
+
 def _cover(segs: Sequence[tuple[int, int, int]], n_labels: int, n_frames: int) -> np.ndarray:
     """(labels × frames + 1) cumulative counts of frames covered per label (a frame
     covered twice by one label counts once)."""
@@ -69,6 +94,8 @@ def _cover(segs: Sequence[tuple[int, int, int]], n_labels: int, n_frames: int) -
 def count(truth: Sequence[tuple[int, int, int]], output: Sequence[tuple[int, int, int]], *,
           n_labels: int, n_frames: int) -> Counts:
     """The evaluation counts of ``output`` against ``truth`` (module docstring)."""
+    _check(truth, n_labels, n_frames, "truth segments")
+    _check(output, n_labels, n_frames, "output segments")
     ct = _cover(truth, n_labels, n_frames)
     co = _cover(output, n_labels, n_frames)
     both = 0
@@ -89,6 +116,8 @@ def covered_fraction(frames: Sequence[tuple[int, int]], output: Sequence[tuple[i
                      n_frames: int) -> tuple[int, int]:
     """(frames of the spans ``frames`` that some output segment covers, frames of the
     spans): the numerator and denominator of the unknown-class rate."""
+    _check(frames, None, n_frames, "spans")
+    _check([seg[1:] for seg in output], None, n_frames, "output segments")
     mask = np.zeros(n_frames + 1, dtype=np.int64)
     for _, a, b in output:
         mask[a] += 1
