@@ -96,6 +96,12 @@ def count(truth: Sequence[tuple[int, int, int]], output: Sequence[tuple[int, int
     """The evaluation counts of ``output`` against ``truth`` (module docstring)."""
     _check(truth, n_labels, n_frames, "truth segments")
     _check(output, n_labels, n_frames, "output segments")
+    return _count(truth, output, n_labels, n_frames)
+
+
+def _count(truth, output, n_labels: int, n_frames: int) -> Counts:
+    """:func:`count` of segments made by the tuner (not checked again: it scores
+    thousands of candidates)."""
     ct = _cover(truth, n_labels, n_frames)
     co = _cover(output, n_labels, n_frames)
     both = 0
@@ -118,6 +124,11 @@ def covered_fraction(frames: Sequence[tuple[int, int]], output: Sequence[tuple[i
     spans): the numerator and denominator of the unknown-class rate."""
     _check(frames, None, n_frames, "spans")
     _check([seg[1:] for seg in output], None, n_frames, "output segments")
+    return _covered_fraction(frames, output, n_frames)
+
+
+def _covered_fraction(frames, output, n_frames: int) -> tuple[int, int]:
+    """:func:`covered_fraction` of segments made by the tuner (not checked again)."""
     mask = np.zeros(n_frames + 1, dtype=np.int64)
     for _, a, b in output:
         mask[a] += 1

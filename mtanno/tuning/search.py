@@ -54,7 +54,7 @@ from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_docum
 from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
 from mtanno.tuning.cv import Fold
-from mtanno.tuning.score import Counts, count, covered_fraction
+from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
 from mtanno.tuning.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 
 __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
@@ -376,13 +376,12 @@ class Tuner:
         for fd in self.folds:
             arrays = self._arrays(fd, params) if params.resolve else None
             segs = self._segments(fd, params, fd.classes, arrays)
-            total += count(fd.truth, segs, n_labels=len(self.names), n_frames=fd.n_frames)
+            total += _count(fd.truth, segs, len(self.names), fd.n_frames)
             if per_class:
                 for c in self.classes:
                     cid = self.ids[c]
-                    got = count([t for t in fd.truth if t[0] == cid],
-                                [s for s in segs if s[0] == cid], n_labels=len(self.names),
-                                n_frames=fd.n_frames)
+                    got = _count([t for t in fd.truth if t[0] == cid],
+                                 [s for s in segs if s[0] == cid], len(self.names), fd.n_frames)
                     per.setdefault(c, Counts())
                     per[c] += got
             if self.unknown_weight > 0 or per_class:
@@ -390,7 +389,7 @@ class Tuner:
                     rest = [x for x in fd.classes if x != c]
                     sub_arrays = arrays if sub is fd else (
                         self._arrays(sub, params) if params.resolve else None)
-                    hit, n = covered_fraction(sub.truth_by_class[c], self._segments(
+                    hit, n = _covered_fraction(sub.truth_by_class[c], self._segments(
                         sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
                     unk[0] += hit
                     unk[1] += n
