@@ -234,8 +234,8 @@ class KeyframeHits:
         to an empty list."""
         d, s, e = self.windows(widths=widths)
         out: dict[str, list[tuple[int, int]]] = {n: [] for n in self.names}
-        for i in range(len(d)):
-            out[self.names[int(d[i])]].append((int(s[i]), int(e[i])))
+        for i, a, b in zip(d.tolist(), s.tolist(), e.tolist()):
+            out[self.names[i]].append((a, b))
         return out
 
     @property
@@ -433,7 +433,7 @@ def document_windows(X: np.ndarray, names: Sequence[str], query: KeyframeQuery,
     input of :func:`mtanno.annotate.class_deltas`)."""
     hits = search_documents([("doc", X)], names, query)
     d, s, e = hits.windows()
-    return [(int(a), int(b)) for a, b in zip(s, e)]
+    return list(zip(s.tolist(), e.tolist()))
 
 
 def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, KeyframeQuery], *,
@@ -464,7 +464,7 @@ def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, Keyfra
         hits = _run(q, levels[:q.n], ["doc"], [X.shape[1]])
         del levels[:q.n]
         _, s, e = hits.windows()
-        out[cls] = [(int(a), int(b)) for a, b in zip(s, e)]
+        out[cls] = list(zip(s.tolist(), e.tolist()))
     return out
 
 
