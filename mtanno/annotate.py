@@ -1282,6 +1282,13 @@ def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     of the document's failure."""
     from mtanno.workers import make_pool
 
+    if keyframes:  # prepared once for the batch; if that fails, each document says why
+        from mtanno.keyframes import KeyframeSet
+
+        try:
+            keyframes = KeyframeSet(keyframes, layout.names, feature_set=layout.feature_set)
+        except MtannoError:
+            pass
     args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
              single_label) for p in paths]
     with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:

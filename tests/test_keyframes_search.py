@@ -11,7 +11,15 @@ from naive_keyframes import hits_naive, random_query, windows_naive
 
 from mtanno.errors import MtannoError
 from mtanno.index import index_from_matrices
-from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, search_documents, search_index
+from mtanno.keyframes import (
+    Gap,
+    Keyframe,
+    KeyframeQuery,
+    KeyframeSet,
+    class_windows,
+    search_documents,
+    search_index,
+)
 from mtanno.keyframes.search import chain_hits
 
 NAMES = ["a", "b", "c", "d", "e", "f", "g"]
@@ -217,6 +225,20 @@ def test_class_windows_equal_each_querys_windows(seed):
     queries = {f"c{i}": random_query(rng, GROUPS) for i in range(int(rng.integers(1, 6)))}
     got = class_windows(X, NAMES, queries)
     assert got == {c: document_windows(X, NAMES, q) for c, q in queries.items()}
+    assert class_windows(X, NAMES, KeyframeSet(queries, NAMES)) == got  # prepared once
+
+
+def test_keyframe_set_checks_its_documents():
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "1**", 1)], [], 2)
+    ks = KeyframeSet({"c": q}, NAMES)
+    X = np.zeros((7, 5), np.uint8)
+    with pytest.raises(MtannoError, match="prepared for other feature rows"):
+        class_windows(X[:6], NAMES[:6], ks)
+    with pytest.raises(MtannoError, match="packed document must be uint64"):
+        ks.windows(np.zeros((5, 2), np.uint64))
+    with pytest.raises(MtannoError, match="which the feature file lacks"):
+        KeyframeSet({"c": q}, ["a", "b"])
+    assert KeyframeSet({}, NAMES).windows(np.zeros((5, 1), np.uint64)) == {}
 
 
 def test_interval_lists_that_would_read_past_their_arrays_are_refused():

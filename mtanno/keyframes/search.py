@@ -39,8 +39,8 @@ from mtanno.keyframes.model import (
     tolerant_patterns,
 )
 
-__all__ = ["Intervals", "KeyframeHits", "chain_hits", "class_windows", "document_windows",
-           "search_documents", "search_index"]
+__all__ = ["Intervals", "KeyframeHits", "KeyframeSet", "chain_hits", "class_windows",
+           "document_windows", "search_documents", "search_index"]
 
 Intervals = tuple[np.ndarray, np.ndarray, np.ndarray]
 """An interval list: (doc, start, end) int64 arrays, sorted, disjoint, end inclusive."""
@@ -268,6 +268,11 @@ def widen(doc: np.ndarray, start: np.ndarray, end: np.ndarray, left: int, right:
     lengths = np.asarray(lengths, np.int64)
     if len(doc) and (doc.min() < 0 or doc.max() >= len(lengths)):
         raise MtannoError(f"interval document numbers must lie in 0..{len(lengths) - 1}")
+    return _widen(doc, start, end, left, right, lengths)
+
+
+def _widen(doc, start, end, left: int, right: int, lengths) -> Intervals:
+    """:func:`widen` of intervals made by this package (not checked again)."""
     s = np.maximum(start - left, 0)
     e = np.minimum(end + right, lengths[doc] - 1)
     out = tuple(np.empty(len(doc), np.int64) for _ in range(3))
@@ -436,13 +441,52 @@ def document_windows(X: np.ndarray, names: Sequence[str], query: KeyframeQuery,
     return list(zip(s.tolist(), e.tolist()))
 
 
-def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, KeyframeQuery], *,
+class KeyframeSet:
+    """The keyframe queries of several classes prepared once for documents whose feature
+    rows are ``names`` (a batch of one layout): their features checked, their keyframes
+    joined for one pass over each document's frames. :meth:`windows` gives a document's
+    candidate windows per class, as :func:`class_windows` does."""
+
+    def __init__(self, queries: dict[str, KeyframeQuery], names: Sequence[str], *,
+                 feature_set: str | None = None):
+        for q in queries.values():
+            check_features_known(q, names, feature_set=feature_set, what="feature file")
+        self.queries = dict(queries)
+        self.names = tuple(names)
+        self._scanner = _Scanner.joined([_Scanner(q, names) for q in queries.values()]) \
+            if queries else None
+
+    def windows(self, packed: np.ndarray) -> dict[str, list[tuple[int, int]]]:
+        """Candidate windows [(first, last)] (0-based inclusive) of every class in one
+        bit-packed document (:func:`mtanno.templates.match.pack_document`, frames × words):
+        its keyframe hits widened by the query's extension, clipped and merged (MBS09 §5)."""
+        words = (len(self.names) + 63) // 64
+        if not (isinstance(packed, np.ndarray) and packed.dtype == np.uint64
+                and packed.ndim == 2 and packed.shape[1] == words):
+            raise MtannoError(f"packed document must be uint64 (frames × {words} words) for "
+                              f"{len(self.names)} features, got {np.shape(packed)}")
+        if self._scanner is None:
+            return {}
+        levels = self._scanner.levels(packed, 0)  # all classes' keyframes in one pass
+        lengths = np.array([packed.shape[0]], np.int64)
+        out = {}
+        for cls, q in self.queries.items():
+            hits = _run(q, levels[:q.n], ["doc"], lengths)
+            del levels[:q.n]
+            _, s, e = _widen(hits.doc, hits.start, hits.end, *q.widths(), lengths)
+            out[cls] = list(zip(s.tolist(), e.tolist()))
+        return out
+
+
+def class_windows(X: np.ndarray, names: Sequence[str],
+                  queries: dict[str, KeyframeQuery] | KeyframeSet, *,
                   feature_set: str | None = None, packed: np.ndarray | None = None,
                   ) -> dict[str, list[tuple[int, int]]]:
     """Candidate windows of every class that has a query, in one document (the
     ``windows`` argument of :func:`mtanno.annotate.annotate_document`); classes without
-    a query are absent, i.e. matched everywhere. ``packed``: the document already
-    bit-packed (:func:`mtanno.templates.match.pack_document`), to reuse it."""
+    a query are absent, i.e. matched everywhere. ``queries``: class → query, or a
+    :class:`KeyframeSet` prepared once for a batch of documents. ``packed``: the document
+    already bit-packed (:func:`mtanno.templates.match.pack_document`), to reuse it."""
     from mtanno.templates.match import pack_document
 
     X = np.asarray(X)
@@ -455,17 +499,12 @@ def class_windows(X: np.ndarray, names: Sequence[str], queries: dict[str, Keyfra
         raise MtannoError(f"packed document must be uint64 ({X.shape[1]} frames × "
                           f"{(len(names) + 63) // 64} words) for {len(names)} features, got "
                           f"{np.shape(packed)}")
-    for q in queries.values():
-        check_features_known(q, names, feature_set=feature_set, what="feature file")
-    # the keyframes of all classes in one pass over the frames
-    levels = _Scanner.joined([_Scanner(q, names) for q in queries.values()]).levels(packed, 0)
-    out = {}
-    for cls, q in queries.items():
-        hits = _run(q, levels[:q.n], ["doc"], [X.shape[1]])
-        del levels[:q.n]
-        _, s, e = hits.windows()
-        out[cls] = list(zip(s.tolist(), e.tolist()))
-    return out
+    if isinstance(queries, KeyframeSet):
+        if queries.names != tuple(names):
+            raise MtannoError("keyframe set prepared for other feature rows than the "
+                              "document's")
+        return queries.windows(packed)
+    return KeyframeSet(queries, names, feature_set=feature_set).windows(packed)
 
 
 def warm_up() -> None:
