@@ -31,6 +31,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _machine import machine  # noqa: E402
+from bench_annotate import median_wall  # noqa: E402
 from bench_index import BENCH, features_dir, sources  # noqa: E402
 from reference_keyframes import reference_queries  # noqa: E402
 
@@ -71,15 +72,6 @@ def learned_queries(examples, runs: int, jobs: int, *, timings: dict | None = No
         if timings is not None:
             timings[cls] = time.perf_counter() - t
     return out, ts, by_class
-
-
-def per_query_median(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def main() -> int:
@@ -132,7 +124,7 @@ def main() -> int:
 
         cls = "squat1Reps"
         mt = learn_template(by_class[cls], class_name=cls)
-        one = per_query_median(lambda: learn_keyframes(ts, cls, mt, runs=1, seed=0), 3)
+        one = median_wall(lambda: learn_keyframes(ts, cls, mt, runs=1, seed=0), 3)
         print(f"GA, one run ({cls}): {one:.2f} s (MBS09: ~10 s)")
     # --- Bandai GA queries (speed only) and the reference's hand-made ones
     from mtanno.keyframes import load_keyframe_folder, save_keyframes
@@ -152,8 +144,8 @@ def main() -> int:
     warm_up()
     lat, scan, hits = [], [], []
     for q in queries.values():
-        lat.append(per_query_median(lambda q=q: search_index(index, q), args.repeat))
-        scan.append(per_query_median(lambda q=q: search_documents(docs, names, q),
+        lat.append(median_wall(lambda q=q: search_index(index, q), args.repeat))
+        scan.append(median_wall(lambda q=q: search_documents(docs, names, q),
                                      max(3, args.repeat // 10)))
         hits.append(len(search_index(index, q)))
     lat_ms, scan_ms, hits = np.array(lat) * 1000, np.array(scan) * 1000, np.array(hits)

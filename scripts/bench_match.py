@@ -31,12 +31,13 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
-import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_annotate import median_wall  # noqa: E402
 
 F, K = 40, 100
 TEN_HOURS = 10 * 3600 * 30
@@ -55,12 +56,7 @@ def make_inputs(L: int, seed: int = 0):
 
 def median_time(fn, runs: int) -> float:
     fn()  # warm-up (JIT compilation, caches)
-    times = []
-    for _ in range(runs):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    return median_wall(fn, runs)
 
 
 def cost_matrix(V, w, X):
