@@ -1275,16 +1275,16 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
 
 def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
                    layout: FeatureLayout, config: ClassConfig, dbar_variant: str,
-                   match_variant: str, keyframes: dict | None, n_jobs: int,
+                   match_variant: str, keyframes, n_jobs: int,
                    single_label: bool, scheduler: str | None):
     """(path, result) for every document of a batch in input order, as the pool delivers
     them: result is ``(document, rows, native frames, sha256, seconds)`` or the message
     of the document's failure."""
+    from mtanno.keyframes import KeyframeSet
     from mtanno.workers import make_pool
 
-    if keyframes:  # prepared once for the batch; if that fails, each document says why
-        from mtanno.keyframes import KeyframeSet
-
+    if keyframes and not isinstance(keyframes, KeyframeSet):
+        # prepared once for the batch; if that fails, each document says why
         try:
             keyframes = KeyframeSet(keyframes, layout.names, feature_set=layout.feature_set)
         except MtannoError:
@@ -1299,12 +1299,13 @@ def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
 def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
                    layout: FeatureLayout, config: ClassConfig | None = None,
                    dbar_variant: str = "reference", match_variant: str = "reference",
-                   keyframes: dict | None = None, n_jobs: int = 1,
+                   keyframes=None, n_jobs: int = 1,
                    progress=None, single_label: bool = False,
                    scheduler: str | None = None) -> AnnotationBatch:
     """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
     (:class:`mtanno.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
-    queries (:mod:`mtanno.keyframes`): those classes are matched only inside their
+    queries (:mod:`mtanno.keyframes`), or is a :class:`mtanno.keyframes.KeyframeSet` of
+    them: those classes are matched only inside their
     candidate windows in each document (MBS09 §5), the others everywhere. A file that
     cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
     and the batch goes on. ``progress`` is called once per file with its path and its

@@ -241,6 +241,25 @@ def test_keyframe_set_checks_its_documents():
     assert KeyframeSet({}, NAMES).windows(np.zeros((5, 1), np.uint64)) == {}
 
 
+def test_annotate_files_takes_a_keyframe_set(tmp_path):
+    """A batch annotated with a prepared KeyframeSet equals one with the queries' dict."""
+    from mtanno.annotate import ClassModel, annotate_files
+    from mtanno.store import FeatureLayout, write_features
+
+    rng = np.random.default_rng(1)
+    X = (rng.random((7, 60)) < 0.4).astype(np.uint8)
+    path = tmp_path / "d.parquet"
+    write_features(path, X, NAMES, np.arange(1, 61), {"document": "d", "feature_set": "custom",
+                                                   "analysis_fps": 30.0})
+    models = [ClassModel("c", X[:, 5:12].astype(float), np.ones(7))]
+    q = KeyframeQuery("c", "custom", SMALL, [Keyframe("g", "1**", 1)], [], 7)
+    layout = FeatureLayout("custom", tuple(NAMES), 30.0)
+    with_dict = annotate_files([path], models, layout=layout, keyframes={"c": q})
+    with_set = annotate_files([path], models, layout=layout,
+                              keyframes=KeyframeSet({"c": q}, NAMES))
+    assert with_set.failed == with_dict.failed == [] and with_set.rows == with_dict.rows
+
+
 def test_interval_lists_that_would_read_past_their_arrays_are_refused():
     """Interval lists whose doc, start and end arrays differ in length (the kernels read
     them together), gaps out of order, document numbers outside the lengths and packed
