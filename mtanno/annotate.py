@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numba
 import numpy as np
 
+from mtanno._dbar import reference_dbar_kernel
 from mtanno.errors import MtannoError, read_input
 
 if TYPE_CHECKING:
@@ -336,106 +337,6 @@ def write_class_config(path: str | os.PathLike, cfg: ClassConfig, *,
                              encoding="utf-8")
 
 
-@numba.njit(cache=True)
-def _stable_order(delta, bits, cand):
-    """Indices ``cand`` (increasing) stably sorted by ``delta`` (not NaN; ``bits`` is its
-    uint64 view): an LSD radix sort, 11 bits per pass, of keys that order like the floats
-    (sign bit flipped for x ≥ 0, all bits for x < 0; ±0 as +0), so ties keep the earlier
-    frame first; passes where every key has the same digit are skipped."""
-    n = cand.shape[0]
-    keys = np.empty(n, np.uint64)
-    sign = np.uint64(1) << np.uint64(63)
-    for i in range(n):
-        x = delta[cand[i]]
-        b = bits[cand[i]]
-        keys[i] = sign if x == 0.0 else (b | sign if x > 0.0 else ~b)
-    idx = cand.copy()
-    tmp = np.empty(n, np.int64)
-    kt = np.empty(n, np.uint64)
-    count = np.empty(2049, np.int64)
-    mask = np.uint64(2047)
-    for sh in range(0, 64, 11):
-        shift = np.uint64(sh)
-        count[:] = 0
-        for i in range(n):
-            count[np.int64((keys[i] >> shift) & mask) + 1] += 1
-        if count.max() == n:
-            continue
-        for b in range(2048):
-            count[b + 1] += count[b]
-        for i in range(n):
-            k = np.int64((keys[i] >> shift) & mask)
-            tmp[count[k]] = idx[i]
-            kt[count[k]] = keys[i]
-            count[k] += 1
-        idx, tmp = tmp, idx
-        keys, kt = kt, keys
-    return idx
-
-
-@numba.njit(cache=True, inline="always")
-def _next_empty(nxt, k):
-    """The first frame ≥ k with nxt[f] == f, compressing the path walked."""
-    r = k
-    while nxt[r] != r:
-        r = nxt[r]
-    while nxt[k] != r:
-        following = nxt[k]
-        nxt[k] = r
-        k = following
-    return r
-
-
-@numba.njit(cache=True)
-def _reference_dbar(delta, bits, start, tau, max_hits, dbar, span_first, span_last):
-    """Reference Δ̄ into ``dbar`` (filled with ∞ by the caller): take Δ's values ≤ τ in
-    increasing order (ties: earliest frame); each fills the still-empty frames of its span
-    [start, end] with its cost and blocks ends inside that span. Δ is read only inside the
-    spans [span_first[i], span_last[i]] (sorted, disjoint; matches never leave them).
-    Returns the picks, or −1 if a pick's start lies before its span or after its end."""
-    n = 0
-    for w in range(span_first.shape[0]):
-        for i in range(span_first[w], span_last[w] + 1):
-            if delta[i] <= tau:
-                n += 1
-    cand = np.empty(n, np.int64)
-    n = 0
-    for w in range(span_first.shape[0]):
-        for i in range(span_first[w], span_last[w] + 1):
-            if delta[i] <= tau:
-                cand[n] = i
-                n += 1
-    order = _stable_order(delta, bits, cand)
-    # a frame is blocked exactly when a pick has filled it; filled runs are skipped through
-    # path-compressed pointers to the next empty frame, so each frame is written once
-    # (pointers set inside the spans and one frame past each: a fill stops there)
-    nxt = np.empty(delta.shape[0] + 1, np.int64)
-    low = np.empty(delta.shape[0], np.int64)  # first frame of each frame's span
-    for w in range(span_first.shape[0]):
-        for i in range(span_first[w], span_last[w] + 1):
-            nxt[i] = i
-            low[i] = span_first[w]
-        nxt[span_last[w] + 1] = span_last[w] + 1
-    hits = 0
-    for i in range(order.shape[0]):
-        if hits >= max_hits:
-            break
-        end = order[i]
-        if nxt[end] != end:
-            continue
-        d = delta[end]
-        a = start[end]
-        if a < low[end] or a > end:
-            return -1
-        k = _next_empty(nxt, a)
-        while k <= end:
-            dbar[k] = d
-            nxt[k] = k + 1
-            k = _next_empty(nxt, k + 1)
-        hits += 1
-    return hits
-
-
 def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
                    variant: str = "reference", max_hits: int | None = None,
                    out: np.ndarray | None = None,
@@ -474,8 +375,7 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
             from mtanno.templates.match import check_spans
 
             first, last = check_spans(*spans, L)
-        if _reference_dbar(delta, delta.view(np.uint64), start, float(tau), cap, dbar, first,
-                           last) < 0:
+        if reference_dbar_kernel(delta, start, float(tau), cap, dbar, first, last) < 0:
             raise MtannoError("a match with Δ ≤ τ starts before its window or after its end "
                               "frame")
         return dbar

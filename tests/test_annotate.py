@@ -186,6 +186,60 @@ def check_reference_dbar(seed: int) -> None:
     assert np.array_equal(got, want), seed
 
 
+def check_dbar_strategies(seed: int) -> tuple[int, int]:
+    """Δ̄ of real matcher outputs (starts mostly increasing, sometimes crossing) against the
+    naive reading, and each strategy of :mod:`mtanno._dbar` on its own: the divide and
+    conquer either agrees with the naive Δ̄ or declines (−1), the sorted greedy always
+    agrees. Returns (spans it solved, spans it declined)."""
+    from mtanno._dbar import _greedy_dbar, _split_dbar
+    from mtanno.templates.match import PreparedTemplate
+
+    rng = np.random.default_rng(seed)
+    f, K, L = 6, int(rng.integers(2, 9)), int(rng.integers(20, 300))
+    values = rng.choice([0.0, 1.0, 0.5], size=(f, K), p=[0.4, 0.4, 0.2])
+    prep = PreparedTemplate(values, rng.integers(1, 4, K).astype(float))
+    X = (rng.random((f, L)) < 0.5).astype(np.uint8)
+    cuts = np.sort(rng.choice(np.arange(1, L), size=4, replace=False))
+    firsts, lasts = np.array([0, cuts[1]]), np.array([cuts[0], cuts[2]])
+    from mtanno.templates.match import pack_document
+
+    delta, start = prep.match_spans(pack_document(X, f), firsts, lasts)
+    finite = delta[np.isfinite(delta)]
+    tau = float(np.quantile(finite, 0.6)) if finite.size else 0.1
+    want = naive_dbar(delta, start, tau)
+    assert np.array_equal(modified_delta(delta, start, tau=tau, spans=(firsts, lasts)), want)
+    greedy = np.full(L, INF)
+    assert _greedy_dbar(delta, delta.view(np.uint64), start, tau, 10**9, greedy, firsts,
+                        lasts) >= 0
+    assert np.array_equal(greedy, want)
+    solved = declined = 0
+    for x, y in zip(firsts, lasts):
+        cand = x + np.flatnonzero(delta[x:y + 1] <= tau)
+        got = np.full(L, INF)
+        size = 1 << max(0, int(len(cand) - 1).bit_length())
+        if _split_dbar(delta, start, got, cand, len(cand), np.empty(2 * size, np.int64),
+                       np.empty((len(cand) + 1, 4), np.int64), x) < 0:
+            declined += 1
+        else:
+            assert np.array_equal(got[x:y + 1], want[x:y + 1])
+            solved += 1
+    return solved, declined
+
+
+def test_dbar_strategies_agree_with_the_naive_reading():
+    """Both strategies are exercised: most spans of real Δ are solved by divide and
+    conquer, and crossing matches make it decline on some."""
+    solved = declined = 0
+    for seed in range(60):
+        s, d = check_dbar_strategies(seed)
+        solved, declined = solved + s, declined + d
+    assert solved > 20 and declined > 0, (solved, declined)
+
+
+def test_dbar_strategies_without_jit():
+    run_without_jit("test_annotate", "check_dbar_strategies", (0,), (5,))
+
+
 def test_modified_delta_refuses_starts_outside_their_span():
     """Start frames that no matcher gives (after the end, before the window) and windows
     outside the document are refused instead of being followed out of the arrays."""
