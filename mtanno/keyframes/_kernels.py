@@ -188,34 +188,30 @@ def _matches(words, j, mask, value, tolerance, k):
 
 
 @numba.njit(cache=True)
-def keyframe_set_runs(words, mask, value, tolerance, offsets, out_start, out_end):
-    """:func:`keyframe_runs` of up to 64 keyframes (rows of ``mask``, ``value``; their
-    tolerances) in one pass over the frames: the keyframes are tested once per distinct
-    frame vector, looked up where the vector changes (at 30 Hz about every second frame)
-    in an open-addressing hash cache of the set of keyframes each matches (when it is three
-    quarters full, further vectors are tested without caching). Twenty keyframes cost
-    about what two do one by one.
-
-    With ``offsets`` empty, counts the runs of each keyframe and returns the counts; else
-    writes the runs of keyframe k as (start, end) pairs, end inclusive, into
-    ``out_start``/``out_end`` from ``offsets[k]`` on (the counts' prefix sums) and returns
-    the counts again."""
+def keyframe_set_changes(words, mask, value, tolerance, pos, sets):
+    """The frames where the set of matching keyframes changes, for up to 64 keyframes
+    (rows of ``mask``, ``value``; their tolerances) in one pass over the frames: from frame
+    ``pos[i]`` on the set is ``sets[i]`` (bit k: keyframe k matches), up to the next entry;
+    the last entry is frame L with the empty set. ``pos`` and ``sets`` need L + 1 entries;
+    returns how many were written. The keyframes are tested once per distinct frame vector,
+    looked up where the vector changes (at 30 Hz about every second frame) in an
+    open-addressing hash cache of the set of keyframes each matches (when it is three
+    quarters full, further vectors are tested without caching). Twenty keyframes cost about
+    what two do one by one."""
     L, W = words.shape
     nk = mask.shape[0]
-    write = offsets.shape[0] > 0
     bits = 1  # 2**bits slots, at least twice the frames of short documents
     while bits < _SLOT_BITS and (1 << bits) < 2 * L:
         bits += 1
     S = 1 << bits
     shift = np.uint64(64 - bits)
     keys = np.zeros((S, W), np.uint64)
-    sets = np.zeros(S, np.uint64)
+    sets_of = np.zeros(S, np.uint64)
     used = np.zeros(S, np.bool_)
     n_used = 0
-    first = np.zeros(nk, np.int64)
-    count = np.zeros(nk, np.int64)
     one = np.uint64(1)
     prev = np.uint64(0)
+    m = 0
     for j in range(L + 1):
         cur = np.uint64(0)
         if j < L:
@@ -242,7 +238,7 @@ def keyframe_set_runs(words, mask, value, tolerance, offsets, out_start, out_end
                     break
                 slot = (slot + 1) & (S - 1)
             if found:
-                cur = sets[slot]
+                cur = sets_of[slot]
             else:
                 for k in range(nk):
                     if _matches(words, j, mask, value, tolerance, k):
@@ -250,9 +246,32 @@ def keyframe_set_runs(words, mask, value, tolerance, offsets, out_start, out_end
                 if 4 * n_used < 3 * S:
                     for q in range(W):
                         keys[slot, q] = words[j, q]
-                    sets[slot] = cur
+                    sets_of[slot] = cur
                     used[slot] = True
                     n_used += 1
+        if cur != prev or j == L:
+            pos[m] = j
+            sets[m] = cur
+            m += 1
+        prev = cur
+    return m
+
+
+@numba.njit(cache=True)
+def set_runs(pos, sets, m, nk, offsets, out_start, out_end):
+    """The runs of each of ``nk`` keyframes from the change points of
+    :func:`keyframe_set_changes` (``pos[:m]``, ``sets[:m]``). With ``offsets`` empty,
+    counts the runs of each keyframe and returns the counts; else writes the runs of
+    keyframe k as (start, end) pairs, end inclusive, into ``out_start``/``out_end`` from
+    ``offsets[k]`` on (the counts' prefix sums) and returns the counts again."""
+    write = offsets.shape[0] > 0
+    first = np.zeros(nk, np.int64)
+    count = np.zeros(nk, np.int64)
+    one = np.uint64(1)
+    prev = np.uint64(0)
+    for i in range(m):
+        cur = sets[i]
+        j = pos[i]
         x = cur ^ prev
         while x:
             low = x & (~x + one)  # lowest set bit: keyframe k enters or leaves

@@ -381,7 +381,8 @@ class _Scanner:
     def levels(self, packed: np.ndarray, d: int) -> list[Intervals]:
         """Interval lists of every keyframe in one packed document (number ``d``): a pass
         over the frames per keyframe, or, for more than a few keyframes, one pass per 64
-        of them (:func:`mtanno.keyframes._kernels.keyframe_set_runs`)."""
+        of them (:func:`mtanno.keyframes._kernels.keyframe_set_changes`, then the runs of each
+        keyframe from the changes)."""
         n = self.masks.shape[0]
         if n <= _ONE_BY_ONE:
             L = packed.shape[0]
@@ -394,13 +395,16 @@ class _Scanner:
         else:
             runs = []
             none = np.zeros(0, np.int64)
+            pos = np.empty(packed.shape[0] + 1, np.int64)
+            sets = np.empty(packed.shape[0] + 1, np.uint64)
             for a in range(0, n, 64):
                 m, v, t = self.masks[a:a + 64], self.values[a:a + 64], self.tol[a:a + 64]
-                counts = _kernels.keyframe_set_runs(packed, m, v, t, none, none, none)
+                c = _kernels.keyframe_set_changes(packed, m, v, t, pos, sets)
+                counts = _kernels.set_runs(pos, sets, c, len(m), none, none, none)
                 offsets = np.zeros(counts.shape[0] + 1, np.int64)
                 np.cumsum(counts, out=offsets[1:])
                 s, e = np.empty(offsets[-1], np.int64), np.empty(offsets[-1], np.int64)
-                _kernels.keyframe_set_runs(packed, m, v, t, offsets[:-1], s, e)
+                _kernels.set_runs(pos, sets, c, len(m), offsets[:-1], s, e)
                 runs += [(s[i:j], e[i:j]) for i, j in zip(offsets[:-1].tolist(),
                                                           offsets[1:].tolist())]
         return [(np.full(s.shape[0], d, np.int64), s, e) for s, e in runs]
