@@ -439,32 +439,44 @@ def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
-def _label_runs(dbars, extend, out_p, out_s, out_t, out_cost):
+def _frame_labels(dbars, labels):
+    """Each frame's label: the row with the smallest Δ̄ (ties → smaller row), −1 where
+    every Δ̄ is ∞. Rows are read in order, a block of frames at a time (contiguous loads
+    instead of one load per row and frame)."""
+    P, L = dbars.shape
+    block = 1024
+    best = np.empty(block)
+    for j0 in range(0, L, block):
+        m = min(block, L - j0)
+        best[:m] = np.inf
+        lab = labels[j0:j0 + m]
+        lab[:] = -1
+        for p in range(P):
+            row = dbars[p, j0:j0 + m]
+            for j in range(m):  # selects, not branches: the loop vectorizes
+                v = row[j]
+                b = best[j]
+                t = v < b
+                best[j] = v if t else b
+                lab[j] = p if t else lab[j]
+
+
+@numba.njit(cache=True)
+def _label_runs(dbars, extend, rank, out_p, out_s, out_t, out_cost):
     """Segments of a Δ̄ matrix (labels × frames): each frame's label is the smallest Δ̄
     (ties → smaller label, none where all are ∞); maximal runs of one label, extended
     while Δ̄ of the label does not rise (``extend`` 1; 2: only over frames of no other
     label; 0: not extended), merged per label where they overlap, with the smallest Δ̄
-    inside. Writes (label, start, end, cost) sorted by label and start; returns their
-    number."""
+    inside. Writes (label, start, end, cost) sorted by start, end and ``rank`` of the
+    label (the order of the label names); returns their number."""
     P, L = dbars.shape
-    labels = np.full(L if extend == 2 else 0, -1, np.int64)
-    for j in range(labels.shape[0]):
-        best = np.inf
-        for p in range(P):
-            if dbars[p, j] < best:
-                best = dbars[p, j]
-                labels[j] = p
+    labels = np.empty(L, np.int64)
+    _frame_labels(dbars, labels)
     n = 0
     prev = -2
     s0 = 0
     for j in range(L + 1):
-        lab = -1
-        if j < L:
-            best = np.inf
-            for p in range(P):
-                if dbars[p, j] < best:
-                    best = dbars[p, j]
-                    lab = p
+        lab = labels[j] if j < L else -1
         if j == L or lab != prev:
             if j > 0 and prev >= 0:
                 s, t = s0, j - 1
@@ -492,11 +504,20 @@ def _label_runs(dbars, extend, out_p, out_s, out_t, out_cost):
             out_s[m] = ss[i]
             out_t[m] = st[i]
             m += 1
+    by_rank = np.argsort(rank[out_p[:m]], kind="mergesort")
+    key = out_s[:m] * (L + 1) + out_t[:m]
+    order = by_rank[np.argsort(key[by_rank], kind="mergesort")]
+    sp = out_p[:m][order]
+    ss = out_s[:m][order]
+    st = out_t[:m][order]
     for i in range(m):
+        out_p[i] = sp[i]
+        out_s[i] = ss[i]
+        out_t[i] = st[i]
         c = np.inf
-        for j in range(out_s[i], out_t[i] + 1):
-            if dbars[out_p[i], j] < c:
-                c = dbars[out_p[i], j]
+        for j in range(ss[i], st[i] + 1):
+            if dbars[sp[i], j] < c:
+                c = dbars[sp[i], j]
         out_cost[i] = c
     return m
 
@@ -514,12 +535,12 @@ def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
     cost = np.empty(L + 1)
     if extend not in (True, False, "unclaimed"):
         raise MtannoError(f"extend must be True, False or 'unclaimed', got {extend!r}")
-    m = _label_runs(dbars, 2 if extend == "unclaimed" else int(bool(extend)), out_p, out_s,
-                    out_t, cost)
-    out = [Annotation(doc, s, t, names[p], c) for p, s, t, c in
-           zip(out_p[:m].tolist(), out_s[:m].tolist(), out_t[:m].tolist(), cost[:m].tolist())]
-    out.sort(key=lambda a: (a.start, a.end, a.label))
-    return out
+    rank = np.empty(len(names), np.int64)  # rows sorted by (start, end, label name)
+    rank[sorted(range(len(names)), key=lambda i: names[i])] = np.arange(len(names))
+    m = _label_runs(dbars, 2 if extend == "unclaimed" else int(bool(extend)), rank, out_p,
+                    out_s, out_t, cost)
+    return [Annotation(doc, s, t, names[p], c) for p, s, t, c in
+            zip(out_p[:m].tolist(), out_s[:m].tolist(), out_t[:m].tolist(), cost[:m].tolist())]
 
 
 def single_label_segments(doc: str, names: Sequence[str], dbars: np.ndarray,

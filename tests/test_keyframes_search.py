@@ -217,6 +217,18 @@ def test_keyframe_sets_without_jit():
 @given(st.integers(0, 10_000))
 @settings(max_examples=30, deadline=None)
 def test_class_windows_equal_each_querys_windows(seed):
+    check_class_windows(seed)
+
+
+def test_class_windows_without_jit():
+    """The fused kernel behind class_windows (chains, hits and windows in one call) run as
+    plain Python."""
+    from nojit import run_without_jit
+
+    run_without_jit("test_keyframes_search", "check_class_windows", *[(s,) for s in range(3)])
+
+
+def check_class_windows(seed):
     """Windows of several classes found together equal each query's own windows."""
     from mtanno.keyframes import class_windows, document_windows
 

@@ -286,3 +286,84 @@ def set_runs(pos, sets, m, nk, offsets, out_start, out_end):
                 count[k] += 1
         prev = cur
     return count
+
+
+@numba.njit(cache=True)
+def _level(starts, ends, offsets, j):
+    """Level j of one document's flattened runs, as an interval list (document 0)."""
+    a, b = offsets[j], offsets[j + 1]
+    return np.zeros(b - a, np.int64), starts[a:b], ends[a:b]
+
+
+@numba.njit(cache=True)
+def _dilated_meet(a, b, lo, hi):
+    """Intersection of interval list ``a`` dilated by [lo, hi] with interval list ``b``."""
+    m = a[0].shape[0]
+    dd, ds, de = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
+    k = dilate(a[0], a[1], a[2], lo, hi, dd, ds, de)
+    cap = k + b[0].shape[0]
+    od, os_, oe = np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64)
+    k = intersect(dd[:k], ds[:k], de[:k], b[0], b[1], b[2], od, os_, oe)
+    return od[:k], os_[:k], oe[:k]
+
+
+@numba.njit(cache=True)
+def chain_windows(starts, ends, offsets, gap_lo, gap_hi, left, right, length):
+    """Candidate windows of one query in one document of ``length`` frames, in one call
+    (what :mod:`mtanno.keyframes.search` does with the kernels above, list by list): the
+    runs of keyframe j are ``starts``/``ends`` [offsets[j], offsets[j + 1]); chains with
+    gaps [gap_lo[j], gap_hi[j]] (forward and backward passes), the union of their spans,
+    widened by ``left``/``right`` frames, clipped and merged. Returns (first, last)
+    arrays, 0-based inclusive."""
+    n = offsets.shape[0] - 1
+    none = np.zeros(0, np.int64)
+    F = [_level(starts, ends, offsets, 0)]
+    for j in range(n - 1):
+        if F[j][0].shape[0] == 0:
+            return none, none
+        F.append(_dilated_meet(F[j], _level(starts, ends, offsets, j + 1), gap_lo[j],
+                               gap_hi[j]))
+    if F[n - 1][0].shape[0] == 0:
+        return none, none
+    B = [F[n - 1]]  # B_n … B_1
+    for j in range(n - 2, -1, -1):
+        B.append(_dilated_meet(B[-1], F[j], -gap_hi[j], -gap_lo[j]))
+    if n == 1:
+        hs, he = B[0][1], B[0][2]
+    else:
+        total = 0
+        parts = []
+        for j in range(n - 1):
+            a, b = B[n - 1 - j], B[n - 2 - j]
+            cap = a[0].shape[0] + b[0].shape[0] + 1
+            while True:
+                od = np.empty(cap, np.int64)
+                os_ = np.empty(cap, np.int64)
+                oe = np.empty(cap, np.int64)
+                k = pair_spans(a[0], a[1], a[2], b[0], b[1], b[2], gap_lo[j], gap_hi[j],
+                               od, os_, oe)
+                if k <= cap:
+                    break
+                cap = k
+            parts.append((os_[:k], oe[:k]))
+            total += k
+        ps, pe = np.empty(total, np.int64), np.empty(total, np.int64)
+        i = 0
+        for s, e in parts:
+            ps[i:i + s.shape[0]] = s
+            pe[i:i + s.shape[0]] = e
+            i += s.shape[0]
+        order = np.argsort(ps, kind="mergesort")
+        zero = np.zeros(total, np.int64)
+        hd, hs, he = np.empty(total, np.int64), np.empty(total, np.int64), np.empty(total,
+                                                                                    np.int64)
+        k = merge_sorted(zero, ps[order], pe[order], hd, hs, he)
+        hs, he = hs[:k], he[:k]
+    m = hs.shape[0]
+    ws, we = np.empty(m, np.int64), np.empty(m, np.int64)
+    for i in range(m):
+        ws[i] = max(hs[i] - left, 0)
+        we[i] = min(he[i] + right, length - 1)
+    od, os_, oe = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int64)
+    k = merge_sorted(np.zeros(m, np.int64), ws, we, od, os_, oe)
+    return os_[:k], oe[:k]

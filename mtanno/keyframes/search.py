@@ -378,36 +378,53 @@ class _Scanner:
         out.tol = np.concatenate([s.tol for s in scanners])
         return out
 
-    def levels(self, packed: np.ndarray, d: int) -> list[Intervals]:
-        """Interval lists of every keyframe in one packed document (number ``d``): a pass
-        over the frames per keyframe, or, for more than a few keyframes, one pass per 64
-        of them (:func:`mtanno.keyframes._kernels.keyframe_set_changes`, then the runs of each
+    def runs(self, packed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The runs of frames that match each keyframe in one packed document, flattened:
+        (starts, ends, offsets), keyframe k's runs at [offsets[k], offsets[k + 1]), frames
+        0-based inclusive. A pass over the frames per keyframe, or, for more than a few
+        keyframes, one pass per 64 of them
+        (:func:`mtanno.keyframes._kernels.keyframe_set_changes`, then the runs of each
         keyframe from the changes)."""
         n = self.masks.shape[0]
+        L = packed.shape[0]
+        offsets = np.zeros(n + 1, np.int64)
         if n <= _ONE_BY_ONE:
-            L = packed.shape[0]
             s, e = np.empty(L + 1, np.int64), np.empty(L + 1, np.int64)
-            runs = []
+            starts, ends = [], []
             for k in range(n):
                 c = _kernels.keyframe_runs(packed, self.masks[k], self.values[k],
                                            int(self.tol[k]), s, e)
-                runs.append((s[:c].copy(), e[:c].copy()))
-        else:
-            runs = []
+                starts.append(s[:c].copy())
+                ends.append(e[:c].copy())
+                offsets[k + 1] = offsets[k] + c
             none = np.zeros(0, np.int64)
-            pos = np.empty(packed.shape[0] + 1, np.int64)
-            sets = np.empty(packed.shape[0] + 1, np.uint64)
-            for a in range(0, n, 64):
-                m, v, t = self.masks[a:a + 64], self.values[a:a + 64], self.tol[a:a + 64]
-                c = _kernels.keyframe_set_changes(packed, m, v, t, pos, sets)
-                counts = _kernels.set_runs(pos, sets, c, len(m), none, none, none)
-                offsets = np.zeros(counts.shape[0] + 1, np.int64)
-                np.cumsum(counts, out=offsets[1:])
-                s, e = np.empty(offsets[-1], np.int64), np.empty(offsets[-1], np.int64)
-                _kernels.set_runs(pos, sets, c, len(m), offsets[:-1], s, e)
-                runs += [(s[i:j], e[i:j]) for i, j in zip(offsets[:-1].tolist(),
-                                                          offsets[1:].tolist())]
-        return [(np.full(s.shape[0], d, np.int64), s, e) for s, e in runs]
+            return (np.concatenate(starts) if n else none, np.concatenate(ends) if n else none,
+                    offsets)
+        none = np.zeros(0, np.int64)
+        pos = np.empty(L + 1, np.int64)
+        sets = np.empty(L + 1, np.uint64)
+        parts = []
+        for a in range(0, n, 64):
+            m, v, t = self.masks[a:a + 64], self.values[a:a + 64], self.tol[a:a + 64]
+            c = _kernels.keyframe_set_changes(packed, m, v, t, pos, sets)
+            counts = _kernels.set_runs(pos, sets, c, len(m), none, none, none)
+            off = np.zeros(counts.shape[0] + 1, np.int64)
+            np.cumsum(counts, out=off[1:])
+            s, e = np.empty(off[-1], np.int64), np.empty(off[-1], np.int64)
+            _kernels.set_runs(pos, sets, c, len(m), off[:-1], s, e)
+            offsets[a + 1:a + 1 + len(m)] = offsets[a] + off[1:]
+            parts.append((s, e))
+        if len(parts) == 1:
+            return parts[0][0], parts[0][1], offsets
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+                offsets)
+
+    def levels(self, packed: np.ndarray, d: int) -> list[Intervals]:
+        """Interval lists of every keyframe in one packed document (number ``d``), from
+        :meth:`runs`."""
+        s, e, off = self.runs(packed)
+        lo, hi = off[:-1].tolist(), off[1:].tolist()
+        return [(np.full(b - a, d, np.int64), s[a:b], e[a:b]) for a, b in zip(lo, hi)]
 
 
 def search_documents(documents: Iterable[tuple[str, np.ndarray]], names: Sequence[str],
@@ -459,6 +476,9 @@ class KeyframeSet:
         self.names = tuple(names)
         self._scanner = _Scanner.joined([_Scanner(q, names) for q in queries.values()]) \
             if queries else None
+        self._chains = {cls: (np.array([g[0] for g in _gaps(q)], np.int64),
+                              np.array([g[1] for g in _gaps(q)], np.int64), *q.widths())
+                        for cls, q in queries.items()}
 
     def windows(self, packed: np.ndarray) -> dict[str, list[tuple[int, int]]]:
         """Candidate windows [(first, last)] (0-based inclusive) of every class in one
@@ -471,14 +491,15 @@ class KeyframeSet:
                               f"{len(self.names)} features, got {np.shape(packed)}")
         if self._scanner is None:
             return {}
-        levels = self._scanner.levels(packed, 0)  # all classes' keyframes in one pass
-        lengths = np.array([packed.shape[0]], np.int64)
+        starts, ends, offsets = self._scanner.runs(packed)  # all keyframes in one pass
         out = {}
-        for cls, q in self.queries.items():
-            hits = _run(q, levels[:q.n], ["doc"], lengths)
-            del levels[:q.n]
-            _, s, e = _widen(hits.doc, hits.start, hits.end, *q.widths(), lengths)
+        k = 0
+        for cls, q in self.queries.items():  # chains, hits and windows: one kernel call
+            lo, hi, left, right = self._chains[cls]
+            s, e = _kernels.chain_windows(starts, ends, offsets[k:k + q.n + 1], lo, hi, left,
+                                          right, packed.shape[0])
             out[cls] = list(zip(s.tolist(), e.tolist()))
+            k += q.n
         return out
 
 
