@@ -126,8 +126,8 @@ def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add
     Sn = np.full(K + 2, -1.0)
     S1 = np.full(K + 2, -1.0)
     S2 = np.full(K + 2, -1.0)
-    c0 = np.zeros(K)  # costs are finite, so that ∞ + w·c stays ∞
-    c1 = np.zeros(K)
+    c0 = np.empty(K)
+    c1 = np.empty(K)
     e0, e1, e2 = sel[0], sel[1], sel[2]
     a0, a1, a2 = add[0], add[1], add[2]
     by_pred = e0 == 0.0 and e1 == 0.0 and e2 == 0.0
@@ -142,9 +142,7 @@ def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add
         for j in range(0, n, 2):
             y0 = doc[b + j]
             y1 = doc[b + j + 1] if j + 1 < n else y0  # odd length: a dummy last column
-            # row k is unreachable before frame k/2 of the range: its cost is not needed
-            # (the cell stays ∞ whatever the stale cost above row 2j + 2)
-            for k in range(min(K, 2 * j + 3)):
+            for k in range(K):
                 c0[k] = table[k, _popcount64((y0 ^ vals[k]) & masks[k])]
                 c1[k] = table[k, _popcount64((y1 ^ vals[k]) & masks[k])]
             Dc[2] = c0[0]
