@@ -150,3 +150,28 @@ def test_prepared_template_is_reusable():
         assert_same(prep.match(X), match_naive(V, w, X, variant="paper"))
     with pytest.raises(MtannoError, match="document 2 must be"):
         prep.match_documents([np.zeros((40, 2), np.uint8), np.zeros((39, 2), np.uint8)])
+
+
+@pytest.mark.parametrize("variant", ["reference", "paper"])
+def test_windows_of_a_few_template_lengths_equal_naive(variant):
+    """Spans of one to three template lengths (keyframe windows): the kernel skips the
+    cells of a span's first frames that no path reaches yet and of its last frames that
+    cannot reach the template's end any more; every span still equals the oracle."""
+    from mtanno.templates.match import pack_document
+
+    rng = np.random.default_rng(5)
+    for K in (7, 24, 41):
+        V, w, _ = random_case(rng, 40, K, 0, 0.2)
+        prep = PreparedTemplate(V, w, variant=variant)
+        n = prep.K
+        X = (rng.random((40, 12 * n)) < 0.4).astype(np.uint8)
+        lengths = rng.integers(max(1, n // 2 - 2), 3 * n + 3, size=6)
+        gaps = rng.integers(1, 5, size=6)
+        firsts = np.cumsum(gaps + np.concatenate(([0], lengths[:-1]))) - 1
+        keep = firsts + lengths - 1 < X.shape[1]
+        firsts, lasts = firsts[keep], (firsts + lengths - 1)[keep]
+        delta, start = prep.match_spans(pack_document(X, 40), firsts, lasts)
+        for a, b in zip(firsts, lasts):
+            dn, sn = match_naive(V, w, X[:, a:b + 1], variant=variant)
+            np.testing.assert_array_equal(delta[a:b + 1], dn)
+            np.testing.assert_array_equal(start[a:b + 1], np.where(sn >= 0, sn + a, sn))

@@ -29,7 +29,11 @@ Steps are (template, document) increments; the default is (1,1), (1,2), (2,1) wi
 The kernels stream over the document: they keep only a few columns of D and of the start
 pointers (the last max(Δj)+1, or four for the default steps, which are done two document
 frames at a time); a_ℓ is propagated forward with the DP, so there is no backtracking matrix
-and the working memory is O(K) whatever the document length. The outputs are the two
+and the working memory is O(K) whatever the document length. With the default steps a
+path climbs at most two template rows per frame, so near the start of a range the upper
+rows cannot be reached yet and near its end the lower rows cannot reach the last row any
+more; those cells are not computed (exact: no path to a match end passes them), which
+saves about a sixth of the work in windows a few template lengths long. The outputs are the two
 length-L arrays (plus the packed frames, 8 bytes per frame, while matching).
 
 Features are bit-packed (one uint64 per frame for f ≤ 64) and each template column becomes
@@ -95,6 +99,27 @@ def _pack_frames(X, out):
             out[j0:j0 + m, q] = buf[:m]
 
 
+@numba.njit(cache=True, inline="always")
+def _cell(c, p0, p1, p2, s0, s1, s2, by_pred, e0, e1, e2, a0, a1, a2):
+    """One cell of :func:`_dtw_default_steps` from its predecessors (D, start) by the steps
+    (1,1), (1,2), (2,1) and its local cost c: the step ranked first by D + sel·c (ties:
+    the first step; ``by_pred``: sel = 0) gives (D + add·c, its start)."""
+    if by_pred:
+        x0, x1, x2 = p0, p1, p2
+    else:
+        x0, x1, x2 = p0 + e0 * c, p1 + e1 * c, p2 + e2 * c
+    t = x1 < x0  # selects, not branches
+    x = x1 if t else x0
+    p = p1 if t else p0
+    w = a1 if t else a0
+    sv = s1 if t else s0
+    t = x2 < x
+    p = p2 if t else p
+    w = a2 if t else w
+    sv = s2 if t else sv
+    return p + w * c, sv
+
+
 @numba.njit(cache=True)
 def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add, divisor, delta,
                        start):
@@ -118,6 +143,7 @@ def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add
     """
     K = masks.shape[0]
     inf = np.inf
+    u1, u2 = np.uint64(1), np.uint64(2)
     Dc = np.full(K + 2, inf)  # column j
     Dn = np.full(K + 2, inf)  # column j + 1
     D1 = np.full(K + 2, inf)  # column j - 1
@@ -135,65 +161,71 @@ def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add
         b = starts[d]
         n = ends[d] - b
         shift = b if absolute else 0
+        Dc[:] = inf  # rows a pass does not compute keep ∞ until computed
+        Dn[:] = inf
         D1[:] = inf
         D2[:] = inf
+        Sc[:] = -1.0
+        Sn[:] = -1.0
         S1[:] = -1.0
         S2[:] = -1.0
         for j in range(0, n, 2):
             y0 = doc[b + j]
             y1 = doc[b + j + 1] if j + 1 < n else y0  # odd length: a dummy last column
-            for k in range(K):
-                c0[k] = table[k, _popcount64((y0 ^ vals[k]) & masks[k])]
-                c1[k] = table[k, _popcount64((y1 ^ vals[k]) & masks[k])]
+            # rows below lo cannot reach the last row by the range's end, rows from hi on
+            # cannot be reached yet (a path climbs at most two rows per frame): neither is
+            # computed (in a window of a few template lengths, a sixth of the cells)
+            lo = max(1, K - 1 - 2 * (n - 1 - j))
+            hi = min(K, 2 * j + 3)
+            c0[0] = table[0, _popcount64((y0 ^ vals[0]) & masks[0])]
+            c1[0] = table[0, _popcount64((y1 ^ vals[0]) & masks[0])]
             Dc[2] = c0[0]
             Sc[2] = j
             Dn[2] = c1[0]
             Sn[2] = j + 1
-            dm1, sm1 = c0[0], np.float64(j)  # (k-1, j)
+            dm1, sm1 = (c0[0], np.float64(j)) if lo == 1 else (inf, -1.0)  # (k-1, j)
             dm2, sm2 = inf, -1.0  # (k-2, j)
-            q, qs = D1[1], S1[1]  # (k-2, j-1)
-            for k in range(1, K):
-                # cell (k, j): predecessors (k-1, j-1), (k-1, j-2), (k-2, j-1)
-                c = c0[k]
-                p0, s0 = D1[k + 1], S1[k + 1]
-                p1, s1 = D2[k + 1], S2[k + 1]
-                p2, s2 = q, qs
-                if by_pred:
-                    x0, x1, x2 = p0, p1, p2
-                else:
-                    x0, x1, x2 = p0 + e0 * c, p1 + e1 * c, p2 + e2 * c
-                t = x1 < x0
-                x = x1 if t else x0
-                p = p1 if t else p0
-                w = a1 if t else a0
-                sv = s1 if t else s0
-                t = x2 < x
-                p = p2 if t else p
-                w = a2 if t else w
-                sv = s2 if t else sv
-                d0 = p + w * c
-                # cell (k, j+1): predecessors (k-1, j), (k-1, j-1), (k-2, j)
-                c = c1[k]
-                if by_pred:
-                    x0, x1, x2 = dm1, p0, dm2
-                else:
-                    x0, x1, x2 = dm1 + e0 * c, p0 + e1 * c, dm2 + e2 * c
-                t = x1 < x0
-                x = x1 if t else x0
-                r = p0 if t else dm1
-                w = a1 if t else a0
-                rs = s0 if t else sm1
-                t = x2 < x
-                r = dm2 if t else r
-                w = a2 if t else w
-                rs = sm2 if t else rs
-                Dc[k + 2] = d0
-                Sc[k + 2] = sv
-                Dn[k + 2] = r + w * c
-                Sn[k + 2] = rs
-                dm2, sm2 = dm1, sm1
-                dm1, sm1 = d0, sv
-                q, qs = p0, s0
+            q, qs = D1[lo], S1[lo]  # (k-2, j-1)
+            # cell (k, j): predecessors (k-1, j-1), (k-1, j-2), (k-2, j-1); cell (k, j+1):
+            # (k-1, j), (k-1, j-1), (k-2, j). The same loop twice: over all rows with
+            # signed indices, and over rows lo … hi - 1 with unsigned ones (with signed
+            # indices and a bound other than K, numba's loop runs 3-4x slower per cell)
+            if lo == 1 and hi == K:
+                for k in range(1, K):
+                    c0[k] = table[k, _popcount64((y0 ^ vals[k]) & masks[k])]
+                    c1[k] = table[k, _popcount64((y1 ^ vals[k]) & masks[k])]
+                for k in range(1, K):
+                    p0, s0 = D1[k + 1], S1[k + 1]
+                    d0, sv = _cell(c0[k], p0, D2[k + 1], q, s0, S2[k + 1], qs, by_pred,
+                                   e0, e1, e2, a0, a1, a2)
+                    dn, rs = _cell(c1[k], dm1, p0, dm2, sm1, s0, sm2, by_pred,
+                                   e0, e1, e2, a0, a1, a2)
+                    Dc[k + 2] = d0
+                    Sc[k + 2] = sv
+                    Dn[k + 2] = dn
+                    Sn[k + 2] = rs
+                    dm2, sm2 = dm1, sm1
+                    dm1, sm1 = d0, sv
+                    q, qs = p0, s0
+            else:
+                for kk in range(lo, hi):
+                    k = np.uint64(kk)
+                    c0[k] = table[k, _popcount64((y0 ^ vals[k]) & masks[k])]
+                    c1[k] = table[k, _popcount64((y1 ^ vals[k]) & masks[k])]
+                for kk in range(lo, hi):
+                    k = np.uint64(kk)
+                    p0, s0 = D1[k + u1], S1[k + u1]
+                    d0, sv = _cell(c0[k], p0, D2[k + u1], q, s0, S2[k + u1], qs, by_pred,
+                                   e0, e1, e2, a0, a1, a2)
+                    dn, rs = _cell(c1[k], dm1, p0, dm2, sm1, s0, sm2, by_pred,
+                                   e0, e1, e2, a0, a1, a2)
+                    Dc[k + u2] = d0
+                    Sc[k + u2] = sv
+                    Dn[k + u2] = dn
+                    Sn[k + u2] = rs
+                    dm2, sm2 = dm1, sm1
+                    dm1, sm1 = d0, sv
+                    q, qs = p0, s0
             delta[b + j] = Dc[K + 1] / divisor
             sj = np.int64(Sc[K + 1])
             start[b + j] = sj + shift if sj >= 0 else sj
