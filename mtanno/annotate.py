@@ -39,6 +39,9 @@ else:  # pragma: no cover
 DEFAULT_TAU = 0.13
 #: Quantization δ of the templates for annotation (MBS09).
 DEFAULT_DELTA = 0.05
+#: Candidate windows per class (keyframe preselection): a list of (first, last) frames,
+#: 0-based inclusive, or a (firsts, lasts) pair of sorted disjoint int64 arrays.
+Windows = dict[str, "list[tuple[int, int]] | tuple[np.ndarray, np.ndarray]"]
 
 
 @dataclass
@@ -619,12 +622,13 @@ class ClassModel:
 
 
 def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
-                 windows: dict[str, list[tuple[int, int]]] | None = None,
+                 windows: Windows | None = None,
                  match_variant: str = "reference") -> list[tuple[np.ndarray, np.ndarray]]:
     """Δ_p and start frames of every class over one document (X: features × frames).
 
     ``windows`` (from a keyframe stage) restricts a class to candidate windows
-    [first, last] (0-based inclusive; clipped to the document, overlapping ones merged):
+    [first, last] (0-based inclusive; clipped to the document, overlapping ones merged; or
+    a (firsts, lasts) pair of sorted disjoint arrays, :func:`mtanno.keyframes.class_spans`):
     Δ_p is computed inside each window (windows are matched as separate documents) and is
     ∞ elsewhere (MBS09 §5). Classes without an entry are matched everywhere. The document
     is bit-packed once for all classes.
@@ -642,10 +646,18 @@ def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
     return out
 
 
-def _class_spans(windows: dict[str, list[tuple[int, int]]] | None, L: int,
-                 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Each class's windows merged once (:func:`merged_spans`), for all its templates."""
-    return {name: merged_spans(w, L) for name, w in (windows or {}).items()}
+def _class_spans(windows: Windows | None, L: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each class's windows merged once (:func:`merged_spans`), for all its templates; a
+    (firsts, lasts) pair of arrays (:func:`mtanno.keyframes.class_spans`) is only checked."""
+    from mtanno.templates.match import check_spans
+
+    out = {}
+    for name, w in (windows or {}).items():
+        if isinstance(w, tuple) and len(w) == 2 and all(isinstance(a, np.ndarray) for a in w):
+            out[name] = check_spans(w[0], w[1], L)
+        else:
+            out[name] = merged_spans(w, L)
+    return out
 
 
 def _class_delta(X, packed, c: ClassModel, spans, match_variant, delta, start, *,
@@ -699,7 +711,7 @@ def evidence_covered(classes: Sequence[ClassModel]) -> set[int]:
 
 def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                       config: ClassConfig | None = None,
-                      windows: dict[str, list[tuple[int, int]]] | None = None,
+                      windows: Windows | None = None,
                       dbar_variant: str = "reference", match_variant: str = "reference",
                       max_hits: int | None = None, extend: bool = True,
                       single_label: bool = False, packed: np.ndarray | None = None,
@@ -714,8 +726,9 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     frames. Several :class:`ClassModel` of one name (a class with several templates) make
     one label, like a superclass. With ``config.resolve`` the segments come from the
     segment decoder (:func:`label_document`; already a partition) and the matrix holds
-    Δ/τ per label instead of Δ̄. ``packed``: X already bit-packed
-    (:func:`mtanno.templates.match.pack_document`, as for
+    Δ/τ per label instead of Δ̄. ``windows``: candidate windows per class, as
+    :func:`class_deltas` takes them (:func:`mtanno.keyframes.class_spans`). ``packed``: X
+    already bit-packed (:func:`mtanno.templates.match.pack_document`, as for
     :func:`mtanno.keyframes.class_windows`), to pack it once.
     """
     config = config or ClassConfig()
@@ -752,9 +765,10 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                 yield c.name, delta, start, None
                 continue
             near = None
-            if windows is not None and c.name in windows:  # only where c can be
-                near = merged_spans([(a - EVIDENCE_MARGIN, b + EVIDENCE_MARGIN)
-                                     for a, b in windows[c.name]], L)
+            if c.name in spans:  # only where c can be
+                first, last = spans[c.name]
+                near = merged_spans(np.column_stack((first - EVIDENCE_MARGIN,
+                                                     last + EVIDENCE_MARGIN)), L)
             yield c.name, delta, start, row_evidence(packed, c.evidence_columns(),
                                                      spans=near, distinct=distinct)
 
@@ -1178,11 +1192,11 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
         windows = None
         packed = pack_document(ff.X, ff.X.shape[0])  # once, for keyframes and templates
         if keyframes:
-            from mtanno.keyframes import class_windows
+            from mtanno.keyframes import class_spans
 
             try:
-                windows = class_windows(ff.X, ff.names, keyframes,
-                                        feature_set=layout.feature_set, packed=packed)
+                windows = class_spans(ff.X, ff.names, keyframes,
+                                      feature_set=layout.feature_set, packed=packed)
             except MtannoError as exc:
                 raise MtannoError(exc.message, path=ff.path) from None
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,

@@ -9,7 +9,7 @@ learned from the train split (bd, bk, dg). Timings are of the whole command ``mt
 annotate`` (process start-up, reading the feature file, matching, writing the table),
 median of ``--repeats``; the keyframe comparison also times the annotation itself in one
 process (:func:`mtanno.annotate.annotate_document` on the document already read; with
-keyframes including their search, :func:`mtanno.keyframes.class_windows`), median of 7 in
+keyframes including their search, :func:`mtanno.keyframes.class_spans`), median of 7 in
 wall time, and median of 15 in process CPU time with the two runs interleaved (less exposed
 to other jobs on the machine).
 
@@ -117,7 +117,7 @@ def bench_setup(name: str, doc: str):
 def keyframes(out: Path, clips: Path, repeats: int) -> None:
     """Annotation of the 60-minute document with and without GA keyframes (issue 7)."""
     from mtanno.annotate import annotate_document, load_class_models
-    from mtanno.keyframes import KeyframeSet, class_windows, load_keyframe_folder
+    from mtanno.keyframes import KeyframeSet, class_spans, class_windows, load_keyframe_folder
     from mtanno.store import read_features
     from mtanno.templates.match import pack_document
 
@@ -134,11 +134,11 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
 
     def with_keyframes():  # the document packed once for both, as `mtanno annotate` does
         packed = pack_document(ff.X, ff.X.shape[0])
-        w = class_windows(ff.X, ff.names, queries, packed=packed)
+        w = class_spans(ff.X, ff.names, queries, packed=packed)
         annotate_document(ff.document, ff.X, models, windows=w, packed=packed)
 
     t0, t1 = median_wall(plain), median_wall(with_keyframes)
-    scan = median_wall(lambda: class_windows(ff.X, ff.names, queries))
+    scan = median_wall(lambda: class_spans(ff.X, ff.names, queries))
     c0, c1 = interleaved_cpu((plain, with_keyframes))
     w = class_windows(ff.X, ff.names, queries)
     L = ff.X.shape[1]

@@ -58,13 +58,13 @@ def main() -> int:
          str(out / "tuned_kf.toml")])
 
     from mtanno.annotate import annotate_document, load_annotation_setup
-    from mtanno.keyframes import class_windows, load_keyframe_folder
+    from mtanno.keyframes import KeyframeSet, class_spans, load_keyframe_folder
     from mtanno.store import read_features
     from mtanno.templates.match import pack_document
 
     doc = tiled(src, out / "doc_60min.parquet", 60 * 60 * 30)
     ff = read_features(doc)
-    queries = load_keyframe_folder(kf_dir)
+    queries = KeyframeSet(load_keyframe_folder(kf_dir), ff.names)  # once, as annotate
     rows, runners = [], []
     for name, cfg_path, kf in (("untuned", None, False), ("tuned", out / "tuned.toml", False),
                                ("untuned, keyframes", None, True),
@@ -75,7 +75,7 @@ def main() -> int:
 
         def once(models=models, cfg=cfg, kf=kf):  # packed once, as `mtanno annotate` does
             packed = pack_document(ff.X, ff.X.shape[0])
-            w = class_windows(ff.X, ff.names, queries, packed=packed) if kf else None
+            w = class_spans(ff.X, ff.names, queries, packed=packed) if kf else None
             annotate_document(ff.document, ff.X, models, config=cfg, windows=w, packed=packed)
 
         inproc = median_wall(once)

@@ -455,6 +455,21 @@ def test_annotate_document_in_windows_equals_masked_distances(seed, resolve):
                                        zip(models, masked, ev)), L, config=config)
     assert got[0] == want[0]
     assert np.array_equal(got[2], want[2])
+    # windows as (firsts, lasts) arrays, merged already (what class_spans gives): the same
+    arrays = {c: merged_spans(w, L) for c, w in windows.items()}
+    again = annotate_document("d", X, models, windows=arrays, config=config)
+    assert again[0] == got[0] and np.array_equal(again[2], got[2])
+
+
+def test_window_arrays_must_be_sorted_and_disjoint():
+    from mtanno.annotate import ClassModel, annotate_document
+
+    X = np.zeros((40, 30), np.uint8)
+    models = [ClassModel("a", np.zeros((40, 3)), np.ones(3))]
+    for bad in ((np.array([10, 0]), np.array([12, 5])), (np.array([0, 4]), np.array([5, 9])),
+                (np.array([0]), np.array([30]))):
+        with pytest.raises(MtannoError, match="spans must be sorted disjoint"):
+            annotate_document("d", X, models, windows={"a": bad})
 
 
 def test_segments_without_jit():

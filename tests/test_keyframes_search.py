@@ -230,7 +230,7 @@ def test_class_windows_without_jit():
 
 def check_class_windows(seed):
     """Windows of several classes found together equal each query's own windows."""
-    from mtanno.keyframes import class_windows, document_windows
+    from mtanno.keyframes import class_spans, class_windows, document_windows
 
     rng = np.random.default_rng(seed)
     X = _docs(rng, 1, p=0.15)["d0"]
@@ -238,6 +238,9 @@ def check_class_windows(seed):
     got = class_windows(X, NAMES, queries)
     assert got == {c: document_windows(X, NAMES, q) for c, q in queries.items()}
     assert class_windows(X, NAMES, KeyframeSet(queries, NAMES)) == got  # prepared once
+    spans = class_spans(X, NAMES, KeyframeSet(queries, NAMES))  # as arrays
+    assert {c: list(zip(s.tolist(), e.tolist())) for c, (s, e) in spans.items()} == got
+    assert all(s.dtype == np.int64 and e.dtype == np.int64 for s, e in spans.values())
 
 
 def test_keyframe_set_checks_its_documents():

@@ -8,7 +8,8 @@
 * :mod:`~mtanno.keyframes.search` — all chains of a query at once, through an index
   (:func:`search_index`) or by a direct scan of feature matrices (:func:`search_documents`);
   :class:`KeyframeHits` and candidate windows for annotation (:func:`document_windows`,
-  :func:`class_windows`; :class:`KeyframeSet` prepares several classes' queries once).
+  :func:`class_windows`, :func:`class_spans` as arrays; :class:`KeyframeSet` prepares several
+  classes' queries once).
 * :mod:`~mtanno.keyframes.learn` — learning a query per class from positive and negative
   training clips: the genetic algorithm of MBS09 §6 (``ga``), hard-template columns
   (``hard``, thesis) and MR06's column heuristic (``heuristic``).
@@ -33,6 +34,7 @@ from mtanno.keyframes.search import (
     KeyframeHits,
     KeyframeSet,
     chain_hits,
+    class_spans,
     class_windows,
     document_windows,
     search_documents,
@@ -41,7 +43,7 @@ from mtanno.keyframes.search import (
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeHits", "KeyframeQuery", "KeyframeSet",
-    "chain_hits",
+    "chain_hits", "class_spans",
     "class_windows", "document_windows", "format_query", "keyframe_files", "load_class_keyframes",
     "load_keyframe_folder", "load_keyframes",
     "save_keyframes", "search_documents", "search_index", "stiffness_bounds",

@@ -39,7 +39,8 @@ from mtanno.keyframes.model import (
     tolerant_patterns,
 )
 
-__all__ = ["Intervals", "KeyframeHits", "KeyframeSet", "chain_hits", "class_windows",
+__all__ = ["Intervals", "KeyframeHits", "KeyframeSet", "chain_hits", "class_spans",
+           "class_windows",
            "document_windows", "search_documents", "search_index"]
 
 Intervals = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -484,6 +485,13 @@ class KeyframeSet:
         """Candidate windows [(first, last)] (0-based inclusive) of every class in one
         bit-packed document (:func:`mtanno.templates.match.pack_document`, frames × words):
         its keyframe hits widened by the query's extension, clipped and merged (MBS09 §5)."""
+        return {cls: list(zip(s.tolist(), e.tolist()))
+                for cls, (s, e) in self.spans(packed).items()}
+
+    def spans(self, packed: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """:meth:`windows` as arrays: class → (firsts, lasts), int64, sorted, disjoint and
+        not touching — the form :func:`mtanno.annotate.annotate_document` takes without
+        converting."""
         words = (len(self.names) + 63) // 64
         if not (isinstance(packed, np.ndarray) and packed.dtype == np.uint64
                 and packed.ndim == 2 and packed.shape[1] == words):
@@ -496,9 +504,8 @@ class KeyframeSet:
         k = 0
         for cls, q in self.queries.items():  # chains, hits and windows: one kernel call
             lo, hi, left, right = self._chains[cls]
-            s, e = _kernels.chain_windows(starts, ends, offsets[k:k + q.n + 1], lo, hi, left,
-                                          right, packed.shape[0])
-            out[cls] = list(zip(s.tolist(), e.tolist()))
+            out[cls] = _kernels.chain_windows(starts, ends, offsets[k:k + q.n + 1], lo, hi,
+                                              left, right, packed.shape[0])
             k += q.n
         return out
 
@@ -512,6 +519,16 @@ def class_windows(X: np.ndarray, names: Sequence[str],
     a query are absent, i.e. matched everywhere. ``queries``: class → query, or a
     :class:`KeyframeSet` prepared once for a batch of documents. ``packed``: the document
     already bit-packed (:func:`mtanno.templates.match.pack_document`), to reuse it."""
+    return {cls: list(zip(s.tolist(), e.tolist())) for cls, (s, e) in
+            class_spans(X, names, queries, feature_set=feature_set, packed=packed).items()}
+
+
+def class_spans(X: np.ndarray, names: Sequence[str],
+                queries: dict[str, KeyframeQuery] | KeyframeSet, *,
+                feature_set: str | None = None, packed: np.ndarray | None = None,
+                ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """:func:`class_windows` as arrays (:meth:`KeyframeSet.spans`): class → (firsts,
+    lasts), what ``mtanno annotate`` passes on without converting."""
     from mtanno.templates.match import pack_document
 
     X = np.asarray(X)
@@ -528,8 +545,8 @@ def class_windows(X: np.ndarray, names: Sequence[str],
         if queries.names != tuple(names):
             raise MtannoError("keyframe set prepared for other feature rows than the "
                               "document's")
-        return queries.windows(packed)
-    return KeyframeSet(queries, names, feature_set=feature_set).windows(packed)
+        return queries.spans(packed)
+    return KeyframeSet(queries, names, feature_set=feature_set).spans(packed)
 
 
 def warm_up() -> None:

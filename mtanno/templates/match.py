@@ -498,11 +498,20 @@ def check_spans(firsts, lasts, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
     arrays: the windows that :meth:`PreparedTemplate.match_spans` matches and the readers
     of its output look inside (:func:`mtanno.merged_spans` makes them)."""
     a, b = np.ascontiguousarray(firsts, np.int64), np.ascontiguousarray(lasts, np.int64)
-    if a.shape != b.shape or a.ndim != 1 or (len(a) and (
-            a[0] < 0 or b[-1] >= n_frames or np.any(b < a - 1) or np.any(a[1:] <= b[:-1]))):
+    if a.shape != b.shape or a.ndim != 1 or not _spans_ok(a, b, n_frames):
         raise MtannoError(f"spans must be sorted disjoint frame ranges inside the {n_frames} "
                           "frames")
     return a, b
+
+
+@numba.njit(cache=True)
+def _spans_ok(a, b, n):
+    """Ranges [a[i], b[i]] sorted, disjoint and inside 0 … n − 1 (empty ones: b = a − 1)
+    — one pass instead of several numpy calls (annotation checks them per class)."""
+    for i in range(a.shape[0]):
+        if b[i] < a[i] - 1 or (i > 0 and a[i] <= b[i - 1]):
+            return False
+    return a.shape[0] == 0 or (a[0] >= 0 and b[-1] < n)
 
 
 def pack_document(X: np.ndarray, n_features: int) -> np.ndarray:
