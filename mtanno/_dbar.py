@@ -219,16 +219,21 @@ def _pieces(start, cand, n, begins):
 
 
 @numba.njit(cache=True)
-def reference_dbar_kernel(delta, start, tau, max_hits, dbar, span_first, span_last):
-    """Reference Δ̄ into ``dbar`` (filled with ∞ by the caller) over the sorted disjoint
-    spans [span_first[i], span_last[i]] (Δ is read only inside them; matches never leave
-    them), at most ``max_hits`` picks. A span is cut into pieces that no candidate's match
-    crosses (a piece's picks neither fill nor block frames of another; pieces of fewer
-    than ``_PIECE`` candidates are joined), each solved on its own by :func:`_split_dbar`,
-    or by :func:`_greedy_dbar` where that is not exact; all spans by :func:`_greedy_dbar`
-    if the cap bites. Returns the picks, or −1 if a pick's start lies before its span or
-    after its end."""
+def reference_dbar_kernel(delta, start, tau, max_hits, dbar, span_first, span_last,
+                          fill=False):
+    """Reference Δ̄ into ``dbar`` over the sorted disjoint spans [span_first[i], span_last[i]]
+    (Δ is read only inside them; matches never leave them), at most ``max_hits`` picks;
+    the spans of ``dbar`` must be ∞ on entry (the caller fills them, or ``fill``: this
+    kernel, leaving ``dbar`` outside the spans as it was). A span is cut into pieces
+    that no candidate's match crosses (a piece's picks neither fill nor block frames of
+    another; pieces of fewer than ``_PIECE`` candidates are joined), each solved on its
+    own by :func:`_split_dbar`, or by :func:`_greedy_dbar` where that is not exact; all
+    spans by :func:`_greedy_dbar` if the cap bites. Returns the picks, or −1 if a pick's
+    start lies before its span or after its end."""
     bits = delta.view(np.uint64)
+    if fill:
+        for w in range(span_first.shape[0]):
+            dbar[span_first[w]:span_last[w] + 1] = np.inf
     m = 0
     for w in range(span_first.shape[0]):
         c = 0

@@ -340,6 +340,38 @@ def write_class_config(path: str | os.PathLike, cfg: ClassConfig, *,
                              encoding="utf-8")
 
 
+def _reference_in_spans(delta, start, tau: float, max_hits: int | None, out: np.ndarray,
+                        spans) -> tuple[np.ndarray, np.ndarray]:
+    """The reference Δ̄ written into ``out`` inside ``spans`` only (``out`` elsewhere left
+    as it was): for :func:`label_document` without its matrix. Returns the spans checked
+    and with touching ones joined (where the row holds Δ̄, for :func:`_row_spans`)."""
+    from mtanno.templates.match import check_spans
+
+    first, last = check_spans(*spans, out.shape[0])
+    cap = np.iinfo(np.int64).max if max_hits is None else int(max_hits)
+    if reference_dbar_kernel(np.ascontiguousarray(delta, dtype=np.float64),
+                             np.ascontiguousarray(start, dtype=np.int64), float(check_tau(tau)),
+                             cap, out, first, last, True) < 0:
+        raise MtannoError("a match with Δ ≤ τ starts before its window or after its end "
+                          "frame")
+    if len(first) > 1:
+        keep = np.ones(len(first), bool)
+        keep[1:] = first[1:] > last[:-1] + 1  # a span that touches the one before joins it
+        first, last = first[keep], np.append(last[np.flatnonzero(keep)[1:] - 1], last[-1])
+    return first, last
+
+
+def _row_spans(per_row: Sequence[tuple[np.ndarray, np.ndarray] | None], L: int):
+    """(firsts, lasts, offsets) of :func:`segments_from_labels`' ``row_spans``: each row's
+    spans, or the whole document for a row given as None."""
+    whole = (np.zeros(1, np.int64), np.full(1, L - 1, np.int64))
+    parts = [whole if sp is None else sp for sp in per_row]
+    offsets = np.zeros(len(parts) + 1, np.int64)
+    np.cumsum([len(a) for a, _ in parts], out=offsets[1:])
+    return (np.concatenate([a for a, _ in parts]), np.concatenate([b for _, b in parts]),
+            offsets)
+
+
 def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
                    variant: str = "reference", max_hits: int | None = None,
                    out: np.ndarray | None = None,
@@ -395,28 +427,27 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
 
 
 @numba.njit(cache=True)
-def _extend(dbar, s, t):
-    """Walk outward from [s, t] while Δ̄ does not rise (algorithms.md §7 step 4)."""
-    n = dbar.shape[0]
+def _extend(dbar, s, t, lo, hi):
+    """Walk outward from [s, t] while Δ̄ does not rise (algorithms.md §7 step 4), inside
+    frames lo … hi (where the row holds Δ̄: outside, it would be ∞ and stop the walk)."""
     r = s
-    while r > 0 and dbar[r - 1] <= dbar[r]:
+    while r > lo and dbar[r - 1] <= dbar[r]:
         r -= 1
     u = t
-    while u + 1 < n and dbar[u + 1] <= dbar[u]:
+    while u < hi and dbar[u + 1] <= dbar[u]:
         u += 1
     return r, u
 
 
 @numba.njit(cache=True)
-def _extend_unclaimed(dbar, labels, p, s, t):
+def _extend_unclaimed(dbar, labels, p, s, t, lo, hi):
     """:func:`_extend` that walks only over frames whose label is none or ``p`` (boundary
     refinement, issue 10: the extension never runs into another class's frames)."""
-    n = dbar.shape[0]
     r = s
-    while r > 0 and dbar[r - 1] <= dbar[r] and (labels[r - 1] < 0 or labels[r - 1] == p):
+    while r > lo and dbar[r - 1] <= dbar[r] and (labels[r - 1] < 0 or labels[r - 1] == p):
         r -= 1
     u = t
-    while u + 1 < n and dbar[u + 1] <= dbar[u] and (labels[u + 1] < 0 or labels[u + 1] == p):
+    while u < hi and dbar[u + 1] <= dbar[u] and (labels[u + 1] < 0 or labels[u + 1] == p):
         u += 1
     return r, u
 
@@ -442,39 +473,62 @@ def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
-def _frame_labels(dbars, labels):
+def _frame_labels(dbars, firsts, lasts, offsets, labels):
     """Each frame's label: the row with the smallest Δ̄ (ties → smaller row), −1 where
-    every Δ̄ is ∞. Rows are read in order, a block of frames at a time (contiguous loads
-    instead of one load per row and frame)."""
+    every Δ̄ is ∞. Row p holds Δ̄ only in its spans [firsts[i], lasts[i]], i in
+    offsets[p] … offsets[p + 1] − 1 (sorted, disjoint; elsewhere it counts as ∞ and is not
+    read). Rows are read in order, a block of frames at a time (contiguous loads instead of
+    one load per row and frame)."""
     P, L = dbars.shape
     block = 1024
     best = np.empty(block)
+    at = offsets[:-1].copy()  # each row's first span not yet behind the block
     for j0 in range(0, L, block):
-        m = min(block, L - j0)
-        best[:m] = np.inf
-        lab = labels[j0:j0 + m]
+        j1 = min(L, j0 + block)
+        best[:j1 - j0] = np.inf
+        lab = labels[j0:j1]
         lab[:] = -1
         for p in range(P):
-            row = dbars[p, j0:j0 + m]
-            for j in range(m):  # selects, not branches: the loop vectorizes
-                v = row[j]
-                b = best[j]
-                t = v < b
-                best[j] = v if t else b
-                lab[j] = p if t else lab[j]
+            i = at[p]
+            while i < offsets[p + 1] and lasts[i] < j0:
+                i += 1
+            at[p] = i
+            while i < offsets[p + 1] and firsts[i] < j1:
+                a = max(firsts[i], j0) - j0
+                row = dbars[p, j0:j1]
+                for j in range(a, min(lasts[i] + 1, j1) - j0):  # selects: it vectorizes
+                    v = row[j]
+                    b = best[j]
+                    t = v < b
+                    best[j] = v if t else b
+                    lab[j] = p if t else lab[j]
+                i += 1
+
+
+@numba.njit(cache=True, inline="always")
+def _span_of(firsts, lo, hi, frame):
+    """The index in lo … hi − 1 of the last span starting at or before ``frame``."""
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if firsts[mid] <= frame:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 @numba.njit(cache=True)
-def _label_runs(dbars, extend, rank, out_p, out_s, out_t, out_cost):
-    """Segments of a Δ̄ matrix (labels × frames): each frame's label is the smallest Δ̄
-    (ties → smaller label, none where all are ∞); maximal runs of one label, extended
-    while Δ̄ of the label does not rise (``extend`` 1; 2: only over frames of no other
-    label; 0: not extended), merged per label where they overlap, with the smallest Δ̄
-    inside. Writes (label, start, end, cost) sorted by start, end and ``rank`` of the
-    label (the order of the label names); returns their number."""
+def _label_runs(dbars, firsts, lasts, offsets, extend, rank, out_p, out_s, out_t, out_cost):
+    """Segments of a Δ̄ matrix (labels × frames; row p valid in its spans only, as for
+    :func:`_frame_labels`): each frame's label is the smallest Δ̄ (ties → smaller label,
+    none where all are ∞); maximal runs of one label, extended while Δ̄ of the label does
+    not rise (``extend`` 1; 2: only over frames of no other label; 0: not extended),
+    merged per label where they overlap, with the smallest Δ̄ inside. Writes (label,
+    start, end, cost) sorted by start, end and ``rank`` of the label (the order of the
+    label names); returns their number."""
     P, L = dbars.shape
     labels = np.empty(L, np.int64)
-    _frame_labels(dbars, labels)
+    _frame_labels(dbars, firsts, lasts, offsets, labels)
     n = 0
     prev = -2
     s0 = 0
@@ -483,10 +537,13 @@ def _label_runs(dbars, extend, rank, out_p, out_s, out_t, out_cost):
         if j == L or lab != prev:
             if j > 0 and prev >= 0:
                 s, t = s0, j - 1
-                if extend == 2:
-                    s, t = _extend_unclaimed(dbars[prev], labels, prev, s, t)
-                elif extend:
-                    s, t = _extend(dbars[prev], s, t)
+                if extend:  # the walk stays inside the row's spans around the run
+                    lo = firsts[_span_of(firsts, offsets[prev], offsets[prev + 1], s)]
+                    hi = lasts[_span_of(firsts, offsets[prev], offsets[prev + 1], t)]
+                    if extend == 2:
+                        s, t = _extend_unclaimed(dbars[prev], labels, prev, s, t, lo, hi)
+                    else:
+                        s, t = _extend(dbars[prev], s, t, lo, hi)
                 out_p[n] = prev
                 out_s[n] = s
                 out_t[n] = t
@@ -526,10 +583,12 @@ def _label_runs(dbars, extend, rank, out_p, out_s, out_t, out_cost):
 
 
 def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
-                         extend: bool | str = True) -> list[Annotation]:
+                         extend: bool | str = True, row_spans=None) -> list[Annotation]:
     """Maximal runs of one label, extended (optional) and merged per label (§7 step 4).
     ``extend="unclaimed"`` walks only over frames that no other label has (boundary
-    refinement, issue 10)."""
+    refinement, issue 10). ``row_spans`` (internal, :func:`_row_spans`): (firsts, lasts,
+    offsets), the frames where each row holds Δ̄; elsewhere it counts as ∞ and is not read
+    (keyframe windows: the rows need not be filled outside them)."""
     dbars = np.ascontiguousarray(dbars, dtype=np.float64)
     L = dbars.shape[1]
     out_p = np.empty(L + 1, np.int64)
@@ -540,8 +599,15 @@ def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
         raise MtannoError(f"extend must be True, False or 'unclaimed', got {extend!r}")
     rank = np.empty(len(names), np.int64)  # rows sorted by (start, end, label name)
     rank[sorted(range(len(names)), key=lambda i: names[i])] = np.arange(len(names))
-    m = _label_runs(dbars, 2 if extend == "unclaimed" else int(bool(extend)), rank, out_p,
-                    out_s, out_t, cost)
+    P = dbars.shape[0]
+    if row_spans is None:  # every row valid everywhere
+        firsts, lasts = np.zeros(P, np.int64), np.full(P, L - 1, np.int64)
+        offsets = np.arange(P + 1, dtype=np.int64)
+    else:
+        firsts, lasts, offsets = row_spans
+    m = _label_runs(dbars, firsts, lasts, offsets,
+                    2 if extend == "unclaimed" else int(bool(extend)), rank, out_p, out_s,
+                    out_t, cost)
     return [Annotation(doc, s, t, names[p], c) for p, s, t, c in
             zip(out_p[:m].tolist(), out_s[:m].tolist(), out_t[:m].tolist(), cost[:m].tolist())]
 
@@ -715,7 +781,8 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                       dbar_variant: str = "reference", match_variant: str = "reference",
                       max_hits: int | None = None, extend: bool = True,
                       single_label: bool = False, packed: np.ndarray | None = None,
-                      ) -> tuple[list[Annotation], list[str], np.ndarray]:
+                      matrix: bool = True,
+                      ) -> tuple[list[Annotation], list[str], np.ndarray | None]:
     """Annotate one document (MBS09 §4–5): returns (segments, label names, Δ̄ matrix).
 
     Labels are the classes, or the superclasses of ``config`` joining them (classes not in
@@ -729,7 +796,8 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     Δ/τ per label instead of Δ̄. ``windows``: candidate windows per class, as
     :func:`class_deltas` takes them (:func:`mtanno.keyframes.class_spans`). ``packed``: X
     already bit-packed (:func:`mtanno.templates.match.pack_document`, as for
-    :func:`mtanno.keyframes.class_windows`), to pack it once.
+    :func:`mtanno.keyframes.class_windows`), to pack it once. ``matrix=False``: no matrix
+    (None; :func:`label_document`), which saves filling and reading it outside the windows.
     """
     config = config or ClassConfig()
     if not classes:
@@ -774,7 +842,7 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
 
     return label_document(doc, [c.name for c in classes], matches(), L, config=config,
                           dbar_variant=dbar_variant, max_hits=max_hits, extend=extend,
-                          single_label=single_label, spans=spans)
+                          single_label=single_label, spans=spans, matrix=matrix)
 
 
 def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
@@ -782,7 +850,8 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                    max_hits: int | None = None, extend: bool = True,
                    single_label: bool = False,
                    spans: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
-                   ) -> tuple[list[Annotation], list[str], np.ndarray]:
+                   matrix: bool = True,
+                   ) -> tuple[list[Annotation], list[str], np.ndarray | None]:
     """Segments of one document from its templates' distance functions (algorithms.md
     §7 steps 2–4, or the methods of issue 10 that ``config`` switches on).
 
@@ -807,6 +876,10 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     * ``single_label`` (default path only; the decoder's segments are a partition
       already): overlaps resolved frame by frame (:func:`single_label_segments`).
 
+    ``matrix=False``: the matrix is not returned (None), and in the default path the Δ̄
+    row of a class with ``spans`` is neither filled nor read outside them (the same
+    segments, less work where keyframe windows cover little of the document).
+
     Returns (segments sorted by start, end and label; label names; Δ̄ or Δ/τ matrix).
     """
     config = config or ClassConfig()
@@ -825,6 +898,10 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                 config.reject.get(name, config.reject_for(lab)))
 
     if not config.resolve:
+        # without the matrix, a row with windows is written and read inside them only
+        sparse = (not matrix and not single_label and dbar_variant == "reference"
+                  and all(n == 1 for n in count.values()))
+        row_spans: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         mat = np.empty((P, L))  # rows written by modified_delta; folded rows start at ∞
         for k, lab in enumerate(labels):
             if count[lab] > 1:
@@ -835,19 +912,26 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
             lab = member_of.get(name, name)
             tau, rho = limits(name, lab)
             k = labels.index(lab)
+            sp = (spans or {}).get(name)
+            if sparse and sp is not None:
+                row_spans[k] = _reference_in_spans(delta, start, min(tau, rho), max_hits,
+                                                   mat[k], sp)
+                written.add(k)
+                continue
             out = mat[k] if count[lab] == 1 else tmp
             modified_delta(delta, start, tau=min(tau, rho), variant=dbar_variant,
-                           max_hits=max_hits, out=out, spans=(spans or {}).get(name))
+                           max_hits=max_hits, out=out, spans=sp)
             if count[lab] > 1:
                 np.minimum(mat[k], tmp, out=mat[k])
             written.add(k)
         for k in set(range(P)) - written:  # a label whose templates gave no Δ
             mat[k].fill(np.inf)
         mode: bool | str = "unclaimed" if (extend and config.refine) else extend
-        rows = segments_from_labels(doc, labels, mat, extend=mode)
+        rows = segments_from_labels(doc, labels, mat, extend=mode,
+                                    row_spans=_row_spans(row_spans, L) if sparse else None)
         if single_label:
             rows = single_label_segments(doc, labels, mat, rows)
-        return rows, labels, mat
+        return rows, labels, (mat if matrix else None)
 
     from mtanno.decode import RowEvidence, decode_segments, evidence_sums, fold_label
 
@@ -907,7 +991,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     rows = [Annotation(doc, d.start, d.end, labels[d.label],
                        float(f"{d.cost * tau_at(d.label, d.end):.12g}")) for d in decoded]
     rows.sort(key=lambda a: (a.start, a.end, a.label))
-    return rows, labels, mat
+    return rows, labels, (mat if matrix else None)
 
 
 ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")
@@ -1202,7 +1286,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
                                        windows=windows, dbar_variant=dbar_variant,
                                        match_variant=match_variant, single_label=single_label,
-                                       packed=packed)
+                                       packed=packed, matrix=False)
     except MtannoError as exc:
         return str(exc)
     return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0

@@ -126,16 +126,19 @@ def keyframes(out: Path, clips: Path, repeats: int) -> None:
     ff = read_features(doc)
     models, _ = load_class_models(out / "mt")
     queries = KeyframeSet(load_keyframe_folder(kf), ff.names)  # once per batch, as annotate
-    annotate_document("w", ff.X[:, :3000], models)  # compiled kernels loaded before timing
-    class_windows(ff.X[:, :3000], ff.names, queries)
+    # compiled kernels loaded before timing
+    annotate_document("w", ff.X[:, :3000], models, matrix=False)
+    annotate_document("w", ff.X[:, :3000], models, matrix=False,
+                      windows=class_spans(ff.X[:, :3000], ff.names, queries))
 
     def plain():
-        annotate_document(ff.document, ff.X, models)
+        annotate_document(ff.document, ff.X, models, matrix=False)
 
     def with_keyframes():  # the document packed once for both, as `mtanno annotate` does
         packed = pack_document(ff.X, ff.X.shape[0])
         w = class_spans(ff.X, ff.names, queries, packed=packed)
-        annotate_document(ff.document, ff.X, models, windows=w, packed=packed)
+        annotate_document(ff.document, ff.X, models, windows=w, packed=packed,
+                          matrix=False)
 
     t0, t1 = median_wall(plain), median_wall(with_keyframes)
     scan = median_wall(lambda: class_spans(ff.X, ff.names, queries))

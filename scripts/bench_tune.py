@@ -76,7 +76,8 @@ def main() -> int:
         def once(models=models, cfg=cfg, kf=kf):  # packed once, as `mtanno annotate` does
             packed = pack_document(ff.X, ff.X.shape[0])
             w = class_spans(ff.X, ff.names, queries, packed=packed) if kf else None
-            annotate_document(ff.document, ff.X, models, config=cfg, windows=w, packed=packed)
+            annotate_document(ff.document, ff.X, models, config=cfg, windows=w, packed=packed,
+                              matrix=False)
 
         inproc = median_wall(once)
         runners.append(once)

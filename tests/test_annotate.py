@@ -461,6 +461,88 @@ def test_annotate_document_in_windows_equals_masked_distances(seed, resolve):
     assert again[0] == got[0] and np.array_equal(again[2], got[2])
 
 
+def check_rows_without_the_matrix(seed: int) -> None:
+    """annotate_document(matrix=False) fills and reads each class's Δ̄ row inside its
+    windows only: the same segments as with the matrix, for windows that overlap, touch,
+    lie at the document's ends or are empty, classes without windows, the extension over
+    unclaimed frames, and a hit cap."""
+    from mtanno.annotate import ClassModel, annotate_document
+
+    rng = np.random.default_rng(seed)
+    L = int(rng.integers(40, 260))
+    X = (np.cumsum(rng.random((40, L)) < 0.1, axis=1) % 2).astype(np.uint8)
+    names = ["a", "b", "c", "d"]
+    models = [ClassModel(n, X[:, s:s + k].astype(float), np.ones(k)) for n, s, k in
+              zip(names, rng.integers(0, L - 14, 4), rng.integers(3, 14, 4))]
+    windows = {}
+    for n in names[:3]:
+        cuts = np.sort(rng.choice(L + 1, size=2 * int(rng.integers(0, 4)), replace=False))
+        w = [(int(a), int(b) - 1) for a, b in zip(cuts[::2], cuts[1::2]) if b > a]
+        if w and rng.random() < 0.5:  # a window touching the one before
+            w.append((w[-1][1] + 1, min(L - 1, w[-1][1] + int(rng.integers(1, 30)))))
+        windows[n] = w
+    config = ClassConfig(refine=bool(seed % 2), tau={"a": 0.2, "b": 0.15, "c": 0.3, "d": 0.1})
+    cap = None if seed % 3 else 3
+    want = annotate_document("d", X, models, windows=windows, config=config, max_hits=cap)
+    got = annotate_document("d", X, models, windows=windows, config=config, max_hits=cap,
+                            matrix=False)
+    assert got[0] == want[0] and got[1] == want[1] and got[2] is None
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_rows_without_the_matrix(seed):
+    check_rows_without_the_matrix(seed)
+
+
+def test_rows_without_the_matrix_without_jit():
+    run_without_jit("test_annotate", "check_rows_without_the_matrix", (0,), (1,), (5,))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_segments_read_each_row_inside_its_spans_only(seed):
+    """segments_from_labels with row_spans: values outside a row's spans (here garbage,
+    even smaller than inside) are never read; the segments equal those of the matrix
+    with ∞ there."""
+    from mtanno.annotate import _row_spans
+
+    rng = np.random.default_rng(seed)
+    P, L = int(rng.integers(1, 5)), int(rng.integers(1, 120))
+    dense = np.round(rng.random((P, L)) * 0.2, 2)
+    garbage = dense.copy()
+    per_row = []
+    for p in range(P):
+        if rng.random() < 0.2:
+            per_row.append(None)  # a row valid everywhere
+            continue
+        cuts = np.sort(rng.choice(L + 1, size=2 * int(rng.integers(0, 4)), replace=False))
+        a, b = cuts[::2], cuts[1::2] - 1
+        keep = (b >= a) & np.concatenate(([True], a[1:] > b[:-1] + 1))  # not touching
+        a, b = a[keep], b[keep]
+        inside = np.zeros(L, bool)
+        for x, y in zip(a, b):
+            inside[x:y + 1] = True
+        dense[p, ~inside] = INF
+        garbage[p, ~inside] = rng.choice([-1.0, 0.0, np.nan], size=(~inside).sum())
+        per_row.append((a.astype(np.int64), b.astype(np.int64)))
+    names = [f"c{i}" for i in range(P)]
+    for extend in (True, False, "unclaimed"):
+        want = segments_from_labels("d", names, dense, extend=extend)
+        got = segments_from_labels("d", names, garbage, extend=extend,
+                                   row_spans=_row_spans(per_row, L))
+        assert got == want
+
+
+def test_touching_windows_are_joined_for_the_rows():
+    """A window that touches the one before is one stretch of the row (the extension may
+    walk across)."""
+    from mtanno.annotate import _reference_in_spans
+
+    delta = np.full(12, INF)
+    first, last = _reference_in_spans(delta, np.full(12, -1), 0.13, None, np.empty(12),
+                                      (np.array([0, 4, 6, 10]), np.array([3, 5, 8, 11])))
+    assert first.tolist() == [0, 10] and last.tolist() == [8, 11]
+
+
 def test_window_arrays_must_be_sorted_and_disjoint():
     from mtanno.annotate import ClassModel, annotate_document
 
