@@ -83,11 +83,11 @@ def _decode(delta, start, scale, ceiling, cum_ev, weight, seg_cost, slack, first
             d = delta[p, ell]
             if not d <= ceiling[p]:  # ∞ (no match ends here), NaN, or rejected
                 continue
-            a = start[p, ell]
-            if a < 0:
-                continue
             per = d * scale[p]
             if per >= 1.0:  # never cheaper than unlabelled frames (weights are ≥ 0)
+                continue
+            a = start[p, ell]  # read only now: most matches cost more than τ
+            if a < 0:
                 continue
             lo = max(first[ell], a - slack)
             hi = min(ell, a + slack)
