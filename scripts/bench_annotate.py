@@ -75,10 +75,14 @@ def median_wall(fn, n: int = 7) -> float:
     return statistics.median(ts)
 
 
-def interleaved_cpu(fns, n: int = 15) -> list[float]:
-    """Median process CPU seconds of each of ``fns``, called in turn ``n`` times: ratios
-    between them less exposed to other jobs on a 2-core machine than wall times of one
-    function after another."""
+def interleaved_cpu(fns, n: int = 15, warmup: int = 2) -> list[float]:
+    """Median process CPU seconds of each of ``fns``, called in turn ``n`` times after
+    ``warmup`` untimed rounds: ratios between them less exposed to other jobs on a 2-core
+    machine than wall times of one function after another (the first rounds after a
+    process's start ran up to twice as slow, for all of them)."""
+    for _ in range(warmup):
+        for fn in fns:
+            fn()
     cpu: list[list[float]] = [[] for _ in fns]
     for _ in range(n):
         for i, fn in enumerate(fns):
