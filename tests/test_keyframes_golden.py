@@ -64,6 +64,7 @@ def clips():
 
 def reference_query(source: str, cls: str, extension: Extension) -> KeyframeQuery:
     """A KeyframeQuery from the rows of manual_keyframes.csv."""
+    require_data()
     rows = [r for r in _rows(KF / "manual_keyframes.csv")
             if r["source"] == source and r["class"] == cls]
     rows.sort(key=lambda r: int(r["keyframe"]))

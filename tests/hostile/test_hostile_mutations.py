@@ -70,11 +70,11 @@ def motion_sources(tmp_path_factory):
 
         clips = bandai_clips("set1.tar.xz")
         bvh = min(clips, key=lambda p: p.stat().st_size) if clips else None
-    if bvh is None:
-        from test_bvh import SMALL_BVH
+    if bvh is None:  # a rig that a shipped skeleton map fits (the CMU BVH layout)
+        from test_bvh import CGSPEED_LIKE
 
-        bvh = d / "small.bvh"
-        bvh.write_text(SMALL_BVH)
+        bvh = d / "cmu_like.bvh"
+        bvh.write_text(CGSPEED_LIKE + " ".join(["0"] * (6 + 3 * 30)) + "\n")
     return amc, asf, bvh
 
 
