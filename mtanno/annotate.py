@@ -340,6 +340,10 @@ def write_class_config(path: str | os.PathLike, cfg: ClassConfig, *,
                              encoding="utf-8")
 
 
+#: What the reference Δ̄ says of start frames that no matcher gives.
+_START_OUTSIDE = "a match with Δ ≤ τ starts before its window or after its end frame"
+
+
 def _reference_in_spans(delta, start, tau: float, max_hits: int | None, out: np.ndarray,
                         spans) -> tuple[np.ndarray, np.ndarray]:
     """The reference Δ̄ written into ``out`` inside ``spans`` only (``out`` elsewhere left
@@ -352,8 +356,7 @@ def _reference_in_spans(delta, start, tau: float, max_hits: int | None, out: np.
     if reference_dbar_kernel(np.ascontiguousarray(delta, dtype=np.float64),
                              np.ascontiguousarray(start, dtype=np.int64), float(check_tau(tau)),
                              cap, out, first, last, True) < 0:
-        raise MtannoError("a match with Δ ≤ τ starts before its window or after its end "
-                          "frame")
+        raise MtannoError(_START_OUTSIDE)
     if len(first) > 1:
         keep = np.ones(len(first), bool)
         keep[1:] = first[1:] > last[:-1] + 1  # a span that touches the one before joins it
@@ -411,8 +414,7 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
 
             first, last = check_spans(*spans, L)
         if reference_dbar_kernel(delta, start, float(tau), cap, dbar, first, last) < 0:
-            raise MtannoError("a match with Δ ≤ τ starts before its window or after its end "
-                              "frame")
+            raise MtannoError(_START_OUTSIDE)
         return dbar
     if variant == "paper":
         d = np.where(np.isfinite(delta), delta, np.inf)
