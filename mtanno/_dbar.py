@@ -9,8 +9,10 @@ frames is its smallest candidate (a range-minimum query on a segment tree); the 
 the stretch into the empty frames left of its start and right of its end, which are solved
 in turn, in any order. That is exact as long as no pick reaches left into empty frames
 outside its stretch (a match that crosses the path of another; the (1,2) and (2,1) steps
-allow it); when one does, the span is recomputed by :func:`_greedy_dbar`.
-:func:`reference_dbar_kernel` runs the two per span. Frames are 0-based.
+allow it). :func:`reference_dbar_kernel` cuts each span into pieces that no match crosses
+and solves each piece by :func:`_split_dbar`, or by :func:`_greedy_dbar` where a pick
+reaches out of its stretch (and everything by :func:`_greedy_dbar` when a hit cap bites).
+Frames are 0-based.
 """
 
 from __future__ import annotations
@@ -150,12 +152,12 @@ def _bisect(cand, lo, hi, frame):
 
 @numba.njit(cache=True)
 def _split_dbar(delta, start, dbar, cand, n, tree, stack, x0):
-    """Δ̄ of one span starting at frame ``x0`` by divide and conquer (module docstring).
-    ``cand[:n]``: the span's candidate ends (Δ ≤ τ, increasing); ``tree`` (≥ 2·size, size
+    """Δ̄ of one piece of a span, starting at frame ``x0``, by divide and conquer (module
+    docstring). ``cand[:n]``: the piece's candidate ends (Δ ≤ τ, increasing); ``tree`` (≥ 2·size, size
     the power of two ≥ n) and ``stack`` (≥ (n + 1) × 4) are work space. Writes the picks'
     costs into ``dbar`` (∞ in the span on entry) and returns the number of picks, or −1
     when a pick starts left of the filled frames before its stretch, or after its end
-    (the caller then recomputes the span with :func:`_greedy_dbar`)."""
+    (the caller then recomputes the piece with :func:`_greedy_dbar`)."""
     size = 1
     while size < n:
         size *= 2

@@ -389,19 +389,17 @@ class _Scanner:
         n = self.masks.shape[0]
         L = packed.shape[0]
         offsets = np.zeros(n + 1, np.int64)
+        none = np.zeros(0, np.int64)
         if n <= _ONE_BY_ONE:
             s, e = np.empty(L + 1, np.int64), np.empty(L + 1, np.int64)
-            starts, ends = [], []
+            starts, ends = [none], [none]
             for k in range(n):
                 c = _kernels.keyframe_runs(packed, self.masks[k], self.values[k],
                                            int(self.tol[k]), s, e)
                 starts.append(s[:c].copy())
                 ends.append(e[:c].copy())
                 offsets[k + 1] = offsets[k] + c
-            none = np.zeros(0, np.int64)
-            return (np.concatenate(starts) if n else none, np.concatenate(ends) if n else none,
-                    offsets)
-        none = np.zeros(0, np.int64)
+            return np.concatenate(starts), np.concatenate(ends), offsets
         pos = np.empty(L + 1, np.int64)
         sets = np.empty(L + 1, np.uint64)
         parts = []
