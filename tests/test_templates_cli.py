@@ -1,4 +1,4 @@
-"""``mtanno learn-mt`` and ``mtanno mt show|mirror|quantize`` through the command line."""
+"""``mtanno learn-mt`` and ``mtanno mt show|mirror|scale|quantize`` through the command line."""
 
 from __future__ import annotations
 
@@ -178,10 +178,43 @@ def test_mt_quantize_and_mirror(mt_file, tmp_path):
     assert load_template(tmp_path / "p.json").class_name == "pose"
 
 
+def test_mt_scale(mt_file, tmp_path):
+    from mtanno.tuning.tempo import time_scaled
+
+    mt = load_template(mt_file)
+    for factor in (0.6, 1.6):
+        out = tmp_path / f"s{factor}.json"
+        r = run(["mt", "scale", str(mt_file), "--factor", str(factor), "-o", str(out)])
+        assert r.exit_code == 0
+        got = load_template(out)
+        assert got == time_scaled(mt, factor)
+        assert got.class_name == mt.class_name and got.params["time_scale"] == factor
+        assert f"{mt.length} -> {got.length} columns" in r.output
+    # the copy is one of the class's templates in an annotation configuration
+    cfg = tmp_path / "classes.toml"
+    cfg.write_text('[templates]\nsquat = ["s1.6.json"]\n')
+    doc = tmp_path / "doc.parquet"
+    write_doc(doc, (np.random.default_rng(1).random((40, 30)) < 0.3).astype(np.uint8))
+    table = tmp_path / "ann.csv"
+    r = run(["annotate", "--mt", str(mt_file.parent), "--classes", str(cfg), str(doc), "-o",
+             str(table), "-q"])
+    assert r.exit_code == 0
+    meta = json.loads((tmp_path / "ann.csv.meta.json").read_text())
+    assert any(t["path"].endswith("s1.6.json") for t in meta["templates"])
+    # bad factors and an output that is the input: one line, exit 2, nothing written
+    for factor in ("0", "-1", "nan", "11"):
+        r = run(["mt", "scale", str(mt_file), "--factor", factor, "-o", str(tmp_path / "x.json")])
+        assert r.exit_code == 2 and "factor" in r.output and "Traceback" not in r.output
+    r = run(["mt", "scale", str(mt_file), "--factor", "0.6", "-o", str(mt_file)])
+    assert r.exit_code == 2 and "would overwrite an input" in r.output
+    assert load_template(mt_file) == mt and not (tmp_path / "x.json").exists()
+
+
 def test_mt_bad_input_exit_2(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{\n  "schema": "mtanno.template/1",\n  oops\n}')
     for args in (["show", str(bad)], ["mirror", str(bad), "-o", str(tmp_path / "o.json")],
+                 ["scale", str(bad), "--factor", "0.6", "-o", str(tmp_path / "o.json")],
                  ["quantize", str(bad), "--delta", "0.1", "-o", str(tmp_path / "o.json")]):
         r = run(["mt", *args])
         assert r.exit_code == 2 and f"{bad}:3: malformed JSON" in r.output
@@ -193,7 +226,8 @@ def test_mt_bad_input_exit_2(tmp_path):
 
 
 def test_help_texts():
-    for args in (["learn-mt"], ["mt"], ["mt", "show"], ["mt", "mirror"], ["mt", "quantize"]):
+    for args in (["learn-mt"], ["mt"], ["mt", "show"], ["mt", "mirror"], ["mt", "scale"],
+                 ["mt", "quantize"]):
         r = run([*args, "--help"])
         assert r.exit_code == 0 and "Usage:" in r.output
     text = run(["learn-mt", "--help"]).output

@@ -1,4 +1,4 @@
-"""Commands of the motion-template stage: ``learn-mt`` and the ``mt`` group (show, mirror,
+"""Commands of the motion-template stage: ``learn-mt`` and the ``mt`` group (show, mirror, scale,
 quantize). Exit codes: 0 success, 1 some classes failed (the others were written), 2 usage
 error or bad input."""
 
@@ -227,6 +227,37 @@ def mt_mirror_cmd(template, output, name):
     mt = mirror(load_template(template), name=name)
     save_template(output, mt)
     click.echo(f"mt mirror: {mt.class_name} -> {output}", err=True)
+
+
+@mt_group.command("scale", epilog="Exit codes: 0 success, 2 bad input.")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.option("--factor", required=True, type=click.FloatRange(0.1, 10),
+              help="Performances this many times as long: 0.6 for faster ones, 1.6 for "
+                   "slower ones (0.1–10).")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output template file.")
+@user_errors(2)
+def mt_scale_cmd(template, factor, output):
+    """Time-scale a template for faster or slower performers (issue 10).
+
+    Matching lets a match be half to twice as long as the template (the DTW steps), so a
+    performer much faster or slower than every training example is not found at all. The
+    copy has round(factor × length) columns, each the template's column nearest in time
+    with its weight; it keeps the class name and records the factor as `time_scale`. List
+    it under `[templates]` of an `annotate --classes` configuration to match it beside
+    the template (`mtanno tune` makes such copies itself where cross-validation favours
+    them).
+    """
+    from mtanno.output import check_outputs
+    from mtanno.templates.model import load_template, save_template
+    from mtanno.tuning.tempo import time_scaled
+
+    check_outputs([output], [template])
+    mt = load_template(template)
+    copy = time_scaled(mt, factor)
+    save_template(output, copy)
+    click.echo(f"mt scale: {mt.class_name}, {mt.length} -> {copy.length} columns "
+               f"(factor {factor:g}) -> {output}", err=True)
 
 
 @mt_group.command("quantize", epilog="Exit codes: 0 success, 2 bad input.")
