@@ -175,3 +175,57 @@ def test_windows_of_a_few_template_lengths_equal_naive(variant):
             dn, sn = match_naive(V, w, X[:, a:b + 1], variant=variant)
             np.testing.assert_array_equal(delta[a:b + 1], dn)
             np.testing.assert_array_equal(start[a:b + 1], np.where(sn >= 0, sn + a, sn))
+
+
+def _lengths_by_paths(n, steps):
+    """Every number of document frames a path from column 0 to column n − 1 can cover
+    (exhaustive, small n; steps advancing the document only are not allowed here)."""
+    seen, todo, out = set(), [(0, 0)], set()
+    while todo:
+        r, d = todo.pop()
+        if (r, d) in seen:
+            continue
+        seen.add((r, d))
+        if r == n - 1:
+            out.add(d + 1)
+        for a, b in steps:
+            if r + a <= n - 1:
+                todo.append((r + a, d + b))
+    return out
+
+
+@pytest.mark.parametrize("steps", [s for s, _ in STEP_SETTINGS if all(a > 0 for a, _ in s)])
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 7, 12])
+def test_match_lengths_against_all_paths(n, steps):
+    from mtanno.templates.match import match_lengths
+
+    got = _lengths_by_paths(n, steps)
+    assert match_lengths(np.ones(n), variant="paper", steps=steps) == (min(got), max(got))
+
+
+def test_match_lengths_default_steps_and_the_kernel():
+    """A zero-cost match of a template whose first and last columns ask for a feature that
+    is on at two frames only exists exactly when their distance is in the range."""
+    from mtanno.templates.match import column_repeats, match_lengths
+
+    w = np.array([1.0, 2.4, 0.2, 1.6, 1.0])  # expands to 1 + 2 + 1 + 2 + 1 = 7 columns
+    assert column_repeats(w).sum() == 7
+    lo, hi = match_lengths(w)
+    assert (lo, hi) == (7 // 2 + 1, 2 * 7 - 1)
+    V = np.full((1, 5), 0.5)
+    V[0, 0] = V[0, -1] = 1.0
+    for span in range(1, 20):
+        X = np.zeros((1, 30), dtype=np.uint8)
+        X[0, 5] = X[0, 5 + span - 1] = 1
+        delta, start = match_template(V, w, X)
+        zero = delta[5 + span - 1] == 0 and start[5 + span - 1] == 5
+        assert zero == (lo <= span <= hi), span
+    assert match_lengths(np.ones(4), steps=((1, 1), (0, 1))) == (4, None)
+    assert match_lengths(np.ones(3), variant="paper") == (2, 5)
+    for bad in ([], [np.nan], [-1.0], [[1.0]]):
+        with pytest.raises(MtannoError):
+            match_lengths(np.array(bad))
+    with pytest.raises(MtannoError, match="no warping path"):
+        match_lengths(np.ones(4), variant="paper", steps=((2, 1),))
+    with pytest.raises(MtannoError, match="variant"):
+        match_lengths(np.ones(4), variant="fast")

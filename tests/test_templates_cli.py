@@ -149,7 +149,12 @@ def test_mt_show(mt_file):
     assert "template      squat (soft, not quantized)" in r.output
     assert f"length        {mt.length} columns" in r.output
     assert f"final cost {mt.final_cost:.6g}" in r.output
-    assert "3 example(s)" in r.output and "squat_0" in r.output
+    assert "3 example(s), 6-8 frames" in r.output and "squat_0" in r.output
+    from mtanno.templates.match import match_lengths
+
+    lo, hi = match_lengths(mt.weights)
+    assert f"matches       performances of {lo}-{hi} frames" in r.output
+    assert "examples near the matchable lengths" not in r.output  # 6-8 frames well inside
     assert "features with most non-wildcard entries (δ = 0.1" in r.output
     r = run(["mt", "show", str(mt_file), "--picture", "--delta", "0", "--top", "0",
              "--files"])
@@ -190,6 +195,9 @@ def test_mt_scale(mt_file, tmp_path):
         assert got == time_scaled(mt, factor)
         assert got.class_name == mt.class_name and got.params["time_scale"] == factor
         assert f"{mt.length} -> {got.length} columns" in r.output
+        # the copy's matchable lengths no longer hold its training examples comfortably
+        shown = run(["mt", "show", str(out), "--top", "0"]).output
+        assert "examples near the matchable lengths" in shown
     # the copy is one of the class's templates in an annotation configuration
     cfg = tmp_path / "classes.toml"
     cfg.write_text('[templates]\nsquat = ["s1.6.json"]\n')

@@ -156,11 +156,13 @@ _PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
 def mt_show_cmd(template, delta, top, picture, files):
     """Print a readable summary of a motion template.
 
-    Shows the class, kind, length, weights, learning result (iterations and final
-    spread = largest normalised alignment cost), the training files, and the features
+    Shows the class, kind, length, the performance lengths a match can cover, weights,
+    learning result (iterations and final spread = largest normalised alignment cost), the
+    training files with their lengths, and the features
     with the most non-wildcard entries after quantization (those the matching relies
     on); --picture draws the quantized template.
     """
+    from mtanno.templates.match import column_repeats, match_lengths
     from mtanno.templates.model import load_template, quantize, rank_features
 
     mt = load_template(template)
@@ -177,6 +179,10 @@ def mt_show_cmd(template, delta, top, picture, files):
     echo(f"file          {template}")
     echo(f"features      {mt.n_features} of feature set {mt.feature_set}, {mt.fps:g} Hz")
     echo(f"length        {mt.length} columns ({mt.length / mt.fps:.2f} s)")
+    lo, hi = match_lengths(mt.weights)
+    echo(f"matches       performances of {lo}-{hi} frames ({lo / mt.fps:.2f}-{hi / mt.fps:.2f} s;"
+         f" the DTW steps allow half to twice its {int(column_repeats(mt.weights).sum())} "
+         f"matched columns)")
     echo(f"weights       sum {w.sum():.3f}, min {w.min():.3f}, mean {w.mean():.3f}, "
          f"max {w.max():.3f}")
     hist = mt.history.get("max", [])
@@ -184,7 +190,12 @@ def mt_show_cmd(template, delta, top, picture, files):
     echo(f"learning      {mt.iterations} iteration(s), final cost {mt.final_cost:.6g}"
          f"{hist_txt}")
     n = len(mt.training)
-    echo(f"training      {n} example(s)")
+    spans = [int(t["frames"][1]) - int(t["frames"][0]) + 1 for t in mt.training
+             if isinstance(t.get("frames"), list) and len(t["frames"]) == 2]
+    echo(f"training      {n} example(s)" + (f", {min(spans)}-{max(spans)} frames" if spans else ""))
+    if spans and (min(spans) < 1.25 * lo or max(spans) > hi / 1.25):
+        echo("  (examples near the matchable lengths: a faster or slower performer may be "
+             "missed; `mtanno mt scale` makes a copy for them)")
     shown = mt.training if files else mt.training[:3]
     for t in shown:
         fr = t.get("frames", ["?", "?"])

@@ -53,7 +53,7 @@ import numpy as np
 from mtanno.errors import MtannoError
 
 __all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate",
-           "check_spans", "column_repeats", "match_documents", "match_template"]
+           "check_spans", "column_repeats", "match_documents", "match_lengths", "match_template"]
 
 DEFAULT_STEPS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (2, 1))
 DEFAULT_STEP_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 2.0)
@@ -368,6 +368,42 @@ def column_repeats(weights: np.ndarray) -> np.ndarray:
     template with absurd weights can be told (and refused) before counting overflows."""
     w = np.asarray(weights, dtype=np.float64)
     return np.maximum(1.0, np.floor(w + 0.5))
+
+
+def match_lengths(weights: np.ndarray, *, variant: str = "reference",
+                  steps: Sequence[tuple[int, int]] = DEFAULT_STEPS) -> tuple[int, int | None]:
+    """The shortest and the longest stretch of document frames (at 30 Hz) that one match of
+    a template with these column ``weights`` can cover: its warping path runs from the
+    first to the last template column (the reference variant's expanded columns,
+    :func:`column_repeats`; the paper variant's K columns) by ``steps`` (template, document)
+    increments (MR06 §5.2). With the default steps (1,1), (1,2), (2,1) a match over n
+    columns covers n // 2 + 1 to 2n − 1 frames: a performance much faster or slower than
+    the template cannot match at all (``mtanno mt scale`` makes a time-scaled copy). None
+    for the longest: a step that advances the document only makes it unbounded."""
+    if variant not in VARIANTS:
+        raise MtannoError(f"unknown matching variant {variant!r} (choose from "
+                          f"{', '.join(VARIANTS)})")
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise MtannoError("template weights must be a non-empty 1-D array of finite numbers ≥ 0")
+    reps = column_repeats(w).sum() if variant == "reference" else float(w.size)
+    if reps > 10_000_000:
+        raise MtannoError(f"template weights expand to {reps:g} columns, more than 10⁷")
+    n = int(reps)
+    di, dj, _ = _check_steps(steps, [1.0] * len(steps))
+    big = np.iinfo(np.int64).max // 4
+    lo = np.full(n, big, dtype=np.int64)
+    hi = np.full(n, -1, dtype=np.int64)
+    lo[0] = hi[0] = 0
+    for r in range(1, n):  # frames advanced to reach column r (0-based) from column 0
+        for a, b in zip(di, dj):
+            if 0 < a <= r and hi[r - a] >= 0:
+                lo[r] = min(lo[r], lo[r - a] + b)
+                hi[r] = max(hi[r], hi[r - a] + b)
+    if hi[n - 1] < 0:
+        raise MtannoError(f"no warping path by the steps {steps!r} covers {n} template columns")
+    unbounded = bool(np.any((di == 0) & (dj > 0)))
+    return int(lo[n - 1]) + 1, None if unbounded else int(hi[n - 1]) + 1
 
 
 class PreparedTemplate:
