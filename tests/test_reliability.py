@@ -41,6 +41,7 @@ def _clobber_cases(w, tmp):
         (["truth", "mocap6", labels, "-o", tmp / "labels.csv"], tmp / "labels.csv"),
         (["mt", "quantize", mt, "--delta", "0.1", "-o", mt], mt),
         (["mt", "mirror", mt, "-o", mt], mt),
+        (["mt", "scale", mt, "--factor", "0.6", "-o", mt], mt),
     ]
 
 
@@ -97,6 +98,7 @@ def _unwritable_cases(w, tmp):
         ["features", w.docs, "-o", out],
         ["learn-mt", "--manifest", w.manifest, "--features-dir", w.feats, "-o", out],
         ["mt", "mirror", w.template, "-o", out / "m.json"],
+        ["mt", "scale", w.template, "--factor", "1.6", "-o", out / "s.json"],
         ["mt", "quantize", w.template, "--delta", "0.1", "-o", out / "q.json"],
         ["retrieve", "--mt", w.template, feat, "-o", out / "h.csv"],
         ["annotate", "--mt", w.mt, feat, "-o", out / "a.csv"],

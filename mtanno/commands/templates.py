@@ -162,8 +162,9 @@ def mt_show_cmd(template, delta, top, picture, files):
     with the most non-wildcard entries after quantization (those the matching relies
     on); --picture draws the quantized template.
     """
-    from mtanno.templates.match import column_repeats, match_lengths
+    from mtanno.templates.match import match_lengths
     from mtanno.templates.model import load_template, quantize, rank_features
+    from mtanno.tuning.tempo import matched_columns
 
     mt = load_template(template)
     if mt.quantized:
@@ -181,7 +182,7 @@ def mt_show_cmd(template, delta, top, picture, files):
     echo(f"length        {mt.length} columns ({mt.length / mt.fps:.2f} s)")
     lo, hi = match_lengths(mt.weights)
     echo(f"matches       performances of {lo}-{hi} frames ({lo / mt.fps:.2f}-{hi / mt.fps:.2f} s;"
-         f" the DTW steps allow half to twice its {int(column_repeats(mt.weights).sum())} "
+         f" the DTW steps allow half to twice its {matched_columns(mt.weights)} "
          f"matched columns)")
     echo(f"weights       sum {w.sum():.3f}, min {w.min():.3f}, mean {w.mean():.3f}, "
          f"max {w.max():.3f}")

@@ -99,7 +99,8 @@ def test_broken_feature_file(world, tmp_path, kind, command):
 
 @pytest.mark.parametrize("kind", list(TEMPLATES))
 @pytest.mark.parametrize("command", ["retrieve", "annotate", "mt show", "mt quantize",
-                                     "mt mirror", "evaluate-retrieval", "query --rank-mt"])
+                                     "mt mirror", "mt scale", "evaluate-retrieval",
+                                     "query --rank-mt"])
 def test_broken_template(world, tmp_path, kind, command):
     c = Case(world, tmp_path, TEMPLATES[kind])
     out, w = tmp_path / "out", world
@@ -114,6 +115,7 @@ def test_broken_template(world, tmp_path, kind, command):
         "mt show": ["mt", "show", c.bad],
         "mt quantize": ["mt", "quantize", c.bad, "--delta", "0.1", "-o", out / "q.json"],
         "mt mirror": ["mt", "mirror", c.bad, "-o", out / "m.json"],
+        "mt scale": ["mt", "scale", c.bad, "--factor", "0.6", "-o", out / "s.json"],
         "evaluate-retrieval": ["evaluate-retrieval", c.good, "--mt", tmp_path / "in" / "mts",
                                "--truth", w.truth],
         "query --rank-mt": ["query", w.index, "--example", w.doc_files[0].stem, "--features",
