@@ -44,7 +44,8 @@ def _examples(sources):
 
 
 def ceiling(name: str, train, held, held_out, mt_dir: Path, unknown_weight: float):
-    """Tune's search with the test documents ``held_out`` as the one fold."""
+    """Tune's search with the test documents ``held_out`` as the one fold; returns the
+    parameters, their evaluation and the tuner (to score other parameters alike)."""
     templates = load_template_folder(mt_dir)
     prepared = {}
     for c, mt in templates.items():
@@ -55,7 +56,7 @@ def ceiling(name: str, train, held, held_out, mt_dir: Path, unknown_weight: floa
     tuner = Tuner([Fold(name, train, held_out, held)], prepared, classes=list(templates),
                   unknown_weight=unknown_weight)
     params, ev, _ = tuner.search()
-    return params, ev
+    return params, ev, tuner
 
 
 def runs(kind: str, out: Path, styles):
@@ -91,7 +92,7 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     pooled, unk, f1s, f2s = Counts(), [0, 0], [], []
     for name, train, held, ho, mt_dir in runs(a.kind, a.out, a.style or BANDAI_STYLES):
-        p, ev = ceiling(name, train, held, ho, mt_dir, a.unknown_weight)
+        p, ev, _ = ceiling(name, train, held, ho, mt_dir, a.unknown_weight)
         (p1, r1, f1), (p2, r2, f2) = ev.counts.frame(), ev.counts.segment()
         copies = {c: s for c, s in p.scales.items() if s}
         print(f"| {name} | {p1:.3f} | {r1:.3f} | {f1:.3f} | {p2:.3f} | {r2:.3f} | {f2:.3f} | "
