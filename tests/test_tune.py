@@ -194,6 +194,46 @@ def test_scores_refuse_segments_outside_the_labels_and_frames():
         covered_fraction([(0, 9)], [(1, -5, 3)], 40)
 
 
+def test_ignored_frames_are_neither_right_nor_wrong():
+    """Frames of a class that has no template in a fold: output there is not scored, an
+    output segment wholly inside them is not counted; the counts equal those of the
+    documents with the ignored frames cut out when no segment spans the cut."""
+    truth = [(0, 0, 9), (1, 20, 29)]
+    ignore = np.zeros(30, bool)
+    ignore[10:20] = True
+    out = [(0, 2, 12), (1, 12, 16), (1, 18, 29)]
+    got = count(truth, out, n_labels=2, n_frames=30, ignore=ignore)
+    assert (got.frame_correct, got.frame_predicted, got.frame_support) == (18, 18, 20)
+    assert (got.seg_correct, got.seg_predicted, got.seg_found, got.seg_support) == (2, 2, 2, 2)
+    # cut out: (0, 2, 9), (1, 20, 29) on the 20 kept frames
+    cut = count([(0, 0, 9), (1, 10, 19)], [(0, 2, 9), (1, 10, 19)], n_labels=2, n_frames=20)
+    assert vars(cut) == vars(got)
+    # without the mask, the same output is wrong on the ignored frames
+    plain = count(truth, out, n_labels=2, n_frames=30)
+    assert plain.frame_predicted == 28 and plain.seg_predicted == 3
+    with pytest.raises(MtannoError, match="must not touch ignored frames"):
+        count([(0, 5, 12)], out, n_labels=2, n_frames=30, ignore=ignore)
+    with pytest.raises(MtannoError, match="boolean mask of 30 frames"):
+        count(truth, out, n_labels=2, n_frames=30, ignore=ignore[:20])
+
+
+def test_a_class_without_a_template_in_a_fold_is_an_unknown_motion_there():
+    """Its held-out frames leave F1 and F2 alone and count in the unknown-class rate."""
+    fold, prepared = _fold_data()
+    fold.held_out.truth.append(("c", 0, 0))  # no template of c anywhere
+    fold.held_out.truth[0] = ("a", 1, 14)
+    only_ab = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.0)
+    fd = only_ab.folds[0]
+    assert fd.absent == {"c": [(0, 0)]} and fd.ignore.sum() == 1
+    assert all(only_ab.names[c] != "c" for c, _, _ in fd.truth)
+    p = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 2, "b": 1})
+    ev = only_ab.evaluate(p, per_class=True)
+    assert ev.counts.frame_support == 59
+    segs = only_ab._segments(fd, p, ["a", "b"])
+    covered = any(a <= 0 <= b for _, a, b in segs)
+    assert ev.per_class_unknown["c"] == (int(covered), 1)
+
+
 def _fold_data(L=60):
     """One fold with two held-out documents and hand-made Δ curves of two classes (two
     templates of class a)."""

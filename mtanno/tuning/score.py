@@ -92,25 +92,44 @@ def _cover(segs: Sequence[tuple[int, int, int]], n_labels: int, n_frames: int) -
 
 
 def count(truth: Sequence[tuple[int, int, int]], output: Sequence[tuple[int, int, int]], *,
-          n_labels: int, n_frames: int) -> Counts:
-    """The evaluation counts of ``output`` against ``truth`` (module docstring)."""
+          n_labels: int, n_frames: int, ignore: np.ndarray | None = None) -> Counts:
+    """The evaluation counts of ``output`` against ``truth`` (module docstring).
+
+    ``ignore``: a boolean mask of ``n_frames`` frames that are not scored (no truth segment
+    may touch them): output frames there are neither right nor wrong, and an output
+    segment lying wholly inside them is not counted. Cross-validation ignores the frames
+    of a class that has no template in the fold (:class:`mtanno.tuning.search.Tuner`)."""
     _check(truth, n_labels, n_frames, "truth segments")
     _check(output, n_labels, n_frames, "output segments")
-    return _count(truth, output, n_labels, n_frames)
+    if ignore is not None:
+        ignore = np.asarray(ignore)
+        if ignore.dtype != np.bool_ or ignore.shape != (n_frames,):
+            raise MtannoError(f"ignore must be a boolean mask of {n_frames} frames")
+        kept = np.concatenate([[0], np.cumsum(ignore)])
+        if any(kept[b + 1] - kept[a] for _, a, b in truth):
+            raise MtannoError("truth segments must not touch ignored frames")
+    return _count(truth, output, n_labels, n_frames, ignore)
 
 
-def _count(truth, output, n_labels: int, n_frames: int) -> Counts:
+def _count(truth, output, n_labels: int, n_frames: int, ignore=None) -> Counts:
     """:func:`count` of segments made by the tuner (not checked again: it scores
     thousands of candidates)."""
     ct = _cover(truth, n_labels, n_frames)
     co = _cover(output, n_labels, n_frames)
-    both = 0
+    keep = None if ignore is None else ~ignore
+    both = predicted = 0
     for p in range(n_labels):
         t = np.diff(ct[p]) > 0
         o = np.diff(co[p]) > 0
+        if keep is not None:
+            o &= keep
+            predicted += int(np.count_nonzero(o))
         both += int(np.count_nonzero(t & o))
-    c = Counts(frame_correct=both, frame_predicted=int(co[:, -1].sum()),
-               frame_support=int(ct[:, -1].sum()))
+    c = Counts(frame_correct=both, frame_predicted=int(co[:, -1].sum()) if keep is None
+               else predicted, frame_support=int(ct[:, -1].sum()))
+    if keep is not None:  # segments wholly inside ignored frames are not counted
+        kc = np.concatenate([[0], np.cumsum(keep)])
+        output = [(p, a, b) for p, a, b in output if kc[b + 1] - kc[a] > 0]
     c.seg_predicted = len(output)
     c.seg_support = len(truth)
     c.seg_correct = sum(1 for p, a, b in output if ct[p, b + 1] - ct[p, a] > 0)

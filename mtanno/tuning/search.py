@@ -12,7 +12,9 @@ exactly what ``annotate --classes`` does). The objective is
 
 with F1, F2 the frame and segment F-measures over all folds (MBS09 §7) and U the
 unknown-class rate — for each class in turn left out of the templates, the fraction of
-its held-out frames that another class labels — weighted by ``unknown_weight`` (w).
+its held-out frames that another class labels — weighted by ``unknown_weight`` (w). A
+class without a template in a fold (its examples all held out) is unknown there: its
+frames count in U and are ignored by F1 and F2 (:func:`mtanno.tuning.score.count`).
 
 The search, in this order, each step only over the methods switched on
 (:data:`METHODS`):
@@ -217,6 +219,8 @@ class _FoldData:
                                             # (k = 0: time-scaled by i, evidence None)
     groups: dict                            # (class, k) -> groups made
     hidden: dict = field(default_factory=dict)  # class -> _FoldData of its documents only
+    absent: dict = field(default_factory=dict)  # class without a template here -> spans
+    ignore: np.ndarray | None = None        # their frames (not scored in F1, F2)
 
 
 def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
@@ -289,9 +293,20 @@ class Tuner:
             by_class: dict[str, list[tuple[int, int]]] = {}
             for c, a, b in f.held_out.truth:
                 by_class.setdefault(c, []).append((a, b))
+            # A class without a template in this fold (its examples all held out, or no
+            # template at all) is an unknown motion here: its frames count in U, not in
+            # F1 and F2, which score the classes the fold can know.
+            absent = {c: spans for c, spans in by_class.items() if c not in present}
+            ignore = None
+            if absent:
+                ignore = np.zeros(f.held_out.n_frames, dtype=bool)
+                for spans in absent.values():
+                    for a, b in spans:
+                        ignore[a:b + 1] = True
             fd = _FoldData(f.name, f.held_out.n_frames, f.held_out.offsets, present,
-                           [(self.ids[c], a, b) for c, a, b in f.held_out.truth], by_class,
-                           match, groups)
+                           [(self.ids[c], a, b) for c, a, b in f.held_out.truth
+                            if c in present], by_class, match, groups, absent=absent,
+                           ignore=ignore)
             for c in present:
                 docs = sorted({int(np.searchsorted(fd.offsets, a, side="right")) - 1
                                for a, _ in by_class.get(c, [])})
@@ -376,14 +391,21 @@ class Tuner:
         for fd in self.folds:
             arrays = self._arrays(fd, params) if params.resolve else None
             segs = self._segments(fd, params, fd.classes, arrays)
-            total += _count(fd.truth, segs, len(self.names), fd.n_frames)
+            total += _count(fd.truth, segs, len(self.names), fd.n_frames, fd.ignore)
             if per_class:
                 for c in self.classes:
                     cid = self.ids[c]
                     got = _count([t for t in fd.truth if t[0] == cid],
-                                 [s for s in segs if s[0] == cid], len(self.names), fd.n_frames)
+                                 [s for s in segs if s[0] == cid], len(self.names), fd.n_frames,
+                                 fd.ignore)
                     per.setdefault(c, Counts())
                     per[c] += got
+            for c, spans in fd.absent.items():  # unknown here, whatever the weight
+                hit, n = _covered_fraction(spans, segs, fd.n_frames)
+                unk[0] += hit
+                unk[1] += n
+                h0, n0 = per_unk.get(c, (0, 0))
+                per_unk[c] = (h0 + hit, n0 + n)
             if self.unknown_weight > 0 or per_class:
                 for c, sub in fd.hidden.items():
                     rest = [x for x in fd.classes if x != c]
