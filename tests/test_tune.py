@@ -326,6 +326,23 @@ def test_tune_without_examples_of_a_class(world, tmp_path):
     assert "no training examples of class(es) squat" in line
 
 
+def test_tune_warns_about_classes_it_cannot_cross_validate(world, tmp_path):
+    """A class whose examples all come from one performer: no fold scores it (its frames
+    are an unknown motion where it is held out), and tune says so."""
+    m = tmp_path / "m.csv"
+    rows = world.manifest.read_text().splitlines()
+    m.write_text("\n".join([rows[0]] + [r for r in rows[1:] if ",squat," not in r
+                                         or r.split(",")[1] == "a"]) + "\n")
+    r = cli("tune", "--mt", world.mt, "--manifest", m, "--features-dir", world.feats,
+            "--split", "train", "-o", tmp_path / "t.toml", "-q")
+    assert r.exit_code == 0, r.output
+    assert "warning: class(es) squat could not be cross-validated" in r.output
+    assert "squat: not cross-validated" in (tmp_path / "t.toml").read_text()
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", tmp_path / "all.toml", "-q")
+    assert r.exit_code == 0 and "warning" not in r.output
+
+
 def test_time_scaled_template_keeps_the_nearest_columns():
     from mtanno.templates.model import MotionTemplate
     from mtanno.tuning.tempo import scale_columns, time_scaled

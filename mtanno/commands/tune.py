@@ -102,6 +102,11 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
                   unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log,
                   scheduler=scheduler)
     write_tuned(output, result, command=command_line())
+    if result.not_validated:
+        click.echo(f"tune: warning: class(es) {', '.join(result.not_validated)} could not be "
+                   "cross-validated: all their examples come from one performer, so their "
+                   "thresholds are learned only from the motions they must not label",
+                   err=True)
     if ablation_dir is not None:
         from mtanno.output import make_folder
 

@@ -62,6 +62,15 @@ class TuneResult:
     seconds: float = 0.0
     ablation: dict[str, TuneResult] = field(default_factory=dict)
 
+    @property
+    def not_validated(self) -> list[str]:
+        """Classes that no fold could score: all their examples come from one performer,
+        so no fold has both their template and held-out examples of them (their
+        thresholds are learned only from the motions they must not label)."""
+        return [c for c in self.classes
+                if c not in self.evaluation.per_class
+                or not self.evaluation.per_class[c].frame_support]
+
 
 def _learn_params(mt) -> dict:
     p = mt.params or {}
