@@ -827,24 +827,55 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
     # not cleared outside them
     clear = not config.resolve and dbar_variant != "reference"
 
+    names = [c.name for c in classes]
+    rows, own = None, {}
+    if config.resolve:  # the only template of a label is matched into the decoder's row
+        labels, member_of, count = _label_layout(names, config)
+        rows = (np.empty((len(labels), L)), np.empty((len(labels), L), dtype=np.int64))
+        for i, n in enumerate(names):
+            lab = member_of.get(n, n)
+            if count[lab] == 1:
+                own[i] = labels.index(lab)
+
     def matches():
         for i, c in enumerate(classes):
-            _class_delta(X, packed, c, spans.get(c.name), match_variant, delta, start,
-                         clear=clear)
+            if i in own:
+                k = own[i]
+                _class_delta(X, packed, c, spans.get(c.name), match_variant, rows[0][k],
+                             rows[1][k], clear=True)
+                d, s = None, None
+            else:
+                _class_delta(X, packed, c, spans.get(c.name), match_variant, delta, start,
+                             clear=clear)
+                d, s = delta, start
             if not evidence or i in covered:  # covered: its columns are another template's
-                yield c.name, delta, start, None
+                yield c.name, d, s, None
                 continue
             near = None
             if c.name in spans:  # only where c can be
                 first, last = spans[c.name]
                 near = merged_spans(np.column_stack((first - EVIDENCE_MARGIN,
                                                      last + EVIDENCE_MARGIN)), L)
-            yield c.name, delta, start, row_evidence(packed, c.evidence_columns(),
-                                                     spans=near, distinct=distinct)
+            yield c.name, d, s, row_evidence(packed, c.evidence_columns(), spans=near,
+                                             distinct=distinct)
 
-    return label_document(doc, [c.name for c in classes], matches(), L, config=config,
+    return label_document(doc, names, matches(), L, config=config,
                           dbar_variant=dbar_variant, max_hits=max_hits, extend=extend,
-                          single_label=single_label, spans=spans, matrix=matrix)
+                          single_label=single_label, spans=spans, matrix=matrix, rows=rows)
+
+
+def _label_layout(names: Sequence[str], config: ClassConfig) -> tuple[list[str], dict, dict]:
+    """The labels of templates ``names`` (classes, or the superclasses of ``config``
+    joining them) in order of first appearance, the superclass of each member, and the
+    number of templates per label."""
+    member_of = {m: s for s, ms in config.superclasses.items() for m in ms}
+    labels: list[str] = []
+    for n in names:
+        lab = member_of.get(n, n)
+        if lab not in labels:
+            labels.append(lab)
+    count = {lab: sum(member_of.get(n, n) == lab for n in names) for lab in labels}
+    return labels, member_of, count
 
 
 def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
@@ -853,6 +884,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                    single_label: bool = False,
                    spans: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
                    matrix: bool = True,
+                   rows: tuple[np.ndarray, np.ndarray] | None = None,
                    ) -> tuple[list[Annotation], list[str], np.ndarray | None]:
     """Segments of one document from its templates' distance functions (algorithms.md
     §7 steps 2–4, or the methods of issue 10 that ``config`` switches on).
@@ -882,18 +914,19 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     row of a class with ``spans`` is neither filled nor read outside them (the same
     segments, less work where keyframe windows cover little of the document).
 
+    ``rows`` (segment decoder only): the decoder's (labels × frames) Δ and start arrays,
+    allocated by the caller (labels as :func:`_label_layout` orders them), so that the
+    only template of a label can be matched straight into its row: ``matches`` then
+    yields (class, None, None, evidence) for it, the row holding its raw Δ and starts
+    (∞ and anything where no match ends), and the decoder applies its τ and ρ (the same
+    segments as folding Δ/τ into the row, one pass over the frames less).
+
     Returns (segments sorted by start, end and label; label names; Δ̄ or Δ/τ matrix).
     """
     config = config or ClassConfig()
-    member_of = {m: s for s, ms in config.superclasses.items() for m in ms}
-    labels: list[str] = []
-    for n in names:
-        lab = member_of.get(n, n)
-        if lab not in labels:
-            labels.append(lab)
+    labels, member_of, count = _label_layout(names, config)
     L = int(n_frames)
     P = len(labels)
-    count = {lab: sum(member_of.get(n, n) == lab for n in names) for lab in labels}
 
     def limits(name: str, lab: str) -> tuple[float, float]:
         return (config.tau.get(name, config.tau_for(lab)),
@@ -939,9 +972,15 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
 
     # written in full by each label's first template (fold_label(first=True)), so the
     # (labels × frames) arrays of long documents are not filled twice
-    mat = np.empty((P, L))
-    starts = np.empty((P, L), dtype=np.int64)
+    if rows is not None:
+        mat, starts = rows
+        if mat.shape != (P, L) or starts.shape != (P, L):
+            raise MtannoError(f"decoder rows must be ({P} labels × {L} frames) arrays")
+    else:
+        mat = np.empty((P, L))
+        starts = np.empty((P, L), dtype=np.int64)
     folded: set[int] = set()
+    raw: dict[int, tuple[float, float]] = {}  # label → (τ, ρ) of a row holding raw Δ
     # τ of each label for the cost column; a label whose members have different τ (a
     # superclass) keeps, per frame, the τ of the template that gives the minimum
     member_taus: dict[int, set[float]] = {}
@@ -962,7 +1001,12 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                               path=config.path)
         k = labels.index(lab)
         span = (spans or {}).get(name)
-        if k in label_tau:
+        if delta is None:  # matched into its row: the decoder applies τ and ρ
+            if rows is None or count[lab] != 1:
+                raise MtannoError("a template matched into its row must be the only one "
+                                  "of its label, in the decoder rows given")
+            raw[k] = (float(tau), float(rho))
+        elif k in label_tau:
             fold_label(mat[k], starts[k], delta, start, tau=tau, reject=rho,
                        first=k not in folded, spans=span)
         else:
@@ -983,17 +1027,29 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     if ev is not None and len(has_evidence) < len(member_taus):
         raise MtannoError("frame_weight > 0 needs the frame evidence of a template of every "
                           "class")
-    decoded = decode_segments(mat, starts, tau=np.ones(P), slack=config.slack if config.refine
-                              else 0, evidence=None if ev is None else evidence_sums(ev),
+    scale, ceiling = np.ones(P), np.full(P, np.inf)
+    for k, (tau, rho) in raw.items():
+        scale[k], ceiling[k] = tau, rho
+    decoded = decode_segments(mat, starts, tau=scale, reject=ceiling,
+                              slack=config.slack if config.refine else 0,
+                              evidence=None if ev is None else evidence_sums(ev),
                               weight=config.frame_weight, segment_cost=config.segment_cost)
-    # cost: Δ at the segment's end, back from Δ/τ (to 12 digits: the division's rounding)
+    # cost: Δ at the segment's end, back from Δ/τ where the row holds Δ/τ (to 12 digits:
+    # the division's rounding)
     def tau_at(k: int, t: int) -> float:
+        if k in raw:
+            return 1.0
         return label_tau[k] if k in label_tau else float(tau_rows[k][t])
 
-    rows = [Annotation(doc, d.start, d.end, labels[d.label],
-                       float(f"{d.cost * tau_at(d.label, d.end):.12g}")) for d in decoded]
-    rows.sort(key=lambda a: (a.start, a.end, a.label))
-    return rows, labels, (mat if matrix else None)
+    out = [Annotation(doc, d.start, d.end, labels[d.label],
+                      float(f"{d.cost * tau_at(d.label, d.end):.12g}")) for d in decoded]
+    out.sort(key=lambda a: (a.start, a.end, a.label))
+    if matrix:  # Δ/τ in every row, as folding gives it
+        for k, (tau, rho) in raw.items():
+            gone = ~(mat[k] <= rho)
+            np.multiply(mat[k], 1.0 / tau, out=mat[k])
+            mat[k][gone] = np.inf
+    return out, labels, (mat if matrix else None)
 
 
 ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")

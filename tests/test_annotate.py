@@ -461,6 +461,41 @@ def test_annotate_document_in_windows_equals_masked_distances(seed, resolve):
     assert again[0] == got[0] and np.array_equal(again[2], got[2])
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_labels_matched_into_the_decoder_rows_equal_folded_ones(seed):
+    """annotate_document matches the only template of a label straight into the segment
+    decoder's row and lets the decoder apply τ and ρ; label_document folding Δ/τ into the
+    rows (what the tuner scores) gives the same segments, costs and Δ/τ matrix — with
+    rejection ceilings, a superclass, a class of two templates and frame evidence."""
+    from dataclasses import replace
+
+    from mtanno.annotate import ClassModel, annotate_document, class_deltas, label_document
+    from mtanno.decode import frame_evidence
+    from mtanno.templates.match import pack_document
+
+    rng = np.random.default_rng(seed)
+    L = int(rng.integers(80, 220))
+    X = (np.cumsum(rng.random((40, L)) < 0.08, axis=1) % 2).astype(np.uint8)
+    names = ["a", "b", "a", "c", "d", "e"]
+    models = [ClassModel(n, X[:, s:s + k].astype(float), np.ones(k))
+              for n, s, k in zip(names, rng.integers(0, L - 12, 6), rng.integers(4, 12, 6))]
+    config = ClassConfig(resolve=True, refine=True, slack=int(seed % 3),
+                         frame_weight=0.3 * (seed % 2), segment_cost=2.0 * (seed > 1),
+                         tau={"a": 0.2, "b": 0.3, "c": 0.15, "d": 0.12, "e": 0.3},
+                         reject={"b": 0.08, "e": 0.1}, superclasses={"de": ["d", "e"]})
+    got = annotate_document("d", X, models, config=config)
+    open_b = annotate_document("d", X, models, config=replace(config, reject={"e": 0.1}))
+    if seed < 2:  # without a segment cost b's ceiling rejects matches it would take
+        assert open_b[0] != got[0]
+    ev = [frame_evidence(pack_document(X, 40), m.values) for m in models]
+    want = label_document("d", names, ((m.name, d, s, e) for m, (d, s), e in
+                                       zip(models, class_deltas(X, models), ev)), L,
+                          config=config)
+    assert got[0] == want[0] and got[1] == want[1]
+    assert np.array_equal(got[2], want[2])
+    assert got[0]  # something is labelled
+
+
 def check_rows_without_the_matrix(seed: int) -> None:
     """annotate_document(matrix=False) fills and reads each class's Δ̄ row inside its
     windows only: the same segments as with the matrix, for windows that overlap, touch,
