@@ -343,15 +343,15 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         "the training inputs this file was tuned on are listed at its end",
     ]
     comments = {}
+    unscored = set(result.not_validated)
     for c in result.classes:
         pc = ev.per_class.get(c)
         hit, n = ev.per_class_unknown.get(c, (0, 0))
-        note = ""
-        if pc is not None and pc.frame_support:
+        if c in unscored:
+            note = "not cross-validated (no fold has both its template and held-out examples)"
+        else:
             note = (f"CV F1 {pc.frame()[2]:.3f} ({pc.frame_support} frames), F2 "
                     f"{pc.segment()[2]:.3f} ({pc.seg_support} segments)")
-        elif pc is not None:  # held out only where no other fold had its examples
-            note = "not cross-validated (no fold has both its template and held-out examples)"
         if n:
             note += f", unknown-class rate {hit / n:.3f}"
         if c in cfg.tau:
