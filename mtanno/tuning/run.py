@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno import __version__
-from mtanno.annotate import ClassConfig, class_config_text
+from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
 from mtanno.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
 from mtanno.templates.training import ExampleSource, TrainingExample
@@ -203,7 +203,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                   unknown_weight=unknown_weight, log=log, columns=columns)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
-    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), 0.13), per_class=True)
+    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
     variants = {}
     if ablation:
         for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
@@ -337,7 +337,7 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         "folds (held-out performer: examples): "
         + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
         f"cross-validated, tuned:    {_fmt(ev)}",
-        f"cross-validated, reference (tau 0.13, no methods): {_fmt(result.reference)}",
+        f"cross-validated, reference (tau {DEFAULT_TAU}, no methods): {_fmt(result.reference)}",
         "search:",
         *(f"  {s}" for s in result.steps),
         "the training inputs this file was tuned on are listed at its end",
