@@ -18,7 +18,7 @@ install: $(BIN)/mtanno  ## create .venv and install mtanno with its test extras
 test: $(BIN)/mtanno  ## run the whole test suite (real-data tests skip when ../shared is absent)
 	$(BIN)/python -m pytest -q
 
-demo: $(BIN)/mtanno  ## features → learn-mt → compose → annotate → evaluate → report (HDM05, or synthetic data)
+demo: $(BIN)/mtanno  ## features → learn-mt → tune → compose → annotate → evaluate → report (HDM05, or synthetic data)
 	@if [ -f "$(SHARED)/hdm05_cut/clips.csv" ]; then \
 	  echo "demo: HDM05 — templates from actors bd, bk, dg; 10 documents composed from actor mm"; \
 	  DATA="$(SHARED)/hdm05_cut"; ACTOR=mm; \
@@ -30,9 +30,16 @@ demo: $(BIN)/mtanno  ## features → learn-mt → compose → annotate → evalu
 	set -e; M=$(BIN)/mtanno; D=$(OUT)/demo; \
 	$$M features "$$DATA" -o $$D/features --jobs 2 -q; \
 	$$M learn-mt --manifest "$$DATA/clips.csv" --features-dir $$D/features --split train -o $$D/mt -q; \
+	$$M tune --mt $$D/mt --manifest "$$DATA/clips.csv" --features-dir $$D/features --split train \
+	  -o $$D/tuned.toml --jobs 2 -q; \
 	$$M compose "$$DATA/clips.csv" --actor $$ACTOR --docs 10 --seed 1 -o $$D/docs; \
 	$$M features $$D/docs -o $$D/doc_features --jobs 2 -q; \
-	$$M annotate --mt $$D/mt $$D/doc_features -o $$D/annotation.csv -o $$D/annotation.parquet --jobs 2; \
+	$$M annotate --mt $$D/mt $$D/doc_features -o $$D/annotation_untuned.csv --jobs 2 -q; \
+	$$M annotate --mt $$D/mt --classes $$D/tuned.toml $$D/doc_features \
+	  -o $$D/annotation.csv -o $$D/annotation.parquet --jobs 2; \
+	echo "demo: untuned annotation (tau 0.13, the published method), all classes:"; \
+	$$M evaluate $$D/annotation_untuned.csv --truth $$D/docs/truth.csv | sed -n '1p;$$p'; \
+	echo "demo: annotation with the configuration that tune learned from the training actors:"; \
 	$$M evaluate $$D/annotation.csv --truth $$D/docs/truth.csv --json $$D/report.json; \
 	$$M report $$D/annotation.csv --truth $$D/docs/truth.csv --mt $$D/mt --features $$D/doc_features \
 	  -o $$D/report -q; \
