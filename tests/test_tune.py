@@ -343,6 +343,25 @@ def test_tune_warns_about_classes_it_cannot_cross_validate(world, tmp_path):
     assert r.exit_code == 0 and "warning" not in r.output
 
 
+def test_tune_names_truth_documents_without_a_feature_file(world, tmp_path):
+    """As learn-mt and learn-keyframes: the truth table's documents that are not among the
+    inputs are named in one note (none with -q), and their segments are not used."""
+    docs = world.doc_files
+    given, left = docs[:1], sorted(p.stem for p in docs[1:])
+    r = cli("tune", "--mt", world.mt, "--truth", world.truth, *given, "-o", tmp_path / "t.toml")
+    assert r.exit_code == 0, r.output
+    notes = [x for x in r.output.splitlines() if "are ignored" in x]
+    assert notes == [f"tune: note: the truth table's segments of {len(left)} document(s) "
+                     f"without a feature file among the inputs are ignored: "
+                     f"{', '.join(left[:10])}" + (f" and {len(left) - 10} more"
+                                                  if len(left) > 10 else "")]
+    text = (tmp_path / "t.toml").read_text()
+    assert all(str(p) in text for p in given) and not any(str(p) in text for p in docs[1:])
+    r = cli("tune", "--mt", world.mt, "--truth", world.truth, *given, "-o", tmp_path / "q.toml",
+            "-q")
+    assert r.exit_code == 0 and r.output == ""
+
+
 def test_time_scaled_template_keeps_the_nearest_columns():
     from mtanno.templates.model import MotionTemplate
     from mtanno.tuning.tempo import scale_columns, time_scaled

@@ -84,16 +84,12 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     from mtanno.templates.training import (
         collect_sources,
         group_by_class,
-        ignored_documents_note,
         load_examples,
     )
 
-    ignored: list[str] = []
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth, ignored=ignored)
-    note = ignored_documents_note(ignored)
-    if note and not quiet:
-        click.echo(f"learn-keyframes: {note}", err=True)
+                              split=split, truth=truth,
+                              note=None if quiet else lambda m: click.echo(f"learn-keyframes: {m}", err=True))
     groups = group_by_class(sources, classes=list(classes) or None)
     templates = load_template_folder(mt_dir)
     all_groups = group_by_class(sources)

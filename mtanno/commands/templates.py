@@ -83,16 +83,12 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
         collect_sources,
         few_examples_warning,
         group_by_class,
-        ignored_documents_note,
         load_examples,
     )
 
-    ignored: list[str] = []
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth, ignored=ignored)
-    note = ignored_documents_note(ignored)
-    if note and not quiet:
-        click.echo(f"learn-mt: {note}", err=True)
+                              split=split, truth=truth,
+                              note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     from mtanno.output import check_outputs

@@ -66,9 +66,10 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     left out in turn).
 
     Training examples come as for learn-mt (a manifest with --features-dir, --truth with
-    feature files, or CLASS/ folders). Writes CONFIG (TOML: [decoder], [tau], [reject],
-    [templates], with the cross-validated scores and the training files as comments;
-    docs/annotation.md) for `mtanno annotate --mt MT/ --classes CONFIG`.
+    feature files, or CLASS/ folders; with --truth, segments of documents that are not
+    among TRAINING are ignored and a note names those documents). Writes CONFIG (TOML:
+    [decoder], [tau], [reject], [templates], with the cross-validated scores and the
+    training files as comments; docs/annotation.md) for `mtanno annotate --mt MT/ --classes CONFIG`.
 
     Example: mtanno tune --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o tuned.toml --jobs 2
@@ -81,7 +82,8 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     from mtanno.tuning import template_folder_of, tune, write_tuned
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth)
+                              split=split, truth=truth,
+                              note=None if quiet else lambda m: click.echo(f"tune: {m}", err=True))
     planned = [output] + ([Path(ablation_dir) / f"{n}.toml" for n in
                            [*(f"without-{m}" for m in METHODS), "none"]] if ablation_dir else [])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,

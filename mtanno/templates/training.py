@@ -22,7 +22,7 @@ example is the reference whose template MT learning returns, MR06 §4.1).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -204,12 +204,14 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
                     manifest: str | os.PathLike | None = None,
                     features_dir: str | os.PathLike | None = None, split: str | None = None,
                     truth: str | os.PathLike | None = None,
-                    ignored: list[str] | None = None) -> list[ExampleSource]:
-    """Training examples named the three ways learn-mt and learn-keyframes accept (module
-    docstring): a manifest with its features folder (and split), a truth table with the
-    documents' feature files or folders (``ignored`` receives the truth's documents
-    without one, :func:`sources_from_truth`), or class folders. Contradictory combinations
-    are errors saying which options go together."""
+                    ignored: list[str] | None = None,
+                    note: Callable[[str], None] | None = None) -> list[ExampleSource]:
+    """Training examples named the three ways learn-mt, learn-keyframes and tune accept
+    (module docstring): a manifest with its features folder (and split), a truth table with
+    the documents' feature files or folders (``ignored`` receives the truth's documents
+    without one, :func:`sources_from_truth`; ``note`` is called with one line naming them,
+    :func:`ignored_documents_note`), or class folders. Contradictory combinations are
+    errors saying which options go together."""
     if manifest is not None and truth is not None:
         raise MtannoError("--manifest and --truth exclude each other")
     if manifest is not None:
@@ -222,8 +224,16 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
         raise MtannoError("--features-dir and --split go with --manifest")
     if not training:
         raise MtannoError("give TRAINING folders or files (or --manifest)")
-    return sources_from_truth(truth, training, ignored=ignored) if truth is not None else \
-        sources_from_tree(training)
+    if truth is None:
+        return sources_from_tree(training)
+    missing: list[str] = []
+    sources = sources_from_truth(truth, training, ignored=missing)
+    if ignored is not None:
+        ignored.extend(missing)
+    line = ignored_documents_note(missing)
+    if note is not None and line:
+        note(line)
+    return sources
 
 
 def group_by_class(sources: Iterable[ExampleSource], *,
