@@ -25,6 +25,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -280,8 +281,12 @@ class DaskPool:
 
                 raise MtannoError(f"--scheduler local:N needs a positive number of workers, "
                                   f"got {scheduler!r}") from None
-            self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                         dashboard_address=None)
+            with warnings.catch_warnings():
+                # Its scheduler's HTTP server falls back to a free port when another dask
+                # holds 8787; that is no concern of this run.
+                warnings.filterwarnings("ignore", message="Port .* is already in use")
+                self._cluster = LocalCluster(n_workers=n, threads_per_worker=1,
+                                             processes=True, dashboard_address=None)
             self._client = Client(self._cluster)
         else:
             try:
