@@ -145,31 +145,43 @@ def _check_target(target: Path) -> bool:
     return stat.S_ISREG(st.st_mode)
 
 
-def _temporary(target: Path, mode: int) -> tuple[int, str]:
-    """Create the temporary file beside ``target``: (open descriptor, its path).
+def _temporary(target: Path, mode: int, made: list[str]) -> int:
+    """Create the temporary file beside ``target`` and return its open descriptor.
 
     Its name is ``.NAME.HOST-PID.XXXXXXXX.tmp`` (eight random characters); it is created
     with ``O_EXCL`` and permissions ``mode``, which the kernel reduces by the umask as for
-    any ``open`` (no ``chmod`` afterwards). The folder is created when missing."""
+    any ``open`` (no ``chmod`` afterwards). The folder is created when missing. The name
+    is appended to ``made`` *before* the file is created, so that a caller whose cleanup
+    covers this call removes the file even when an interruption (SIGINT, SIGTERM) is raised
+    the moment ``open`` returns."""
     remove_stale_temporaries(target.parent)
     prefix = os.path.join(str(target.parent), f".{target.name}.{_HOST}-{os.getpid()}.")
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) \
         | getattr(os, "O_BINARY", 0)
     made_folder = False
     for _ in range(100):  # as tempfile.mkstemp: another name when one is taken
-        tmp = prefix + os.urandom(5).hex()[:8] + TMP_SUFFIX
+        made.append(prefix + os.urandom(5).hex()[:8] + TMP_SUFFIX)
         try:
-            return os.open(tmp, flags, mode), tmp
+            return os.open(made[-1], flags, mode)
         except FileExistsError:
+            made.pop()  # not ours
             continue
         except FileNotFoundError as exc:  # the folder does not exist yet
+            made.pop()
             if made_folder:
                 raise _write_error(target, exc) from None
             make_folder(target.parent)
             made_folder = True
         except OSError as exc:
+            made.pop()
             raise _write_error(target, exc) from None
     raise _write_error(target, FileExistsError(f"no free temporary name beside {target}"))
+
+
+def _remove(made: list[str]) -> None:
+    for tmp in made:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
 
 
 def _replace(tmp: str, target: Path, fd: int | None = None) -> None:
@@ -202,19 +214,17 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
     if not _check_target(target):
         yield target
         return
-    fd, tmp = _temporary(target, mode)
+    made: list[str] = []
     try:
-        os.close(fd)
-        yield Path(tmp)
+        os.close(_temporary(target, mode, made))
+        yield Path(made[0])
     except OSError as exc:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        _remove(made)
         raise _write_error(target, exc) from None
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        _remove(made)
         raise
-    _replace(tmp, target)
+    _replace(made[0], target)
 
 
 def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
@@ -227,20 +237,22 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
         with open(target, "wb") as fh:
             fh.write(data)
         return
-    fd, tmp = _temporary(target, mode)
+    made: list[str] = []
+    fd = -1
     try:
+        fd = _temporary(target, mode, made)
         view = memoryview(data).cast("B")
         while view:
             view = view[os.write(fd, view):]
     except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.close(fd)
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        if fd >= 0:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        _remove(made)
         if isinstance(exc, OSError):
             raise _write_error(target, exc) from None
         raise
-    _replace(tmp, target, fd)
+    _replace(made[0], target, fd)
 
 
 def write_text(target: str | os.PathLike, text: str) -> None:

@@ -12,8 +12,9 @@
 * **Workers ignore SIGINT.** Ctrl-C reaches the whole process group; the parent decides:
   it stops its workers (SIGTERM, then SIGKILL for one that does not end) and unwinds.
 * **A worker that gets SIGTERM** unwinds the task it is running (so its temporary files are
-  removed) and exits; an idle worker exits at once. Nothing is reported back and no
-  traceback is printed.
+  removed) and exits; an idle worker exits at once; further SIGTERMs are ignored while it
+  unwinds (the watchdog ends it after :data:`STOP_GRACE` if it has not). Nothing is
+  reported back and no traceback is printed.
 """
 
 from __future__ import annotations
@@ -93,6 +94,9 @@ def _set_parent_death_signal(signum: int) -> bool:
 
 
 def _worker_sigterm(signum, frame):
+    # Once: the parent-death signal and the watchdog may both send SIGTERM, and a second
+    # one raised inside the unwinding would skip the removal of a temporary file.
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if _IN_TASK:
         raise Interrupted(signum)  # unwind the task (temporary files removed), then exit
     os._exit(128 + signum)

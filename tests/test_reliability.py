@@ -162,6 +162,55 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("writer", ["atomic_path", "write_bytes"])
+def test_an_interruption_as_the_temporary_is_created_leaves_none(tmp_path, monkeypatch, writer):
+    """SIGINT or SIGTERM handled the moment open() has created the temporary file (before
+    the writer holds its descriptor): the file is removed all the same."""
+    import mtanno.output as output
+
+    real = os.open
+
+    def open_then_interrupt(path, flags, mode=0o777):
+        os.close(real(path, flags, mode))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(output.os, "open", open_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        if writer == "atomic_path":
+            with atomic_path(tmp_path / "x.parquet") as tmp:
+                tmp.write_bytes(b"never")
+        else:
+            output.write_bytes(tmp_path / "x.parquet", b"never")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_stopping_worker_ignores_a_second_sigterm():
+    """The parent-death signal and the watchdog both send SIGTERM: the first unwinds the
+    task, a second must not interrupt the unwinding (it would skip the removal of the
+    task's temporary file)."""
+    import subprocess
+    import sys
+
+    code = """if True:
+        import os, signal, mtanno.workers as w
+        signal.signal(signal.SIGTERM, w._worker_sigterm)
+        w._IN_TASK = True
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(10 ** 6):
+                pass
+            print("not interrupted")
+        except w.Interrupted:
+            os.kill(os.getpid(), signal.SIGTERM)  # the second, during the unwinding
+            for _ in range(10 ** 6):
+                pass
+            print("unwound")
+    """
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=60)
+    assert (r.returncode, r.stdout.strip()) == (0, "unwound"), r.stderr
+
+
 def test_a_table_never_stands_beside_a_stale_provenance(tmp_path, monkeypatch):
     import mtanno.output as output
     from mtanno.tables import read_table, write_table
