@@ -68,6 +68,10 @@ class ClassConfig:
       (paths relative to the configuration), matched like its own; its Δ is the
       frame-wise minimum over them;
     * ``delta`` — the templates' quantization δ (None: the command's ``--delta``).
+
+    ``tuned_with`` (written by ``mtanno tune``): class → SHA-256 of the template file the
+    parameters were tuned with; :meth:`template_warnings` says when the templates given
+    to ``annotate`` are other ones.
     """
 
     default_tau: float = DEFAULT_TAU
@@ -83,6 +87,7 @@ class ClassConfig:
     default_reject: float = math.inf
     reject: dict[str, float] = field(default_factory=dict)
     templates: dict[str, list[str]] = field(default_factory=dict)
+    tuned_with: dict[str, str] = field(default_factory=dict)
     lines: dict[tuple[str, str], int] = field(default_factory=dict, repr=False, compare=False)
 
     def tau_for(self, name: str) -> float:
@@ -123,6 +128,25 @@ class ClassConfig:
                 raise MtannoError(f"[{section}] names unknown class(es) {', '.join(unknown)} "
                                   f"(no template; {what}: {', '.join(sorted(allowed))})",
                                   path=self.path, line=self.line_of(section, unknown[0]))
+
+    def template_warnings(self, models: Sequence[ClassModel]) -> list[str]:
+        """Warnings when ``models`` (the template folder's classes) are not the templates
+        this configuration was tuned with (``[tuned_with]``; none for a configuration
+        without it): per-class thresholds tuned for other templates may not suit these."""
+        if not self.tuned_with:
+            return []
+        changed = sorted(m.name for m in models if m.name in self.tuned_with
+                         and m.sha256 is not None and m.sha256 != self.tuned_with[m.name])
+        untuned = sorted(m.name for m in models if m.name not in self.tuned_with)
+        out = []
+        if changed:
+            out.append(f"the template(s) of {', '.join(changed)} are not those {self.path} was "
+                       f"tuned with (SHA-256 in its [tuned_with]): its thresholds may not suit "
+                       f"them; run mtanno tune again")
+        if untuned:
+            out.append(f"the class(es) {', '.join(untuned)} are not in the [tuned_with] of "
+                       f"{self.path}: tune did not see their templates")
+        return out
 
     def methods(self) -> dict:
         """The issue-10 methods in use, for an output's provenance (empty: none)."""
@@ -165,7 +189,7 @@ def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
 #: Keys of the ``[decoder]`` section of a class configuration and their types.
 DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": float,
                 "segment_cost": float, "delta": float}
-_SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates")
+_SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates", "tuned_with")
 
 
 def _key_lines(text: str) -> dict[tuple[str, str], int]:
@@ -280,6 +304,12 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
             raise bad("templates", k, "[templates] must map classes to non-empty lists of "
                                       "template files")
     cfg.templates = {str(k): list(v) for k, v in data.get("templates", {}).items()}
+    for k, v in data.get("tuned_with", {}).items():
+        if not (isinstance(v, str) and len(v) == 64
+                and all(ch in "0123456789abcdef" for ch in v)):
+            raise bad("tuned_with", k, f"[tuned_with] {k} must be the SHA-256 (64 lower-case "
+                                       f"hex digits) of the template file tune used, got {v!r}")
+    cfg.tuned_with = {str(k): str(v) for k, v in data.get("tuned_with", {}).items()}
     return cfg
 
 
@@ -326,6 +356,7 @@ def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
         section("reject", [("default", cfg.default_reject), *sorted(cfg.reject.items())])
     section("superclasses", sorted(cfg.superclasses.items()))
     section("templates", sorted(cfg.templates.items()))
+    section("tuned_with", sorted(cfg.tuned_with.items()))
     return "\n".join(out) + "\n"
 
 
@@ -1435,6 +1466,8 @@ class AnnotationSetup:
     #: classes without a keyframe query (matched everywhere), and queries without a template
     keyframes_missing: list[str] = field(default_factory=list)
     keyframes_extra: list[str] = field(default_factory=list)
+    #: the configuration was tuned with other templates (:meth:`ClassConfig.template_warnings`)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def classes(self) -> list[str]:
@@ -1504,10 +1537,12 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
         delta = config.delta if config.delta is not None else DEFAULT_DELTA
     models, layout = load_class_models(mt_dir, delta=delta)
     config.check([m.name for m in models])
+    warnings = config.template_warnings(models)
     models += load_config_templates(config, layout, delta=delta)
     setup = AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
                             single_label=single_label,
-                            config_sha256=sha256_file(config_path) if config_path else None)
+                            config_sha256=sha256_file(config_path) if config_path else None,
+                            warnings=warnings)
     if keyframes_dir:
         from mtanno.keyframes import load_class_keyframes
 

@@ -375,6 +375,12 @@ def test_class_config(tmp_path):
     p.write_text("[taus]\n")
     with pytest.raises(MtannoError, match="unknown section"):
         load_class_config(p)
+    p.write_text(f"[tuned_with]\nsit = \"{'ab' * 32}\"\n")
+    assert load_class_config(p).tuned_with == {"sit": "ab" * 32}
+    for bad in ("'abc'", "1", f"'{'AB' * 32}'", f"'{'ab' * 31}zz'"):
+        p.write_text(f"[tuned_with]\nsit = {bad}\n")
+        with pytest.raises(MtannoError, match=r"c.toml:2: \[tuned_with\] sit must be the SHA-256"):
+            load_class_config(p)
     with pytest.raises(MtannoError, match="not found"):
         load_class_config(tmp_path / "missing.toml")
     assert ClassConfig().tau_for("any") == 0.13

@@ -17,6 +17,7 @@ from world import assert_one_line, cli
 from mtanno.annotate import ClassConfig, label_document, load_class_config
 from mtanno.errors import MtannoError
 from mtanno.evaluate import evaluate_annotations
+from mtanno.store import sha256_file
 from mtanno.templates.training import collect_sources
 from mtanno.truth import Segment
 from mtanno.tuning import METHODS, tune, write_tuned
@@ -87,6 +88,40 @@ def test_tuned_configuration_round_trips_through_annotate(world, tmp_path):
     assert prov.get("methods", {}).get("resolve") == cfg.resolve or not cfg.resolve
     # the configuration's text is what class_config_text makes of what it holds
     assert "[decoder]" in cfg_path.read_text() and "cross-validated" in cfg_path.read_text()
+    # it names the templates it was tuned with; annotating with those gives no warning
+    assert cfg.tuned_with == {p.stem: sha256_file(p) for p in world.mt.glob("*.json")}
+    assert "warning" not in r.output
+
+
+def test_annotate_warns_when_the_templates_are_not_those_tuned_with(world, tmp_path):
+    cfg_path = tmp_path / "tuned.toml"
+    assert cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+               world.feats, "--split", "train", "-o", cfg_path, "-q").exit_code == 0
+    mt2 = world.copy(world.mt, tmp_path / "mt2")
+    changed = sorted(mt2.glob("*.json"))[0]
+    changed.write_text(changed.read_text() + "\n")  # same template, another file
+    r = cli("annotate", "--mt", mt2, "--classes", cfg_path, world.docfeats,
+            "-o", tmp_path / "a.csv", "-q")
+    assert r.exit_code == 0, r.output
+    warnings = [x for x in r.output.splitlines() if "warning" in x]
+    assert warnings == [f"annotate: warning: the template(s) of {changed.stem} are not those "
+                        f"{cfg_path} was tuned with (SHA-256 in its [tuned_with]): its "
+                        f"thresholds may not suit them; run mtanno tune again"]
+    text = cfg_path.read_text()
+    untuned = sorted(world.mt.glob("*.json"))[-1].stem
+    (tmp_path / "u.toml").write_text("\n".join(x for x in text.splitlines()
+                                               if not x.startswith(f"{untuned} = ")) + "\n")
+    r = cli("annotate", "--mt", world.mt, "--classes", tmp_path / "u.toml", world.docfeats,
+            "-o", tmp_path / "b.csv", "-q")
+    assert r.exit_code == 0, r.output
+    assert [x for x in r.output.splitlines() if "warning" in x] == [
+        f"annotate: warning: the class(es) {untuned} are not in the [tuned_with] of "
+        f"{tmp_path / 'u.toml'}: tune did not see their templates"]
+    # a hand-written configuration (no [tuned_with]) is never warned about
+    (tmp_path / "h.toml").write_text("[tau]\ndefault = 0.1\n")
+    r = cli("annotate", "--mt", mt2, "--classes", tmp_path / "h.toml", world.docfeats,
+            "-o", tmp_path / "c.csv", "-q")
+    assert r.exit_code == 0 and "warning" not in r.output
 
 
 def test_methods_can_be_disabled_and_ablated(world, tmp_path):

@@ -128,6 +128,8 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                                   tau=tau, delta=delta, dbar_variant=variant,
                                   match_variant=match_variant, single_label=single_label)
     check_outputs(written, setup.files())  # the configuration's further templates
+    for warning in setup.warnings:
+        click.echo(f"annotate: warning: {warning}", err=True)
     if not quiet and setup.keyframes_missing:
         click.echo(f"annotate: note: no keyframe query for {', '.join(setup.keyframes_missing)}"
                    "; matched everywhere", err=True)

@@ -61,6 +61,8 @@ class TuneResult:
     unknown_weight: float = UNKNOWN_WEIGHT
     seconds: float = 0.0
     ablation: dict[str, TuneResult] = field(default_factory=dict)
+    #: class → SHA-256 of the template file tuned with (``[tuned_with]`` of the config)
+    template_sha256: dict[str, str] = field(default_factory=dict)
 
     @property
     def not_validated(self) -> list[str]:
@@ -242,14 +244,16 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             seen.add(ex.file)
             inputs.append({"path": ex.file, "sha256": ex.sha256})
     folds_held = {f.name: len(f.held_examples) for f in folds}
+    shas = {c: sha256_file(templates[c].path) for c in classes if templates[c].path}
     seconds = time.perf_counter() - t0
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
-                        folds_held, seed, methods, documents, unknown_weight, seconds)
+                        folds_held, seed, methods, documents, unknown_weight, seconds,
+                        template_sha256=shas)
     for name, (p, ev, st) in variants.items():
         subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
                                            folds_held, seed, subset, documents, unknown_weight,
-                                           seconds)
+                                           seconds, template_sha256=shas)
     return result
 
 
@@ -318,6 +322,7 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
     path = Path(path)
     cfg = result.params.config()
     cfg.path = str(path)
+    cfg.tuned_with = dict(result.template_sha256)
     if result.extra_templates:
         folder = template_folder_of(path)
         make_folder(folder)
