@@ -201,18 +201,43 @@ def _page(result: ReportResult, images, rows, title: str, provenance: dict) -> s
     return "\n".join(parts)
 
 
+def annotation_parameters(provenances: Sequence[dict]) -> dict:
+    """What annotation tables' provenance records (``mtanno.annotate.read_annotation_tables``)
+    say the annotation used, for :func:`write_report`: ``tau`` (default τ), ``tau_per_class``,
+    ``delta`` (None where unrecorded) and ``extra_templates`` (classes matched with further
+    templates); each from the first table that records it."""
+    def first(key, kind):
+        return next((p[key] for p in provenances if isinstance(p.get(key), kind)
+                     and not isinstance(p.get(key), bool)), None)
+
+    per_class = first("tau_per_class", dict) or {}
+    methods = first("methods", dict) or {}
+    extra = methods.get("templates")
+    return {"tau": first("tau", (int, float)),
+            "tau_per_class": {str(k): float(v) for k, v in per_class.items()
+                              if isinstance(v, (int, float)) and not isinstance(v, bool)},
+            "delta": first("delta", (int, float)),
+            "extra_templates": sorted(extra) if isinstance(extra, dict) else []}
+
+
 def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                  annotation: Sequence[Annotation], *, frames: dict[str, int] | None = None,
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
-                 tau: float | None = None, title: str = "mtanno annotation report",
+                 tau: float | None = None, tau_per_class: dict[str, float] | None = None,
+                 delta: float | None = None, extra_templates: Sequence[str] = (),
+                 title: str = "mtanno annotation report",
                  provenance: dict | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
     document's length (default: the last labelled frame of truth or annotation);
     ``templates`` (class → :class:`~mtanno.templates.model.MotionTemplate`) adds heat maps
     and, with ``features`` (document → features × frames matrix), the Δ curves of every
-    class (templates quantized with δ = 0.05 as for annotation; ``tau`` drawn).
-    Documents are those annotated."""
+    class: templates quantized with ``delta`` (default 0.05) as the annotation did,
+    ``tau`` drawn, and in the class's colour each τ of ``tau_per_class`` that differs from
+    it. ``extra_templates`` names the classes the annotation also matched further
+    templates for (a tuned configuration's ``[templates]``): their curves, of the class's
+    own template only, are not the annotation's Δ, and the page says so. Documents are
+    those annotated."""
     from mtanno.output import make_folder
     from mtanno.plot import (
         label_colours,
@@ -276,7 +301,13 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
             w.figure(plot_template(mt), f"template_{_safe(name)}", "Templates",
                      f"template {name}")
     if templates and features:
-        _delta_figures(w, templates, {d: features[d] for d in docs if d in features}, tau)
+        _delta_figures(w, templates, {d: features[d] for d in docs if d in features}, tau,
+                       tau_per_class or {}, delta)
+        if extra_templates:
+            result.notes.append(
+                "the annotation also matched further templates of "
+                f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
+                "their Δ curves here are those of the class's own template only")
     from mtanno.output import write_text
 
     write_text(result.page, _page(result, w.images, rows, title, prov))
@@ -293,18 +324,23 @@ def _legend(ax, labels, colours) -> None:
 
 
 def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
-                   tau: float | None) -> None:
+                   tau: float | None, tau_per_class: dict[str, float],
+                   delta: float | None) -> None:
     from mtanno.annotate import DEFAULT_DELTA, class_deltas, class_models
     from mtanno.plot import label_colours, plot_delta
 
-    models, _ = class_models(templates, delta=DEFAULT_DELTA)
+    models, _ = class_models(templates, delta=DEFAULT_DELTA if delta is None else delta)
     colours = label_colours(sorted(m.name for m in models))
     for d, X in features.items():
         ax = None
-        for m, (delta, _) in zip(models, class_deltas(X, models)):
-            ax = plot_delta(delta, label=m.name, tau=tau, ax=ax)
+        for m, (curve, _) in zip(models, class_deltas(X, models)):
+            ax = plot_delta(curve, label=m.name, tau=tau, ax=ax)
             [line for line in ax.lines if line.get_label() == m.name][0].set_color(
                 colours[m.name])
+            own = tau_per_class.get(m.name)
+            if own is not None and own != tau:
+                ax.axhline(own, color=colours[m.name], linestyle=":", linewidth=1,
+                           label=f"τ {m.name} = {own:g}")
         ax.set_title(f"{d}: Δ of every class")
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
         ax.figure.set_size_inches(12, max(3.5, 1.0 + 0.16 * len(models)))

@@ -216,6 +216,63 @@ def test_report_files_and_tables(world, tmp_path):
     assert ev.exit_code == 0
 
 
+def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path, monkeypatch):
+    """A tuned annotation (δ 0.25, a τ of its own for one class, a further template for
+    another): the report's Δ curves are quantized with the annotation's δ, each class's
+    own τ is drawn in its colour, and the page says which classes had further templates."""
+    import json
+
+    import mtanno.report as report
+    from mtanno.annotate import class_deltas, class_models
+    from mtanno.store import read_features
+    from mtanno.templates.model import load_template_folder
+
+    names = sorted(p.stem for p in world.mt.glob("*.json"))
+    own, extra = names[0], names[1]
+    cfg = tmp_path / "c.toml"
+    extra_file = world.mt / f"{extra}.json"
+    cfg.write_text(f'[decoder]\ndelta = 0.25\n[tau]\ndefault = 0.13\n{own} = 0.07\n'
+                   f'[templates]\n{extra} = ["{extra_file}"]\n')
+    ann = tmp_path / "a.csv"
+    assert run("annotate", "--mt", world.mt, "--classes", cfg, world.docfeats, "-o", ann,
+               "-q").exit_code == 0
+    prov = json.loads((tmp_path / "a.csv.meta.json").read_text())
+    assert report.annotation_parameters([{}, prov]) == {
+        "tau": 0.13, "tau_per_class": {own: 0.07}, "delta": 0.25, "extra_templates": [extra]}
+    axes = {}
+    real = report._Writer.figure
+
+    def keep(self, ax, stem, section, caption):
+        axes[stem] = ax
+        return real(self, ax, stem, section, caption)
+
+    monkeypatch.setattr(report._Writer, "figure", keep)
+    doc = world.doc_files[0]
+    out = tmp_path / "rep"
+    r = run("report", ann, "--truth", world.truth, "-o", out, "--mt", world.mt,
+            "--features", doc)
+    assert r.exit_code == 0, r.output
+    ax = axes[f"delta_{doc.stem}"]
+    models, _ = class_models(load_template_folder(world.mt), delta=0.25)
+    want = dict(zip((m.name for m in models), class_deltas(read_features(doc).X, models)))
+    for line in ax.lines:
+        if line.get_label() in want:
+            y = want[line.get_label()][0]
+            assert np.array_equal(line.get_ydata(), np.where(np.isfinite(y), y, np.nan),
+                                  equal_nan=True)
+    labels = [line.get_label() for line in ax.lines]
+    assert labels.count("τ = 0.13") == 1 and f"τ {own} = 0.07" in labels
+    colour = next(x.get_color() for x in ax.lines if x.get_label() == own)
+    assert next(x.get_color() for x in ax.lines if x.get_label() == f"τ {own} = 0.07") == colour
+    assert f"also matched further templates of {extra}" in (out / "index.html").read_text()
+    # --tau and --delta replace the annotation's
+    axes.clear()
+    assert run("report", ann, "--truth", world.truth, "-o", tmp_path / "r2", "--mt", world.mt,
+               "--features", doc, "--tau", "0.2", "--delta", "0.05").exit_code == 0
+    labels = [line.get_label() for line in axes[f"delta_{doc.stem}"].lines]
+    assert "τ = 0.2" in labels and not any(x.startswith(f"τ {own}") for x in labels)
+
+
 def _chromium() -> str | None:
     for name in ("chromium", "chromium-browser", "google-chrome"):
         if shutil.which(name):

@@ -22,12 +22,17 @@ from mtanno.errors import MtannoError
               help="Feature files or folders of the annotated documents (with --mt). "
                    "Repeatable.")
 @click.option("--tau", type=float, default=None,
-              help="Threshold drawn in the Δ plots [default: the annotation's tau].")
+              help="Threshold drawn in the Δ plots [default: the annotation's tau, and "
+                   "its per-class taus in the classes' colours].")
+@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+              help="Quantization delta of the templates for the Δ plots [default: the "
+                   "annotation's, else 0.05].")
 @click.option("--title", default="mtanno annotation report", show_default=True,
               help="Title of the page.")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line.")
 @user_errors(2)
-def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, quiet):
+def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, title,
+               quiet):
     """Write a report of annotation tables against ground truth (MBS09 §7) into a folder.
 
     \b
@@ -48,7 +53,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     from mtanno.annotate import DEFAULT_TAU, annotation_files, read_annotation_tables
     from mtanno.output import check_outputs
     from mtanno.plot import require_matplotlib
-    from mtanno.report import write_report
+    from mtanno.report import annotation_parameters, write_report
     from mtanno.store import document_files, read_features
     from mtanno.tables import provenance
     from mtanno.templates.model import load_template_folder, template_files
@@ -62,8 +67,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     check_outputs([out_dir], [*annotations, truth_path, *paths,
                               *(template_files(mt_dir) if mt_dir else [])])
     rows, frames, provs = read_annotation_tables(annotations)
-    recorded_tau = next((float(p["tau"]) for p in provs
-                         if isinstance(p.get("tau"), (int, float))), None)
+    recorded = annotation_parameters(provs)
     truth = read_truth(truth_path)
     check_within(truth, frames, path=truth_path)
     templates = load_template_folder(mt_dir) if mt_dir else None
@@ -71,9 +75,15 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, title, q
     for p in paths:
         ff = read_features(p)
         feats[ff.document] = ff.X
+    if tau is None:  # the annotation's thresholds
+        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
+        per_class = recorded["tau_per_class"]
+    else:
+        per_class = {}
     result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
-                          features=feats or None,
-                          tau=tau if tau is not None else (recorded_tau or DEFAULT_TAU),
+                          features=feats or None, tau=tau, tau_per_class=per_class,
+                          delta=delta if delta is not None else recorded["delta"],
+                          extra_templates=recorded["extra_templates"],
                           title=title, provenance=provenance(
                               inputs=[*annotations, truth_path], truth=str(truth_path)))
     if not quiet:
