@@ -99,21 +99,39 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
              single_label: bool = False, n_jobs: int = 1) -> AnnotationBatch:
     """Label every frame of feature files (files or folders) with the classes of
     ``templates`` (a template folder or class name → template), MBS09 §4: τ = 0.13 and
-    δ = 0.05 unless given. Returns the :class:`~mtanno.annotate.AnnotationBatch`: its
-    ``rows`` are the segments (0-based frames at 30 Hz), ``failed`` the files that could
-    not be used. (:func:`mtanno.annotate.annotate_files`.)"""
-    from mtanno.annotate import DEFAULT_DELTA, ClassConfig, annotate_files, check_tau, class_models
+    δ = 0.05 unless given. ``config`` (e.g. ``load_class_config("tuned.toml")``, what
+    ``mtanno tune`` writes) is applied as ``mtanno annotate --classes`` applies it: its δ
+    unless ``delta`` is given, its further templates, and a :class:`UserWarning` when the
+    templates are not those it was tuned with; ``tau`` replaces its default τ (the
+    object passed is not changed). Returns the :class:`~mtanno.annotate.AnnotationBatch`:
+    its ``rows`` are the segments (0-based frames at 30 Hz), ``failed`` the files that
+    could not be used. (:func:`mtanno.annotate.annotate_files`.)"""
+    import warnings
+    from dataclasses import replace
+
+    from mtanno.annotate import (
+        DEFAULT_DELTA,
+        ClassConfig,
+        annotate_files,
+        check_tau,
+        class_models,
+        load_config_templates,
+    )
     from mtanno.store import document_files
 
     paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
     if isinstance(templates, (str, os.PathLike)):
         templates = load_templates(templates)
-    models, layout = class_models(dict(templates),
-                                  delta=DEFAULT_DELTA if delta is None else delta)
-    config = config or ClassConfig()
+    config = replace(config) if config is not None else ClassConfig()
     if tau is not None:
         config.default_tau = check_tau(tau)
+    if delta is None:
+        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+    models, layout = class_models(dict(templates), delta=delta)
     config.check([m.name for m in models])
+    for message in config.template_warnings(models):
+        warnings.warn(message, UserWarning, stacklevel=2)
+    models += load_config_templates(config, layout, delta=delta)
     return annotate_files(paths, models, layout=layout, config=config, n_jobs=n_jobs,
                           single_label=single_label)
 

@@ -58,3 +58,41 @@ def test_notebook_example_equals_the_commands(world):
     assert not single.failed and single.rows != result.rows
     with pytest.raises(mtanno.MtannoError, match="annotations must be"):
         mtanno.evaluate_annotation([1, 2], world.truth)
+
+
+def test_annotate_documents_applies_a_class_configuration_as_the_command_does(world, tmp_path):
+    """A tuned-style configuration (δ, per-class τ, a further template): the API gives the
+    rows of `mtanno annotate --classes`, warns as the command does, and leaves the
+    configuration object passed to it as it was."""
+    from click.testing import CliRunner
+
+    from mtanno.annotate import load_class_config, read_annotations
+    from mtanno.cli import main
+    from mtanno.store import sha256_file
+    from mtanno.templates.model import save_template
+    from mtanno.tuning.tempo import time_scaled
+
+    names = sorted(p.stem for p in world.mt.glob("*.json"))
+    mts = load_template_folder(world.mt)
+    save_template(tmp_path / "extra.json", time_scaled(mts[names[0]], 0.6))
+    cfg_path = tmp_path / "c.toml"
+    cfg_path.write_text(
+        f"[decoder]\nresolve = true\ndelta = 0.25\n[tau]\ndefault = 0.12\n{names[1]} = 0.08\n"
+        f'[templates]\n{names[0]} = ["extra.json"]\n[tuned_with]\n'
+        + "".join(f'{n} = "{sha256_file(world.mt / (n + ".json"))}"\n' for n in names))
+    out = tmp_path / "a.csv"
+    r = CliRunner().invoke(main, ["annotate", "--mt", str(world.mt), "--classes", str(cfg_path),
+                                  str(world.docfeats), "-o", str(out), "-q"])
+    assert r.exit_code == 0, r.output
+    cfg = load_class_config(cfg_path)
+    got = mtanno.annotate_documents(world.docfeats, world.mt, config=cfg)
+    assert got.rows == read_annotations(out)
+    without = mtanno.annotate_documents(world.docfeats, world.mt, config=cfg, delta=0.05)
+    assert without.rows != got.rows  # the configuration's δ was used
+    # the templates are not those tuned with: a warning, as annotate prints
+    changed = dict(mts)
+    changed[names[0]] = time_scaled(mts[names[0]], 1.0)
+    changed[names[0]].path = str(tmp_path / "extra.json")
+    with pytest.warns(UserWarning, match=f"the template\\(s\\) of {names[0]} are not those"):
+        mtanno.annotate_documents(world.docfeats, changed, config=cfg, tau=0.2)
+    assert cfg.default_tau == 0.12  # tau=0.2 did not change the object passed
