@@ -233,6 +233,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
         return out
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
+    shas = {i["path"]: i["sha256"] for i in inputs}
+    shas = {c: shas[templates[c].path] for c in classes}  # [tuned_with] of the config
     if keyframes_dir is not None:
         from mtanno.keyframes import keyframe_files
 
@@ -244,7 +246,6 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             seen.add(ex.file)
             inputs.append({"path": ex.file, "sha256": ex.sha256})
     folds_held = {f.name: len(f.held_examples) for f in folds}
-    shas = {c: sha256_file(templates[c].path) for c in classes if templates[c].path}
     seconds = time.perf_counter() - t0
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
                         folds_held, seed, methods, documents, unknown_weight, seconds,
