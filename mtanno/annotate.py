@@ -1517,6 +1517,33 @@ class AnnotationSetup:
                               single_label=self.single_label, scheduler=scheduler)
 
 
+def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
+                     config_sha256: str | None = None, tau: float | None = None,
+                     delta: float | None = None, dbar_variant: str = "reference",
+                     match_variant: str = "reference", single_label: bool = False,
+                     where: str = "the templates") -> AnnotationSetup:
+    """The :class:`AnnotationSetup` of loaded templates (class name →
+    :class:`mtanno.templates.model.MotionTemplate`) and a class configuration, applied as
+    ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
+    δ unless ``delta`` is given (else :data:`DEFAULT_DELTA`), its further templates, and
+    :meth:`ClassConfig.template_warnings` in ``warnings``. ``tau`` replaces its default τ
+    (on a copy: the object passed is not changed)."""
+    from dataclasses import replace
+
+    config = replace(config) if config is not None else ClassConfig()
+    if tau is not None:
+        config.default_tau = check_tau(tau)
+    if delta is None:
+        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+    models, layout = class_models(templates, delta=delta, where=where)
+    config.check([m.name for m in models])
+    warnings = config.template_warnings(models)
+    models += load_config_templates(config, layout, delta=delta)
+    return AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
+                           single_label=single_label, config_sha256=config_sha256,
+                           warnings=warnings)
+
+
 def load_annotation_setup(mt_dir: str | os.PathLike, *,
                           config_path: str | os.PathLike | None = None,
                           keyframes_dir: str | os.PathLike | None = None,
@@ -1524,29 +1551,23 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
                           dbar_variant: str = "reference", match_variant: str = "reference",
                           single_label: bool = False) -> AnnotationSetup:
     """Read what ``mtanno annotate`` annotates with: the templates of ``mt_dir``, the
-    class configuration (``config_path``, checked against the templates' classes, with its
-    further templates), the keyframe queries of ``keyframes_dir`` for those classes. ``tau``
-    replaces the configuration's default τ; ``delta`` defaults to the configuration's
-    ``[decoder] delta``, else :data:`DEFAULT_DELTA`."""
+    class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
+    of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
+    τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
+    :data:`DEFAULT_DELTA`."""
     from mtanno.store import sha256_file
+    from mtanno.templates.model import load_template_folder
 
-    config = load_class_config(config_path) if config_path else ClassConfig()
-    if tau is not None:
-        config.default_tau = check_tau(tau)
-    if delta is None:
-        delta = config.delta if config.delta is not None else DEFAULT_DELTA
-    models, layout = load_class_models(mt_dir, delta=delta)
-    config.check([m.name for m in models])
-    warnings = config.template_warnings(models)
-    models += load_config_templates(config, layout, delta=delta)
-    setup = AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
-                            single_label=single_label,
-                            config_sha256=sha256_file(config_path) if config_path else None,
-                            warnings=warnings)
+    setup = annotation_setup(
+        load_template_folder(mt_dir),
+        config=load_class_config(config_path) if config_path else None,
+        config_sha256=sha256_file(config_path) if config_path else None, tau=tau,
+        delta=delta, dbar_variant=dbar_variant, match_variant=match_variant,
+        single_label=single_label, where=f"the templates in {mt_dir}")
     if keyframes_dir:
         from mtanno.keyframes import load_class_keyframes
 
         (setup.keyframes, setup.keyframe_files, setup.keyframes_missing,
          setup.keyframes_extra) = load_class_keyframes(keyframes_dir, setup.classes,
-                                                       feature_set=layout.feature_set)
+                                                       feature_set=setup.layout.feature_set)
     return setup

@@ -107,33 +107,18 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
     its ``rows`` are the segments (0-based frames at 30 Hz), ``failed`` the files that
     could not be used. (:func:`mtanno.annotate.annotate_files`.)"""
     import warnings
-    from dataclasses import replace
 
-    from mtanno.annotate import (
-        DEFAULT_DELTA,
-        ClassConfig,
-        annotate_files,
-        check_tau,
-        class_models,
-        load_config_templates,
-    )
+    from mtanno.annotate import annotation_setup
     from mtanno.store import document_files
 
     paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
     if isinstance(templates, (str, os.PathLike)):
         templates = load_templates(templates)
-    config = replace(config) if config is not None else ClassConfig()
-    if tau is not None:
-        config.default_tau = check_tau(tau)
-    if delta is None:
-        delta = config.delta if config.delta is not None else DEFAULT_DELTA
-    models, layout = class_models(dict(templates), delta=delta)
-    config.check([m.name for m in models])
-    for message in config.template_warnings(models):
+    setup = annotation_setup(dict(templates), config=config, tau=tau, delta=delta,
+                             single_label=single_label)
+    for message in setup.warnings:
         warnings.warn(message, UserWarning, stacklevel=2)
-    models += load_config_templates(config, layout, delta=delta)
-    return annotate_files(paths, models, layout=layout, config=config, n_jobs=n_jobs,
-                          single_label=single_label)
+    return setup.annotate(paths, n_jobs=n_jobs)
 
 
 def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
