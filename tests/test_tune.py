@@ -567,7 +567,7 @@ def test_annotate_skips_the_evidence_that_a_copy_cannot_change():
     """A time-scaled copy's columns are its template's, so annotate does not compute its
     frame evidence; the rows equal those with every template's evidence taken."""
     from mtanno.annotate import ClassModel, annotate_document, class_deltas, evidence_covered
-    from mtanno.decode import frame_evidence
+    from mtanno.annotate.decode import frame_evidence
     from mtanno.templates.match import pack_document
     from mtanno.tuning.tempo import scale_columns
 

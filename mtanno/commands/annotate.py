@@ -114,7 +114,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     if tau is not None:
         tau = check_tau(tau, what="--tau")
     if out_dir is not None:
-        from mtanno.annotate_folder import plan_folder
+        from mtanno.annotate.folder import plan_folder
 
         folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv")
         paths = [j.src for j in folder_jobs]
@@ -154,7 +154,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                                               f"{len(batch.rows)} segments"
         seconds = batch.seconds
     else:
-        from mtanno.annotate_folder import annotate_folder, folder_table
+        from mtanno.annotate.folder import annotate_folder, folder_table
         from mtanno.tables import write_table
 
         with lock_output(out_dir, wait=wait):

@@ -13,7 +13,7 @@
   configuration and its extra templates).
 
 The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
-:mod:`mtanno.decode`.
+:mod:`mtanno.annotate.decode`.
 """
 
 from mtanno.tuning.run import TuneResult, template_folder_of, tune, write_tuned

@@ -20,7 +20,7 @@ import numpy as np
 
 from mtanno import __version__
 from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
-from mtanno.decode import EVIDENCE_MARGIN
+from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, make_folds

@@ -5,7 +5,7 @@ For every fold (:mod:`mtanno.tuning.cv`) the templates are learned from the othe
 examples, quantized with each δ of :data:`DELTA_GRID`, and matched against the fold's
 held-out documents once; then the parameters are chosen by coordinate search, each
 candidate scored by annotating all held-out documents from those cached distance
-functions (:func:`mtanno.annotate.label_document` / :func:`mtanno.decode.decode_segments`,
+functions (:func:`mtanno.annotate.label_document` / :func:`mtanno.annotate.decode.decode_segments`,
 exactly what ``annotate --classes`` does). The objective is
 
     J = (F1 + F2) / 2 − w · U
@@ -53,7 +53,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
-from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
+from mtanno.annotate.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
@@ -166,7 +166,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
     from all examples, (k', i) group i of a split into k', and (0, f) for each f of
     ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.tuning.tempo.time_scaled`;
     evidence None: it equals the template's)."""
-    from mtanno.decode import distinct_frames, frame_evidence
+    from mtanno.annotate.decode import distinct_frames, frame_evidence
     from mtanno.templates.learn import learn_template
     from mtanno.templates.match import PreparedTemplate, pack_document
     from mtanno.templates.model import quantize

@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mtanno.annotate import AnnotationSetup
+from mtanno.annotate.batch import AnnotationSetup
 from mtanno.errors import MtannoError
 
 __all__ = ["FORMATS", "DocJob", "DocOutcome", "FolderSummary", "annotate_folder",
