@@ -3,7 +3,7 @@
 The package reads the pipeline left to right: :mod:`mtanno.io` (mocap files to joint
 positions), :mod:`mtanno.features` (40 boolean relational features at 30 Hz),
 :mod:`mtanno.store` (Parquet feature files), :mod:`mtanno.templates`, :mod:`mtanno.index`,
-:mod:`mtanno.keyframes`, :mod:`mtanno.annotate`, :mod:`mtanno.evaluate`. The command
+:mod:`mtanno.keyframes`, :mod:`mtanno.annotate`, :mod:`mtanno.evaluation.metrics`. The command
 line (:mod:`mtanno.cli`) is a thin layer over these functions.
 
 The short way in (:mod:`mtanno.api`, loaded on first use so that ``import mtanno`` stays

@@ -22,10 +22,10 @@ if TYPE_CHECKING:
     import numpy as np
 
     from mtanno.annotate import AnnotationBatch, ClassConfig
-    from mtanno.evaluate import Report
+    from mtanno.evaluation.metrics import Report
+    from mtanno.evaluation.truth import Segment
     from mtanno.io.skeleton import Motion
     from mtanno.templates.model import MotionTemplate
-    from mtanno.truth import Segment
 
 __all__ = ["annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
            "load_templates", "read_motion"]
@@ -127,10 +127,10 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
     """Frame- and segment-level precision, recall and F of annotations (an
     :func:`annotate_documents` result, its rows, or an annotation table file) against ground truth (a
     truth table file or its segments), MBS09 §7; by default over the annotated documents.
-    ``Report.table()`` prints it. (:func:`mtanno.evaluate.evaluate_annotations`.)"""
+    ``Report.table()`` prints it. (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
     from mtanno.annotate import read_annotations
-    from mtanno.evaluate import evaluate_annotations
-    from mtanno.truth import Segment, read_truth
+    from mtanno.evaluation.metrics import evaluate_annotations
+    from mtanno.evaluation.truth import Segment, read_truth
 
     if isinstance(annotations, (str, os.PathLike)):
         annotations = read_annotations(annotations)

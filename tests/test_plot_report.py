@@ -14,8 +14,8 @@ from click.testing import CliRunner
 
 from mtanno.annotate import Annotation
 from mtanno.cli import main
+from mtanno.evaluation.truth import Segment
 from mtanno.store import write_features
-from mtanno.truth import Segment
 
 matplotlib = pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
 matplotlib.use("Agg")
@@ -167,7 +167,7 @@ def test_mt_plot(world, tmp_path):
 # --- report ---------------------------------------------------------------------------------
 
 def test_confusion_matrix_counts_frames_with_none():
-    from mtanno.report import confusion_matrix
+    from mtanno.evaluation.report import confusion_matrix
 
     truth = [Segment("d", 1, 4, "a"), Segment("d", 5, 8, "b")]
     ann = [Annotation("d", 0, 4, "a", 0.1), Annotation("d", 6, 7, "b", 0.1)]
@@ -222,7 +222,7 @@ def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path,
     own τ is drawn in its colour, and the page says which classes had further templates."""
     import json
 
-    import mtanno.report as report
+    import mtanno.evaluation.report as report
     from mtanno.annotate import class_deltas, class_models
     from mtanno.store import read_features
     from mtanno.templates.model import load_template_folder

@@ -95,8 +95,8 @@ def _annotation_rows(table, *, native: bool = True
     """The checked rows of an annotation table (:func:`read_annotations`) and, with
     ``native`` and when it has the columns start_native and end_native, each row's native
     start and end (checked too; else None)."""
+    from mtanno.evaluation.truth import MAX_FRAME
     from mtanno.tables import parse_int, parse_text
-    from mtanno.truth import MAX_FRAME
 
     table.require(["doc", "start", "end", "label"])
     native = native and "start_native" in table.columns and "end_native" in table.columns

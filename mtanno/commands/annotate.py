@@ -207,10 +207,10 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     error.
     """
     from mtanno.annotate import annotation_files, read_annotation_tables
-    from mtanno.evaluate import evaluate_annotations
+    from mtanno.evaluation.metrics import evaluate_annotations
+    from mtanno.evaluation.truth import Segment, check_within, read_truth
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
-    from mtanno.truth import Segment, check_within, read_truth
 
     if table_path is not None:
         table_format(table_path)
@@ -273,11 +273,11 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
     quotient, each template retrieved in all FEATURES documents. A feature file that
     cannot be used is reported and left out (exit code 1)."""
-    from mtanno.evaluate import retrieval_evaluation, retrieval_report, retrieval_table
+    from mtanno.evaluation.retrieval import retrieval_evaluation, retrieval_report, retrieval_table
+    from mtanno.evaluation.truth import check_within, read_truth
     from mtanno.output import check_outputs
     from mtanno.store import read_features
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
-    from mtanno.truth import check_within, read_truth
 
     if table_path is not None:
         table_format(table_path)
@@ -344,7 +344,7 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
     so the next clip starts where and facing how the previous one ended. Writes
     OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json.
     """
-    from mtanno.compose import compose_documents, read_manifest
+    from mtanno.evaluation.compose import compose_documents, read_manifest
 
     clips = read_manifest(manifest, root=root, actor=actor, split=split)
     docs, truth = compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
@@ -366,9 +366,9 @@ def truth_group():
 @user_errors(2)
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
+    from mtanno.evaluation.truth import truth_from_mocap6, write_truth
     from mtanno.output import check_outputs
     from mtanno.tables import output_files, provenance, table_format
-    from mtanno.truth import truth_from_mocap6, write_truth
 
     table_format(output)
     check_outputs(output_files(output), [labels])

@@ -51,13 +51,13 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     with --single-label; overlapping rows are resolved by segment cost (the page says so).
     """
     from mtanno.annotate import DEFAULT_TAU, annotation_files, read_annotation_tables
+    from mtanno.evaluation.report import annotation_parameters, write_report
+    from mtanno.evaluation.truth import check_within, read_truth
     from mtanno.output import check_outputs
     from mtanno.plot import require_matplotlib
-    from mtanno.report import annotation_parameters, write_report
     from mtanno.store import document_files, read_features
     from mtanno.tables import provenance
     from mtanno.templates.model import load_template_folder, template_files
-    from mtanno.truth import check_within, read_truth
 
     require_matplotlib()
     if features and not mt_dir:

@@ -82,7 +82,7 @@ def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
                     ) -> tuple[list[str], list[tuple[str, int]], np.ndarray, float]:
     """The raw AMC content: (header lines, layout [(bone, value count)], values as written
     in the file (frames × values, file units and degrees), frame rate). For tools that
-    rewrite AMC files (:mod:`mtanno.compose`); checks the file like :func:`read_amc`."""
+    rewrite AMC files (:mod:`mtanno.evaluation.compose`); checks the file like :func:`read_amc`."""
     spath = str(path)
     read_amc(path, skel)  # validates, with path:line errors
     raw = Path(path).read_bytes()

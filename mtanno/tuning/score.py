@@ -4,7 +4,7 @@ MBS09 §7 (algorithms.md §8) that ``mtanno evaluate`` reports, computed on fram
 Segments are (label index, first, last) with 0-based inclusive frames of one array of
 ``n_frames`` frames (the held-out documents concatenated); labels are indices into one list
 of class names shared by truth and output. The counts equal
-:func:`mtanno.evaluate.evaluate_annotations` on the same segments (a test checks it).
+:func:`mtanno.evaluation.metrics.evaluate_annotations` on the same segments (a test checks it).
 """
 
 from __future__ import annotations

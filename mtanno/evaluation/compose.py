@@ -25,12 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.evaluation.truth import Segment, write_truth
 from mtanno.features.hysteresis import analysis_frames
 from mtanno.io.amc import read_amc_values, write_amc
 from mtanno.io.asf import AsfSkeleton, read_asf
 from mtanno.io.skeleton import euler_matrix
 from mtanno.store import atomic_path
-from mtanno.truth import Segment, write_truth
 
 
 @dataclass(frozen=True)

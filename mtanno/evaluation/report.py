@@ -28,13 +28,16 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mtanno.annotate import Annotation
 from mtanno.errors import MtannoError
-from mtanno.evaluate import Report, evaluate_annotations
-from mtanno.truth import Segment
+from mtanno.evaluation.metrics import Report, evaluate_annotations
+from mtanno.evaluation.truth import Segment
+
+if TYPE_CHECKING:
+    from mtanno.annotate.tables import Annotation
 
 NONE = "none"
 FORMATS = ("png", "svg")
