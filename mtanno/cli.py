@@ -16,7 +16,7 @@ import sys
 import click
 
 import mtanno.commands
-from mtanno import __version__
+from mtanno._version import __version__
 
 #: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
@@ -24,19 +24,19 @@ EXIT_INTERRUPTED = 130
 
 class _Main(click.Group):
     """The ``mtanno`` group: records the command line for the provenance of outputs, says
-    when numba compiles the kernels (:mod:`mtanno.jitnote`), and turns an interruption
-    (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.workers`)
+    when numba compiles the kernels (:mod:`mtanno.util.jitnote`), and turns an interruption
+    (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.util.workers`)
     into one line and exit code 130 instead of Click's "Aborted!" and 1."""
 
     def main(self, args=None, prog_name=None, **extra):
-        from mtanno.tables import set_command_line
+        from mtanno.util.tables import set_command_line
 
         set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
         return super().main(args=args, prog_name=prog_name, **extra)
 
     def invoke(self, ctx):
-        from mtanno.jitnote import install_compile_note
-        from mtanno.workers import Interrupted, interruptible, must_hard_exit
+        from mtanno.util.jitnote import install_compile_note
+        from mtanno.util.workers import Interrupted, interruptible, must_hard_exit
 
         install_compile_note()  # one line on stderr if kernels must be compiled first
         try:

@@ -150,7 +150,7 @@ def plot_timeline(rows: dict[str, Sequence[tuple[int, int, str]]], *, n_frames: 
 def save_figure(ax_or_figure, path: str | os.PathLike, *, dpi: int = 110) -> None:
     """Write the figure of ``ax_or_figure`` atomically; the format follows the suffix
     (``.png``, ``.svg``, ``.pdf``)."""
-    from mtanno.output import atomic_path
+    from mtanno.util.output import atomic_path
 
     figure = getattr(ax_or_figure, "figure", ax_or_figure)
     fmt = os.fspath(path).rsplit(".", 1)[-1].lower() if "." in os.fspath(path) else ""

@@ -245,8 +245,8 @@ def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
 def write_hits(path: str | os.PathLike, hits: Sequence[Hit], native: Sequence[np.ndarray], *,
                provenance: dict | None = None) -> None:
     """Write the hit table (:func:`hit_table`) in the format of ``path``'s suffix (``-``:
-    CSV on standard output), atomically and with its provenance (:mod:`mtanno.tables`)."""
-    from mtanno.tables import write_table
+    CSV on standard output), atomically and with its provenance (:mod:`mtanno.util.tables`)."""
+    from mtanno.util.tables import write_table
 
     write_table(path, hit_table(hits, native), provenance=provenance)
 
@@ -267,11 +267,11 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
                    paths: Sequence[str | os.PathLike], *, layout, tau: float,
                    max_hits: int = DEFAULT_MAX_HITS, variant: str = "reference",
                    progress: Callable[[str, str | None], None] | None = None) -> RetrievalBatch:
-    """:func:`retrieve` over feature files: each is read (:func:`mtanno.store.read_features`)
-    and checked against the template's ``layout`` (:func:`mtanno.store.check_layout`); a
+    """:func:`retrieve` over feature files: each is read (:func:`mtanno.util.store.read_features`)
+    and checked against the template's ``layout`` (:func:`mtanno.util.store.check_layout`); a
     file that fails is recorded in ``failed`` and the others are still searched.
     ``progress`` is called once per file with its path and its failure (None on success)."""
-    from mtanno.store import check_layout, read_features
+    from mtanno.util.store import check_layout, read_features
 
     batch = RetrievalBatch(HitList())
 

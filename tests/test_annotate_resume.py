@@ -25,8 +25,8 @@ from world import cli, temporaries
 from mtanno.annotate import annotation_files, load_annotation_setup
 from mtanno.annotate.folder import DocJob, annotate_folder, plan_folder, recipe, up_to_date
 from mtanno.errors import MtannoError
-from mtanno.store import read_features, write_features
-from mtanno.tables import provenance_as_read
+from mtanno.util.store import read_features, write_features
+from mtanno.util.tables import provenance_as_read
 
 #: mtanno with every document delayed by $MTANNO_TEST_DELAY seconds (one process, --jobs 1).
 SLOW_MTANNO = [sys.executable, "-c", (

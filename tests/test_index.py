@@ -26,7 +26,7 @@ from mtanno.index import (
     storage,
 )
 from mtanno.index.core import frame_codes
-from mtanno.store import write_features
+from mtanno.util.store import write_features
 
 MRC05 = get_feature_set("mrc05")
 

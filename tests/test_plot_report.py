@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from mtanno.annotate import Annotation
 from mtanno.cli import main
 from mtanno.evaluation.truth import Segment
-from mtanno.store import write_features
+from mtanno.util.store import write_features
 
 matplotlib = pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
 matplotlib.use("Agg")
@@ -143,7 +143,7 @@ def test_show_text_timeline(handmade, tmp_path):
     # blocks of frames: '+' where the feature is on in part of the block
     r = run("show", handmade, "--width", "10")
     assert r.exit_code == 0
-    from mtanno.inspect import text_timeline
+    from mtanno.info import text_timeline
 
     X = np.array([[0, 0, 1, 1, 1, 0]] * 1, np.uint8)
     assert text_timeline(X, ["k"], width=3) == ["   1", "k  .#+"]
@@ -207,7 +207,7 @@ def test_report_files_and_tables(world, tmp_path):
     conf = list(csv.DictReader((out / "confusion.csv").open()))
     assert conf[-1]["truth"] == "none" and list(conf[0])[-1] == "none"
     total = sum(int(v) for row in conf for k, v in row.items() if k != "truth")
-    from mtanno.store import read_features
+    from mtanno.util.store import read_features
 
     assert total == sum(read_features(p).X.shape[1] for p in world.doc_files)
     page = (out / "index.html").read_text()
@@ -224,8 +224,8 @@ def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path,
 
     import mtanno.evaluation.report as report
     from mtanno.annotate import class_deltas, class_models
-    from mtanno.store import read_features
     from mtanno.templates.model import load_template_folder
+    from mtanno.util.store import read_features
 
     names = sorted(p.stem for p in world.mt.glob("*.json"))
     own, extra = names[0], names[1]

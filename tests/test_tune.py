@@ -18,12 +18,12 @@ from mtanno.annotate import ClassConfig, label_document, load_class_config
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import evaluate_annotations
 from mtanno.evaluation.truth import Segment
-from mtanno.store import sha256_file
 from mtanno.templates.training import collect_sources
 from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
+from mtanno.util.store import sha256_file
 
 
 def _sources(world):
@@ -399,7 +399,7 @@ def test_tune_names_truth_documents_without_a_feature_file(world, tmp_path):
 
 def test_time_scaled_template_keeps_the_nearest_columns():
     from mtanno.templates.model import MotionTemplate
-    from mtanno.tuning.tempo import scale_columns, time_scaled
+    from mtanno.templates.tempo import scale_columns, time_scaled
 
     assert scale_columns(10, 0.6).tolist() == [0, 2, 4, 5, 7, 9]
     assert scale_columns(4, 1.5).tolist() == [0, 1, 1, 2, 3, 3]
@@ -422,9 +422,9 @@ def test_time_scaled_template_matches_a_fast_performance(world):
     copy at 0.6 times the length can, and prepare_fold_class matches both."""
     from mtanno.templates.match import PreparedTemplate, pack_document
     from mtanno.templates.model import quantize
+    from mtanno.templates.tempo import time_scaled
     from mtanno.templates.training import load_examples
     from mtanno.tuning.search import prepare_fold_class
-    from mtanno.tuning.tempo import time_scaled
 
     examples = load_examples(_sources(world))
     cls = examples[0].class_name
@@ -507,7 +507,7 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
     """The chosen tempo factors become further templates of the class: its template from
     MT/ time-scaled, written beside the configuration and read back by annotate."""
     from mtanno.templates.model import load_template, load_template_folder
-    from mtanno.tuning.tempo import time_scaled
+    from mtanno.templates.tempo import time_scaled
 
     original = Tuner.search
 
@@ -539,7 +539,7 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
 
 def test_matched_columns_are_what_the_matcher_expands_to():
     from mtanno.templates.match import PreparedTemplate
-    from mtanno.tuning.tempo import matched_columns
+    from mtanno.templates.tempo import matched_columns
 
     w = np.array([0.4, 1.5, 2.49, 2.5, 1.0])
     assert matched_columns(w) == 1 + 2 + 2 + 3 + 1
@@ -569,7 +569,7 @@ def test_annotate_skips_the_evidence_that_a_copy_cannot_change():
     from mtanno.annotate import ClassModel, annotate_document, class_deltas, evidence_covered
     from mtanno.annotate.decode import frame_evidence
     from mtanno.templates.match import pack_document
-    from mtanno.tuning.tempo import scale_columns
+    from mtanno.templates.tempo import scale_columns
 
     rng = np.random.default_rng(3)
     f, K = 12, 20

@@ -25,7 +25,7 @@ from mtanno.align.poses import Performance, load_performance, normalize_poses
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_SET, FeatureSet
 from mtanno.index.core import frame_codes
-from mtanno.store import check_layout
+from mtanno.util.store import check_layout
 
 __all__ = ["Alignment", "align", "align_files", "alignment_table", "summary",
            "write_alignment"]
@@ -195,6 +195,6 @@ def write_alignment(path: str | os.PathLike, al: Alignment, *,
                     provenance: dict | None = None) -> None:
     """Write the warping path (:func:`alignment_table`) to ``path`` (``.csv``,
     ``.parquet``, ``.jsonl`` or ``-``) with its provenance."""
-    from mtanno.tables import write_table
+    from mtanno.util.tables import write_table
 
     write_table(path, alignment_table(al), provenance=provenance)

@@ -97,7 +97,7 @@ def save_alignment_plot(path: str | os.PathLike, al: Alignment, *,
     kind = check_plot_path(path)
     from matplotlib.figure import Figure
 
-    from mtanno.output import atomic_path
+    from mtanno.util.output import atomic_path
 
     fig = Figure(figsize=(6, 6 * max(0.4, min(2.5, al.a.frames / al.b.frames))))
     ax = fig.add_subplot()

@@ -19,7 +19,7 @@ from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
 
 if TYPE_CHECKING:
-    from mtanno.store import FeatureLayout
+    from mtanno.util.store import FeatureLayout
 
 __all__ = ["AnnotationBatch", "AnnotationSetup", "annotate_files", "annotation_setup",
            "class_models", "load_annotation_setup", "load_class_models",
@@ -44,8 +44,8 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
     :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
     learned in memory), quantized with ``delta``, and the feature layout they share
     (``where`` names them in messages)."""
-    from mtanno.store import FeatureLayout, check_layout, sha256_file
     from mtanno.templates.model import quantize
+    from mtanno.util.store import FeatureLayout, check_layout, sha256_file
 
     if not templates:
         raise MtannoError("no class templates to annotate with")
@@ -72,8 +72,8 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
     """The further templates of ``config.templates`` (several templates per class) as
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
-    from mtanno.store import FeatureLayout, check_layout, sha256_file
     from mtanno.templates.model import load_template, quantize
+    from mtanno.util.store import FeatureLayout, check_layout, sha256_file
 
     out = []
     for cls, paths in config.template_paths().items():
@@ -121,8 +121,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     its failure (a worker sends it back as text)."""
     import time
 
-    from mtanno.store import check_layout, read_features
     from mtanno.templates.match import pack_document
+    from mtanno.util.store import check_layout, read_features
 
     try:
         ff = read_features(path, sha256=True)
@@ -155,7 +155,7 @@ def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     them: result is ``(document, rows, native frames, sha256, seconds)`` or the message
     of the document's failure."""
     from mtanno.keyframes import KeyframeSet
-    from mtanno.workers import make_pool
+    from mtanno.util.workers import make_pool
 
     if keyframes and not isinstance(keyframes, KeyframeSet):
         # prepared once for the batch; if that fails, each document says why
@@ -177,7 +177,7 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
                    progress=None, single_label: bool = False,
                    scheduler: str | None = None) -> AnnotationBatch:
     """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
-    (:class:`mtanno.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
+    (:class:`mtanno.util.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
     queries (:mod:`mtanno.keyframes`), or is a :class:`mtanno.keyframes.KeyframeSet` of
     them: those classes are matched only inside their
     candidate windows in each document (MBS09 §5), the others everywhere. A file that
@@ -185,7 +185,7 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     and the batch goes on. ``progress`` is called once per file with its path and its
     failure message (None on success). ``single_label`` resolves overlapping segments
     (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
-    documents instead of local processes (:class:`mtanno.workers.DaskPool`, same results).
+    documents instead of local processes (:class:`mtanno.util.workers.DaskPool`, same results).
     Rows are sorted by document, start, end and label."""
     batch = AnnotationBatch()
     for path, result in _iter_annotate(paths, models, layout=layout,
@@ -250,7 +250,7 @@ class AnnotationSetup:
         ``documents`` (frames per document): templates with SHA-256, τ (default and per
         class), superclasses, δ, the configuration's methods, the configuration file and its
         SHA-256, variants, feature set, keyframe files, single label."""
-        from mtanno.tables import provenance
+        from mtanno.util.tables import provenance
 
         cfg = self.config
         return provenance(inputs=inputs, templates=[m.record() for m in self.models],
@@ -321,8 +321,8 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
     of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
     τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
     :data:`DEFAULT_DELTA`."""
-    from mtanno.store import sha256_file
     from mtanno.templates.model import load_template_folder
+    from mtanno.util.store import sha256_file
 
     setup = annotation_setup(
         load_template_folder(mt_dir),

@@ -372,8 +372,8 @@ def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
 def write_class_config(path: str | os.PathLike, cfg: ClassConfig, *,
                        header: Sequence[str] = (),
                        comments: dict[tuple[str, str], str] | None = None) -> None:
-    """Write :func:`class_config_text` atomically (:func:`mtanno.output.atomic_path`)."""
-    from mtanno.output import atomic_path
+    """Write :func:`class_config_text` atomically (:func:`mtanno.util.output.atomic_path`)."""
+    from mtanno.util.output import atomic_path
 
     with atomic_path(path) as tmp:
         Path(tmp).write_text(class_config_text(cfg, header=header, comments=comments),

@@ -219,7 +219,7 @@ def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
 def evidence_covered(classes: Sequence[ClassModel]) -> set[int]:
     """Indices of the templates whose frame evidence another template of the same class
     already gives: every column of theirs is a column of the other one (a time-scaled copy,
-    :mod:`mtanno.tuning.tempo`, or a duplicate), so their evidence — the best column
+    :mod:`mtanno.templates.tempo`, or a duplicate), so their evidence — the best column
     anywhere in the template — is never lower, and the class's minimum stays the other's.
     Of templates with the same columns the first is kept."""
     cols = [c.column_keys() for c in classes]

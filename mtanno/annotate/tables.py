@@ -68,8 +68,8 @@ def write_annotations(path: str | os.PathLike, rows: Sequence[Annotation],
                       provenance: dict | None = None) -> None:
     """Write an annotation table (:func:`annotation_table`) atomically, in the format of
     its suffix (``.csv``, ``.parquet``, ``.jsonl``; ``-`` for standard output), with its
-    provenance (:mod:`mtanno.tables`)."""
-    from mtanno.tables import write_table
+    provenance (:mod:`mtanno.util.tables`)."""
+    from mtanno.util.tables import write_table
 
     write_table(path, annotation_table(rows, native), provenance=provenance)
 
@@ -84,7 +84,7 @@ def read_annotations(path: str | os.PathLike) -> list[Annotation]:
 
 def read_annotation_table(path: str | os.PathLike) -> tuple[list[Annotation], dict | None]:
     """:func:`read_annotations` and the table's provenance (None when it has none)."""
-    from mtanno.tables import read_table
+    from mtanno.util.tables import read_table
 
     table = read_table(path, what="annotation table")
     return _annotation_rows(table, native=False)[0], table.provenance
@@ -96,7 +96,7 @@ def _annotation_rows(table, *, native: bool = True
     ``native`` and when it has the columns start_native and end_native, each row's native
     start and end (checked too; else None)."""
     from mtanno.evaluation.truth import MAX_FRAME
-    from mtanno.tables import parse_int, parse_text
+    from mtanno.util.tables import parse_int, parse_text
 
     table.require(["doc", "start", "end", "label"])
     native = native and "start_native" in table.columns and "end_native" in table.columns
@@ -154,7 +154,7 @@ def merge_annotation_tables(paths: Sequence[str | os.PathLike]):
     in one of them only, sorted by document, start, end and label — what ``annotate -o``
     writes for the same documents — and the documents' frame counts their provenances
     record. The native columns are kept when every table has them."""
-    from mtanno.tables import read_table
+    from mtanno.util.tables import read_table
 
     rows: list[Annotation] = []
     pairs: list[tuple[int, int]] | None = []

@@ -68,8 +68,8 @@ def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plo
     Example: mtanno align walk1.bvh walk2.bvh -o path.csv --plot path.png
     """
     from mtanno.align.core import align_files, summary, write_alignment
-    from mtanno.output import check_outputs
-    from mtanno.tables import file_record, output_files, provenance, table_format
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)
     if plot_path is not None:

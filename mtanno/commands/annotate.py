@@ -16,8 +16,8 @@ from mtanno.commands._common import (
 )
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
-from mtanno.store import check_layout, document_files
 from mtanno.templates.model import template_files
+from mtanno.util.store import check_layout, document_files
 
 # The helpers below live in the API; these names stay importable from here.
 feature_paths = document_files
@@ -98,8 +98,8 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
 
     from mtanno.annotate import check_tau, load_annotation_setup, write_annotations
     from mtanno.keyframes import keyframe_files
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, table_format
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, table_format
 
     for out in outputs:
         table_format(out)
@@ -155,7 +155,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
         seconds = batch.seconds
     else:
         from mtanno.annotate.folder import annotate_folder, folder_table
-        from mtanno.tables import write_table
+        from mtanno.util.tables import write_table
 
         with lock_output(out_dir, wait=wait):
             summary = annotate_folder(
@@ -209,8 +209,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     from mtanno.annotate import annotation_files, read_annotation_tables
     from mtanno.evaluation.metrics import evaluate_annotations
     from mtanno.evaluation.truth import Segment, check_within, read_truth
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
         table_format(table_path)
@@ -275,9 +275,9 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     cannot be used is reported and left out (exit code 1)."""
     from mtanno.evaluation.retrieval import retrieval_evaluation, retrieval_report, retrieval_table
     from mtanno.evaluation.truth import check_within, read_truth
-    from mtanno.output import check_outputs
-    from mtanno.store import read_features
-    from mtanno.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import read_features
+    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
         table_format(table_path)
@@ -367,8 +367,8 @@ def truth_group():
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
     from mtanno.evaluation.truth import truth_from_mocap6, write_truth
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, provenance, table_format
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format
 
     table_format(output)
     check_outputs(output_files(output), [labels])

@@ -78,7 +78,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
             items.extend(line.strip() for line in sys.stdin if line.strip())
         else:
             items.append(item)
-    from mtanno.output import make_folder
+    from mtanno.util.output import make_folder
 
     jobs_list = plan_batch(items, outdir, asf=asf)
     if not jobs_list:
@@ -120,11 +120,11 @@ def info_cmd(file, asf, skeleton, list_features):
     if list_features and path.suffix.lower() != ".parquet":
         raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
-        from mtanno.store import read_features
+        from mtanno.util.store import read_features
 
         ff = read_features(path)
         if list_features:
-            from mtanno.inspect import feature_rows
+            from mtanno.info import feature_rows
 
             rows = feature_rows(ff)
             width = max(len(r["name"]) for r in rows)
@@ -132,12 +132,12 @@ def info_cmd(file, asf, skeleton, list_features):
             for r in rows:
                 click.echo(f"{r['id']:<4} {r['name']:<{width}}  {r['group']}")
             return
-        from mtanno.inspect import describe_feature_file
+        from mtanno.info import describe_feature_file
 
         for line in describe_feature_file(ff):
             click.echo(line)
         return
-    from mtanno.inspect import describe_motion
+    from mtanno.info import describe_motion
     from mtanno.io import read_motion
 
     for line in describe_motion(read_motion(path, asf=asf, skeleton=skeleton)):

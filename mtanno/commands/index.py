@@ -131,8 +131,8 @@ def info_cmd(index_dir, as_json, output):
 
     from mtanno.index import open_index
     from mtanno.index.storage import group_sizes, index_files, read_manifest
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, provenance, table_format, write_table
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format, write_table
 
     if output is not None:
         table_format(output)
@@ -236,8 +236,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     from mtanno.index import example_query, load_query, open_index, search
     from mtanno.index.query import DEFAULT_MIN_SEGMENT, example_matrix, resolve_features, warm_up
     from mtanno.index.storage import index_files
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, table_format
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, table_format
 
     if sum(x is not None for x in (example, query_file, kf_file)) != 1:
         raise MtannoError("give one of --example (with --features), --query or --keyframes")

@@ -79,13 +79,13 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     from mtanno.keyframes import save_keyframes
     from mtanno.keyframes.ga import GAParams
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template_folder
     from mtanno.templates.training import (
         collect_sources,
         group_by_class,
         load_examples,
     )
+    from mtanno.util.output import check_outputs
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth,

@@ -53,11 +53,11 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     from mtanno.annotate import DEFAULT_TAU, annotation_files, read_annotation_tables
     from mtanno.evaluation.report import annotation_parameters, write_report
     from mtanno.evaluation.truth import check_within, read_truth
-    from mtanno.output import check_outputs
     from mtanno.plot import require_matplotlib
-    from mtanno.store import document_files, read_features
-    from mtanno.tables import provenance
     from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import document_files, read_features
+    from mtanno.util.tables import provenance
 
     require_matplotlib()
     if features and not mt_dir:

@@ -13,7 +13,7 @@ import click
 from mtanno.commands._common import show_progress, user_errors
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA, DEFAULT_MAX_HITS, DEFAULT_TAU
-from mtanno.store import feature_files
+from mtanno.util.store import feature_files
 
 
 @click.command("retrieve", epilog="Exit codes: 0 success, 1 some feature files failed (the "
@@ -57,11 +57,11 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     from tqdm import tqdm
 
     from mtanno.annotate import check_tau
-    from mtanno.output import check_outputs
     from mtanno.retrieve import retrieve_files, write_hits
-    from mtanno.store import FeatureLayout
-    from mtanno.tables import file_record, output_files, provenance, table_format
     from mtanno.templates.model import load_template, quantize
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import FeatureLayout
+    from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)
     tau = check_tau(tau, what="--tau")

@@ -91,7 +91,7 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
                               note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth])
@@ -160,7 +160,7 @@ def mt_show_cmd(template, delta, top, picture, files):
     """
     from mtanno.templates.match import match_lengths
     from mtanno.templates.model import load_template, quantize, rank_features
-    from mtanno.tuning.tempo import matched_columns
+    from mtanno.templates.tempo import matched_columns
 
     mt = load_template(template)
     if mt.quantized:
@@ -228,8 +228,8 @@ def mt_mirror_cmd(template, output, name):
     swapped, so a template learned from left-handed examples finds the right-handed
     motion, without new training data.
     """
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, mirror, save_template
+    from mtanno.util.output import check_outputs
 
     check_outputs([output], [template])
     mt = mirror(load_template(template), name=name)
@@ -256,9 +256,9 @@ def mt_scale_cmd(template, factor, output):
     the template (`mtanno tune` makes such copies itself where cross-validation favours
     them).
     """
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, save_template
-    from mtanno.tuning.tempo import time_scaled
+    from mtanno.templates.tempo import time_scaled
+    from mtanno.util.output import check_outputs
 
     check_outputs([output], [template])
     mt = load_template(template)
@@ -282,8 +282,8 @@ def mt_quantize_cmd(template, delta, output):
 
     The output records δ; matching uses a quantized template as it is.
     """
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, quantize, save_template
+    from mtanno.util.output import check_outputs
 
     check_outputs([output], [template])
     mt = quantize(load_template(template), delta)
@@ -304,9 +304,9 @@ def mt_plot_cmd(template, output, delta):
     """Draw a motion template as a heat map (MR06 Fig. 4): one row per feature, one
     column per template column, black 0, white 1, grey in between (wildcards 0.5).
     Needs matplotlib (pip install 'mtanno[plot]')."""
-    from mtanno.output import check_outputs
     from mtanno.plot import plot_template, require_matplotlib, save_figure
     from mtanno.templates.model import load_template, quantize
+    from mtanno.util.output import check_outputs
 
     require_matplotlib()
     check_outputs([output], [template])

@@ -30,7 +30,7 @@ from mtanno.features.hysteresis import analysis_frames
 from mtanno.io.amc import read_amc_values, write_amc
 from mtanno.io.asf import AsfSkeleton, read_asf
 from mtanno.io.skeleton import euler_matrix
-from mtanno.store import atomic_path
+from mtanno.util.store import atomic_path
 
 
 @dataclass(frozen=True)
@@ -44,10 +44,10 @@ class Clip:
 
 def read_manifest(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
                   actor: str | None = None, split: str | None = None) -> list[Clip]:
-    """Clips of a manifest (:func:`mtanno.tables.read_manifest`: columns
+    """Clips of a manifest (:func:`mtanno.util.tables.read_manifest`: columns
     ``file,class[,actor,split]``, file relative to ``root``, by default the manifest's
     folder), filtered by actor and split. Every clip file must exist."""
-    from mtanno.tables import read_manifest as read_rows
+    from mtanno.util.tables import read_manifest as read_rows
 
     table, rows = read_rows(path)
     root = Path(root) if root is not None else Path(path).parent
@@ -134,7 +134,7 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     if not clips:
         raise MtannoError("no clips to compose")
     from mtanno.io import find_asf
-    from mtanno.output import check_outputs, make_folder
+    from mtanno.util.output import check_outputs, make_folder
 
     # everything is read and checked before the first byte is written: a bad clip leaves
     # no partial output folder
@@ -207,7 +207,7 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
         write_amc(path, header, layout0, np.concatenate(parts))
         docs.append(path)
         plan.append({"document": name, "clips": [str(clips[i].path) for i in order]})
-    from mtanno.tables import provenance
+    from mtanno.util.tables import provenance
 
     write_truth(out_dir / "truth.csv", truth, provenance=provenance(
         inputs=[asf_path, *inputs], seed=seed, pause=pause, documents=plan))

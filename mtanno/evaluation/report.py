@@ -158,7 +158,7 @@ class _Writer:
         self.images.append((section, caption, self.folder / f"{stem}.png"))
 
     def text(self, name: str, text: str) -> None:
-        from mtanno.output import write_text
+        from mtanno.util.output import write_text
 
         write_text(self.folder / name, text)
         self.result.files.append(self.folder / name)
@@ -241,7 +241,6 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     templates for (a tuned configuration's ``[templates]``): their curves, of the class's
     own template only, are not the annotation's Δ, and the page says so. Documents are
     those annotated."""
-    from mtanno.output import make_folder
     from mtanno.plot import (
         label_colours,
         plot_confusion,
@@ -249,7 +248,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         plot_timeline,
         require_matplotlib,
     )
-    from mtanno.tables import write_table
+    from mtanno.util.output import make_folder
+    from mtanno.util.tables import write_table
 
     require_matplotlib()
     if not annotation:
@@ -311,7 +311,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                 "the annotation also matched further templates of "
                 f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
                 "their Δ curves here are those of the class's own template only")
-    from mtanno.output import write_text
+    from mtanno.util.output import write_text
 
     write_text(result.page, _page(result, w.images, rows, title, prov))
     result.files.append(result.page)

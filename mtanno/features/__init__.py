@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.features import _kernel as _k
+from mtanno.features import _kernels as _k
 from mtanno.features.hysteresis import ANALYSIS_FPS, analysis_frames, hysteresis
 from mtanno.features.measures import body_units, window_samples
 from mtanno.features.table import (
@@ -47,7 +47,7 @@ __all__ = [
     "get_feature_set", "hysteresis", "mirror_permutation",
 ]
 
-#: Measure kind → kernel code (mtanno.features._kernel).
+#: Measure kind → kernel code (mtanno.features._kernels).
 MEASURE_CODES = {
     "plane": _k.PLANE, "plane_diff": _k.PLANE_DIFF, "nplane": _k.NPLANE,
     "nplane_abs": _k.NPLANE_ABS, "move_plane": _k.MOVE_PLANE, "move_dir": _k.MOVE_DIR,

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.features import (
     ANALYSIS_FPS,
@@ -26,7 +26,7 @@ from mtanno.features import (
 )
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
-from mtanno.store import sha256_file, write_features
+from mtanno.util.store import sha256_file, write_features
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,
@@ -180,7 +180,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
     ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
     Raises :class:`MtannoError` for a missing input, two inputs with the same output, or
-    an output that is one of the inputs (:func:`mtanno.output.check_outputs`).
+    an output that is one of the inputs (:func:`mtanno.util.output.check_outputs`).
     """
     outdir = Path(outdir)
     jobs: list[Job] = []
@@ -203,7 +203,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
         if asf is not None and j.src.suffix.lower() == ".amc":
             j.asf = Path(asf)
     unique = list({j.dst: j for j in jobs}.values())
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     check_outputs([j.dst for j in unique],
                   [*(j.src for j in unique), *({j.asf for j in unique} - {None})])
@@ -216,7 +216,7 @@ def _stored_meta(path: Path) -> dict | None:
 
     import pyarrow.parquet as pq
 
-    from mtanno.store import META_KEY
+    from mtanno.util.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
@@ -322,9 +322,9 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
 
     ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`).
 
-    ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.workers.WorkerPool`:
+    ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.util.workers.WorkerPool`:
     they stop with this process); ``scheduler`` sends them to a dask.distributed cluster
-    instead (:class:`mtanno.workers.DaskPool`; same results). Outputs that are up to date
+    instead (:class:`mtanno.util.workers.DaskPool`; same results). Outputs that are up to date
     (:func:`up_to_date`) are skipped unless ``force``. ``progress`` is called once per
     finished job, in the order of ``jobs``.
 
@@ -332,7 +332,7 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     the workers are forked from this process and inherit what it loaded (the compiled
     kernels, the skeleton and its map) instead of each loading it again.
     """
-    from mtanno.workers import SerialPool, WorkerPool, make_pool
+    from mtanno.util.workers import SerialPool, WorkerPool, make_pool
 
     feature_set = get_feature_set(feature_set).name
     to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work

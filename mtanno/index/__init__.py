@@ -11,6 +11,9 @@
   example; :func:`example_matrix` reads its source), :func:`load_query` (JSON),
   :func:`rank_by_template` (:func:`rank_by_template_file` with a template file),
   :func:`write_query_hits` (the hit table); :func:`group_sizes` (``index info``).
+* :mod:`~mtanno.index.storage` — the index folder on disk: generations, segment files and
+  ``manifest.json``, read and written atomically.
+* ``_kernels`` — numba kernels of segmentation and the inverted lists (private).
 """
 
 from mtanno.index.build import (

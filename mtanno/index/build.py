@@ -103,7 +103,7 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
 def _check_target(root: Path, paths: Sequence[Path]) -> None:
     """An index is written into a new or empty folder, or over an index; never into a
     folder holding anything else, nor where an input file is."""
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     if root.exists() and not root.is_dir():
         raise MtannoError("index path exists and is not a directory", path=str(root))
@@ -144,7 +144,7 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     left alone otherwise. Only the new files are read. With ``failures``, a file that
     cannot be read or does not have the index's features is left out and its message
     appended there; without, it is raised."""
-    from mtanno.store import FeatureLayout
+    from mtanno.util.store import FeatureLayout
 
     root = Path(index_dir)
     paths = collect_feature_files(feature_files)

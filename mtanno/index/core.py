@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.store import (
+from mtanno.util.store import (
     FeatureLayout,
     check_layout,
     common_layout,
@@ -237,7 +237,7 @@ def read_feature_docs(paths: Sequence[str | os.PathLike], *,
 
 
 def collect_feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Feature files named by ``inputs`` (see :func:`mtanno.store.feature_files`)."""
+    """Feature files named by ``inputs`` (see :func:`mtanno.util.store.feature_files`)."""
     return feature_files(inputs)
 
 
@@ -359,7 +359,7 @@ def check_compatible(docs: Sequence[FeatureDoc], *, layout: FeatureLayout | None
                      failures: list[str] | None = None) -> list[FeatureDoc]:
     """The documents that can go into one index: all with the same feature layout (that of
     ``layout``, e.g. an existing index's, or else the layout most of them share, see
-    :func:`mtanno.store.common_layout`, so an odd file is the one named) and unique names.
+    :func:`mtanno.util.store.common_layout`, so an odd file is the one named) and unique names.
     With ``failures``, a document that does not fit is left out and its message appended;
     without, the first one is raised. Returns the documents kept."""
     if not docs:

@@ -494,7 +494,7 @@ def write_query_hits(path: str | os.PathLike, index: Index, hits: Hits, *,
     in the format of ``path``'s suffix (``-``: CSV on standard output), with its provenance:
     the query's ``inputs`` and the index generation, the ranking template ``ranked_by``
     (its cost column is written when the hits were ranked), ``top`` and ``record``."""
-    from mtanno.tables import file_record, provenance, write_table
+    from mtanno.util.tables import file_record, provenance, write_table
 
     rows = hits.rows(index)
     if top is not None:
@@ -513,7 +513,7 @@ def example_matrix(index: Index, example: str | os.PathLike
     (``query --example``): a feature file (checked against the index's feature set, names
     and rate), or the name of an indexed document (its features that some group holds)."""
     from mtanno.index.core import doc_layout, read_feature_doc
-    from mtanno.store import FeatureLayout, check_layout
+    from mtanno.util.store import FeatureLayout, check_layout
 
     p = Path(example)
     if p.is_file():

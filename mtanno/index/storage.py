@@ -33,10 +33,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError, read_input
 from mtanno.index.core import Document, GroupIndex, Index
-from mtanno.output import current_umask
+from mtanno.util.output import current_umask
 
 INDEX_FORMAT = "mtanno.index/1"
 MANIFEST = "manifest.json"
@@ -49,10 +49,10 @@ class CorruptIndex(MtannoError):
 
 
 def write_lock(root: Path, *, wait: bool = False, on_wait=None):
-    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.output.folder_lock`: a dead
-    process releases it; a busy index raises :class:`mtanno.output.LockBusy`, exit code 3,
+    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.util.output.folder_lock`: a dead
+    process releases it; a busy index raises :class:`mtanno.util.output.LockBusy`, exit code 3,
     naming the run that holds it, or waits with ``wait``)."""
-    from mtanno.output import folder_lock
+    from mtanno.util.output import folder_lock
 
     return folder_lock(root, wait=wait, what="index", name=".lock", on_wait=on_wait)
 
@@ -324,7 +324,7 @@ def _write_index(index: Index, root: Path) -> Index:
 
 def index_files(root: str | os.PathLike) -> list[Path]:
     """The files of the index in ``root`` as it is now (manifest and current generation),
-    for :func:`mtanno.output.check_outputs`; empty when there is no readable manifest."""
+    for :func:`mtanno.util.output.check_outputs`; empty when there is no readable manifest."""
     root = Path(root)
     try:
         manifest = read_manifest(root)

@@ -13,6 +13,8 @@
 * :mod:`~mtanno.keyframes.learn` — learning a query per class from positive and negative
   training clips: the genetic algorithm of MBS09 §6 (``ga``), hard-template columns
   (``hard``, thesis) and MR06's column heuristic (``heuristic``).
+* :mod:`~mtanno.keyframes.ga` and :mod:`~mtanno.keyframes.fitness` — the genetic algorithm
+  and its fitness (hits and misses of a candidate query on the training clips).
 * ``_kernels`` — numba kernels on interval lists (private).
 """
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.keyframes.fitness import JITTER, Gene, Score, TrainingSet, keyframe_tolerance
 from mtanno.keyframes.ga import GAParams, GARun, Problem, run_ga
@@ -181,9 +181,9 @@ def validation_folds(training: TrainingSet, positives: np.ndarray, *, folds: int
 
 def _ga_run(k: int, seed_seq) -> tuple[int, GARun, Score | None]:
     """GA run k in a worker (the problem, parameters and folds are the pool's shared data,
-    :func:`mtanno.workers.shared`); with usable folds, it learns without fold
+    :func:`mtanno.util.workers.shared`); with usable folds, it learns without fold
     ``usable[k % len]`` and is scored on that fold."""
-    from mtanno.workers import shared
+    from mtanno.util.workers import shared
 
     pb, params, fold, usable = shared()
     held = None
@@ -225,7 +225,7 @@ def _learn_ga(ctx: _Context, template, *, runs: int, seed: int, jobs: int, param
               validate: bool, scheduler: str | None,
               progress: Callable[[int], None] | None) -> KeyframeQuery:
     from mtanno.templates.model import quantize
-    from mtanno.workers import make_pool
+    from mtanno.util.workers import make_pool
 
     strict = quantize(template, 0.0).values
     problem = Problem(strict, ctx.soft, ctx.group_rows, ctx.training, ctx.positives)

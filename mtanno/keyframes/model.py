@@ -530,7 +530,7 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
     classes that have one; the files read with their SHA-256, for provenance; classes
     without a query; queries of classes not among ``classes``). Queries must be for
     ``feature_set``."""
-    from mtanno.store import sha256_file
+    from mtanno.util.store import sha256_file
 
     queries, files = {}, []
     for f, q in _load_folder(folder):
@@ -588,7 +588,7 @@ def _dumps_provenance(prov: dict) -> str:
 
 def save_keyframes(path: str | os.PathLike, q: KeyframeQuery) -> None:
     """Write ``q`` as JSON to ``path`` atomically."""
-    from mtanno.store import atomic_path
+    from mtanno.util.store import atomic_path
 
     _validate(q)
     text = dumps(q)

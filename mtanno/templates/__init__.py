@@ -11,6 +11,11 @@
 * :mod:`~mtanno.templates.dtw` — the DTW alignment and warping used by learning.
 * :mod:`~mtanno.templates.training` — gathering training examples from a folder tree, a
   manifest CSV or annotated documents.
+* :mod:`~mtanno.templates.match` — matching a template over documents: the streaming
+  masked subsequence DTW of algorithms.md §3.4 (:func:`match_template`,
+  :class:`PreparedTemplate`).
+* :mod:`~mtanno.templates.tempo` — time-scaled copies of a template (faster or slower
+  performers; ``mtanno mt scale``, and several templates per class in ``tune``).
 
 Typical use by a later stage::
 

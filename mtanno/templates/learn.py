@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.templates.dtw import _all_references, _one_reference
 from mtanno.templates.model import MotionTemplate

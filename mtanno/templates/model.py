@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from mtanno.errors import MtannoError, read_input
-from mtanno.store import atomic_path
+from mtanno.util.store import atomic_path
 
 __all__ = [
     "SCHEMA", "KINDS", "MIRROR_SUFFIX", "FeatureRank", "MotionTemplate", "load_template",
@@ -479,7 +479,7 @@ def load_template_folder(path: str | os.PathLike, *,
     sorted by class name; with ``classes`` only those (each must have a template). All
     templates must share feature set, names and frame rate (a difference is an error
     naming the file); two files of one class are an error."""
-    from mtanno.store import FeatureLayout, check_layout
+    from mtanno.util.store import FeatureLayout, check_layout
 
     files = template_files(path)
     if not files or not files[0].exists():

@@ -30,7 +30,7 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.evaluation.truth import read_truth
-from mtanno.store import feature_files, read_features, sha256_file
+from mtanno.util.store import feature_files, read_features, sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
@@ -119,7 +119,7 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     The feature file of a row is ``features_dir / file`` with the suffix replaced by
     ``.parquet``. With ``split``, only rows whose ``split`` column equals it are used.
     """
-    from mtanno.tables import read_manifest
+    from mtanno.util.tables import read_manifest
 
     table, rows = read_manifest(manifest)
     spath = table.path
@@ -297,7 +297,7 @@ def check_consistent(examples: Sequence[TrainingExample], *,
     frame rate; otherwise an error names the first file that differs."""
     if not examples:
         return
-    from mtanno.store import FeatureLayout, check_layout, common_layout
+    from mtanno.util.store import FeatureLayout, check_layout, common_layout
 
     def layout(ex: TrainingExample) -> FeatureLayout:
         return FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
 from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
+from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
 from mtanno.tuning.search import (
@@ -34,7 +35,6 @@ from mtanno.tuning.search import (
     check_methods,
     prepare_fold_class,
 )
-from mtanno.tuning.tempo import TEMPO_SCALES, matched_columns, time_scaled
 
 __all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
 
@@ -130,13 +130,13 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     also run once with each method of ``methods`` left out and once with none of them
     (one τ for all classes), on the same folds: ``TuneResult.ablation`` maps
     ``"without-METHOD"`` and ``"none"`` to those results. ``scheduler``: run the per fold
-    and class tasks on a dask.distributed cluster (:func:`mtanno.workers.make_pool`; the
+    and class tasks on a dask.distributed cluster (:func:`mtanno.util.workers.make_pool`; the
     examples and held-out documents are sent once, the tasks carry indices) instead of
     ``n_jobs`` local processes — with the same result.
     """
-    from mtanno.store import FeatureLayout, check_layout, read_features, sha256_file
     from mtanno.templates.model import load_template_folder, template_files
     from mtanno.templates.training import group_by_class, load_examples
+    from mtanno.util.store import FeatureLayout, check_layout, read_features, sha256_file
 
     t0 = time.perf_counter()
     methods = check_methods(methods)
@@ -268,9 +268,9 @@ def _deltas(methods: Sequence[str], templates) -> list[float]:
 def _run_tasks(tasks: list, n_jobs: int, fn, *, scheduler: str | None = None,
                shared=None) -> list:
     """``fn(*args, **kwargs)`` of every (key, args, kwargs) task, in order, in the executor
-    of :func:`mtanno.workers.make_pool` (``n_jobs`` processes, or a dask cluster), with
-    ``shared`` readable through :func:`mtanno.workers.shared`."""
-    from mtanno.workers import make_pool
+    of :func:`mtanno.util.workers.make_pool` (``n_jobs`` processes, or a dask cluster), with
+    ``shared`` readable through :func:`mtanno.util.workers.shared`."""
+    from mtanno.util.workers import make_pool
 
     with make_pool(jobs=n_jobs, scheduler=scheduler, shared=shared,
                    n_tasks=len(tasks)) as pool:
@@ -284,7 +284,7 @@ def _call(fn, args, kwargs):
 def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
     """:func:`prepare_fold_class` of one fold and class, from the shared examples (by
     index) and the fold's held-out documents."""
-    from mtanno.workers import shared
+    from mtanno.util.workers import shared
 
     data = shared()
     held_X, offsets = data["held"][fold]
@@ -293,7 +293,7 @@ def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
 
 
 def _final_groups_task(cls: str, idx: list[int], k: int, learn: dict) -> list:
-    from mtanno.workers import shared
+    from mtanno.util.workers import shared
 
     return _final_groups(cls, [shared()["examples"][i] for i in idx], k, learn)
 
@@ -317,8 +317,8 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
     """Write the tuned class configuration to ``path`` (TOML, cross-validated scores as
     comments) and its extra templates into :func:`template_folder_of` ``(path)``; returns
     the configuration as written."""
-    from mtanno.output import atomic_path, make_folder
     from mtanno.templates.model import save_template
+    from mtanno.util.output import atomic_path, make_folder
 
     path = Path(path)
     cfg = result.params.config()

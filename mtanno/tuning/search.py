@@ -27,10 +27,10 @@ The search, in this order, each step only over the methods switched on
    :data:`SEGMENT_COSTS` together with the one τ again (λ shifts the threshold);
 3. several templates per class (``templates``): each class split into 2 or 3 groups of
    examples (:mod:`mtanno.tuning.cluster`), kept where J rises by more than :data:`EPS`;
-   then time-scaled copies of the classes' templates (:mod:`mtanno.tuning.tempo`: a
-   faster, a slower or both of :data:`~mtanno.tuning.tempo.TEMPO_SCALES`), greedily: the
+   then time-scaled copies of the classes' templates (:mod:`mtanno.templates.tempo`: a
+   faster, a slower or both of :data:`~mtanno.templates.tempo.TEMPO_SCALES`), greedily: the
    class and copies that raise J most (by more than :data:`EPS`) first, as long as all
-   copies together match at most :data:`~mtanno.tuning.tempo.COPY_BUDGET` times the
+   copies together match at most :data:`~mtanno.templates.tempo.COPY_BUDGET` times the
    templates' columns (they cost annotation time in proportion);
 4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
    where J rises by more than :data:`EPS`;
@@ -55,9 +55,9 @@ import numpy as np
 from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
 from mtanno.annotate.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
+from mtanno.templates.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
-from mtanno.tuning.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 
 __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
            "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
@@ -164,7 +164,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
     "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
     for k asked (fewer when a group would be too small); template (1, 0) is the one learned
     from all examples, (k', i) group i of a split into k', and (0, f) for each f of
-    ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.tuning.tempo.time_scaled`;
+    ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.templates.tempo.time_scaled`;
     evidence None: it equals the template's)."""
     from mtanno.annotate.decode import distinct_frames, frame_evidence
     from mtanno.templates.learn import learn_template
@@ -263,7 +263,7 @@ class Tuner:
                  classes: Sequence[str], methods: Sequence[str] = METHODS,
                  unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None,
                  columns: dict | None = None):
-        """``columns``: the matching columns (:func:`mtanno.tuning.tempo.matched_columns`)
+        """``columns``: the matching columns (:func:`mtanno.templates.tempo.matched_columns`)
         of each class's template (key: class) and of its time-scaled copies (key: (class,
         factor)), for the copies' budget; None: no budget."""
         self.classes = list(classes)

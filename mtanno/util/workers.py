@@ -3,7 +3,7 @@
 * **SIGTERM is handled like SIGINT.** Inside :func:`interruptible` (the command line wraps
   every command in it) SIGTERM raises :class:`Interrupted`, a :class:`KeyboardInterrupt`,
   so the same code runs for both: temporary files are removed
-  (:func:`mtanno.output.atomic_path`), workers are stopped, and the command line prints one
+  (:func:`mtanno.util.output.atomic_path`), workers are stopped, and the command line prints one
   line and exits 130.
 * **Workers never outlive the parent.** A :class:`WorkerPool` worker asks the Linux kernel
   for SIGTERM when its parent dies (``prctl(PR_SET_PDEATHSIG)`` through :mod:`ctypes`) and,

@@ -6,7 +6,7 @@ interrupted or is killed never leaves half a file under the output's name:
 * the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``,
   and renamed over the target (``os.replace``, atomic on POSIX) only when complete;
 * the temporary file is removed when writing fails or is interrupted (Ctrl-C, SIGTERM: see
-  :mod:`mtanno.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
+  :mod:`mtanno.util.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
   the next write into the same folder removes the temporary files of writers that are no
   longer alive (same host, process gone);
 * the file gets the permissions an ordinary ``open`` would give it (0666 less the umask),
@@ -429,7 +429,7 @@ def folder_lock(folder: str | os.PathLike, *, wait: bool = False, what: str = "o
             pass
         fh.close()
     try:
-        from mtanno.tables import command_line
+        from mtanno.util.tables import command_line
 
         fh.seek(0)
         fh.truncate()

@@ -21,9 +21,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno import _parquet
 from mtanno.errors import MtannoError, read_input
-from mtanno.output import atomic_path, write_bytes
+from mtanno.util import _parquet
+from mtanno.util.output import atomic_path, write_bytes
 
 __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
            "common_layout", "document_files", "document_files_below", "feature_files",

@@ -16,7 +16,7 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.io.skeleton import Motion
-from mtanno.store import FeatureFile
+from mtanno.util.store import FeatureFile
 
 #: Characters of a timeline cell: the feature is off in every frame of the cell, on in
 #: every frame, or on in some.

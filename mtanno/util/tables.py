@@ -17,7 +17,7 @@ index tables (``index info``) are all written by :func:`write_table` and read by
   ``FILE.meta.json`` beside ``FILE`` (``hits.csv`` → ``hits.csv.meta.json``), so the table
   itself stays a plain table any tool reads. Standard output carries none.
 
-Files are written atomically (:func:`mtanno.output.atomic_path`).
+Files are written atomically (:func:`mtanno.util.output.atomic_path`).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from typing import Any
 import pyarrow as pa
 
 from mtanno.errors import MtannoError, read_input
-from mtanno.output import atomic_path
+from mtanno.util.output import atomic_path
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line",
            "file_record", "output_files", "provenance", "provenance_as_read", "read_manifest",
@@ -92,7 +92,7 @@ def sidecar_path(path: str | os.PathLike) -> Path | None:
 
 def output_files(path: str | os.PathLike | None) -> list[str]:
     """Every file that writing the table ``path`` creates (the table and its sidecar), for
-    :func:`mtanno.output.check_outputs`."""
+    :func:`mtanno.util.output.check_outputs`."""
     if path is None or str(path) == "-":
         return []
     side = sidecar_path(path)
@@ -102,7 +102,7 @@ def output_files(path: str | os.PathLike | None) -> list[str]:
 def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
     """``{"path": ..., "sha256": ...}`` of an input file (hashed unless given)."""
     if sha256 is None:
-        from mtanno.store import sha256_file
+        from mtanno.util.store import sha256_file
 
         try:
             sha256 = sha256_file(path)
@@ -117,7 +117,7 @@ def provenance(*, inputs: Iterable[dict | str | os.PathLike] = (),
     time, ``inputs`` (file records, see :func:`file_record`; paths are hashed),
     ``templates`` (class, path, SHA-256) and the parameters that shaped the table (τ, δ,
     feature set, …, given as keywords; None values are left out)."""
-    from mtanno import __version__
+    from mtanno._version import __version__
 
     recs = [i if isinstance(i, dict) else file_record(i) for i in inputs]
     out = {"schema": PROVENANCE_SCHEMA, "mtanno_version": __version__,
@@ -170,7 +170,7 @@ def _write_jsonl(table: pa.Table, fh) -> None:
 def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Write a JSON document atomically (``-``: standard output); non-finite numbers are
     written as null, so every JSON reader accepts the file."""
-    from mtanno.output import write_text
+    from mtanno.util.output import write_text
 
     write_text(path, json.dumps(_clean(obj), indent=1, ensure_ascii=False) + "\n")
 
