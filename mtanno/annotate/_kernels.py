@@ -27,6 +27,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mtanno.util._bits import popcount64 as _popcount
+
 # ----------------------------------------------------------- reference Δ̄ (MBS09 §4)
 
 
@@ -513,16 +515,6 @@ def _segments(back_k, back_p, deltas, first, lab, seg_start, seg_end, cost):
             lab[m], seg_start[m], seg_end[m], cost[m] = p, a, b, c
             m += 1
     return m
-
-
-@numba.njit(cache=True)
-def _popcount(x):
-    """Set bits of a uint64 (SWAR). Kept in this file, as in the other kernel files: numba's
-    cache does not see a change of a kernel defined in another file."""
-    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
-    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
-    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
-    return np.int64((x * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
 @numba.njit(cache=True)

@@ -15,6 +15,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mtanno.util._bits import popcount64 as _popcount
+
 
 @numba.njit(cache=True)
 def dilate(doc, start, end, lo, hi, out_doc, out_start, out_end):
@@ -128,15 +130,6 @@ def mark_clips(start, end, clip_of_frame, clip_end, out):
             c = clip_of_frame[t]
             out[c] = 1
             t = clip_end[c]
-
-
-@numba.njit(cache=True)
-def _popcount(x):
-    """Set bits of a uint64 (SWAR)."""
-    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
-    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
-    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
-    return np.int64((x * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
 @numba.njit(cache=True)

@@ -51,6 +51,7 @@ import numba
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.util._bits import popcount64 as _popcount64
 
 __all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate",
            "check_spans", "column_repeats", "match_documents", "match_lengths", "match_template"]
@@ -58,27 +59,6 @@ __all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplat
 DEFAULT_STEPS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (2, 1))
 DEFAULT_STEP_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 2.0)
 VARIANTS = ("reference", "paper")
-
-_M1 = np.uint64(0x5555555555555555)
-_M2 = np.uint64(0x3333333333333333)
-_M4 = np.uint64(0x0F0F0F0F0F0F0F0F)
-_H01 = np.uint64(0x0101010101010101)
-_S1 = np.uint64(1)
-_S2 = np.uint64(2)
-_S4 = np.uint64(4)
-_S56 = np.uint64(56)
-
-
-@numba.njit(cache=True, inline="always")
-def _popcount64(x):
-    """Number of set bits of a uint64 (SWAR bit trick; LLVM compiles it to one popcnt).
-
-    The final multiply wraps around modulo 2**64 by design (numpy warns about it when the
-    kernels run as plain Python with NUMBA_DISABLE_JIT=1; the result is still right)."""
-    x = x - ((x >> _S1) & _M1)
-    x = (x & _M2) + ((x >> _S2) & _M2)
-    x = (x + (x >> _S4)) & _M4
-    return np.int64((x * _H01) >> _S56)
 
 
 @numba.njit(cache=True)
