@@ -38,6 +38,7 @@ from mtanno.features.table31 import (
     FEATURES31_REFERENCE,
     GROUPS31,
 )
+from mtanno.io import _limits
 from mtanno.io.rigs import CANONICAL_JOINTS
 
 __all__ = [
@@ -250,6 +251,9 @@ def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float,
         raise MtannoError(f"heading must be (frames × 3), got {heading.shape}")
     if not (np.isfinite(joints).all() and np.isfinite(heading).all()):
         raise MtannoError("joint positions contain NaN or infinite values")
+    if max(np.abs(joints).max(), np.abs(heading).max()) > MAX_POSITION:
+        raise MtannoError(f"joint positions are absurd (beyond ±{MAX_POSITION:g}): the "
+                          f"features would overflow")
     plan = _compiled(features)
     units = body_units(joints)
     on_b, on_inc = plan.bounds(units, "on")
@@ -260,14 +264,23 @@ def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float,
     return out
 
 
+#: Largest magnitude of a joint position (or heading component) the features take: their
+#: squares and products stay far from overflow. The motion readers bound every value of a
+#: file well below (mtanno.io._limits), so only the API can pass more.
+MAX_POSITION = 1e15
+
+
 def _check_rate(fps, what: str) -> None:
-    """A finite rate > 0 (0 or NaN would divide by zero further on, ∞ never end)."""
+    """A rate in the range a motion file may declare (0.1 … 10 000 frames/s: 0 or NaN
+    would divide by zero further on, ∞ never end, 1e-300 or 1e300 overflow the exact
+    frame arithmetic)."""
     try:
-        ok = not isinstance(fps, bool) and 0 < float(fps) < np.inf
+        ok = not isinstance(fps, bool) and _limits.fps_in_range(float(fps))
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise MtannoError(f"{what} must be a positive number of frames per second, got {fps!r}")
+        raise MtannoError(f"{what} must be a positive number of frames per second within "
+                          f"{_limits.MIN_FPS:g} … {_limits.MAX_FPS:g}, got {fps!r}")
 
 
 def compute_features(joints: np.ndarray, heading: np.ndarray, fps: float, *,

@@ -61,9 +61,14 @@ def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
     column; ``feature_set`` names the table (default the 40 annotation features); ``up``
     is the motion's up axis (:func:`to_y_up`)."""
     fs = _feature_set(feature_set)
-    X, keep = compute_features(to_y_up(canonical_positions(motion), up),
-                               to_y_up(motion.heading, up), motion.fps,
-                               target_fps=target_fps, features=fs.features)
+    try:
+        X, keep = compute_features(to_y_up(canonical_positions(motion), up),
+                                   to_y_up(motion.heading, up), motion.fps,
+                                   target_fps=target_fps, features=fs.features)
+    except MtannoError as exc:  # "motion has no frames", ...: say which motion
+        if exc.path is None and motion.source:
+            raise MtannoError(exc.message, path=motion.source) from None
+        raise
     return X, keep + 1
 
 
@@ -135,11 +140,14 @@ def _skeleton_digest(path: Path) -> str:
 
 @dataclass
 class Job:
-    """One document of a batch: motion file, output file, optional ASF."""
+    """One document of a batch: motion file, output file, optional ASF. ``error`` is set for
+    an input found unusable while planning (a name listed on standard input that does not
+    exist, a FIFO in an input folder): the job is reported as failed and never run."""
 
     src: Path
     dst: Path
     asf: Path | None = None
+    error: str = ""
 
 
 @dataclass
@@ -173,40 +181,88 @@ def _is_motion(p: Path) -> bool:
     return p.suffix.lower() in MOCAP_SUFFIXES
 
 
+def _not_regular(p: Path) -> str | None:
+    """Why ``p`` cannot be read as a motion file without opening it (a FIFO would block
+    the batch), or None for a regular file or a folder."""
+    import stat
+
+    try:
+        mode = os.stat(p).st_mode
+    except FileNotFoundError:
+        return ("motion file not found (a broken symbolic link)" if p.is_symlink() else
+                "motion file not found")
+    except OSError as exc:
+        return f"cannot read motion file: {exc.strerror or exc}"
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else
+            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+    return f"not a regular file ({kind}): not read"
+
+
+def _unknown_type(p: Path) -> str:
+    return f"unknown motion file type '{p.suffix}' (expected .amc or .bvh)"
+
+
+def _folder_jobs(folder: Path, outdir: Path) -> list[Job]:
+    """The motion files below ``folder``, each mirrored under ``outdir``; an entry with a
+    motion suffix that is not a regular file or a folder (a FIFO, a socket, a broken link)
+    is a failed job, so it is reported instead of silently skipped. A folder named like a
+    motion file (``x.amc/``) is searched like any other."""
+    jobs = []
+    for q in sorted(folder.rglob("*")):
+        if not _is_motion(q) or q.is_dir():
+            continue
+        rel = q.relative_to(folder).with_suffix(".parquet")
+        jobs.append(Job(q, outdir / rel, error=_not_regular(q) or ""))
+    return jobs
+
+
 def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
-               asf: str | os.PathLike | None = None) -> list[Job]:
+               asf: str | os.PathLike | None = None,
+               listed: Iterable[str | os.PathLike] = ()) -> list[Job]:
     """Map inputs to output paths under ``outdir``.
 
     A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
     ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
-    Raises :class:`MtannoError` for a missing input, two inputs with the same output, or
-    an output that is one of the inputs (:func:`mtanno.util.output.check_outputs`).
+    Raises :class:`MtannoError` for a missing input, one that is neither a motion file nor
+    a folder, two inputs with the same output, or an output that is one of the inputs
+    (:func:`mtanno.util.output.check_outputs`). ``listed`` are more inputs, read from a list
+    (``features -``): one of them that is missing or not a motion file is a failed job
+    (reported, the batch goes on) instead of an error, as is an entry of a folder with a
+    motion suffix that is not a regular file (a FIFO is never opened).
     """
     outdir = Path(outdir)
     jobs: list[Job] = []
-    for item in inputs:
+    for item, strict in [*((i, True) for i in inputs), *((i, False) for i in listed)]:
         p = Path(item)
-        if p.is_dir():
-            found = sorted(q for q in p.rglob("*") if _is_motion(q) and q.is_file())
-            for q in found:
-                rel = q.relative_to(p).with_suffix(".parquet")
-                jobs.append(Job(q, outdir / rel))
-        elif p.is_file():
-            jobs.append(Job(p, outdir / (p.stem + ".parquet")))
-        else:
-            raise MtannoError("no such file or directory", path=str(p))
+        why = _not_regular(p)
+        if why is None and p.is_dir():
+            jobs.extend(_folder_jobs(p, outdir))
+            continue
+        if why is None and not _is_motion(p):
+            why = _unknown_type(p)
+        if why is not None and strict:
+            raise MtannoError("no such file or directory" if why == "motion file not found"
+                              else why, path=str(p))
+        jobs.append(Job(p, outdir / (p.stem + ".parquet"), error=why or ""))
     seen: dict[Path, Path] = {}
     for j in jobs:
+        if j.error:
+            continue  # never written
         if j.dst in seen and seen[j.dst] != j.src:
             raise MtannoError(f"two inputs would write {j.dst}: {seen[j.dst]} and {j.src}")
         seen[j.dst] = j.src
         if asf is not None and j.src.suffix.lower() == ".amc":
             j.asf = Path(asf)
-    unique = list({j.dst: j for j in jobs}.values())
+    # one job per output (a file given twice, or as a file and in its folder); failed
+    # jobs write nothing, so one per input
+    unique = list({(j.dst, j.error and str(j.src)): j for j in jobs}.values())
     from mtanno.util.output import check_outputs
 
-    check_outputs([j.dst for j in unique],
-                  [*(j.src for j in unique), *({j.asf for j in unique} - {None})])
+    good = [j for j in unique if not j.error]
+    check_outputs([j.dst for j in good],
+                  [*(j.src for j in good), *({j.asf for j in good} - {None})])
     return unique
 
 
@@ -345,7 +401,9 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
 
     todo = []
     for j in jobs:
-        if not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up):
+        if j.error:  # found unusable while planning: reported, never run
+            record(Outcome(j, "failed", f"{j.src}: {j.error}"))
+        elif not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up):
             record(Outcome(j, "skipped"))
         else:
             todo.append(j)

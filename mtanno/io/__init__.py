@@ -137,11 +137,35 @@ def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None
     """
     rig, ch = read_channels(path, asf=asf, sha256=sha256)
     smap = find_map(rig, skeleton)
+    _check_needed_bones(rig, ch, smap, str(path))
     positions, heading = forward_kinematics(
         rig, ch.angles, ch.trans, ch.has_trans,
         heading_node=smap.heading_index(rig), heading_axis=smap.heading_axis)
+    if not (np.isfinite(positions).all() and np.isfinite(heading).all()):
+        # (the readers bound every value, so this is a last safeguard)
+        raise MtannoError("joint positions contain NaN or infinite values after forward "
+                          "kinematics", path=str(path))
     return Motion(rig=rig, positions=positions, heading=heading, fps=ch.fps, source=str(path),
                   smap=smap, source_sha256=ch.sha256)
+
+
+def _check_needed_bones(rig: Rig, ch: Channels, smap: SkeletonMap, path: str) -> None:
+    """Refuse a motion that gives no values, in any frame, for a bone with rotation dofs
+    that a canonical joint of the skeleton map (or its heading) hangs from: its rotation
+    would silently be zero and every feature of the joints below it wrong."""
+    if not ch.absent:
+        return
+    for joint, node in [*smap.joints.items(), ("heading", smap.heading_node)]:
+        if node not in rig.names:
+            continue  # (a map that lacks the node is reported where the joint is used)
+        j = rig.names.index(node)
+        while j >= 0:  # the node and its ancestors place the joint
+            bone = rig.names[j]
+            if bone in ch.absent:
+                raise MtannoError(f"bone '{bone}' has rotation dofs in the ASF but no values "
+                                  f"in any frame; the skeleton map '{smap.name}' needs it "
+                                  f"for joint '{joint}'", path=path, line=ch.absent[bone])
+            j = int(rig.parents[j])
 
 
 def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,

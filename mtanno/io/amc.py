@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError, read_text_input
+from mtanno.io import _limits
 from mtanno.io import _numparse as _np
 from mtanno.io.asf import AsfSkeleton
 from mtanno.io.skeleton import AXIS_CODES, Channels
@@ -57,6 +58,10 @@ def _header(raw: bytes, path: str) -> tuple[int, int, float]:
             except (IndexError, ValueError):
                 raise MtannoError("bad :SAMPLES-PER-SECOND value", path=path,
                                   line=nlines + 1) from None
+            if not _limits.fps_in_range(fps):
+                raise MtannoError(f":SAMPLES-PER-SECOND {parts[1].decode('latin-1')[:20]} is "
+                                  f"outside {_limits.MIN_FPS:g} … {_limits.MAX_FPS:g} frames "
+                                  f"per second", path=path, line=nlines + 1)
         pos = end
         nlines += 1
     return pos, nlines, fps
@@ -68,11 +73,17 @@ def read_amc(path: str | os.PathLike, skel: AsfSkeleton, *, sha256: bool = False
     spath = str(path)
     raw = read_text_input(path)
     body_at, header_lines, fps = _header(raw, spath)
-    ch = _fast_parse(raw[body_at:], skel, fps)
-    if ch is None:
+    fast = _fast_parse(raw[body_at:], skel, fps)
+    if fast is None:
         layout, values = _slow_parse(raw.decode("latin-1").splitlines(), header_lines, skel,
                                      spath)
         ch = _to_channels(layout, values, skel, fps)
+    else:
+        ch, layout = fast
+    _check_values(ch, skel, raw, header_lines, spath)
+    given = {name for name, _ in layout}
+    ch.absent = {b: header_lines + 1 for b, dof in skel.dofs.items()
+                 if b not in given and any(d[0] == "r" for d in dof)}
     if sha256:
         ch.sha256 = hashlib.sha256(raw).hexdigest()
     return ch
@@ -123,8 +134,8 @@ def _first_layout(body: bytes, skel: AsfSkeleton):
     tokens = head.split()
     if len(head) == len(body) or len(tokens) < 2:
         tokens = body.split()
-    if not tokens or not _is_int(tokens[0]):
-        return None
+    if not tokens or not _is_int(tokens[0]) or int(tokens[0]) > _limits.MAX_FRAME_NUMBER:
+        return None  # (the slow parse names the problem)
     counts = _dof_counts(skel)
     layout: list[tuple[str, int]] = []
     i = 1
@@ -222,8 +233,9 @@ def _program(layout) -> tuple[np.ndarray, np.ndarray]:
     return np.array(kind, dtype=np.int64), np.array(arg, dtype=np.int64)
 
 
-def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
-    """Parse every frame in a numba kernel; None if anything is irregular."""
+def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float):
+    """Parse every frame in a numba kernel: (channels, layout of a frame), None if anything
+    is irregular."""
     first = _first_layout(body, skel)
     if first is None:
         return None
@@ -249,13 +261,14 @@ def _fast_parse(body: bytes, skel: AsfSkeleton, fps: float) -> Channels | None:
         seen[0] = min(seen[0], per_frame) if seen[0] else per_frame
     if status == _np.INEXACT:
         layout_values = _tokenised_parse(body, layout)
-        return None if layout_values is None else _to_channels(*layout_values, skel, fps)
+        return None if layout_values is None else (_to_channels(*layout_values, skel, fps),
+                                                   layout)
     if status != _np.OK or frames == 0:
         return None
     ch.angles = ch.angles[:frames]
     ch.trans = ch.trans[:frames]
     ch.trans[:, 0, missing] = skel.rig.offsets[0, missing]
-    return ch
+    return ch, layout
 
 
 def _kernel_plan(layout, skel: AsfSkeleton):
@@ -334,6 +347,9 @@ def _slow_parse(lines: list[str], header_lines: int, skel: AsfSkeleton, path: st
             if current is not None:
                 close_frame(lineno - 1)
             no = int(tok[0])
+            if no > _limits.MAX_FRAME_NUMBER:
+                raise MtannoError(f"frame number {_clip_number(tok[0])} is beyond "
+                                  f"{_limits.MAX_FRAME_NUMBER}", path=path, line=lineno)
             if expected_no is not None and no != expected_no:
                 raise MtannoError(f"frame number {no} where {expected_no} was expected",
                                   path=path, line=lineno)
@@ -369,6 +385,44 @@ def _slow_parse(lines: list[str], header_lines: int, skel: AsfSkeleton, path: st
         raise MtannoError("no frames in file", path=path, line=len(lines))
     close_frame(len(lines))
     return layout, np.asarray(frames, dtype=np.float64).reshape(len(frames), -1)
+
+
+def _clip_number(text: str) -> str:
+    return text if len(text) <= 20 else text[:19] + "…"
+
+
+def _check_values(ch: Channels, skel: AsfSkeleton, raw: bytes, header_lines: int,
+                  path: str) -> None:
+    """Refuse an absurd value (a rotation beyond ±10⁶°, a root translation beyond ±10⁷ cm):
+    finite, but the features would square it into ``inf``. One pass over the arrays; the
+    line is looked for only when there is such a value."""
+    for arr, limit, what in ((ch.angles, _limits.MAX_ANGLE_RAD, "rotation"),
+                             (ch.trans[:, :1], _limits.MAX_LENGTH, "translation")):
+        k = _limits.first_beyond(arr, limit)
+        if k is None:
+            continue
+        frame, node, _ = np.unravel_index(k, arr.shape)
+        bone = skel.rig.names[int(node)]
+        line = _line_of_bone(raw.decode("latin-1").splitlines(), header_lines, int(frame), bone)
+        bound = (f"±{_limits.MAX_ANGLE_DEG:g} degrees" if what == "rotation" else
+                 f"±{_limits.MAX_LENGTH:g} cm")
+        raise MtannoError(f"absurd {what} value for bone '{bone}' in frame {frame + 1} "
+                          f"(beyond {bound})", path=path, line=line)
+
+
+def _line_of_bone(lines: list[str], header_lines: int, frame: int, bone: str) -> int | None:
+    """1-based line of ``bone``'s values in the ``frame``-th frame (0-based) of an AMC
+    file that parsed, or None."""
+    seen = -1
+    for lineno in range(header_lines + 1, len(lines) + 1):
+        tok = lines[lineno - 1].split()
+        if len(tok) == 1 and tok[0].isdigit():
+            seen += 1
+        elif seen == frame and tok and tok[0] == bone:
+            return lineno
+        if seen > frame:
+            break
+    return None
 
 
 def _to_channels(layout, values: np.ndarray, skel: AsfSkeleton, fps: float) -> Channels:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtanno.errors import MtannoError, read_text_input
+from mtanno.io import _limits
 from mtanno.io.skeleton import AXIS_CODES, Rig, euler_matrix
 
 INCH_CM = 2.54
@@ -72,7 +73,10 @@ def _compose(axes_applied_first: list[int], angles: list[float]) -> np.ndarray:
     return m
 
 
-def _floats(tokens: list[str], n: int, what: str, path: str, line: int) -> list[float]:
+def _floats(tokens: list[str], n: int, what: str, path: str, line: int,
+            limit: float = _limits.MAX_LENGTH) -> list[float]:
+    """``n`` finite numbers of magnitude at most ``limit`` (beyond, their squares would
+    overflow further on)."""
     if len(tokens) != n:
         raise MtannoError(f"'{what}' needs {n} numbers, found {len(tokens)}", path=path, line=line)
     try:
@@ -82,6 +86,9 @@ def _floats(tokens: list[str], n: int, what: str, path: str, line: int) -> list[
                           line=line) from None
     if not all(np.isfinite(vals)):
         raise MtannoError(f"'{what}' has a NaN or infinite value", path=path, line=line)
+    if any(abs(v) > limit for v in vals):
+        raise MtannoError(f"'{what}' has an absurd value (beyond ±{limit:g})", path=path,
+                          line=line)
     return vals
 
 
@@ -109,9 +116,14 @@ def _sections(lines: list[str], spath: str):
         key = tok[0].lower()
         if section == "units":
             if key == "length":
-                units["length"] = _floats(tok[1:2], 1, "length", spath, lineno)[0]
+                units["length"] = _floats(tok[1:2], 1, "length", spath, lineno,
+                                          _limits.MAX_LENGTH_UNIT)[0]
                 if units["length"] <= 0:
                     raise MtannoError("':units length' must be positive", path=spath, line=lineno)
+                if units["length"] < 1 / _limits.MAX_LENGTH_UNIT:
+                    raise MtannoError(f"':units length' {tok[1]} is absurd (below "
+                                      f"{1 / _limits.MAX_LENGTH_UNIT:g})", path=spath,
+                                      line=lineno)
             elif key == "angle":
                 if len(tok) < 2 or tok[1].lower() not in ("deg", "rad"):
                     raise MtannoError("':units angle' must be deg or rad", path=spath, line=lineno)
@@ -138,11 +150,13 @@ def _sections(lines: list[str], spath: str):
                 bone["direction"] = _floats(tok[1:], 3, "direction", spath, lineno)
             elif key == "length":
                 bone["length"] = _floats(tok[1:2], 1, "length", spath, lineno)[0]
+                bone["length_line"] = lineno
             elif key == "axis":
                 if len(tok) != 5:
                     raise MtannoError("'axis' needs three angles and an order", path=spath,
                                       line=lineno)
-                bone["axis"] = (_floats(tok[1:4], 3, "axis", spath, lineno),
+                bone["axis"] = (_floats(tok[1:4], 3, "axis", spath, lineno,
+                                        _limits.MAX_ANGLE_DEG),
                                 _order_to_axes(tok[4], spath, lineno))
             elif key == "dof":
                 bone["dof"] = [t.lower() for t in tok[1:]]
@@ -201,6 +215,13 @@ def _bone_order(bones: list[dict], hierarchy: list, spath: str):
     return order, parent_of
 
 
+def _check_cm(value: float, what: str, path: str, line: int) -> None:
+    """A length in centimetres (after ``:units length``) within ±10⁷ cm."""
+    if not value <= _limits.MAX_LENGTH:
+        raise MtannoError(f"{what} is absurdly long ({value:.3g} cm with ':units length'; "
+                          f"at most {_limits.MAX_LENGTH:g})", path=path, line=line)
+
+
 def read_asf(path: str | os.PathLike) -> AsfSkeleton:
     """Parse an ASF file into an :class:`AsfSkeleton` (lengths in cm, angles in radians)."""
     spath = str(path)
@@ -229,8 +250,11 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
     if "position" in root:
         offsets[0] = np.asarray(_floats(root["position"][0], 3, "position", spath,
                                         root["position"][1])) * length_scale
+        _check_cm(float(np.abs(offsets[0]).max()), "the root position", spath,
+                  root["position"][1])
     if "orientation" in root:
-        o = _floats(root["orientation"][0], 3, "orientation", spath, root["orientation"][1])
+        o = _floats(root["orientation"][0], 3, "orientation", spath, root["orientation"][1],
+                    _limits.MAX_ANGLE_DEG)
         pre[0] = _compose(root_axes, [o[a] * angle_scale for a in root_axes])
 
     dofs: dict[str, list[str]] = {}
@@ -242,6 +266,7 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
         if norm == 0:
             raise MtannoError(f"bone '{name}' has a zero direction", path=spath, line=b["line"])
         offsets[k] = d / norm * b["length"] * length_scale
+        _check_cm(abs(b["length"] * length_scale), f"bone '{name}'", spath, b["length_line"])
         ang, bone_axes = b.get("axis", ([0.0, 0.0, 0.0], [0, 1, 2]))
         c = _compose(bone_axes, [ang[a] * angle_scale for a in bone_axes])
         pre[k] = c

@@ -38,7 +38,7 @@ import numba
 import numpy as np
 
 from mtanno.errors import MtannoError, read_input
-from mtanno.io import _numparse
+from mtanno.io import _limits, _numparse
 from mtanno.io.skeleton import AXIS_CODES, Channels, Rig
 
 __all__ = ["read_bvh", "frame_rate_from_frame_time"]
@@ -109,6 +109,9 @@ class _Tokens:
         if not np.isfinite(value):
             raise MtannoError(f"{what} is not a finite number ('{tok}')", path=self.path,
                               line=line)
+        if abs(value) > _limits.MAX_LENGTH:  # its square would overflow further on
+            raise MtannoError(f"{what} '{_clip(tok)}' is absurd (beyond "
+                              f"±{_limits.MAX_LENGTH:g})", path=self.path, line=line)
         return value
 
     def expect(self, word: str) -> int:
@@ -363,7 +366,9 @@ def read_bvh(path: str | os.PathLike, *, sha256: bool = False) -> tuple[Rig, Cha
     head = _motion_header(data, m, spath)
     layout = _ChannelLayout.of(nodes)
     block = data[head.pos:] if head.pos < len(data) else b""
+    _check_frame_count(head, layout.n_channels, len(block), spath)
     angles, trans = _motion_values(block, layout, head, spath)
+    _check_values(block, angles, trans, layout, head, spath)
     n_nodes = len(nodes)
     rig = Rig(
         kind="bvh",
@@ -454,7 +459,22 @@ def _motion_header(data: bytes, m: re.Match, spath: str) -> _MotionHeader:
     except ValueError:
         raise MtannoError(f"Frame Time '{tm.group(1)}' is not a positive number of seconds",
                           path=spath, line=ft_line) from None
+    if not 1 / _limits.MAX_FPS <= float(tm.group(1)) <= 1 / _limits.MIN_FPS:
+        raise MtannoError(f"Frame Time '{_clip(tm.group(1))}' is outside "
+                          f"{1 / _limits.MAX_FPS:g} … {1 / _limits.MIN_FPS:g} seconds",
+                          path=spath, line=ft_line)
     return _MotionHeader(pos, n_frames, frames_line, fps, tm.group(1), ft_line)
+
+
+def _check_frame_count(head: _MotionHeader, n_channels: int, n_bytes: int, spath: str) -> None:
+    """Refuse a ``Frames:`` count the MOTION data cannot hold before room is made for it:
+    a row of ``n_channels`` values takes at least ``2 · n_channels`` bytes (a digit and a
+    separator each; the last row may lack its line end)."""
+    most = (n_bytes + 1) // (2 * n_channels) if n_channels else 0
+    if head.n_frames > most:
+        raise MtannoError(f"'Frames: {head.n_frames}' is more than the motion data can hold "
+                          f"({n_bytes} bytes: at most {most} rows of {n_channels} values)",
+                          path=spath, line=head.frames_line)
 
 
 @dataclass(frozen=True)
@@ -561,6 +581,34 @@ def _motion_values(block: bytes, lay: _ChannelLayout, head: _MotionHeader, spath
         angles[:, lay.rot_node, lay.rot_slot] = np.deg2rad(values[:, lay.rot_col])
         trans[:, lay.pos_node, lay.pos_comp] = values[:, lay.pos_col]
     return angles, trans
+
+
+def _check_values(block: bytes, angles: np.ndarray, trans: np.ndarray, lay: _ChannelLayout,
+                  head: _MotionHeader, spath: str) -> None:
+    """Refuse an absurd channel value (a rotation beyond ±10⁶°, a position beyond ±10⁷
+    file units): finite, but the features would square it into ``inf``. One pass over the
+    arrays; the line is looked for only when there is such a value (the first in the file
+    is named)."""
+    found = []
+    for arr, limit, cols in ((angles, _limits.MAX_ANGLE_RAD,
+                              zip(lay.rot_col, lay.rot_node, lay.rot_slot)),
+                             (trans, _limits.MAX_LENGTH,
+                              zip(lay.pos_col, lay.pos_node, lay.pos_comp))):
+        where = {(n, s): c for c, n, s in cols}
+        bad = np.abs(arr) > limit  # (only channels can be: offsets are bounded)
+        if bad.any():
+            frame = int(np.flatnonzero(bad.any(axis=(1, 2)))[0])
+            found.extend((frame, where[int(n), int(s)]) for n, s in zip(*np.nonzero(bad[frame])))
+    if not found:
+        return
+    frame, col = min(found)
+    rows = np.flatnonzero(_tokens_per_line(np.frombuffer(block, dtype=np.uint8)))
+    tok = block.split()[frame * lay.n_channels + col].decode("latin-1")
+    what, bound = (("rotation", _limits.MAX_ANGLE_DEG) if col in lay.rot_col else
+                   ("position", _limits.MAX_LENGTH))
+    raise MtannoError(f"{what} value '{_clip(tok)}' (frame {frame + 1}, channel {col + 1}) "
+                      f"is absurd (beyond ±{bound:g})", path=spath,
+                      line=head.frame_time_line + 1 + int(rows[frame]))
 
 
 def _locate_bad_value(block: bytes, rows: np.ndarray, n_channels: int, first_data_line: int,

@@ -152,16 +152,37 @@ def load_map(path: str | os.PathLike) -> SkeletonMap:
     if unknown:
         raise MtannoError(f"unknown canonical joint(s) {', '.join(unknown)}; known: "
                           f"{', '.join(CANONICAL_JOINTS)}", path=str(path))
-    heading = data.get("heading", {})
-    axis = tuple(float(v) for v in heading.get("axis", (1.0, 0.0, 0.0)))
-    if len(axis) != 3:
-        raise MtannoError("heading.axis must have three numbers", path=str(path))
+    shared: dict[str, str] = {}
+    for joint, node in joints.items():
+        if node in shared:  # two joints at one point: the features between them are void
+            raise MtannoError(f"joints '{shared[node]}' and '{joint}' are both mapped to node "
+                              f"'{node}'; every canonical joint needs its own node",
+                              path=str(path))
+        shared[node] = joint
+    heading, axis = _heading(data.get("heading", {}), str(path))
+    detect = data.get("detect", list(joints.values()))
+    if not isinstance(detect, list) or not all(isinstance(v, str) for v in detect):
+        raise MtannoError("detect must be a list of node names", path=str(path))
     return SkeletonMap(
         name=str(name), format=str(fmt), joints=dict(joints),
-        detect=tuple(data.get("detect", tuple(joints.values()))),
+        detect=tuple(detect),
         heading_node=str(heading.get("node", joints.get("root", ""))),
         heading_axis=axis,  # type: ignore[arg-type]
         path=str(path), description=str(data.get("description", "")))
+
+
+def _heading(heading, path: str) -> tuple[dict, tuple[float, float, float]]:
+    """The ``heading`` table of a map and its axis: three finite numbers, not all zero."""
+    try:
+        axis = tuple(float(v) for v in heading.get("axis", (1.0, 0.0, 0.0)))
+        ok = isinstance(heading.get("node", ""), str) and len(axis) == 3 \
+            and all(np.isfinite(axis)) and any(axis)
+    except (TypeError, ValueError, AttributeError):
+        ok = False
+    if not ok:
+        raise MtannoError('heading must be { node = "NODE", axis = [x, y, z] } with three '
+                          'finite numbers, not all zero', path=path)
+    return heading, axis  # type: ignore[return-value]
 
 
 def search_dirs() -> list[Path]:

@@ -257,6 +257,10 @@ class Channels:
         Native frame rate read from the file (frames per second).
     sha256:
         SHA-256 (hex) of the file's bytes as parsed, when the reader was asked for it.
+    absent:
+        Bones the skeleton gives rotation dofs but the file gives no values in any frame
+        (AMC), each with the line of the file's first frame: their rotations are zero,
+        which :func:`mtanno.io.read_motion` refuses for a bone the skeleton map needs.
     """
 
     angles: np.ndarray
@@ -264,6 +268,7 @@ class Channels:
     has_trans: np.ndarray
     fps: float
     sha256: str | None = None
+    absent: dict[str, int] = field(default_factory=dict)
 
     @property
     def n_frames(self) -> int:
