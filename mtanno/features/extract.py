@@ -17,13 +17,9 @@ import numpy as np
 
 from mtanno._version import __version__
 from mtanno.errors import MtannoError
-from mtanno.features import (
-    ANALYSIS_FPS,
-    FEATURE_SET,
-    FeatureSet,
-    compute_features,
-    get_feature_set,
-)
+from mtanno.features.compute import FeatureSet, compute_features, get_feature_set
+from mtanno.features.hysteresis import ANALYSIS_FPS
+from mtanno.features.table import FEATURE_SET
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
 from mtanno.util.store import sha256_file, write_features

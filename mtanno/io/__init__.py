@@ -2,6 +2,12 @@
 
 :func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
 forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.
+
+Modules: :mod:`~mtanno.io.asf`, :mod:`~mtanno.io.amc` and :mod:`~mtanno.io.bvh` (the
+parsers, text → channel arrays, with file:line errors), ``_numparse`` (their numba number
+parser, private), ``_limits`` (the bounds on every number a header declares, private),
+:mod:`~mtanno.io.skeleton` (rig graph and forward kinematics, vectorised over frames) and
+:mod:`~mtanno.io.rigs` (skeleton maps: rig nodes → the 22 canonical joints).
 """
 
 from __future__ import annotations

@@ -46,6 +46,8 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
     status, byte position of the problem)``; reading stops with BAD when a frame would
     exceed ``angles.shape[0]``.
     """
+    # one kernel: the token loop and its dispatch stay in one function, so that the
+    # parser's state stays in registers instead of passing through a call per token
     n = buf.shape[0]
     plen = prog_kind.shape[0]
     pos = 0

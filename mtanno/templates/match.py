@@ -121,6 +121,8 @@ def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add
     register type. An unreachable cell has D = inf and start -1 (its first candidate is
     unreachable too, so the -1 propagates).
     """
+    # one kernel: the DTW recurrence with the three default steps unrolled; a generic step
+    # loop (the other kernel) is what this specialisation avoids
     K = masks.shape[0]
     inf = np.inf
     u1, u2 = np.uint64(1), np.uint64(2)

@@ -7,7 +7,8 @@
 * :mod:`~mtanno.util.store` — feature files (Parquet): the one reader and writer, layouts;
 * :mod:`~mtanno.util._parquet` — the fast writer of short feature files (private);
 * :mod:`~mtanno.util.workers` — worker processes, dask clusters and the signal policy;
-* :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles.
+* :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
+* ``_bits`` — bit kernels the stages' numba kernels share (private).
 
 The modules are imported by name (``from mtanno.util.store import read_features``); this
 file imports none of them, so that loading one does not load the others.
