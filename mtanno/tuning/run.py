@@ -134,10 +134,6 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     examples and held-out documents are sent once, the tasks carry indices) instead of
     ``n_jobs`` local processes — with the same result.
     """
-    from mtanno.templates.model import load_template_folder, template_files
-    from mtanno.templates.training import group_by_class, load_examples
-    from mtanno.util.store import FeatureLayout, check_layout, read_features, sha256_file
-
     t0 = time.perf_counter()
     methods = check_methods(methods)
     if documents not in DOCUMENT_MODES:
@@ -145,6 +141,63 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                           f"{', '.join(DOCUMENT_MODES)})")
     if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
         raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
+    templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir)
+    classes = list(templates)
+    whole = any(s.start is not None for s in sources)
+    if whole:
+        from mtanno.util.store import read_features
+
+        def read_document(path):
+            return read_features(path).X
+    else:
+        read_document = None
+    folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
+    learn = {c: _learn_params(templates[c]) for c in classes}
+    shared = {"examples": examples,
+              "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
+    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn)
+    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
+                                                          scheduler=scheduler, shared=shared)))
+    columns = {c: matched_columns(templates[c].weights) for c in classes}
+    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
+                    for c in classes for f in TEMPO_SCALES})
+    tuner = Tuner(folds, prepared, classes=classes, methods=methods,
+                  unknown_weight=unknown_weight, log=log, columns=columns)
+    delta0 = _deltas(methods, templates)[0]
+    params, evaluation, steps = tuner.search(delta=delta0)
+    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
+    variants = {}
+    if ablation:
+        for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
+                               for m in methods), ("none", [])]:
+            if log:
+                log(f"ablation {name}:")
+            variants[name] = tuner.search(delta=delta0, methods=subset)
+    extra_of = _further_templates([params, *(v[0] for v in variants.values())], examples,
+                                  templates, learn, n_jobs=n_jobs, scheduler=scheduler,
+                                  shared=shared)
+    inputs, shas = _input_records(mt_dir, templates, keyframes_dir, examples)
+    folds_held = {f.name: len(f.held_examples) for f in folds}
+    seconds = time.perf_counter() - t0
+    result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
+                        folds_held, seed, methods, documents, unknown_weight, seconds,
+                        template_sha256=shas)
+    for name, (p, ev, st) in variants.items():
+        subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
+        result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
+                                           folds_held, seed, subset, documents, unknown_weight,
+                                           seconds, template_sha256=shas)
+    return result
+
+
+def _tune_inputs(sources, mt_dir, keyframes_dir):
+    """The templates of ``mt_dir``, their feature layout, the training examples (each of
+    that layout; every class must have some) and the keyframe queries of
+    ``keyframes_dir`` (empty without)."""
+    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.training import group_by_class, load_examples
+    from mtanno.util.store import FeatureLayout, check_layout
+
     templates = load_template_folder(mt_dir)
     classes = list(templates)
     first = next(iter(templates.values()))
@@ -165,13 +218,14 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
 
         queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
                                                 feature_set=layout.feature_set)
-    whole = any(s.start is not None for s in sources)
-    read_document = (lambda path: read_features(path).X) if whole else None
-    folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
-    learn = {c: _learn_params(templates[c]) for c in classes}
+    return templates, layout, examples, queries
+
+
+def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> list:
+    """One task per fold and class with training examples in it (:func:`_fold_class_task`):
+    the class's templates learned on the fold's training examples, matched over its
+    held-out documents (inside the keyframe windows where the class has a query)."""
     index = {id(e): i for i, e in enumerate(examples)}
-    shared = {"examples": examples,
-              "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
     tasks = []
     for f in folds:
         windows = None
@@ -181,7 +235,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             windows = [class_windows(X, list(layout.names), queries,
                                      feature_set=layout.feature_set)
                        for _, X in f.held_out.documents()]
-        for c in classes:
+        for c in templates:
             train = [e for e in f.train if e.class_name == c]
             if not train:
                 continue
@@ -196,34 +250,25 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                 "evidence": "frames" in methods and "resolve" in methods,
                 "evidence_spans": ev_spans,
                 "scales": TEMPO_SCALES if "templates" in methods else ()}))
-    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
-                                                          scheduler=scheduler, shared=shared)))
-    columns = {c: matched_columns(templates[c].weights) for c in classes}
-    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
-                    for c in classes for f in TEMPO_SCALES})
-    tuner = Tuner(folds, prepared, classes=classes, methods=methods,
-                  unknown_weight=unknown_weight, log=log, columns=columns)
-    delta0 = _deltas(methods, templates)[0]
-    params, evaluation, steps = tuner.search(delta=delta0)
-    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
-    variants = {}
-    if ablation:
-        for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
-                               for m in methods), ("none", [])]:
-            if log:
-                log(f"ablation {name}:")
-            variants[name] = tuner.search(delta=delta0, methods=subset)
+    return tasks
+
+
+def _further_templates(chosen: Sequence[Params], examples, templates, learn, *, n_jobs,
+                       scheduler, shared) -> Callable[[Params], dict]:
+    """``extra_of(params)``: per class its further templates under ``params`` (one of
+    ``chosen``): the groups' templates, learned here from all the class's training
+    examples for every group count that ``chosen`` uses, then the time-scaled copies of
+    its template."""
+    classes = list(templates)
     by_class = {c: [i for i, e in enumerate(examples) if e.class_name == c] for c in classes}
-    wanted = sorted({(c, p.groups[c]) for p in [params, *(v[0] for v in variants.values())]
-                     for c in classes if p.groups.get(c, 1) > 1})
+    wanted = sorted({(c, p.groups[c]) for p in chosen for c in classes
+                     if p.groups.get(c, 1) > 1})
     got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
                       for key in wanted], n_jobs, _final_groups_task, scheduler=scheduler,
                      shared=shared) if wanted else []
     learned = {key: g for key, g in zip(wanted, got) if g}
 
     def extra_of(p: Params) -> dict:
-        """Per class its further templates: the groups', then the time-scaled copies of
-        its template."""
         out = {}
         for c in classes:
             mts = [*learned.get((c, p.groups.get(c, 1)), []),
@@ -232,9 +277,19 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                 out[c] = mts
         return out
 
+    return extra_of
+
+
+def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dict], dict]:
+    """The inputs of a tune run (template files, keyframe files, training feature files,
+    each with SHA-256) for the provenance, and the SHA-256 of each class's template (the
+    configuration's ``[tuned_with]``)."""
+    from mtanno.templates.model import template_files
+    from mtanno.util.store import sha256_file
+
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     shas = {i["path"]: i["sha256"] for i in inputs}
-    shas = {c: shas[templates[c].path] for c in classes}  # [tuned_with] of the config
+    shas = {c: shas[mt.path] for c, mt in templates.items()}
     if keyframes_dir is not None:
         from mtanno.keyframes import keyframe_files
 
@@ -245,17 +300,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
         if ex.file not in seen:
             seen.add(ex.file)
             inputs.append({"path": ex.file, "sha256": ex.sha256})
-    folds_held = {f.name: len(f.held_examples) for f in folds}
-    seconds = time.perf_counter() - t0
-    result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
-                        folds_held, seed, methods, documents, unknown_weight, seconds,
-                        template_sha256=shas)
-    for name, (p, ev, st) in variants.items():
-        subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
-        result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
-                                           folds_held, seed, subset, documents, unknown_weight,
-                                           seconds, template_sha256=shas)
-    return result
+    return inputs, shas
 
 
 def _deltas(methods: Sequence[str], templates) -> list[float]:
