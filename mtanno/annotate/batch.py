@@ -45,7 +45,7 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
     learned in memory), quantized with ``delta``, and the feature layout they share
     (``where`` names them in messages)."""
     from mtanno.templates.model import quantize
-    from mtanno.util.store import FeatureLayout, check_layout, sha256_file
+    from mtanno.util.store import check_layout, sha256_file
 
     if not templates:
         raise MtannoError("no class templates to annotate with")
@@ -60,10 +60,9 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
             raise MtannoError(exc.message, path=mt.path) from None
         models.append(model)
     first = next(iter(templates.values()))
-    layout = FeatureLayout(first.feature_set, tuple(first.feature_names), float(first.fps), where)
+    layout = first.layout(where)
     for mt in templates.values():  # templates made in memory were not checked by a reader
-        check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
-                                   f"template {mt.class_name}"), layout, path=mt.path)
+        check_layout(mt.layout(), layout, path=mt.path)
     return models, layout
 
 
@@ -73,7 +72,7 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.store import FeatureLayout, check_layout, sha256_file
+    from mtanno.util.store import check_layout, sha256_file
 
     out = []
     for cls, paths in config.template_paths().items():
@@ -86,8 +85,7 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
             if mt.class_name != cls:
                 raise MtannoError(f"[templates] {cls}: {path} holds a template of class "
                                   f"{mt.class_name!r}", path=config.path, line=line)
-            check_layout(FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
-                                       f"template {path}"), layout, path=str(path))
+            check_layout(mt.layout(f"template {path}"), layout, path=str(path))
             q = quantize(mt, delta)
             model = ClassModel(cls, q.values, q.weights, path=str(path),
                                sha256=sha256_file(path))

@@ -60,7 +60,6 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     from mtanno.retrieve import retrieve_files, write_hits
     from mtanno.templates.model import load_template, quantize
     from mtanno.util.output import check_outputs
-    from mtanno.util.store import FeatureLayout
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)
@@ -75,8 +74,7 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     else:
         mt = quantize(mt, qdelta if qdelta is not None else (mt.delta if mt.delta is not None
                                                               else DEFAULT_DELTA))
-    layout = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
-                           f"template {mt_path}")
+    layout = mt.layout(f"template {mt_path}")
     bar = tqdm(total=len(files), unit="file", disable=not show_progress(quiet), desc="retrieve")
 
     def progress(path, error):

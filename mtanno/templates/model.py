@@ -22,12 +22,15 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mtanno.errors import MtannoError, read_input
 from mtanno.util.store import atomic_path
+
+if TYPE_CHECKING:
+    from mtanno.util.store import FeatureLayout
 
 __all__ = [
     "SCHEMA", "KINDS", "MIRROR_SUFFIX", "FeatureRank", "MotionTemplate", "load_template",
@@ -117,6 +120,15 @@ class MotionTemplate:
     @property
     def n_features(self) -> int:
         return int(self.values.shape[0])
+
+    def layout(self, source: str | None = None) -> FeatureLayout:
+        """The template's :class:`~mtanno.util.store.FeatureLayout` (feature set, feature
+        names, frame rate), what :func:`~mtanno.util.store.check_layout` compares;
+        ``source`` names it in messages (default: ``template CLASS``)."""
+        from mtanno.util.store import FeatureLayout
+
+        return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
+                             source if source is not None else f"template {self.class_name}")
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, MotionTemplate):
@@ -479,7 +491,7 @@ def load_template_folder(path: str | os.PathLike, *,
     sorted by class name; with ``classes`` only those (each must have a template). All
     templates must share feature set, names and frame rate (a difference is an error
     naming the file); two files of one class are an error."""
-    from mtanno.util.store import FeatureLayout, check_layout
+    from mtanno.util.store import check_layout
 
     files = template_files(path)
     if not files or not files[0].exists():
@@ -490,8 +502,7 @@ def load_template_folder(path: str | os.PathLike, *,
         mt = load_template(f)
         if classes and mt.class_name not in classes:
             continue
-        lay = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
-                            f"template {f}")
+        lay = mt.layout(f"template {f}")
         if layout is None:
             layout = lay
         elif lay.key() != layout.key():

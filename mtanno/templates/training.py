@@ -30,7 +30,7 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.evaluation.truth import read_truth
-from mtanno.util.store import feature_files, read_features, sha256_file
+from mtanno.util.store import FeatureLayout, feature_files, read_features, sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
@@ -81,6 +81,11 @@ class TrainingExample:
     feature_set: str
     fps: float
     performer: str | None = None
+
+    def layout(self) -> FeatureLayout:
+        """The example's :class:`~mtanno.util.store.FeatureLayout` (named after its file)."""
+        return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
+                             f"feature file {self.file}")
 
     def record(self) -> dict:
         """The template's ``training`` entry for this example."""
@@ -297,12 +302,8 @@ def check_consistent(examples: Sequence[TrainingExample], *,
     frame rate; otherwise an error names the first file that differs."""
     if not examples:
         return
-    from mtanno.util.store import FeatureLayout, check_layout, common_layout
+    from mtanno.util.store import check_layout, common_layout
 
-    def layout(ex: TrainingExample) -> FeatureLayout:
-        return FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),
-                             f"feature file {ex.file}")
-
-    ref = layout(like) if like is not None else common_layout([layout(e) for e in examples])
+    ref = like.layout() if like is not None else common_layout([e.layout() for e in examples])
     for ex in examples:
-        check_layout(layout(ex), ref, path=ex.file)
+        check_layout(ex.layout(), ref, path=ex.file)

@@ -196,18 +196,16 @@ def _tune_inputs(sources, mt_dir, keyframes_dir):
     ``keyframes_dir`` (empty without)."""
     from mtanno.templates.model import load_template_folder
     from mtanno.templates.training import group_by_class, load_examples
-    from mtanno.util.store import FeatureLayout, check_layout
+    from mtanno.util.store import check_layout
 
     templates = load_template_folder(mt_dir)
     classes = list(templates)
     first = next(iter(templates.values()))
-    layout = FeatureLayout(first.feature_set, tuple(first.feature_names), float(first.fps),
-                           f"the templates in {mt_dir}")
+    layout = first.layout(f"the templates in {mt_dir}")
     groups = group_by_class(sources)
     examples = [e for c in groups for e in load_examples(groups[c])]
     for ex in examples:
-        check_layout(FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),
-                                   f"feature file {ex.file}"), layout, path=ex.file)
+        check_layout(ex.layout(), layout, path=ex.file)
     no_examples = [c for c in classes if c not in groups]
     if no_examples:
         raise MtannoError(f"no training examples of class(es) {', '.join(no_examples)} "
