@@ -91,12 +91,9 @@ def _check_fraction_pair(value, name: str) -> tuple[float, float]:
 
 
 def _check_options(tau, mode, max_hits) -> float:
-    try:
-        tau = float(tau)
-    except (TypeError, ValueError):
-        raise MtannoError(f"tau must be a number, got {tau!r}") from None
-    if math.isnan(tau):
-        raise MtannoError("tau must be a number, got NaN")
+    from mtanno.annotate.config import check_tau  # the one rule for τ: a number ≥ 0
+
+    tau = check_tau(tau)
     if mode not in HIT_MODES:
         raise MtannoError(f"unknown hit mode {mode!r} (choose from {', '.join(HIT_MODES)})")
     if isinstance(max_hits, bool) or not isinstance(max_hits, (int, np.integer)) or max_hits < 1:

@@ -171,13 +171,16 @@ class ClassConfig:
 
 def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
     """τ as a float; NaN, a negative value or a non-number is an :class:`MtannoError`
-    (∞ is allowed: every match counts)."""
+    (∞ is allowed: every match counts). The one rule for τ wherever it is given: the
+    annotation, retrieval (:func:`mtanno.retrieve.extract_hits`), class configurations and
+    the commands' ``--tau``."""
     try:
         value = float(tau)
     except (TypeError, ValueError):
         raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}", path=path) from None
     if not value >= 0:
-        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}", path=path)
+        nan = " (NaN)" if value != value else ""
+        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}{nan}", path=path)
     return value
 
 
