@@ -344,9 +344,9 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
     so the next clip starts where and facing how the previous one ended. Writes
     OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json.
     """
-    from mtanno.evaluation.compose import compose_documents, read_manifest
+    from mtanno.evaluation.compose import compose_documents, read_clips
 
-    clips = read_manifest(manifest, root=root, actor=actor, split=split)
+    clips = read_clips(manifest, root=root, actor=actor, split=split)
     docs, truth = compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
                                     seed=seed, pause=pause, asf=asf, shuffle=not in_order,
                                     inputs=[manifest])

@@ -130,14 +130,14 @@ def info_cmd(index_dir, as_json, output):
     import pyarrow as pa
 
     from mtanno.index import open_index
-    from mtanno.index.storage import group_sizes, index_files, read_manifest
+    from mtanno.index.storage import group_sizes, index_files, read_index_manifest
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_table
 
     if output is not None:
         table_format(output)
     index = open_index(index_dir)
-    manifest = read_manifest(index.root)
+    manifest = read_index_manifest(index.root)
     total = sum(e["bytes"] for e in manifest["files"].values())
     rows = group_sizes(index)
     if output is not None:

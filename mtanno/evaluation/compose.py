@@ -42,12 +42,12 @@ class Clip:
     actor: str
 
 
-def read_manifest(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
+def read_clips(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
                   actor: str | None = None, split: str | None = None) -> list[Clip]:
-    """Clips of a manifest (:func:`mtanno.util.tables.read_manifest`: columns
+    """Clips of a manifest (:func:`mtanno.util.tables.read_clip_manifest`: columns
     ``file,class[,actor,split]``, file relative to ``root``, by default the manifest's
     folder), filtered by actor and split. Every clip file must exist."""
-    from mtanno.util.tables import read_manifest as read_rows
+    from mtanno.util.tables import read_clip_manifest as read_rows
 
     table, rows = read_rows(path)
     root = Path(root) if root is not None else Path(path).parent

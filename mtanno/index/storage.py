@@ -129,7 +129,7 @@ def manifest_of(index: Index, generation: int, files: dict) -> dict:
     }
 
 
-def read_manifest(root: Path) -> dict:
+def read_index_manifest(root: Path) -> dict:
     """The manifest of the index in ``root`` (validated shape), or an error saying what is
     wrong with the directory."""
     path = root / MANIFEST
@@ -203,12 +203,12 @@ def read_index(root: str | os.PathLike) -> Index:
     """Read and verify the index in ``root`` (see module docstring)."""
     root = Path(root)
     for attempt in range(2):  # a writer may replace the generation between our reads
-        manifest = read_manifest(root)
+        manifest = read_index_manifest(root)
         gen_dir = root / manifest["directory"]
         try:
             return _read_generation(root, gen_dir, manifest)
         except CorruptIndex:
-            if attempt == 0 and read_manifest(root)["directory"] != manifest["directory"]:
+            if attempt == 0 and read_index_manifest(root)["directory"] != manifest["directory"]:
                 continue
             raise
     raise AssertionError("unreachable")  # pragma: no cover
@@ -277,7 +277,7 @@ def _write_index(index: Index, root: Path) -> Index:
     old_gen = 0
     if (root / MANIFEST).is_file():
         with contextlib.suppress(MtannoError):
-            old_gen = int(read_manifest(root).get("generation", 0))
+            old_gen = int(read_index_manifest(root).get("generation", 0))
     existing = [int(p.name[len(_GEN_PREFIX):]) for p in root.glob(f"{_GEN_PREFIX}*")
                 if p.name[len(_GEN_PREFIX):].isdigit()]
     gen = max([old_gen, *existing]) + 1
@@ -327,7 +327,7 @@ def index_files(root: str | os.PathLike) -> list[Path]:
     for :func:`mtanno.util.output.check_outputs`; empty when there is no readable manifest."""
     root = Path(root)
     try:
-        manifest = read_manifest(root)
+        manifest = read_index_manifest(root)
     except MtannoError:
         return []
     gen = root / manifest["directory"]
@@ -347,7 +347,7 @@ def group_sizes(index: Index) -> list[dict]:
     """Per group of an index (``index info``): features, frames, segments, inverted lists
     (and how many 2^f are possible), bytes on disk (segments and lists tables, from the
     manifest; 0 for an index in memory), bytes per segment and segments per frame."""
-    files = read_manifest(index.root)["files"] if index.root is not None else {}
+    files = read_index_manifest(index.root)["files"] if index.root is not None else {}
     rows = []
     for g in index.groups.values():
         size = sum(files.get(f"{k}-{g.name}.parquet", {}).get("bytes", 0)

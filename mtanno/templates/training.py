@@ -124,9 +124,9 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     The feature file of a row is ``features_dir / file`` with the suffix replaced by
     ``.parquet``. With ``split``, only rows whose ``split`` column equals it are used.
     """
-    from mtanno.util.tables import read_manifest
+    from mtanno.util.tables import read_clip_manifest
 
-    table, rows = read_manifest(manifest)
+    table, rows = read_clip_manifest(manifest)
     spath = table.path
     if split is not None and "split" not in table.columns:
         raise MtannoError("manifest has no split column to filter by --split", path=spath,

@@ -40,7 +40,7 @@ from mtanno.errors import MtannoError, read_input
 from mtanno.util.output import atomic_path
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line",
-           "file_record", "output_files", "provenance", "provenance_as_read", "read_manifest",
+           "file_record", "output_files", "provenance", "provenance_as_read", "read_clip_manifest",
            "read_provenance", "read_table", "set_command_line", "sidecar_path",
            "table_format", "table_provenance", "write_json", "write_table"]
 
@@ -461,7 +461,7 @@ class ManifestRow:
     line: int | None
 
 
-def read_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
+def read_clip_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
     """Read a clip manifest (columns ``file,class[,actor,split,...]``, e.g. HDM05's
     ``clips.csv``): the one manifest reader of ``learn-mt`` and ``compose``. Every row
     needs a file (a relative path inside the data folder) and a class."""
