@@ -37,7 +37,7 @@ from typing import Any
 import pyarrow as pa
 
 from mtanno.errors import MtannoError, read_input
-from mtanno.output import atomic_path
+from mtanno.output import SIDECAR_SUFFIX, atomic_path
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line",
            "file_record", "output_files", "provenance", "provenance_as_read", "read_manifest",
@@ -48,8 +48,6 @@ __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line
 FORMATS = {".csv": "csv", ".parquet": "parquet", ".jsonl": "jsonl"}
 #: Schema name of the provenance object.
 PROVENANCE_SCHEMA = "mtanno.provenance/1"
-#: Appended to a CSV or JSON Lines file's name to name its provenance sidecar.
-SIDECAR_SUFFIX = ".meta.json"
 _META_KEY = b"mtanno"
 
 _COMMAND_LINE: list[str] | None = None

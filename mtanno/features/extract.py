@@ -206,7 +206,8 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     from mtanno.output import check_outputs
 
     check_outputs([j.dst for j in unique],
-                  [*(j.src for j in unique), *({j.asf for j in unique} - {None})])
+                  [*(j.src for j in unique), *({j.asf for j in unique} - {None})],
+                  writable=False)  # a file whose output cannot be written fails alone
     return unique
 
 

@@ -1,0 +1,247 @@
+"""Hostile outputs (issue 22, OUT): outputs that would destroy an input, break the next
+run, be written despite an error, or fail without naming the file.
+
+Each test runs the command line on copies of the synthetic world (``tests/world.py``) and
+checks the exact behaviour: exit code 2, one ``mtanno:`` line naming the output, every
+input unchanged (SHA-256), nothing written (no new file, no temporary).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from world import assert_one_line, checksums, cli, temporaries
+
+from mtanno.errors import MtannoError
+
+
+def _files(root: Path) -> set[str]:
+    """Every file and folder below ``root``."""
+    return {str(p) for p in root.rglob("*")}
+
+
+class Scene:
+    """A folder of copies of the world's inputs; ``refused`` checks a run wrote nothing."""
+
+    def __init__(self, world, tmp_path: Path):
+        self.w, self.dir = world, tmp_path
+        self.truth = world.copy(world.truth, tmp_path / "truth.csv")
+        world.copy(Path(str(world.truth) + ".meta.json"), tmp_path / "truth.csv.meta.json")
+        self.blocked = tmp_path / "blocked"  # a file: nothing can be written below it
+        self.blocked.write_text("a file, not a folder")
+
+    def annotation(self, dest: Path) -> Path:
+        """A copy of the world's annotation table (and its sidecar) at ``dest``."""
+        self.w.copy(self.w.annotation, dest)
+        self.w.copy(Path(str(self.w.annotation) + ".meta.json"), Path(str(dest) + ".meta.json"))
+        return dest
+
+    def features(self, dest: Path) -> Path:
+        """A folder of copies of the documents' feature files."""
+        for f in self.w.doc_files:
+            self.w.copy(f, dest / f.name)
+        return dest
+
+    def snapshot(self) -> None:
+        self.sums = checksums(self.dir, self.w.root)
+        self.files = _files(self.dir)
+
+    def refused(self, r, named, *, what: str | None = None) -> str:
+        line = assert_one_line(r, named, codes=(2,))
+        if what is not None:
+            assert what in line, line
+        assert checksums(self.dir, self.w.root) == self.sums, "an input was written"
+        assert _files(self.dir) == self.files, sorted(_files(self.dir) - self.files)
+        assert temporaries(self.dir) == []
+        return line
+
+
+# ------------------------------------------------------------ 1: an input destroyed
+
+
+@pytest.mark.parametrize("case", ["annotation is per_class.csv", "annotation is confusion.csv",
+                                  "truth is confusion.csv", "truth is per_class.csv"])
+def test_report_never_writes_over_its_inputs(world, tmp_path, case):
+    """Every file report writes into its folder (tables, sidecars, figures, page) is
+    checked against the inputs and their sidecars: an input inside the report folder under
+    one of those names is refused, not replaced by the report's own table."""
+    s = Scene(world, tmp_path)
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    which, name = case.split(" is ")
+    ann, truth = world.annotation, s.truth
+    if which == "annotation":
+        ann = s.annotation(rep / name)
+    else:
+        truth = world.copy(s.truth, rep / name)
+    s.snapshot()
+    r = cli("report", ann, "--truth", truth, "-o", rep)
+    s.refused(r, rep / name, what="would overwrite")
+
+
+@pytest.mark.parametrize("case", ["evaluate annotation", "evaluate truth",
+                                  "evaluate-retrieval truth"])
+def test_no_output_replaces_an_inputs_sidecar(world, tmp_path, case):
+    """``--json ann.csv.meta.json`` would replace the provenance of the input ``ann.csv``;
+    the sidecar of every CSV or JSON Lines input counts as an input."""
+    s = Scene(world, tmp_path)
+    ann = s.annotation(tmp_path / "ann.csv")
+    of = ann if case == "evaluate annotation" else s.truth
+    target = Path(str(of) + ".meta.json")
+    s.snapshot()
+    if case.startswith("evaluate "):
+        r = cli("evaluate", ann, "--truth", s.truth, "--json", target)
+    else:
+        r = cli("evaluate-retrieval", world.doc_files[0], "--mt", world.mt, "--truth",
+                s.truth, "--json", target)
+    s.refused(r, target, what=f"provenance sidecar of the input {of}")
+
+
+def test_check_outputs_counts_input_sidecars_and_folder_names(tmp_path):
+    """The one place (mtanno.output.check_outputs): inputs' sidecars, names and patterns
+    written inside output folders, and folders the command owns."""
+    from mtanno.output import check_outputs
+
+    (tmp_path / "rep").mkdir()
+    ann = tmp_path / "rep" / "timeline_d1.png"
+    ann.write_text("x")
+    table = tmp_path / "t.jsonl"
+    table.write_text("{}\n")
+    with pytest.raises(MtannoError, match="provenance sidecar of the input"):
+        check_outputs([tmp_path / "t.jsonl.meta.json"], [table])
+    check_outputs([tmp_path / "t.parquet.meta.json"], [tmp_path / "t.parquet"])  # none
+    with pytest.raises(MtannoError, match="would overwrite") as e:
+        check_outputs([], [ann], folders={tmp_path / "rep": ["timeline_*.png"]})
+    assert str(e.value).startswith(str(ann))
+    check_outputs([], [ann], folders={tmp_path / "rep": ["index.html", "delta_*.png"]})
+    with pytest.raises(MtannoError, match="lies inside this output folder"):
+        check_outputs([], [ann], folders={tmp_path: None})
+
+
+# ------------------------------------------------------ 2: outputs that break the next run
+
+
+@pytest.mark.parametrize("case", ["evaluate -o", "evaluate --json", "report",
+                                  "annotate --output-dir -o", "annotate --output-dir -o new",
+                                  "annotate -o parquet", "annotate --output-dir parquet",
+                                  "index", "evaluate-retrieval -o"])
+def test_no_output_inside_a_folder_the_next_run_reads(world, tmp_path, case):
+    """An output inside a folder whose files are read as inputs (annotation folders of
+    evaluate and report, feature folders, annotate's --output-dir, which `mtanno evaluate
+    OUT/` reads) is refused before any work; outputs the scan does not read are fine."""
+    s = Scene(world, tmp_path)
+    ad = tmp_path / "ad"
+    s.annotation(ad / "a.csv")
+    fd = s.features(tmp_path / "fd")
+    od = tmp_path / "od"
+    if case != "annotate --output-dir -o new":
+        assert cli("annotate", "--mt", world.mt, fd, "--output-dir", od, "-q").exit_code == 0
+    s.snapshot()
+    if case == "evaluate -o":
+        named = ad / "per_class.csv"
+        r = cli("evaluate", ad, "--truth", s.truth, "-o", named)
+    elif case == "evaluate --json":  # a JSON report is not an annotation table: fine
+        r = cli("evaluate", ad, "--truth", s.truth, "--json", ad / "report.json")
+        assert r.exit_code == 0, r.output
+        assert cli("evaluate", ad, "--truth", s.truth).exit_code == 0  # the next run
+        return
+    elif case == "report":
+        named = ad / "rep"
+        r = cli("report", ad, "--truth", s.truth, "-o", named)
+    elif case.startswith("annotate --output-dir -o"):
+        named = od / "all.csv"
+        r = cli("annotate", "--mt", world.mt, fd, "--output-dir", od, "-o", named)
+    elif case == "annotate -o parquet":
+        named = fd / "all.parquet"
+        r = cli("annotate", "--mt", world.mt, fd, "-o", named)
+    elif case == "annotate --output-dir parquet":
+        named = fd / "ann"
+        r = cli("annotate", "--mt", world.mt, fd, "--output-dir", named, "--format",
+                "parquet")
+    elif case == "index":
+        named = fd / "idx"
+        r = cli("index", fd, "-o", named)
+    else:
+        named = fd / "r.parquet"
+        r = cli("evaluate-retrieval", fd, "--mt", world.mt, "--truth", s.truth, "-o", named)
+    s.refused(r, named)
+
+
+def test_outputs_beside_what_a_scan_reads_are_fine(world, tmp_path):
+    """Only what the scan reads is refused: a CSV table among feature files is not read
+    as a feature file by the next annotate."""
+    s = Scene(world, tmp_path)
+    fd = s.features(tmp_path / "fd")
+    r = cli("annotate", "--mt", world.mt, fd, "-o", fd / "all.csv", "-q")
+    assert r.exit_code == 0, r.output
+    assert cli("annotate", "--mt", world.mt, fd, "-o", tmp_path / "again.csv",
+               "-q").exit_code == 0
+    del s
+
+
+# --------------------------------------------------------- 3: written despite an error
+
+
+def _tune_args(world):
+    return ["tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-q"]
+
+
+@pytest.mark.parametrize("case", ["align --plot", "tune --ablation", "tune -o",
+                                  "evaluate --json + -o", "evaluate-retrieval --json + -o",
+                                  "annotate -o -o", "report page is a folder",
+                                  "annotate -o is a folder"])
+def test_a_command_that_fails_on_an_output_writes_nothing(world, tmp_path, case):
+    """Every output location is tried before the work: one that cannot be written (below a
+    file, or a folder where a file goes) is one line naming it, exit 2, and no other output
+    is written."""
+    s = Scene(world, tmp_path)
+    a, b = world.doc_files[:2]
+    ok = tmp_path / "ok.csv"
+    bad = s.blocked / "x.csv"
+    if case == "report page is a folder":
+        (tmp_path / "rep" / "index.html").mkdir(parents=True)
+    if case == "annotate -o is a folder":
+        (tmp_path / "dir.csv").mkdir()
+    s.snapshot()
+    if case == "align --plot":
+        r, named = cli("align", a, b, "--cost", "features", "-o", ok, "--plot",
+                       s.blocked / "p.png"), s.blocked
+    elif case == "annotate -o is a folder":
+        r, named = cli("annotate", "--mt", world.mt, a, "-o", ok, "-o",
+                       tmp_path / "dir.csv"), tmp_path / "dir.csv"
+    elif case == "tune --ablation":
+        r, named = cli(*_tune_args(world), "-o", tmp_path / "t.toml", "--ablation",
+                       s.blocked / "abl"), s.blocked
+    elif case == "tune -o":
+        r, named = cli(*_tune_args(world), "-o", s.blocked / "t.toml", "--ablation",
+                       tmp_path / "abl"), s.blocked
+    elif case == "evaluate --json + -o":
+        r, named = cli("evaluate", world.annotation, "--truth", s.truth, "--json",
+                       tmp_path / "e.json", "-o", bad), s.blocked
+    elif case == "evaluate-retrieval --json + -o":
+        r, named = cli("evaluate-retrieval", a, "--mt", world.mt, "--truth", s.truth,
+                       "--json", tmp_path / "e.json", "-o", bad), s.blocked
+    elif case == "annotate -o -o":
+        r, named = cli("annotate", "--mt", world.mt, a, "-o", ok, "-o", bad), s.blocked
+    else:
+        r, named = cli("report", world.annotation, "--truth", s.truth, "-o",
+                       tmp_path / "rep"), tmp_path / "rep" / "index.html"
+    line = s.refused(r, named)
+    assert "internal error" not in line
+
+
+def test_preflight_leaves_nothing_and_creates_no_folder(tmp_path):
+    """The preflight tries the nearest existing folder with a temporary file it removes;
+    it creates no folder."""
+    from mtanno.output import check_outputs
+
+    check_outputs([tmp_path / "a" / "b" / "x.csv"], [], folders={tmp_path / "c": None})
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(MtannoError, match="is not a folder"):
+        check_outputs([], [], folders={tmp_path / "f": None})
+    with pytest.raises(MtannoError, match="output is a folder"):
+        check_outputs([tmp_path], [])
+    check_outputs([tmp_path], [], writable=False)  # a batch's outputs fail alone later
