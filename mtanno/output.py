@@ -34,7 +34,7 @@ from pathlib import Path
 from mtanno.errors import MtannoError
 
 __all__ = ["atomic_path", "check_outputs", "current_umask", "remove_stale_temporaries",
-           "write_bytes", "write_text"]
+           "write_bytes", "write_stdout", "write_text"]
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
@@ -216,7 +216,10 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
     """
     target = Path(target)
     if not _check_target(target):
-        yield target
+        try:
+            yield target
+        except OSError as exc:  # a device written in place (/dev/full: disk full)
+            raise _write_error(target, exc) from None
         return
     made: list[str] = []
     try:
@@ -238,8 +241,11 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
     small files (``mtanno features``)."""
     target = Path(target)
     if not _check_target(target):  # written in place, as atomic_path's caller would
-        with open(target, "wb") as fh:
-            fh.write(data)
+        try:
+            with open(target, "wb") as fh:
+                fh.write(data)
+        except OSError as exc:
+            raise _write_error(target, exc) from None
         return
     made: list[str] = []
     fd = -1
@@ -259,13 +265,22 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
     _replace(made[0], target, fd)
 
 
+def write_stdout(text: str) -> None:
+    """Write ``text`` to standard output and flush it; a failure (a full device, a closed
+    pipe) is one :class:`MtannoError` that says it was standard output."""
+    import sys
+
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except OSError as exc:
+        raise MtannoError(f"cannot write to standard output: {exc.strerror or exc}") from None
+
+
 def write_text(target: str | os.PathLike, text: str) -> None:
     """Write ``text`` (UTF-8) to ``target`` atomically, or to standard output for ``-``."""
     if str(target) == "-":
-        import sys
-
-        sys.stdout.write(text)
-        sys.stdout.flush()
+        write_stdout(text)
         return
     with atomic_path(target) as tmp:
         tmp.write_text(text, encoding="utf-8")

@@ -220,7 +220,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     """
     from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files, read_annotation_tables
     from mtanno.evaluate import evaluate_annotations
-    from mtanno.output import check_outputs
+    from mtanno.output import check_outputs, write_stdout
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
     from mtanno.truth import Segment, check_within, read_truth
 
@@ -251,7 +251,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
         documents = ({s.doc for s in out} | set(frames)) or {s.doc for s in truth}
     report = evaluate_annotations(truth, out, documents=documents)
     if json_path != "-" and table_path != "-":
-        click.echo(report.table())
+        write_stdout(report.table() + "\n")  # a full device: one line saying so
     prov = provenance(inputs=inputs, truth=str(truth_path))
     if json_path:
         write_json(json_path, {**report.as_dict(), "provenance": prov})
@@ -287,7 +287,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     quotient, each template retrieved in all FEATURES documents. A feature file that
     cannot be used is reported and left out (exit code 1)."""
     from mtanno.evaluate import retrieval_evaluation, retrieval_report, retrieval_table
-    from mtanno.output import check_outputs
+    from mtanno.output import check_outputs, write_stdout
     from mtanno.store import read_features
     from mtanno.tables import output_files, provenance, table_format, write_json, write_table
     from mtanno.truth import check_within, read_truth
@@ -317,7 +317,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
                                     max_hits=max_hits) for m in models]
     if json_path != "-" and table_path != "-":
-        click.echo(retrieval_report(results))
+        write_stdout(retrieval_report(results) + "\n")
     prov = provenance(inputs=[*files, truth_path], templates=[m.record() for m in models],
                       delta=delta, max_hits=max_hits, feature_set=key.feature_set)
     if json_path:

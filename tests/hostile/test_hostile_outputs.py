@@ -8,6 +8,8 @@ input unchanged (SHA-256), nothing written (no new file, no temporary).
 
 from __future__ import annotations
 
+import errno
+import os
 from pathlib import Path
 
 import pytest
@@ -245,3 +247,146 @@ def test_preflight_leaves_nothing_and_creates_no_folder(tmp_path):
     with pytest.raises(MtannoError, match="output is a folder"):
         check_outputs([tmp_path], [])
     check_outputs([tmp_path], [], writable=False)  # a batch's outputs fail alone later
+
+
+# ------------------------------------------------------------- 4: non-UTF-8 file names
+
+
+def _non_utf8_folder(world, folder: Path) -> bytes:
+    """A folder of feature files, one of them named ``caf<0xE9>.parquet`` (not UTF-8);
+    returns that file's name as bytes."""
+    folder.mkdir()
+    world.copy(world.doc_files[1], folder / world.doc_files[1].name)
+    name = os.fsencode(folder) + b"/caf\xe9.parquet"
+    try:
+        with open(name, "wb") as fh:
+            fh.write(world.doc_files[0].read_bytes())
+    except OSError:
+        pytest.skip("this file system refuses names that are not UTF-8")
+    return name
+
+
+@pytest.mark.parametrize("case", ["annotate -o csv", "annotate -o parquet", "annotate -o jsonl",
+                                  "annotate --output-dir", "annotate --output-dir parquet",
+                                  "retrieve -o csv"])
+def test_tables_of_documents_named_by_non_utf8_file_names(world, tmp_path, case):
+    """A document whose file name is not UTF-8 is written, not a UnicodeEncodeError: in
+    the table its name's undecodable bytes are \\xNN (valid UTF-8 text, as every table
+    reader wants it), and the provenance records the path exactly (its \\uDCxx escape
+    reads back as the file's name)."""
+    from mtanno.tables import read_table, table_provenance
+
+    raw = _non_utf8_folder(world, tmp_path / "in")
+    fmt = case.split()[-1] if case.split()[-1] in ("csv", "parquet", "jsonl") else "csv"
+    if case.startswith("annotate -o"):
+        out = tmp_path / f"all.{fmt}"
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "-o", out, "-q")
+    elif case == "retrieve -o csv":
+        out = tmp_path / "hits.csv"
+        r = cli("retrieve", "--mt", world.template, tmp_path / "in", "-o", out, "-q")
+    else:
+        od = tmp_path / "od"
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "--output-dir", od, "--format",
+                fmt, "-q")
+        out = Path(os.fsdecode(os.fsencode(od) + b"/caf\xe9." + fmt.encode()))
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    docs = {row["doc"] for row in read_table(out).rows}
+    assert "caf\\xe9" in docs, docs
+    prov = table_provenance(out)
+    paths = [i["path"] for i in prov["inputs"]]
+    assert raw in [os.fsencode(p) for p in paths], paths
+    if case.startswith("annotate --output-dir"):  # the rerun finds the table up to date
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "--output-dir", od, "--format",
+                fmt)
+        assert r.exit_code == 0 and "2 up to date" in r.output, r.output
+        r = cli("evaluate", od, "--truth", world.truth, "--all-docs")
+        assert r.exit_code == 0, r.output
+
+
+def test_json_of_non_utf8_names_is_valid_utf8(tmp_path):
+    """tables.dumps, used for every sidecar and JSON output: a lone surrogate becomes its
+    JSON escape, so the file is UTF-8 and reads back as the same string."""
+    import json
+
+    from mtanno.tables import dumps, text, write_json
+
+    name = os.fsdecode(b"caf\xe9.parquet")
+    write_json(tmp_path / "x.json", {"path": name, name: 1, "ok": "café"})
+    raw = (tmp_path / "x.json").read_bytes()
+    assert json.loads(raw.decode("utf-8")) == {"path": name, name: 1, "ok": "café"}
+    assert "café" in raw.decode("utf-8")  # other text stays as it is
+    assert json.loads(dumps([name])) == [name]
+    assert text(os.fsdecode(b"a\xff\xfe")) == "a\\xff\\xfe" and text("café") == "café"
+
+
+# ----------------------------------------------------------------------- 5: a full device
+
+
+FULL = Path("/dev/full")
+needs_full = pytest.mark.skipif(not FULL.exists(), reason="no /dev/full on this system")
+
+
+@needs_full
+@pytest.mark.parametrize("case", ["evaluate -o", "evaluate --json", "retrieve -o",
+                                  "annotate -o"])
+def test_an_output_on_a_full_device_names_it(world, tmp_path, case):
+    """A write that the device refuses (no space left) is one line naming the output."""
+    s = Scene(world, tmp_path)
+    s.snapshot()
+    if case == "evaluate -o":
+        r = cli("evaluate", world.annotation, "--truth", s.truth, "-o", FULL)
+    elif case == "evaluate --json":
+        r = cli("evaluate", world.annotation, "--truth", s.truth, "--json", FULL)
+    elif case == "retrieve -o":
+        r = cli("retrieve", "--mt", world.template, world.doc_files[0], "-o", FULL, "-q")
+    else:
+        r = cli("annotate", "--mt", world.mt, world.doc_files[0], "-o", FULL, "-q")
+    line = s.refused(r, FULL, what="No space left on device")
+    assert line.startswith(f"mtanno: {FULL}: "), line
+
+
+@needs_full
+def test_standard_output_on_a_full_device_says_so(world, tmp_path):
+    """`-o -` (and the printed report) on a full device: one line saying it is standard
+    output, exit code 2."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
+           "sys.argv[0] = 'mtanno'; main()"]
+    for args in (["evaluate", world.annotation, "--truth", world.truth, "-o", "-"],
+                 ["evaluate", world.annotation, "--truth", world.truth]):
+        with open(FULL, "w") as full:
+            p = subprocess.run([*cmd, *map(str, args)], stdout=full, stderr=subprocess.PIPE,
+                               text=True)
+        lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+        assert p.returncode == 2 and lines == [
+            "mtanno: cannot write to standard output: No space left on device"], p.stderr
+
+
+def test_a_write_that_fails_in_place_or_to_stdout_names_it(tmp_path, monkeypatch):
+    """The writers' own paths (mtanno.output): a device written in place and standard
+    output raise one MtannoError that names where, for any OSError (simulated here)."""
+    import io
+    import sys
+
+    import pyarrow as pa
+
+    from mtanno import output
+    from mtanno.tables import write_table
+
+    class Full(io.StringIO):
+        def write(self, text):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(sys, "stdout", Full())
+    with pytest.raises(MtannoError, match="cannot write to standard output: No space"):
+        write_table("-", pa.table({"a": [1]}))
+    monkeypatch.undo()
+    fifo = tmp_path / "device"
+    fifo.write_text("")
+    monkeypatch.setattr(output, "_check_target", lambda target: False)  # "not a file"
+    with pytest.raises(MtannoError, match="cannot write here: No space") as e, \
+            output.atomic_path(fifo):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    assert str(e.value).startswith(str(fifo))
