@@ -144,10 +144,16 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     left alone otherwise. Only the new files are read. With ``failures``, a file that
     cannot be read or does not have the index's features is left out and its message
     appended there; without, it is raised."""
+    from mtanno.output import check_outputs
     from mtanno.store import FeatureLayout
 
     root = Path(index_dir)
+    feature_files = list(feature_files)
     paths = collect_feature_files(feature_files)
+    # as for a build: no input inside the index, no index inside a folder of feature files
+    # read here (the next add would read its Parquet files), and a writable index folder
+    check_outputs([], paths, folders={root: None},
+                  scanned={f: (".parquet",) for f in feature_files if Path(f).is_dir()})
     with write_lock(root, wait=wait, on_wait=on_wait):
         index = read_index(root)
         layout = FeatureLayout(index.feature_set, tuple(index.features), float(index.fps),

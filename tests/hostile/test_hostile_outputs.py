@@ -127,7 +127,8 @@ def test_check_outputs_counts_input_sidecars_and_folder_names(tmp_path):
 @pytest.mark.parametrize("case", ["evaluate -o", "evaluate --json", "report",
                                   "annotate --output-dir -o", "annotate --output-dir -o new",
                                   "annotate -o parquet", "annotate --output-dir parquet",
-                                  "index", "evaluate-retrieval -o"])
+                                  "index", "index add", "evaluate-retrieval -o",
+                                  "retrieve -o"])
 def test_no_output_inside_a_folder_the_next_run_reads(world, tmp_path, case):
     """An output inside a folder whose files are read as inputs (annotation folders of
     evaluate and report, feature folders, annotate's --output-dir, which `mtanno evaluate
@@ -139,6 +140,9 @@ def test_no_output_inside_a_folder_the_next_run_reads(world, tmp_path, case):
     od = tmp_path / "od"
     if case != "annotate --output-dir -o new":
         assert cli("annotate", "--mt", world.mt, fd, "--output-dir", od, "-q").exit_code == 0
+    if case == "index add":  # an index that was moved into the folder of its features
+        assert cli("index", fd, "-o", tmp_path / "idx", "-q").exit_code == 0
+        (tmp_path / "idx").rename(fd / "idx")
     s.snapshot()
     if case == "evaluate -o":
         named = ad / "per_class.csv"
@@ -164,6 +168,12 @@ def test_no_output_inside_a_folder_the_next_run_reads(world, tmp_path, case):
     elif case == "index":
         named = fd / "idx"
         r = cli("index", fd, "-o", named)
+    elif case == "index add":
+        named = fd / "idx"
+        r = cli("index", "add", named, fd)
+    elif case == "retrieve -o":
+        named = fd / "hits.parquet"
+        r = cli("retrieve", "--mt", world.template, fd, "-o", named)
     else:
         named = fd / "r.parquet"
         r = cli("evaluate-retrieval", fd, "--mt", world.mt, "--truth", s.truth, "-o", named)
