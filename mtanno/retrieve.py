@@ -229,6 +229,8 @@ def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
     cost, rank (1 = cheapest)."""
     import pyarrow as pa
 
+    from mtanno.util.tables import arrow_table
+
     cols: dict[str, list] = {c: [] for c in HIT_COLUMNS}
     for rank, h in enumerate(hits, 1):
         nat = native[h.doc_index]
@@ -236,7 +238,7 @@ def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
                                       int(nat[h.end]), float(h.cost), rank)):
             cols[c].append(v)
     types = {"doc": pa.string(), "cost": pa.float64()}
-    return pa.table({c: pa.array(v, type=types.get(c, pa.int64())) for c, v in cols.items()})
+    return arrow_table(cols, types)  # (names of non-UTF-8 files written as text)
 
 
 def write_hits(path: str | os.PathLike, hits: Sequence[Hit], native: Sequence[np.ndarray], *,

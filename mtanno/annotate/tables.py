@@ -53,6 +53,8 @@ def _annotation_arrow(rows: Sequence[Annotation], pairs: Sequence[tuple[int, int
     """:func:`annotation_table` with each row's native start and end given (or None)."""
     import pyarrow as pa
 
+    from mtanno.util.tables import arrow_table
+
     cols: dict[str, list] = {"doc": [r.doc for r in rows], "start": [r.start + 1 for r in rows],
                              "end": [r.end + 1 for r in rows], "label": [r.label for r in rows],
                              "cost": [r.cost if math.isfinite(r.cost) else None for r in rows]}
@@ -60,7 +62,7 @@ def _annotation_arrow(rows: Sequence[Annotation], pairs: Sequence[tuple[int, int
         cols["start_native"] = [a for a, _ in pairs]
         cols["end_native"] = [b for _, b in pairs]
     types = {"doc": pa.string(), "label": pa.string(), "cost": pa.float64()}
-    return pa.table({k: pa.array(v, type=types.get(k, pa.int64())) for k, v in cols.items()})
+    return arrow_table(cols, types)  # (names of non-UTF-8 files written as text)
 
 
 def write_annotations(path: str | os.PathLike, rows: Sequence[Annotation],
@@ -183,10 +185,13 @@ def _claim_documents(where: dict[str, str], rows: Sequence[Annotation], path) ->
 
 
 def _recorded_frames(prov: dict | None) -> dict[str, int]:
+    from mtanno.util.tables import text
+
     recorded = (prov or {}).get("documents")
     if not isinstance(recorded, dict):
         return {}
-    return {str(k): int(v) for k, v in recorded.items()
+    # named as the rows name them (a non-UTF-8 file name's bytes as \xNN: tables.text)
+    return {text(str(k)): int(v) for k, v in recorded.items()
             if isinstance(v, int) and not isinstance(v, bool)}
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import click
 
@@ -96,7 +97,12 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     """
     from tqdm import tqdm
 
-    from mtanno.annotate import check_tau, load_annotation_setup, write_annotations
+    from mtanno.annotate import (
+        ANNOTATION_SUFFIXES,
+        check_tau,
+        load_annotation_setup,
+        write_annotations,
+    )
     from mtanno.keyframes import keyframe_files
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import output_files, table_format
@@ -120,14 +126,20 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
         paths = [j.src for j in folder_jobs]
     else:
         folder_jobs, paths = [], feature_paths(features)
-    written = [*(f for j in folder_jobs for f in output_files(j.dst)),
-               *(f for out in outputs for f in output_files(out))]
+    tables = [f for out in outputs for f in output_files(out)]
+    written = [*(f for j in folder_jobs for f in output_files(j.dst)), *tables]
+    # a document's table that cannot be written fails alone: only -o is tried first; no
+    # output where the features are read from, and no -o table among the --output-dir
+    # tables (`mtanno evaluate OUT/` would read its rows twice)
     check_outputs(written, [mt_dir, *template_files(mt_dir), config_path, *paths,
-                            *(keyframe_files(kf_dir) if kf_dir else [])])
+                            *(keyframe_files(kf_dir) if kf_dir else [])],
+                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()},
+                  writable=False)
+    check_outputs(tables, [], scanned={out_dir: ANNOTATION_SUFFIXES} if out_dir else None)
     setup = load_annotation_setup(mt_dir, config_path=config_path, keyframes_dir=kf_dir,
                                   tau=tau, delta=delta, dbar_variant=variant,
                                   match_variant=match_variant, single_label=single_label)
-    check_outputs(written, setup.files())  # the configuration's further templates
+    check_outputs(written, setup.files(), writable=False)  # the configuration's templates
     for warning in setup.warnings:
         click.echo(f"annotate: warning: {warning}", err=True)
     if not quiet and setup.keyframes_missing:
@@ -206,19 +218,20 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     record their documents' lengths, a truth segment past the end of its document is an
     error.
     """
-    from mtanno.annotate import annotation_files, read_annotation_tables
+    from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files, read_annotation_tables
     from mtanno.evaluation.metrics import evaluate_annotations
     from mtanno.evaluation.truth import Segment, check_within, read_truth
-    from mtanno.util.output import check_outputs
+    from mtanno.util.output import check_outputs, write_stdout
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
         table_format(table_path)
+    scanned = {a: ANNOTATION_SUFFIXES for a in annotations if a != "-" and Path(a).is_dir()}
     annotations = annotation_files(annotations)
     inputs = [*annotations, truth_path]
     if sum(str(i) == "-" for i in inputs) > 1:
         raise MtannoError("standard input (-) can be read only once")
-    check_outputs([json_path, *output_files(table_path)], inputs)
+    check_outputs([json_path, *output_files(table_path)], inputs, scanned=scanned)
     if json_path == "-" and table_path == "-":
         raise MtannoError("--json - and -o - would both write to standard output")
     truth = read_truth(truth_path)
@@ -238,7 +251,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
         documents = ({s.doc for s in out} | set(frames)) or {s.doc for s in truth}
     report = evaluate_annotations(truth, out, documents=documents)
     if json_path != "-" and table_path != "-":
-        click.echo(report.table())
+        write_stdout(report.table() + "\n")  # a full device: one line saying so
     prov = provenance(inputs=inputs, truth=str(truth_path))
     if json_path:
         write_json(json_path, {**report.as_dict(), "provenance": prov})
@@ -275,7 +288,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     cannot be used is reported and left out (exit code 1)."""
     from mtanno.evaluation.retrieval import retrieval_evaluation, retrieval_report, retrieval_table
     from mtanno.evaluation.truth import check_within, read_truth
-    from mtanno.util.output import check_outputs
+    from mtanno.util.output import check_outputs, write_stdout
     from mtanno.util.store import read_features
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
@@ -285,7 +298,8 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
         raise MtannoError("--json - and -o - would both write to standard output")
     paths = feature_paths(features)
     check_outputs([json_path, *output_files(table_path)],
-                  [mt_dir, *template_files(mt_dir), truth_path, *paths])
+                  [mt_dir, *template_files(mt_dir), truth_path, *paths],
+                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
     models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
     truth = read_truth(truth_path)
     documents, files, failed = [], [], 0
@@ -303,7 +317,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
                                     max_hits=max_hits) for m in models]
     if json_path != "-" and table_path != "-":
-        click.echo(retrieval_report(results))
+        write_stdout(retrieval_report(results) + "\n")
     prov = provenance(inputs=[*files, truth_path], templates=[m.record() for m in models],
                       delta=delta, max_hits=max_hits, feature_set=key.feature_set)
     if json_path:

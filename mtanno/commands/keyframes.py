@@ -112,7 +112,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     todo = [c for c in groups if c in templates or classes]
     check_outputs([out / f"{c}.json" for c in todo if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth,
-                   *(t.path for t in templates.values())])
+                   *(t.path for t in templates.values())],
+                  writable=False)  # a class whose file cannot be written fails alone
     total = len(todo) * (runs if method == "ga" else 1)
     bar = tqdm(total=total, unit="run" if method == "ga" else "class", desc="learn-keyframes",
                disable=not show_progress(quiet))

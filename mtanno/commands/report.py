@@ -50,8 +50,15 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
     with --single-label; overlapping rows are resolved by segment cost (the page says so).
     """
-    from mtanno.annotate import DEFAULT_TAU, annotation_files, read_annotation_tables
-    from mtanno.evaluation.report import annotation_parameters, write_report
+    from pathlib import Path
+
+    from mtanno.annotate import (
+        ANNOTATION_SUFFIXES,
+        DEFAULT_TAU,
+        annotation_files,
+        read_annotation_tables,
+    )
+    from mtanno.evaluation.report import REPORT_FILES, annotation_parameters, write_report
     from mtanno.evaluation.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
@@ -63,9 +70,13 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     if features and not mt_dir:
         raise MtannoError("--features goes with --mt (the Δ curves need the templates)")
     paths = document_files(features) if features else []
+    # folders read whole: an output there would be read by the next run
+    scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
+               **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     annotations = annotation_files(annotations)
-    check_outputs([out_dir], [*annotations, truth_path, *paths,
-                              *(template_files(mt_dir) if mt_dir else [])])
+    check_outputs([], [*annotations, truth_path, *paths,
+                       *(template_files(mt_dir) if mt_dir else [])],
+                  folders={out_dir: REPORT_FILES}, scanned=scanned)
     rows, frames, provs = read_annotation_tables(annotations)
     recorded = annotation_parameters(provs)
     truth = read_truth(truth_path)

@@ -7,6 +7,7 @@ others were searched), 2 usage error or bad input (unreadable template, no featu
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import click
 
@@ -65,7 +66,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     table_format(output)
     tau = check_tau(tau, what="--tau")
     files = feature_files(features)
-    check_outputs(output_files(output), [mt_path, *files])
+    check_outputs(output_files(output), [mt_path, *files],  # (hits.parquet: not among them)
+                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
     mt = load_template(mt_path)
     if mt.quantized:
         if qdelta is not None and qdelta != mt.delta:

@@ -94,7 +94,8 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     from mtanno.util.output import check_outputs
 
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth])
+                  [*(s.path for s in sources), manifest, truth],
+                  writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     written, failed, n_examples = [], [], 0
     with lock_output(out, wait=wait):

@@ -41,6 +41,12 @@ if TYPE_CHECKING:
 
 NONE = "none"
 FORMATS = ("png", "svg")
+#: Every name :func:`write_report` may write in its folder (glob patterns for those named
+#: after documents and classes), for :func:`mtanno.util.output.check_outputs`.
+REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
+                "per_class.tex", "confusion.csv", "confusion.csv.meta.json",
+                *(f"{stem}.{fmt}" for stem in ("confusion", "timeline_*", "template_*",
+                                               "delta_*") for fmt in FORMATS))
 
 
 @dataclass

@@ -258,7 +258,8 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
 
     good = [j for j in unique if not j.error]
     check_outputs([j.dst for j in good],
-                  [*(j.src for j in good), *({j.asf for j in good} - {None})])
+                  [*(j.src for j in good), *({j.asf for j in good} - {None})],
+                  writable=False)  # a file whose output cannot be written fails alone
     return unique
 
 

@@ -80,12 +80,13 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
     With ``failures``, a file that cannot be read or does not fit the others is left out
     and its message appended there (a batch goes on past it); without, it is raised.
     """
+    feature_files = list(feature_files)
     paths = collect_feature_files(feature_files)
     if not paths:
         raise MtannoError("no feature files given")
     root = None if out_dir is None else Path(out_dir)
     if root is not None:
-        _check_target(root, paths)
+        _check_target(root, paths, [f for f in feature_files if Path(f).is_dir()])
     docs = check_compatible(read_feature_docs(paths, failures=failures), failures=failures)
     if not docs:
         raise MtannoError("no feature file could be indexed")
@@ -100,9 +101,12 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
         return write_index(index, root)
 
 
-def _check_target(root: Path, paths: Sequence[Path]) -> None:
+def _check_target(root: Path, paths: Sequence[Path], folders: Sequence[str | os.PathLike] = (),
+                  ) -> None:
     """An index is written into a new or empty folder, or over an index; never into a
-    folder holding anything else, nor where an input file is."""
+    folder holding anything else, nor where an input file is, nor inside a folder of
+    feature files it reads (``folders``: the next build would read the index's Parquet
+    files as feature files); and only where it can be written."""
     from mtanno.util.output import check_outputs
 
     if root.exists() and not root.is_dir():
@@ -110,11 +114,7 @@ def _check_target(root: Path, paths: Sequence[Path]) -> None:
     if root.is_dir() and any(p.name != ".lock" for p in root.iterdir()) and not is_index_dir(root):
         raise MtannoError("directory is not empty and holds no index; choose a new directory",
                           path=str(root))
-    check_outputs([root], paths)
-    inside = [p for p in paths if root.resolve() in p.resolve().parents]
-    if inside:
-        raise MtannoError(f"input {inside[0]} lies inside the index folder; the index would "
-                          "replace it", path=str(root))
+    check_outputs([], paths, folders={root: None}, scanned={f: (".parquet",) for f in folders})
 
 
 def open_index(path: str | os.PathLike) -> Index:
@@ -144,10 +144,16 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     left alone otherwise. Only the new files are read. With ``failures``, a file that
     cannot be read or does not have the index's features is left out and its message
     appended there; without, it is raised."""
+    from mtanno.util.output import check_outputs
     from mtanno.util.store import FeatureLayout
 
     root = Path(index_dir)
+    feature_files = list(feature_files)
     paths = collect_feature_files(feature_files)
+    # as for a build: no input inside the index, no index inside a folder of feature files
+    # read here (the next add would read its Parquet files), and a writable index folder
+    check_outputs([], paths, folders={root: None},
+                  scanned={f: (".parquet",) for f in feature_files if Path(f).is_dir()})
     with write_lock(root, wait=wait, on_wait=on_wait):
         index = read_index(root)
         layout = FeatureLayout(index.feature_set, tuple(index.features), float(index.fps),

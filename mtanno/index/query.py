@@ -758,6 +758,8 @@ def hit_table(rows: Sequence[dict], *, with_mt: bool = False, with_span: bool = 
     span_start, span_end (only ``with_span``: untrimmed frames), boundaries."""
     import pyarrow as pa
 
+    from mtanno.util.tables import arrow_table
+
     optional = {"mt_cost": with_mt, "span_start": with_span, "span_end": with_span}
     cols = [c for c in QUERY_HIT_COLUMNS if optional.get(c, True)]
     scores = [r.get("score") for r in rows]
@@ -769,8 +771,8 @@ def hit_table(rows: Sequence[dict], *, with_mt: bool = False, with_span: bool = 
         values = [r.get(c) for r in rows]
         if c == "score" and whole:
             values = [None if v is None else int(v) for v in values]
-        data[c] = pa.array(values, type=types.get(c, pa.int64()))
-    return pa.table(data)
+        data[c] = values
+    return arrow_table(data, types)  # (names of non-UTF-8 files written as text)
 
 
 def warm_up() -> None:

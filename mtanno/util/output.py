@@ -14,8 +14,12 @@ interrupted or is killed never leaves half a file under the output's name:
 * an unwritable location is one :class:`~mtanno.errors.MtannoError` naming the path.
 
 :func:`check_outputs` is called by every command before any work: an output that is one of
-the command's inputs, or would replace one (same resolved path, or the same file through a
-hard link or symbolic link: same device and inode), is refused.
+the command's inputs or an input's provenance sidecar, or would replace one (same resolved
+path, or the same file through a hard link or symbolic link: same device and inode), is
+refused; so is any file a command writes inside its output folder that is an input, an
+output inside an input folder the command reads (the next run would read it), and an
+output that cannot be written (tried before the work: a command that fails writes
+nothing).
 """
 
 from __future__ import annotations
@@ -24,13 +28,13 @@ import contextlib
 import os
 import re
 import socket
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 from mtanno.errors import MtannoError
 
 __all__ = ["atomic_path", "check_outputs", "current_umask", "remove_stale_temporaries",
-           "write_bytes", "write_text"]
+           "write_bytes", "write_stdout", "write_text"]
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
@@ -212,7 +216,10 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
     """
     target = Path(target)
     if not _check_target(target):
-        yield target
+        try:
+            yield target
+        except OSError as exc:  # a device written in place (/dev/full: disk full)
+            raise _write_error(target, exc) from None
         return
     made: list[str] = []
     try:
@@ -234,8 +241,11 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
     small files (``mtanno features``)."""
     target = Path(target)
     if not _check_target(target):  # written in place, as atomic_path's caller would
-        with open(target, "wb") as fh:
-            fh.write(data)
+        try:
+            with open(target, "wb") as fh:
+                fh.write(data)
+        except OSError as exc:
+            raise _write_error(target, exc) from None
         return
     made: list[str] = []
     fd = -1
@@ -255,13 +265,22 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
     _replace(made[0], target, fd)
 
 
+def write_stdout(text: str) -> None:
+    """Write ``text`` to standard output and flush it; a failure (a full device, a closed
+    pipe) is one :class:`MtannoError` that says it was standard output."""
+    import sys
+
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except OSError as exc:
+        raise MtannoError(f"cannot write to standard output: {exc.strerror or exc}") from None
+
+
 def write_text(target: str | os.PathLike, text: str) -> None:
     """Write ``text`` (UTF-8) to ``target`` atomically, or to standard output for ``-``."""
     if str(target) == "-":
-        import sys
-
-        sys.stdout.write(text)
-        sys.stdout.flush()
+        write_stdout(text)
         return
     with atomic_path(target) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -275,26 +294,62 @@ def _identity(path: Path) -> tuple[int, int] | None:
     return (st.st_dev, st.st_ino)
 
 
-def check_outputs(outputs: Iterable[str | os.PathLike | None],
-                  inputs: Iterable[str | os.PathLike | None]) -> None:
-    """Refuse outputs that are, or would replace, one of the inputs; and an output named
-    twice. Compared by resolved path (symbolic links followed) and by device and inode
-    (hard links), so ``-o r.parquet`` cannot overwrite the input ``r.parquet`` under any of
-    its names. ``None`` and ``-`` (standard input/output) are skipped.
+#: Appended to a CSV or JSON Lines table's name to name its provenance sidecar
+#: (:mod:`mtanno.util.tables`); an input's sidecar is an input too (:func:`check_outputs`).
+SIDECAR_SUFFIX = ".meta.json"
+#: Table suffixes that have a sidecar.
+SIDECAR_TABLES = (".csv", ".jsonl")
+_GLOB = frozenset("*?[")
 
-    Call it before any work: the command then fails at once, with one line, and writes
-    nothing.
+
+def _inside(path: str, folder: str) -> bool:
+    """True if the resolved ``path`` is ``folder`` or lies below it (both resolved)."""
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def check_outputs(outputs: Iterable[str | os.PathLike | None],
+                  inputs: Iterable[str | os.PathLike | None], *,
+                  folders: Mapping[str | os.PathLike, Iterable[str] | None] | None = None,
+                  scanned: Mapping[str | os.PathLike, Iterable[str] | None] | None = None,
+                  writable: bool = True) -> None:
+    """Refuse, before any work, every output that would destroy an input or break the next
+    run, and every output that cannot be written; so a command that fails writes nothing.
+
+    * An output that is, or would replace, an input is refused; so is an output named
+      twice. Compared by resolved path (symbolic links followed) and by device and inode
+      (hard links), so ``-o r.parquet`` cannot overwrite the input ``r.parquet`` under any
+      of its names. The provenance sidecar of every CSV or JSON Lines input
+      (``FILE.meta.json``) counts as an input: ``--json ann.csv.meta.json`` cannot replace
+      the provenance of the input ``ann.csv``.
+    * ``folders`` maps each output folder to the names the command writes in it: file
+      names (each an output, checked as above), glob patterns for names known only later
+      (``timeline_*.png``: no input in the folder may match), or None for a folder that is
+      the command's alone (an index: no input may lie anywhere below it). The folder
+      itself is compared with the inputs as an output is.
+    * ``scanned`` maps each input folder the command reads everything below to the
+      suffixes it reads there (None: every file). An output below it with one of those
+      suffixes (an output folder: one of its names) would be read as an input by the
+      next run over the same folder, and is refused.
+    * With ``writable`` (the default) every output location is tried before the work: an
+      output file must not be a folder, and the folder it goes into, or the nearest folder
+      above it that exists, must be a folder where a file can be created (a temporary file
+      is created there and removed at once). Batches whose outputs each fail alone (one
+      table per document) pass False.
+
+    ``None`` and ``-`` (standard input/output) are skipped. Every refusal is one
+    :class:`~mtanno.errors.MtannoError` naming the output.
     """
     import stat
+    from fnmatch import fnmatchcase
 
-    folders: dict[str, str] = {}
+    resolved_folders: dict[str, str] = {}
 
     def in_folder(parent: str, name: str) -> str:
         # the folder resolved once per folder (batches name thousands of files in a few
         # folders); a file that is itself a link is caught by its inode below
-        if parent not in folders:
-            folders[parent] = os.path.realpath(parent)
-        return os.path.join(folders[parent], name)
+        if parent not in resolved_folders:
+            resolved_folders[parent] = os.path.realpath(parent)
+        return os.path.join(resolved_folders[parent], name)
 
     def resolved(p: Path) -> str:
         return in_folder(str(p.parent), p.name)
@@ -308,40 +363,178 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
             return os.path.realpath(p)
         return in_folder(folder or ".", name)
 
-    by_path: dict[str, str] = {}
-    by_inode: dict[tuple[int, int], str] = {}
-    for item in inputs:
-        if item is None or str(item) == "-":
+    def given(items) -> list[str]:
+        return [str(i) for i in items if i is not None and str(i) != "-"]
+
+    outputs = given(outputs)
+    out_folders: list[tuple[str, str, list[str] | None]] = []  # (as given, resolved, names)
+    patterns: list[tuple[str, str, str]] = []  # (folder as given, resolved folder, pattern)
+    for folder, names in (folders or {}).items():
+        if folder is None or str(folder) == "-":
             continue
-        p = Path(item)
-        by_path.setdefault(resolved(p), str(item))
-        try:
-            st = os.lstat(p)
-            if stat.S_ISLNK(st.st_mode):  # also where it leads
-                by_path.setdefault(link_target(p), str(item))
-                st = os.stat(p)
-        except OSError:
-            continue
-        if stat.S_ISREG(st.st_mode):
-            by_inode.setdefault((st.st_dev, st.st_ino), str(item))
+        names = None if names is None else [str(n) for n in names]
+        out_folders.append((str(folder), os.path.realpath(folder), names))
+        for name in names or ():
+            if _GLOB & set(name):
+                patterns.append((str(folder), os.path.realpath(folder), name))
+            else:
+                outputs.append(os.path.join(str(folder), name))
+
+    # the inputs, by resolved path (and where a link leads) and by inode
+    # (the input as given, and whether this is its sidecar rather than the input itself)
+    by_path: dict[str, tuple[str, bool]] = {}
+    by_inode: dict[tuple[int, int], tuple[str, bool]] = {}
+    for item in given(inputs):
+        items = [(item, (item, False))]
+        if item.lower().endswith(SIDECAR_TABLES):  # its provenance: an input too
+            items.append((item + SIDECAR_SUFFIX, (item, True)))
+        for each, what in items:
+            p = Path(each)
+            by_path.setdefault(resolved(p), what)
+            try:
+                st = os.lstat(p)
+                if stat.S_ISLNK(st.st_mode):  # also where it leads
+                    by_path.setdefault(link_target(p), what)
+                    st = os.stat(p)
+            except OSError:
+                continue
+            if stat.S_ISREG(st.st_mode):
+                by_inode.setdefault((st.st_dev, st.st_ino), what)
+
+    def clash(item: str, hit: tuple[str, bool]) -> MtannoError:
+        name, sidecar = hit
+        if sidecar:
+            what = f"the provenance sidecar of the input {name}"
+        else:
+            what = "an input of this command" + ("" if name == item else f" ({name})")
+        return MtannoError(f"output would overwrite {what}; choose another output name",
+                           path=item)
+
     seen: dict[str, str] = {}
+    out_paths: list[tuple[str, str]] = []  # (as given, resolved)
     for item in outputs:
-        if item is None or str(item) == "-":
-            continue
         p = Path(item)
         rp = resolved(p)
         if rp in seen:
             raise MtannoError(f"the same output is named twice ({seen[rp]} and {item})",
-                              path=str(item))
-        seen[rp] = str(item)
+                              path=item)
+        seen[rp] = item
+        out_paths.append((item, rp))
         hit = by_path.get(rp)
         if hit is None:
             ident = _identity(p)
             hit = by_inode.get(ident) if ident is not None else None
         if hit is not None:
-            same = "" if hit == str(item) else f" ({hit})"
-            raise MtannoError(f"output would overwrite an input of this command{same}; "
-                              "choose another output name", path=str(item))
+            raise clash(item, hit)
+    for given_name, rfolder, names in out_folders:
+        hit = by_path.get(rfolder) or by_path.get(resolved(Path(given_name)))
+        if hit is not None:
+            raise clash(given_name, hit)
+        if names is None:  # the folder is the command's: nothing of the inputs below it
+            inside = next((i for rp, (i, _) in by_path.items() if _inside(rp, rfolder)),
+                          None)
+            if inside is not None:
+                raise MtannoError(f"input {inside} lies inside this output folder, which "
+                                  "the command replaces; choose another folder",
+                                  path=given_name)
+    for given_name, rfolder, pattern in patterns:
+        for rp, item in by_path.items():
+            folder, name = os.path.split(rp)
+            if folder == rfolder and fnmatchcase(name, pattern):
+                raise clash(os.path.join(given_name, name), item)
+
+    # outputs inside a folder the command reads as input
+    for folder, suffixes in (scanned or {}).items():
+        if folder is None or str(folder) == "-":
+            continue
+        rfolder = os.path.realpath(folder)
+        takes = None if suffixes is None else tuple(s.lower() for s in suffixes)
+
+        def read(name: str, takes=takes) -> bool:
+            return takes is None or name.lower().endswith(takes)
+
+        hits = [item for item, rp in out_paths
+                if rp != rfolder and _inside(rp, rfolder) and read(rp)]
+        for given_name, rf, names in out_folders:
+            if _inside(rf, rfolder):
+                hits += [given_name] if names is None else \
+                    [os.path.join(given_name, n) for n in names if read(n)]
+        hit = hits[0] if hits else None
+        if hit is not None:
+            what = "files" if takes is None else ", ".join(takes) + " files"
+            raise MtannoError(f"output lies inside {folder}, whose {what} are read as "
+                              "inputs: the next run over that folder would read this output "
+                              "too; choose an output outside it", path=hit)
+
+    if writable:
+        probed: dict[str, OSError | None] = {}
+        for item, _ in out_paths:
+            _preflight(Path(item), probed, folder=False)
+        for given_name, _, _ in out_folders:
+            _preflight(Path(given_name), probed, folder=True)
+
+
+def _preflight(target: Path, probed: dict, *, folder: bool) -> None:
+    """Raise the :class:`MtannoError` writing ``target`` (a file, or an output folder) would
+    meet: a folder where a file is to be written, a file where a folder is, or a location
+    where no file can be created (tried with a temporary file, removed at once; once per
+    folder, ``probed`` remembers)."""
+    import stat
+
+    try:
+        st = os.stat(target)
+    except (FileNotFoundError, NotADirectoryError):
+        st = None
+    except OSError as exc:
+        raise _write_error(target, exc) from None
+    if st is not None:
+        if folder and not stat.S_ISDIR(st.st_mode):
+            raise MtannoError("output folder exists and is not a folder", path=str(target))
+        if not folder and stat.S_ISDIR(st.st_mode):
+            raise MtannoError("output is a folder, not a file", path=str(target))
+        if not folder and not stat.S_ISREG(st.st_mode):
+            return  # a device or FIFO, written in place
+    where = target if folder and st is not None else target.parent
+    # the nearest folder that exists: the rest is created when the output is written
+    while True:
+        try:
+            wst = os.stat(where)
+            break
+        except (FileNotFoundError, NotADirectoryError):
+            if where.parent == where:
+                raise MtannoError("cannot write here: no such folder", path=str(target)) \
+                    from None
+            where = where.parent
+        except OSError as exc:
+            raise _write_error(target, exc) from None
+    if not stat.S_ISDIR(wst.st_mode):
+        raise MtannoError(f"cannot write here: {where} is not a folder", path=str(target))
+    key = str(where)
+    if key not in probed:
+        probed[key] = _probe(where)
+    if probed[key] is not None:
+        exc = probed[key]
+        raise _write_error(target, exc) from None
+
+
+def _probe(folder: Path) -> OSError | None:
+    """Create and remove a temporary file in ``folder`` (named as :func:`atomic_path`
+    names them, so a writer killed in between leaves nothing the next write keeps);
+    the error the file system gives, or None."""
+    name = os.path.join(str(folder), f".mtanno-probe.{_HOST}-{os.getpid()}."
+                                     f"{os.urandom(5).hex()[:8]}{TMP_SUFFIX}")
+    fd = -1
+    try:
+        fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0),
+                     0o600)
+    except OSError as exc:
+        return exc
+    finally:
+        if fd >= 0:
+            os.close(fd)
+            with contextlib.suppress(OSError):
+                os.unlink(name)
+    return None
 
 
 # ----------------------------------------------------------------------------- folder locks

@@ -28,6 +28,7 @@ import io
 import json
 import math
 import os
+import re
 import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -37,19 +38,18 @@ from typing import Any
 import pyarrow as pa
 
 from mtanno.errors import MtannoError, read_input
-from mtanno.util.output import atomic_path
+from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
-__all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "command_line",
-           "file_record", "output_files", "provenance", "provenance_as_read", "read_clip_manifest",
-           "read_provenance", "read_table", "set_command_line", "sidecar_path",
-           "table_format", "table_provenance", "write_json", "write_table"]
+__all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
+           "command_line", "dumps", "file_record", "output_files", "provenance",
+           "provenance_as_read", "read_clip_manifest", "read_provenance", "read_table",
+           "set_command_line", "sidecar_path", "string_array", "table_format",
+           "table_provenance", "text", "write_json", "write_table"]
 
 #: Table formats by file suffix.
 FORMATS = {".csv": "csv", ".parquet": "parquet", ".jsonl": "jsonl"}
 #: Schema name of the provenance object.
 PROVENANCE_SCHEMA = "mtanno.provenance/1"
-#: Appended to a CSV or JSON Lines file's name to name its provenance sidecar.
-SIDECAR_SUFFIX = ".meta.json"
 _META_KEY = b"mtanno"
 
 _COMMAND_LINE: list[str] | None = None
@@ -163,16 +163,65 @@ def _write_jsonl(table: pa.Table, fh) -> None:
     names = table.column_names
     cols = [table.column(i).to_pylist() for i in range(table.num_columns)]
     for row in zip(*cols):
-        fh.write(json.dumps({n: _json_value(v) for n, v in zip(names, row)},
-                            ensure_ascii=False, allow_nan=False) + "\n")
+        fh.write(dumps({n: _json_value(v) for n, v in zip(names, row)}, allow_nan=False)
+                 + "\n")
+
+
+# A lone surrogate: how Python holds the bytes of a file name that are not UTF-8
+# (os.fsdecode's surrogateescape). No UTF-8 writer takes one.
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _byte_escape(m: re.Match) -> str:
+    code = ord(m.group())
+    return f"\\x{code - 0xDC00:02x}" if 0xDC80 <= code <= 0xDCFF else f"\\u{code:04x}"
+
+
+def text(value: str) -> str:
+    """``value`` as text a UTF-8 table can hold: each byte of a file name that is not
+    UTF-8 (a lone surrogate, as :func:`os.fsdecode` decodes it) written as ``\\xNN``, so
+    ``caf\\xe9`` names the document of the file ``caf<0xE9>.parquet`` and two such names
+    stay apart. Any other text is returned as it is."""
+    return _SURROGATE.sub(_byte_escape, value) if _SURROGATE.search(value) else value
+
+
+def string_array(values: Sequence[str | None]) -> pa.Array:
+    """A string column of ``values`` (None: null), made of :func:`text` where a value holds
+    the bytes of a non-UTF-8 file name (pyarrow refuses them)."""
+    try:
+        return pa.array(values, pa.string())
+    except UnicodeEncodeError:
+        return pa.array([None if v is None else text(str(v)) for v in values], pa.string())
+
+
+def arrow_table(columns: dict[str, Sequence], types: dict[str, pa.DataType], *,
+                default: pa.DataType | None = None) -> pa.Table:
+    """A :class:`pyarrow.Table` of ``columns`` (name → values), each of the type ``types``
+    gives it (else ``default``, int64); string columns through :func:`string_array`. The
+    table builders of the commands (hits, annotations) use it, so a document named after
+    a non-UTF-8 file name is written, not a traceback."""
+    default = pa.int64() if default is None else default
+    return pa.table({c: string_array(v) if types.get(c, default) == pa.string()
+                     else pa.array(v, type=types.get(c, default)) for c, v in columns.items()})
+
+
+def dumps(obj: Any, **kwargs: Any) -> str:
+    """JSON text of ``obj`` (non-finite numbers as null), non-ASCII characters kept as
+    they are, but a lone surrogate (a non-UTF-8 byte of a file name in a path) written as
+    its ``\\uDCxx`` escape: valid UTF-8 that reads back as the same string, so
+    :func:`os.fsencode` of a path read back gives the file's name again."""
+    out = json.dumps(_clean(obj), ensure_ascii=False, **kwargs)
+    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", out) \
+        if _SURROGATE.search(out) else out
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Write a JSON document atomically (``-``: standard output); non-finite numbers are
-    written as null, so every JSON reader accepts the file."""
+    written as null, so every JSON reader accepts the file; file names that are not UTF-8
+    are escaped (:func:`dumps`)."""
     from mtanno.util.output import write_text
 
-    write_text(path, json.dumps(_clean(obj), indent=1, ensure_ascii=False) + "\n")
+    write_text(path, dumps(obj, indent=1) + "\n")
 
 
 def _clean(x: Any) -> Any:
@@ -195,8 +244,7 @@ def write_table(path: str | os.PathLike, table: pa.Table, *,
     if str(path) == "-":
         buf = io.StringIO()
         _write_csv(table, buf)
-        sys.stdout.write(buf.getvalue())
-        sys.stdout.flush()
+        write_stdout(buf.getvalue())
         return
     if fmt == "parquet":
         import pyarrow.parquet as pq
@@ -204,8 +252,9 @@ def write_table(path: str | os.PathLike, table: pa.Table, *,
         if provenance is not None:
             table = table.replace_schema_metadata(
                 {_META_KEY: json.dumps(_clean(provenance), sort_keys=True)})
-        with atomic_path(path) as tmp:
-            pq.write_table(table, tmp)
+        # through a file object: pyarrow cannot open a path that is not UTF-8
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            pq.write_table(table, fh)
         return
     side = sidecar_path(path)
     if side is None or provenance is None or (Path(path).exists() and not Path(path).is_file()):
@@ -215,8 +264,7 @@ def write_table(path: str | os.PathLike, table: pa.Table, *,
     # the old sidecar goes before the new table is in place, the new one right after: an
     # interruption between the two leaves a table without provenance, never a wrong one
     with atomic_path(side) as stmp:
-        stmp.write_text(json.dumps(_clean(provenance), indent=1, ensure_ascii=False) + "\n",
-                        encoding="utf-8")
+        stmp.write_text(dumps(provenance, indent=1) + "\n", encoding="utf-8")
         with atomic_path(path) as tmp:
             with open(tmp, "w", newline="", encoding="utf-8") as fh:
                 (_write_csv if fmt == "csv" else _write_jsonl)(table, fh)
@@ -356,7 +404,8 @@ def table_provenance(path: str | os.PathLike) -> dict | None:
     import pyarrow.parquet as pq
 
     try:
-        raw = (pq.read_schema(path).metadata or {}).get(_META_KEY)
+        with open(path, "rb") as fh:  # a file object: pyarrow cannot open non-UTF-8 names
+            raw = (pq.read_schema(fh).metadata or {}).get(_META_KEY)
         prov = json.loads(raw) if raw else None
     except (OSError, ValueError, TypeError, pa.ArrowException):
         return None

@@ -1,0 +1,402 @@
+"""Hostile outputs (issue 22, OUT): outputs that would destroy an input, break the next
+run, be written despite an error, or fail without naming the file.
+
+Each test runs the command line on copies of the synthetic world (``tests/world.py``) and
+checks the exact behaviour: exit code 2, one ``mtanno:`` line naming the output, every
+input unchanged (SHA-256), nothing written (no new file, no temporary).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+from pathlib import Path
+
+import pytest
+from world import assert_one_line, checksums, cli, temporaries
+
+from mtanno.errors import MtannoError
+
+
+def _files(root: Path) -> set[str]:
+    """Every file and folder below ``root``."""
+    return {str(p) for p in root.rglob("*")}
+
+
+class Scene:
+    """A folder of copies of the world's inputs; ``refused`` checks a run wrote nothing."""
+
+    def __init__(self, world, tmp_path: Path):
+        self.w, self.dir = world, tmp_path
+        self.truth = world.copy(world.truth, tmp_path / "truth.csv")
+        world.copy(Path(str(world.truth) + ".meta.json"), tmp_path / "truth.csv.meta.json")
+        self.blocked = tmp_path / "blocked"  # a file: nothing can be written below it
+        self.blocked.write_text("a file, not a folder")
+
+    def annotation(self, dest: Path) -> Path:
+        """A copy of the world's annotation table (and its sidecar) at ``dest``."""
+        self.w.copy(self.w.annotation, dest)
+        self.w.copy(Path(str(self.w.annotation) + ".meta.json"), Path(str(dest) + ".meta.json"))
+        return dest
+
+    def features(self, dest: Path) -> Path:
+        """A folder of copies of the documents' feature files."""
+        for f in self.w.doc_files:
+            self.w.copy(f, dest / f.name)
+        return dest
+
+    def snapshot(self) -> None:
+        self.sums = checksums(self.dir, self.w.root)
+        self.files = _files(self.dir)
+
+    def refused(self, r, named, *, what: str | None = None) -> str:
+        line = assert_one_line(r, named, codes=(2,))
+        if what is not None:
+            assert what in line, line
+        assert checksums(self.dir, self.w.root) == self.sums, "an input was written"
+        assert _files(self.dir) == self.files, sorted(_files(self.dir) - self.files)
+        assert temporaries(self.dir) == []
+        return line
+
+
+# ------------------------------------------------------------ 1: an input destroyed
+
+
+@pytest.mark.parametrize("case", ["annotation is per_class.csv", "annotation is confusion.csv",
+                                  "truth is confusion.csv", "truth is per_class.csv"])
+def test_report_never_writes_over_its_inputs(world, tmp_path, case):
+    """Every file report writes into its folder (tables, sidecars, figures, page) is
+    checked against the inputs and their sidecars: an input inside the report folder under
+    one of those names is refused, not replaced by the report's own table."""
+    s = Scene(world, tmp_path)
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    which, name = case.split(" is ")
+    ann, truth = world.annotation, s.truth
+    if which == "annotation":
+        ann = s.annotation(rep / name)
+    else:
+        truth = world.copy(s.truth, rep / name)
+    s.snapshot()
+    r = cli("report", ann, "--truth", truth, "-o", rep)
+    s.refused(r, rep / name, what="would overwrite")
+
+
+@pytest.mark.parametrize("case", ["evaluate annotation", "evaluate truth",
+                                  "evaluate-retrieval truth"])
+def test_no_output_replaces_an_inputs_sidecar(world, tmp_path, case):
+    """``--json ann.csv.meta.json`` would replace the provenance of the input ``ann.csv``;
+    the sidecar of every CSV or JSON Lines input counts as an input."""
+    s = Scene(world, tmp_path)
+    ann = s.annotation(tmp_path / "ann.csv")
+    of = ann if case == "evaluate annotation" else s.truth
+    target = Path(str(of) + ".meta.json")
+    s.snapshot()
+    if case.startswith("evaluate "):
+        r = cli("evaluate", ann, "--truth", s.truth, "--json", target)
+    else:
+        r = cli("evaluate-retrieval", world.doc_files[0], "--mt", world.mt, "--truth",
+                s.truth, "--json", target)
+    s.refused(r, target, what=f"provenance sidecar of the input {of}")
+
+
+def test_check_outputs_counts_input_sidecars_and_folder_names(tmp_path):
+    """The one place (mtanno.util.output.check_outputs): inputs' sidecars, names and patterns
+    written inside output folders, and folders the command owns."""
+    from mtanno.util.output import check_outputs
+
+    (tmp_path / "rep").mkdir()
+    ann = tmp_path / "rep" / "timeline_d1.png"
+    ann.write_text("x")
+    table = tmp_path / "t.jsonl"
+    table.write_text("{}\n")
+    with pytest.raises(MtannoError, match="provenance sidecar of the input"):
+        check_outputs([tmp_path / "t.jsonl.meta.json"], [table])
+    check_outputs([tmp_path / "t.parquet.meta.json"], [tmp_path / "t.parquet"])  # none
+    with pytest.raises(MtannoError, match="would overwrite") as e:
+        check_outputs([], [ann], folders={tmp_path / "rep": ["timeline_*.png"]})
+    assert str(e.value).startswith(str(ann))
+    check_outputs([], [ann], folders={tmp_path / "rep": ["index.html", "delta_*.png"]})
+    with pytest.raises(MtannoError, match="lies inside this output folder"):
+        check_outputs([], [ann], folders={tmp_path: None})
+
+
+# ------------------------------------------------------ 2: outputs that break the next run
+
+
+@pytest.mark.parametrize("case", ["evaluate -o", "evaluate --json", "report",
+                                  "annotate --output-dir -o", "annotate --output-dir -o new",
+                                  "annotate -o parquet", "annotate --output-dir parquet",
+                                  "index", "index add", "evaluate-retrieval -o",
+                                  "retrieve -o"])
+def test_no_output_inside_a_folder_the_next_run_reads(world, tmp_path, case):
+    """An output inside a folder whose files are read as inputs (annotation folders of
+    evaluate and report, feature folders, annotate's --output-dir, which `mtanno evaluate
+    OUT/` reads) is refused before any work; outputs the scan does not read are fine."""
+    s = Scene(world, tmp_path)
+    ad = tmp_path / "ad"
+    s.annotation(ad / "a.csv")
+    fd = s.features(tmp_path / "fd")
+    od = tmp_path / "od"
+    if case != "annotate --output-dir -o new":
+        assert cli("annotate", "--mt", world.mt, fd, "--output-dir", od, "-q").exit_code == 0
+    if case == "index add":  # an index that was moved into the folder of its features
+        assert cli("index", fd, "-o", tmp_path / "idx", "-q").exit_code == 0
+        (tmp_path / "idx").rename(fd / "idx")
+    s.snapshot()
+    if case == "evaluate -o":
+        named = ad / "per_class.csv"
+        r = cli("evaluate", ad, "--truth", s.truth, "-o", named)
+    elif case == "evaluate --json":  # a JSON report is not an annotation table: fine
+        r = cli("evaluate", ad, "--truth", s.truth, "--json", ad / "report.json")
+        assert r.exit_code == 0, r.output
+        assert cli("evaluate", ad, "--truth", s.truth).exit_code == 0  # the next run
+        return
+    elif case == "report":
+        named = ad / "rep"
+        r = cli("report", ad, "--truth", s.truth, "-o", named)
+    elif case.startswith("annotate --output-dir -o"):
+        named = od / "all.csv"
+        r = cli("annotate", "--mt", world.mt, fd, "--output-dir", od, "-o", named)
+    elif case == "annotate -o parquet":
+        named = fd / "all.parquet"
+        r = cli("annotate", "--mt", world.mt, fd, "-o", named)
+    elif case == "annotate --output-dir parquet":
+        named = fd / "ann"
+        r = cli("annotate", "--mt", world.mt, fd, "--output-dir", named, "--format",
+                "parquet")
+    elif case == "index":
+        named = fd / "idx"
+        r = cli("index", fd, "-o", named)
+    elif case == "index add":
+        named = fd / "idx"
+        r = cli("index", "add", named, fd)
+    elif case == "retrieve -o":
+        named = fd / "hits.parquet"
+        r = cli("retrieve", "--mt", world.template, fd, "-o", named)
+    else:
+        named = fd / "r.parquet"
+        r = cli("evaluate-retrieval", fd, "--mt", world.mt, "--truth", s.truth, "-o", named)
+    s.refused(r, named)
+
+
+def test_outputs_beside_what_a_scan_reads_are_fine(world, tmp_path):
+    """Only what the scan reads is refused: a CSV table among feature files is not read
+    as a feature file by the next annotate."""
+    s = Scene(world, tmp_path)
+    fd = s.features(tmp_path / "fd")
+    r = cli("annotate", "--mt", world.mt, fd, "-o", fd / "all.csv", "-q")
+    assert r.exit_code == 0, r.output
+    assert cli("annotate", "--mt", world.mt, fd, "-o", tmp_path / "again.csv",
+               "-q").exit_code == 0
+    del s
+
+
+# --------------------------------------------------------- 3: written despite an error
+
+
+def _tune_args(world):
+    return ["tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-q"]
+
+
+@pytest.mark.parametrize("case", ["align --plot", "tune --ablation", "tune -o",
+                                  "evaluate --json + -o", "evaluate-retrieval --json + -o",
+                                  "annotate -o -o", "report page is a folder",
+                                  "annotate -o is a folder"])
+def test_a_command_that_fails_on_an_output_writes_nothing(world, tmp_path, case):
+    """Every output location is tried before the work: one that cannot be written (below a
+    file, or a folder where a file goes) is one line naming it, exit 2, and no other output
+    is written."""
+    s = Scene(world, tmp_path)
+    a, b = world.doc_files[:2]
+    ok = tmp_path / "ok.csv"
+    bad = s.blocked / "x.csv"
+    if case == "report page is a folder":
+        (tmp_path / "rep" / "index.html").mkdir(parents=True)
+    if case == "annotate -o is a folder":
+        (tmp_path / "dir.csv").mkdir()
+    s.snapshot()
+    if case == "align --plot":
+        r, named = cli("align", a, b, "--cost", "features", "-o", ok, "--plot",
+                       s.blocked / "p.png"), s.blocked
+    elif case == "annotate -o is a folder":
+        r, named = cli("annotate", "--mt", world.mt, a, "-o", ok, "-o",
+                       tmp_path / "dir.csv"), tmp_path / "dir.csv"
+    elif case == "tune --ablation":
+        r, named = cli(*_tune_args(world), "-o", tmp_path / "t.toml", "--ablation",
+                       s.blocked / "abl"), s.blocked
+    elif case == "tune -o":
+        r, named = cli(*_tune_args(world), "-o", s.blocked / "t.toml", "--ablation",
+                       tmp_path / "abl"), s.blocked
+    elif case == "evaluate --json + -o":
+        r, named = cli("evaluate", world.annotation, "--truth", s.truth, "--json",
+                       tmp_path / "e.json", "-o", bad), s.blocked
+    elif case == "evaluate-retrieval --json + -o":
+        r, named = cli("evaluate-retrieval", a, "--mt", world.mt, "--truth", s.truth,
+                       "--json", tmp_path / "e.json", "-o", bad), s.blocked
+    elif case == "annotate -o -o":
+        r, named = cli("annotate", "--mt", world.mt, a, "-o", ok, "-o", bad), s.blocked
+    else:
+        r, named = cli("report", world.annotation, "--truth", s.truth, "-o",
+                       tmp_path / "rep"), tmp_path / "rep" / "index.html"
+    line = s.refused(r, named)
+    assert "internal error" not in line
+
+
+def test_preflight_leaves_nothing_and_creates_no_folder(tmp_path):
+    """The preflight tries the nearest existing folder with a temporary file it removes;
+    it creates no folder."""
+    from mtanno.util.output import check_outputs
+
+    check_outputs([tmp_path / "a" / "b" / "x.csv"], [], folders={tmp_path / "c": None})
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(MtannoError, match="is not a folder"):
+        check_outputs([], [], folders={tmp_path / "f": None})
+    with pytest.raises(MtannoError, match="output is a folder"):
+        check_outputs([tmp_path], [])
+    check_outputs([tmp_path], [], writable=False)  # a batch's outputs fail alone later
+
+
+# ------------------------------------------------------------- 4: non-UTF-8 file names
+
+
+def _non_utf8_folder(world, folder: Path) -> bytes:
+    """A folder of feature files, one of them named ``caf<0xE9>.parquet`` (not UTF-8);
+    returns that file's name as bytes."""
+    folder.mkdir()
+    world.copy(world.doc_files[1], folder / world.doc_files[1].name)
+    name = os.fsencode(folder) + b"/caf\xe9.parquet"
+    try:
+        with open(name, "wb") as fh:
+            fh.write(world.doc_files[0].read_bytes())
+    except OSError:
+        pytest.skip("this file system refuses names that are not UTF-8")
+    return name
+
+
+@pytest.mark.parametrize("case", ["annotate -o csv", "annotate -o parquet", "annotate -o jsonl",
+                                  "annotate --output-dir", "annotate --output-dir parquet",
+                                  "retrieve -o csv"])
+def test_tables_of_documents_named_by_non_utf8_file_names(world, tmp_path, case):
+    """A document whose file name is not UTF-8 is written, not a UnicodeEncodeError: in
+    the table its name's undecodable bytes are \\xNN (valid UTF-8 text, as every table
+    reader wants it), and the provenance records the path exactly (its \\uDCxx escape
+    reads back as the file's name)."""
+    from mtanno.util.tables import read_table, table_provenance
+
+    raw = _non_utf8_folder(world, tmp_path / "in")
+    fmt = case.split()[-1] if case.split()[-1] in ("csv", "parquet", "jsonl") else "csv"
+    if case.startswith("annotate -o"):
+        out = tmp_path / f"all.{fmt}"
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "-o", out, "-q")
+    elif case == "retrieve -o csv":
+        out = tmp_path / "hits.csv"
+        r = cli("retrieve", "--mt", world.template, tmp_path / "in", "-o", out, "-q")
+    else:
+        od = tmp_path / "od"
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "--output-dir", od, "--format",
+                fmt, "-q")
+        out = Path(os.fsdecode(os.fsencode(od) + b"/caf\xe9." + fmt.encode()))
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    docs = {row["doc"] for row in read_table(out).rows}
+    assert "caf\\xe9" in docs, docs
+    prov = table_provenance(out)
+    paths = [i["path"] for i in prov["inputs"]]
+    assert raw in [os.fsencode(p) for p in paths], paths
+    if case.startswith("annotate --output-dir"):  # the rerun finds the table up to date
+        r = cli("annotate", "--mt", world.mt, tmp_path / "in", "--output-dir", od, "--format",
+                fmt)
+        assert r.exit_code == 0 and "2 up to date" in r.output, r.output
+        r = cli("evaluate", od, "--truth", world.truth, "--all-docs")
+        assert r.exit_code == 0, r.output
+
+
+def test_json_of_non_utf8_names_is_valid_utf8(tmp_path):
+    """tables.dumps, used for every sidecar and JSON output: a lone surrogate becomes its
+    JSON escape, so the file is UTF-8 and reads back as the same string."""
+    import json
+
+    from mtanno.util.tables import dumps, text, write_json
+
+    name = os.fsdecode(b"caf\xe9.parquet")
+    write_json(tmp_path / "x.json", {"path": name, name: 1, "ok": "café"})
+    raw = (tmp_path / "x.json").read_bytes()
+    assert json.loads(raw.decode("utf-8")) == {"path": name, name: 1, "ok": "café"}
+    assert "café" in raw.decode("utf-8")  # other text stays as it is
+    assert json.loads(dumps([name])) == [name]
+    assert text(os.fsdecode(b"a\xff\xfe")) == "a\\xff\\xfe" and text("café") == "café"
+
+
+# ----------------------------------------------------------------------- 5: a full device
+
+
+FULL = Path("/dev/full")
+needs_full = pytest.mark.skipif(not FULL.exists(), reason="no /dev/full on this system")
+
+
+@needs_full
+@pytest.mark.parametrize("case", ["evaluate -o", "evaluate --json", "retrieve -o",
+                                  "annotate -o"])
+def test_an_output_on_a_full_device_names_it(world, tmp_path, case):
+    """A write that the device refuses (no space left) is one line naming the output."""
+    s = Scene(world, tmp_path)
+    s.snapshot()
+    if case == "evaluate -o":
+        r = cli("evaluate", world.annotation, "--truth", s.truth, "-o", FULL)
+    elif case == "evaluate --json":
+        r = cli("evaluate", world.annotation, "--truth", s.truth, "--json", FULL)
+    elif case == "retrieve -o":
+        r = cli("retrieve", "--mt", world.template, world.doc_files[0], "-o", FULL, "-q")
+    else:
+        r = cli("annotate", "--mt", world.mt, world.doc_files[0], "-o", FULL, "-q")
+    line = s.refused(r, FULL, what="No space left on device")
+    assert line.startswith(f"mtanno: {FULL}: "), line
+
+
+@needs_full
+def test_standard_output_on_a_full_device_says_so(world, tmp_path):
+    """`-o -` (and the printed report) on a full device: one line saying it is standard
+    output, exit code 2."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
+           "sys.argv[0] = 'mtanno'; main()"]
+    for args in (["evaluate", world.annotation, "--truth", world.truth, "-o", "-"],
+                 ["evaluate", world.annotation, "--truth", world.truth]):
+        with open(FULL, "w") as full:
+            p = subprocess.run([*cmd, *map(str, args)], stdout=full, stderr=subprocess.PIPE,
+                               text=True)
+        lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+        assert p.returncode == 2 and lines == [
+            "mtanno: cannot write to standard output: No space left on device"], p.stderr
+
+
+def test_a_write_that_fails_in_place_or_to_stdout_names_it(tmp_path, monkeypatch):
+    """The writers' own paths (mtanno.util.output): a device written in place and standard
+    output raise one MtannoError that names where, for any OSError (simulated here)."""
+    import io
+    import sys
+
+    import pyarrow as pa
+
+    from mtanno import output
+    from mtanno.util.tables import write_table
+
+    class Full(io.StringIO):
+        def write(self, text):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(sys, "stdout", Full())
+    with pytest.raises(MtannoError, match="cannot write to standard output: No space"):
+        write_table("-", pa.table({"a": [1]}))
+    monkeypatch.undo()
+    fifo = tmp_path / "device"
+    fifo.write_text("")
+    monkeypatch.setattr(output, "_check_target", lambda target: False)  # "not a file"
+    with pytest.raises(MtannoError, match="cannot write here: No space") as e, \
+            output.atomic_path(fifo):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    assert str(e.value).startswith(str(fifo))
