@@ -2,6 +2,12 @@
 
 :func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
 forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.
+
+Modules: :mod:`~mtanno.io.asf` and :mod:`~mtanno.io.amc` (ASF/AMC), :mod:`~mtanno.io.bvh`
+(BVH, with :mod:`~mtanno.io._numparse` for its MOTION block), :mod:`~mtanno.io.skeleton`
+(rig and forward kinematics), :mod:`~mtanno.io.rigs` (skeleton map files) and
+:mod:`~mtanno.io.guess` (skeleton maps made from joint names and the tree for BVH rigs no
+map file fits).
 """
 
 from __future__ import annotations
@@ -12,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap, find_map
+from mtanno.io.guess import choose_map
+from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap
 from mtanno.io.skeleton import Channels, Motion, Rig, forward_kinematics
 
 __all__ = ["MOCAP_SUFFIXES", "read_channels", "read_motion", "canonical_positions",
@@ -130,13 +137,15 @@ def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None
     asf:
         The ASF skeleton of an AMC file; by default found with :func:`find_asf`.
     skeleton:
-        A skeleton map (file or name) to use instead of the automatically detected one.
+        A skeleton map (file or name) to use instead of the automatically detected one
+        (the first map file that fits, else for a BVH rig one made from its joint names
+        and tree: :func:`mtanno.io.guess.choose_map`).
     sha256:
         Also give the SHA-256 of the file's bytes as parsed (``Motion.source_sha256``):
         the file is read once for both.
     """
     rig, ch = read_channels(path, asf=asf, sha256=sha256)
-    smap = find_map(rig, skeleton)
+    smap = choose_map(rig, skeleton, ch)
     positions, heading = forward_kinematics(
         rig, ch.angles, ch.trans, ch.has_trans,
         heading_node=smap.heading_index(rig), heading_axis=smap.heading_axis)
@@ -149,7 +158,7 @@ def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
     """(frames × len(joints) × 3) positions of the canonical joints, in ``joints`` order."""
     smap = smap if smap is not None else motion.smap
     if smap is None:
-        smap = find_map(motion.rig)
+        smap = choose_map(motion.rig)
     # np.take copies whole (x, y, z) rows into a C-contiguous array (fancy indexing of
     # the middle axis gives a strided copy, several times slower, that the kernels copy
     # again)
