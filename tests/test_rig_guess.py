@@ -464,6 +464,17 @@ def test_bandai_renamed_features_equal(bandai_text, tmp_path, convention):
 
 
 @pytest.mark.realdata
+def test_bandai_guess_agrees_with_builtin_map(bandai_text, tmp_path):
+    path = parse_bvh(bandai_text).write(tmp_path / "orig.bvh")
+    m = read_motion(path)
+    g = guess_map(*read_bvh(path))
+    assert (g.joints, g.heading_node, g.heading_axis) == \
+        (m.smap.joints, m.smap.heading_node, m.smap.heading_axis)
+    result = CliRunner().invoke(main, ["skeleton", "guess", str(path)])
+    assert result.exit_code == 0 and "the map 'bandai-bvh' fits this rig" in result.output
+
+
+@pytest.mark.realdata
 def test_cmu_style_source_reads_with_builtin_map(cmu_file):
     m = read_motion(cmu_file)
     assert m.smap.name == "cmu-bvh" and m.fps == 120.0 and m.n_frames == 240

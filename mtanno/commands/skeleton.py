@@ -42,6 +42,7 @@ def guess_cmd(file: str, output: str, name: str | None, swap_sides: bool) -> Non
     from mtanno.errors import MtannoError
     from mtanno.io.bvh import read_bvh
     from mtanno.io.guess import guess_map, map_toml
+    from mtanno.io.rigs import available_maps
     from mtanno.util.output import check_outputs, write_text
 
     if Path(file).suffix.lower() != ".bvh":
@@ -49,6 +50,10 @@ def guess_cmd(file: str, output: str, name: str | None, swap_sides: bool) -> Non
     check_outputs([output], [file])
     rig, channels = read_bvh(file)
     smap = guess_map(rig, channels, swap_sides=swap_sides)
+    fitting = next((m.name for m in available_maps() if m.fits(rig)), None)
+    if fitting is not None:
+        click.echo(f"skeleton guess: note: the map '{fitting}' fits this rig and is used "
+                   "instead of a generated one unless --skeleton says otherwise", err=True)
     if name:
         smap = replace(smap, name=name)
     write_text(output, map_toml(smap, source=file, version=__version__))
