@@ -46,8 +46,9 @@ def describe_feature_file(ff: FeatureFile) -> list[str]:
 def describe_motion(motion: Motion) -> list[str]:
     """The lines ``mtanno info MOTION`` prints for a motion read by
     :func:`mtanno.io.read_motion`: rig, frame rate, length in frames and seconds, skeleton
-    map, and which rig joint each canonical joint of the map comes from (MISSING where the
-    map finds none)."""
+    map and how it was chosen or made (a map file that fits, ``--skeleton``, or generated
+    from the joint names and the tree: :mod:`mtanno.io.guess`), and which rig joint each
+    canonical joint of the map comes from (MISSING where the map finds none)."""
     from mtanno.io.rigs import CANONICAL_JOINTS
 
     rig = motion.rig
@@ -60,6 +61,7 @@ def describe_motion(motion: Motion) -> list[str]:
         f"frames         {motion.n_frames}",
         f"duration       {motion.n_frames / motion.fps:.2f} s",
         f"skeleton map   {motion.smap.name} ({motion.smap.path})",
+        *([f"map made by    {motion.smap.how}"] if getattr(motion.smap, "how", "") else []),
         f"map coverage   {len(CANONICAL_JOINTS) - len(missing)}/{len(CANONICAL_JOINTS)}"
         + (f" (missing: {', '.join(missing)})" if missing else ""),
     ]

@@ -249,7 +249,8 @@ def test_describe_api_gives_the_info_lines(tree, tmp_path):
     amc = tree / "a" / "walk1.amc"
     lines = describe_motion(read_motion(amc))
     assert lines[0] == f"file           {amc}" and "frames         24" in lines
-    assert len(lines) == 7 + 22 and all(" <- " in x for x in lines[7:])
+    assert len(lines) == 8 + 22 and all(" <- " in x for x in lines[8:])
+    assert lines[6].startswith("map made by    built-in map chosen because")
     assert run(["info", str(amc)]).output.splitlines() == lines
     run(["features", str(amc), "-o", str(tmp_path / "o")])
     ff = read_features(tmp_path / "o" / "walk1.parquet")

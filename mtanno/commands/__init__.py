@@ -7,6 +7,7 @@ options, call the stage's Python API and report.
 Modules, in pipeline order: ``features`` (features, info), ``show`` (show), ``templates``
 (learn-mt, mt …), ``keyframes`` (learn-keyframes, keyframes show), ``index`` (index …,
 query), ``retrieve`` (retrieve), ``annotate`` (annotate), ``tune`` (tune), ``evaluation``
-(evaluate, evaluate-retrieval, compose, truth, report), ``align`` (align); ``_common``
+(evaluate, evaluate-retrieval, compose, truth, report), ``align`` (align), ``skeleton``
+(skeleton guess: a BVH rig's generated skeleton map); ``_common``
 holds what they share (error reporting, common options, progress bars).
 """

@@ -75,6 +75,8 @@ class SkeletonMap:
     heading_axis: tuple[float, float, float]
     path: str
     description: str = ""
+    #: How the map was chosen or made, for ``mtanno info`` (not part of :attr:`digest`).
+    how: str = ""
 
     def fits(self, rig: Rig) -> bool:
         """True if the map is for this file format and the rig has every detect node."""
