@@ -471,3 +471,30 @@ def test_evaluate_warns_when_truth_shares_no_label(tmp_path):
                         "(truth: walk; annotation: jump): no segment and no labelled frame "
                         "can count as right"]
     assert "warning" not in r.stdout and "overall" in r.stdout
+
+
+def test_report_tables_have_the_measures_and_the_page_the_warning(tmp_path):
+    pytest.importorskip("matplotlib")
+    from mtanno.annotate import Annotation
+    from mtanno.evaluation.report import write_report
+
+    truth = [S("d", 1, 10, "a"), S("d", 11, 15, "b")]
+    rows = [Annotation("d", 0, 11, "a", 0.1), Annotation("d", 9, 13, "b", 0.2),
+            Annotation("d", 15, 19, "c", 0.3)]
+    res = write_report(tmp_path / "r", truth, rows, frames={"d": 20})
+    md = (tmp_path / "r" / "per_class.md").read_text().splitlines()
+    assert md[0].endswith("| Acc | Edit | F1@10 | F1@25 | F1@50 |")
+    assert all(line.count("|") == md[0].count("|") for line in md)
+    # class c: no truth → R1, R2, Acc undefined; Edit only overall
+    c = next(line for line in md if line.startswith("| c |")).split(" | ")
+    assert c[2] == "–" and c[6] == "–" and c[9] == "–" and c[10] == "–"
+    # the hand-worked accuracy case plus c on 16..20: right 1..9, 11..14 → 13 of 20
+    assert res.evaluation.segmentation.accuracy == pytest.approx(13 / 20)
+    tex = (tmp_path / "r" / "per_class.tex").read_text()
+    assert "F1@50" in tex and tex.splitlines()[0] == r"\begin{tabular}{l" + "r" * 13 + "}"
+    page = (tmp_path / "r" / "index.html").read_text()
+    assert "<th>F1@50</th>" in page and ">None<" not in page
+    assert not res.notes or all("shares no label" not in n for n in res.notes)
+    other = write_report(tmp_path / "o", [S("d", 1, 10, "walk")], rows, frames={"d": 20})
+    assert any("shares no label" in n for n in other.notes)
+    assert "shares no label" in (tmp_path / "o" / "index.html").read_text()

@@ -273,6 +273,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in annotation]
     ev = evaluate_annotations(truth, out, documents=docs, frames=frames)
     result.evaluation = ev
+    result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
     rows = ev.rows()
     prov = dict(provenance or {})
     import pyarrow as pa
