@@ -146,17 +146,26 @@ def frame_labels(segments: Iterable[Segment], n: int, rank: dict[str, int]) -> n
 
 def levenshtein(a: Sequence, b: Sequence) -> int:
     """Edit distance between two sequences: the fewest insertions, deletions and
-    substitutions (each of cost 1) that turn ``a`` into ``b`` (dynamic programming over one
-    row, O(|a|·|b|) time)."""
+    substitutions (each of cost 1) that turn ``a`` into ``b``. The dynamic programme of
+    Wagner–Fischer, one row at a time and each row in numpy: with
+    base[j] = min(D[i−1][j] + 1, D[i−1][j−1] + [a_i ≠ b_j]) and base[0] = i, the insertion
+    term makes D[i][j] = min over k ≤ j of base[k] + (j − k), a running minimum of
+    base − j. O(|a|·|b|) time."""
     if len(a) < len(b):
         a, b = b, a
-    prev = list(range(len(b) + 1))
-    for i, x in enumerate(a, 1):
-        cur = [i]
-        for j, y in enumerate(b, 1):
-            cur.append(min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (x != y)))
-        prev = cur
-    return prev[-1]
+    if not b:
+        return len(a)
+    codes: dict = {}
+    x = np.array([codes.setdefault(v, len(codes)) for v in a], dtype=np.int64)
+    y = np.array([codes.setdefault(v, len(codes)) for v in b], dtype=np.int64)
+    j = np.arange(len(y) + 1, dtype=np.int64)
+    prev = j.copy()
+    base = np.empty_like(prev)
+    for i, xi in enumerate(x, 1):
+        base[0] = i
+        np.minimum(prev[1:] + 1, prev[:-1] + (y != xi), out=base[1:])
+        prev = np.minimum.accumulate(base - j) + j
+    return int(prev[-1])
 
 
 def edit_score(truth_labels: Sequence[str], output_labels: Sequence[str]) -> float | None:
