@@ -126,14 +126,18 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
              documents: Iterable[str] | None = None) -> Report:
     """Frame- and segment-level precision, recall and F of annotations (an
     :func:`annotate_documents` result, its rows, or an annotation table file) against ground truth (a
-    truth table file or its segments), MBS09 §7; by default over the annotated documents.
-    ``Report.table()`` prints it. (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
-    from mtanno.annotate import read_annotations
+    truth table file or its segments), MBS09 §7, with frame accuracy, Edit and F1@{10,25,50}
+    (Lea et al. 2017; on the documents' recorded lengths when the batch or table has them);
+    by default over the annotated documents. ``Report.table()`` prints it, and
+    ``Report.warnings`` says when truth and annotation share no label.
+    (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
+    from mtanno.annotate import read_annotation_tables
     from mtanno.evaluation.metrics import evaluate_annotations
     from mtanno.evaluation.truth import Segment, read_truth
 
+    frames = getattr(annotations, "frames", None)  # documents' lengths, for frame accuracy
     if isinstance(annotations, (str, os.PathLike)):
-        annotations = read_annotations(annotations)
+        annotations, frames, _ = read_annotation_tables([annotations])
     rows = getattr(annotations, "rows", annotations)
     try:
         output = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
@@ -144,4 +148,4 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
         truth = read_truth(truth)
     if documents is None:
         documents = {s.doc for s in output} or {s.doc for s in truth}
-    return evaluate_annotations(list(truth), output, documents=documents)
+    return evaluate_annotations(list(truth), output, documents=documents, frames=frames)

@@ -209,7 +209,9 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
 @user_errors(2)
 def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs):
     """Frame- and segment-level precision, recall and F-measure of annotation tables
-    against ground truth, overall and per class, with support counts (MBS09 §7).
+    against ground truth, overall and per class, with support counts (MBS09 §7), and the
+    action-segmentation measures: frame accuracy, Edit score, F1@{10,25,50} (Lea et al.
+    2017, as MS-TCN computes them; 0-1, "–" where undefined).
 
     ANNOTATIONS are annotation tables (from `mtanno annotate`; - reads CSV from standard
     input), e.g. the outputs of a run split over several machines, or folders: every table
@@ -249,7 +251,9 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     else:
         # documents with rows, and those the annotation records as annotated without any
         documents = ({s.doc for s in out} | set(frames)) or {s.doc for s in truth}
-    report = evaluate_annotations(truth, out, documents=documents)
+    report = evaluate_annotations(truth, out, documents=documents, frames=frames)
+    for warning in report.warnings:
+        click.echo(f"mtanno: warning: {warning}", err=True)
     if json_path != "-" and table_path != "-":
         write_stdout(report.table() + "\n")  # a full device: one line saying so
     prov = provenance(inputs=inputs, truth=str(truth_path))

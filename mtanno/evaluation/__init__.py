@@ -6,7 +6,9 @@ Modules:
 * :mod:`~mtanno.evaluation.truth` — ground-truth segments (1-based frames at 30 Hz),
   truth tables and the CMU mocap6 label converter;
 * :mod:`~mtanno.evaluation.metrics` — frame- and segment-level P/R/F of annotations
-  (MBS09 §7), per class, with support counts;
+  (MBS09 §7), per class, with support counts, in one report with the measures below;
+* :mod:`~mtanno.evaluation.segmentation` — the action-segmentation measures: frame
+  accuracy, Edit score, F1@{10, 25, 50} (Lea et al. 2017; MS-TCN);
 * :mod:`~mtanno.evaluation.retrieval` — retrieval P/R per τ, top-k recall, separation
   (MR06 §5.4–5.5);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
@@ -38,11 +40,20 @@ from mtanno.evaluation.retrieval import (
     separation_quotient,
     top_k_recall,
 )
+from mtanno.evaluation.segmentation import (
+    OVERLAPS,
+    OverlapCounts,
+    SegmentationScores,
+    edit_score,
+    levenshtein,
+    segmentation_scores,
+)
 from mtanno.evaluation.truth import Segment, check_within, read_truth, truth_table, write_truth
 
-__all__ = ["EVALUATION_SCHEMA", "PRF", "TAU_GRID", "ClassRetrieval", "Report",
-           "ReportResult", "RetrievalRow", "Segment", "check_within",
-           "confusion_matrix", "evaluate_annotations", "frame_level", "read_truth",
+__all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval", "OverlapCounts",
+           "Report", "ReportResult", "RetrievalRow", "Segment", "SegmentationScores",
+           "check_within", "confusion_matrix", "edit_score", "evaluate_annotations",
+           "frame_level", "levenshtein", "read_truth", "segmentation_scores",
            "retrieval_evaluation", "retrieval_report", "retrieval_rows", "retrieval_table",
            "segment_level", "separation_quotient", "top_k_recall", "truth_table",
            "write_report", "write_truth"]

@@ -1,4 +1,6 @@
-"""Evaluation of annotations against ground truth (MBS09 §7).
+"""Evaluation of annotations against ground truth: MBS09 §7's P1/R1/F1 (frames) and
+P2/R2/F2 (segments), and in the same :class:`Report` the action-segmentation measures
+(frame accuracy, Edit, F1@{10, 25, 50}: :mod:`mtanno.evaluation.segmentation`).
 
 All frames are 1-based inclusive at 30 Hz in the tables (:class:`mtanno.evaluation.truth.Segment`,
 :class:`mtanno.annotate.Annotation` uses 0-based frames and is converted on entry).
@@ -11,6 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mtanno.evaluation.segmentation import (
+    OVERLAPS,
+    OverlapCounts,
+    SegmentationScores,
+    segmentation_scores,
+)
 from mtanno.evaluation.truth import Segment
 
 #: Schema name of the evaluation JSON (``mtanno evaluate --json``).
@@ -135,56 +143,142 @@ def segment_level(truth: Sequence[Segment], output: Sequence[Segment]) -> tuple[
     return total, per
 
 
+#: Columns of the field's measures in :meth:`Report.rows` and the text table, and their
+#: JSON keys (:mod:`mtanno.evaluation.segmentation`).
+SEGMENTATION_COLUMNS = {"Acc": "accuracy", "Edit": "edit", "F1@10": "f1_10", "F1@25": "f1_25",
+                        "F1@50": "f1_50"}
+
+
+def _defined(prf: PRF) -> tuple[float | None, float | None, float | None]:
+    """(P, R, F) with None where undefined: P without predictions, R without truth, F
+    without either (with one of them, F is 0)."""
+    return (prf.P if prf.n_p else None, prf.R if prf.n_r else None,
+            prf.F if prf.n_p or prf.n_r else None)
+
+
 @dataclass
 class Report:
-    """Frame- and segment-level results, overall and per class."""
+    """Frame- and segment-level results, overall and per class: MBS09's P/R/F and the
+    action-segmentation measures (``segmentation``: frame accuracy, Edit, F1@k), and
+    ``warnings`` about the inputs (one sentence each, e.g. truth and annotation without a
+    common label)."""
 
     frame: PRF
     segment: PRF
     per_class_frame: dict[str, PRF] = field(default_factory=dict)
     per_class_segment: dict[str, PRF] = field(default_factory=dict)
     documents: list[str] = field(default_factory=list)
+    segmentation: SegmentationScores | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    def classes(self) -> list[str]:
+        return sorted(set(self.per_class_frame) | set(self.per_class_segment))
+
+    def _field_measures(self, label: str | None) -> dict[str, float | None]:
+        """The JSON keys of :data:`SEGMENTATION_COLUMNS` of one class (``None``: overall);
+        Edit only overall."""
+        s = self.segmentation
+        if s is None:
+            return dict.fromkeys(SEGMENTATION_COLUMNS.values())
+        if label is None:
+            out = {"accuracy": s.accuracy, "edit": s.edit}
+            out.update({f"f1_{k}": s.f1(k) for k in OVERLAPS})
+        else:
+            out = {"accuracy": s.class_accuracy(label), "edit": None}
+            out.update({f"f1_{k}": s.class_f1(label, k) for k in OVERLAPS})
+        return out
 
     def rows(self) -> list[dict]:
         """One row per class, then ``overall``: P1 R1 F1 with frame support, P2 R2 F2 with
-        segment support (the evaluation table ``evaluate -o`` writes)."""
+        segment support, then Acc, Edit (overall only), F1@10, F1@25, F1@50 (the evaluation
+        table ``evaluate -o`` writes). Undefined values are None (empty in CSV): P without
+        predictions, R without truth, F without either, Acc of a class without truth
+        frames, F1@k of a class without segments."""
         out = []
-        classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
         for c, f, s in [*((c, self.per_class_frame.get(c, PRF()),
-                           self.per_class_segment.get(c, PRF())) for c in classes),
+                           self.per_class_segment.get(c, PRF())) for c in self.classes()),
                         ("overall", self.frame, self.segment)]:
-            out.append({"class": c, "P1": f.P, "R1": f.R, "F1": f.F, "frames": f.n_r,
-                        "P2": s.P, "R2": s.R, "F2": s.F, "segments": s.n_r})
+            (p1, r1, f1), (p2, r2, f2) = _defined(f), _defined(s)
+            row = {"class": c, "P1": p1, "R1": r1, "F1": f1, "frames": f.n_r,
+                   "P2": p2, "R2": r2, "F2": f2, "segments": s.n_r}
+            m = self._field_measures(None if c == "overall" else c)
+            row.update({col: m[key] for col, key in SEGMENTATION_COLUMNS.items()})
+            out.append(row)
         return out
 
     def as_dict(self) -> dict:
         """The report as JSON (``docs/annotation.md``): schema ``mtanno.evaluation/1``;
-        every P/R/F with its support counts (truth frames and segments per class)."""
-        classes = sorted(set(self.per_class_frame) | set(self.per_class_segment))
-        return {
+        every P/R/F with its support counts (truth frames and segments per class; P, R, F
+        are 0 where undefined, the counts tell), and ``accuracy``, ``edit``, ``f1_10``,
+        ``f1_25``, ``f1_50`` (0–1, null where undefined; per class without ``edit``) with
+        their counts under ``segmentation``."""
+        s = self.segmentation
+        out = {
             "schema": EVALUATION_SCHEMA,
             "documents": sorted(self.documents),
             "frame": self.frame.as_dict(),
             "segment": self.segment.as_dict(),
-            "per_class": {c: {"frame": self.per_class_frame.get(c, PRF()).as_dict(),
-                              "segment": self.per_class_segment.get(c, PRF()).as_dict()}
-                          for c in classes},
+            **self._field_measures(None),
+            "segmentation": None if s is None else {
+                "frames": s.frames, "correct_frames": s.correct,
+                "edit_documents": len(s.edit_per_document),
+                "f1_counts": {str(k): s.overlap[k].as_dict() for k in OVERLAPS}},
+            "per_class": {},
         }
+        for c in self.classes():
+            m = self._field_measures(c)
+            del m["edit"]
+            out["per_class"][c] = {
+                "frame": self.per_class_frame.get(c, PRF()).as_dict(),
+                "segment": self.per_class_segment.get(c, PRF()).as_dict(), **m,
+                "segmentation": None if s is None else {
+                    "frames": s.class_frames.get(c, 0), "correct_frames": s.class_correct.get(c, 0),
+                    "f1_counts": {str(k): (s.class_overlap[c][k] if c in s.class_overlap
+                                           else OverlapCounts()).as_dict() for k in OVERLAPS}}}
+        return out
 
     def table(self) -> str:
-        """A readable table: one row per class and the overall row."""
+        """A readable table: one row per class and the overall row; "–" where a value is
+        undefined (see :meth:`rows`)."""
+        def num(x: float | None) -> str:
+            return f"{'–':>6}" if x is None else f"{x:6.3f}"
+
+        extra = " ".join(f"{c:>6}" for c in SEGMENTATION_COLUMNS)
         lines = [f"{'class':<32} {'P1':>6} {'R1':>6} {'F1':>6} {'frames':>7}   {'P2':>6} "
-                 f"{'R2':>6} {'F2':>6} {'segs':>5}"]
+                 f"{'R2':>6} {'F2':>6} {'segs':>5}   {extra}"]
         for r in self.rows():
-            lines.append(f"{r['class']:<32} {r['P1']:6.3f} {r['R1']:6.3f} {r['F1']:6.3f} "
-                         f"{r['frames']:7d}   {r['P2']:6.3f} {r['R2']:6.3f} {r['F2']:6.3f} "
-                         f"{r['segments']:5d}")
+            lines.append(f"{r['class']:<32} {num(r['P1'])} {num(r['R1'])} {num(r['F1'])} "
+                         f"{r['frames']:7d}   {num(r['P2'])} {num(r['R2'])} {num(r['F2'])} "
+                         f"{r['segments']:5d}   "
+                         + " ".join(num(r[c]) for c in SEGMENTATION_COLUMNS))
         return "\n".join(lines)
 
 
+def label_warnings(truth: Sequence[Segment], output: Sequence[Segment],
+                   n_documents: int) -> list[str]:
+    """What makes every figure of an evaluation 0 for a reason other than the annotation's
+    quality: truth without segments in the documents evaluated, or truth and annotation
+    without a common label (a truth table of other classes or other label spellings)."""
+    t, o = {s.label for s in truth}, {s.label for s in output}
+    if o and not t:
+        return [f"the truth has no segment in the {n_documents} document(s) evaluated"]
+    if t and o and not t & o:
+        def some(labels: set[str]) -> str:
+            names = sorted(labels)
+            return ", ".join(names[:5]) + (f", … ({len(names)} labels)" if len(names) > 5 else "")
+
+        return [f"the truth shares no label with the annotation (truth: {some(t)}; "
+                f"annotation: {some(o)}): no segment and no labelled frame can count as right"]
+    return []
+
+
 def evaluate_annotations(truth: Sequence[Segment], output: Sequence[Segment],
-                         *, documents: Iterable[str] | None = None) -> Report:
-    """Frame- and segment-level evaluation; ``documents`` restricts both tables to those."""
+                         *, documents: Iterable[str] | None = None,
+                         frames: dict[str, int] | None = None) -> Report:
+    """Frame- and segment-level evaluation; ``documents`` restricts both tables to those.
+    ``frames`` (document → length in 30 Hz frames, e.g. what annotation tables record)
+    sets how many frames frame accuracy counts per document, the unlabelled tail included;
+    without it a document ends at its last frame covered by truth or output."""
     if documents is not None:
         docs = set(documents)
         truth = [s for s in truth if s.doc in docs]
@@ -193,4 +287,6 @@ def evaluate_annotations(truth: Sequence[Segment], output: Sequence[Segment],
         docs = {s.doc for s in truth} | {s.doc for s in output}
     f, fc = frame_level(truth, output)
     s, sc = segment_level(truth, output)
-    return Report(f, s, fc, sc, sorted(docs))
+    return Report(f, s, fc, sc, sorted(docs),
+                  segmentation=segmentation_scores(truth, output, docs, frames=frames),
+                  warnings=label_warnings(truth, output, len(docs)))

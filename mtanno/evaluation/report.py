@@ -6,7 +6,8 @@ documents' feature files) :func:`write_report` writes into one folder:
 * ``index.html`` — a self-contained page (every image inline as a data URI, no other file
   needed) with the tables and figures below;
 * ``per_class.csv`` / ``.md`` / ``.tex`` — per-class P/R/F at frame and segment level with
-  their support (MBS09 §7; the rows of ``mtanno evaluate``), CSV with provenance;
+  their support (MBS09 §7), frame accuracy, Edit and F1@{10,25,50} (the rows of ``mtanno
+  evaluate``, "–" where undefined), CSV with provenance;
 * ``confusion.csv`` and ``confusion.png``/``.svg`` — the frame-level confusion matrix,
   truth × annotation, with a "none" row and column (frames without a label);
 * ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
@@ -33,7 +34,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.metrics import Report, evaluate_annotations
+from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
 from mtanno.evaluation.truth import Segment
 
 if TYPE_CHECKING:
@@ -102,18 +103,24 @@ def confusion_matrix(truth: Sequence[Segment], annotation: Sequence[Annotation],
     return M, labels, overlapped
 
 
-def _number(x: float) -> str:
-    return f"{x:.3f}" if math.isfinite(x) else "–"
+def _number(x: float | None) -> str:
+    return "–" if x is None or not math.isfinite(x) else f"{x:.3f}"
+
+
+def _cells(r: dict) -> list[str]:
+    """The cells of a :meth:`Report.rows` row after its class, "–" where undefined."""
+    return [_number(r["P1"]), _number(r["R1"]), _number(r["F1"]), str(r["frames"]),
+            _number(r["P2"]), _number(r["R2"]), _number(r["F2"]), str(r["segments"]),
+            *(_number(r.get(c)) for c in SEGMENTATION_COLUMNS)]
 
 
 def markdown_table(rows: Sequence[dict]) -> str:
     """Per-class rows of :meth:`Report.rows` as a Markdown (GitHub) table."""
-    head = "| class | P1 | R1 | F1 | frames | P2 | R2 | F2 | segments |"
-    lines = [head, "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    head = ("| class | P1 | R1 | F1 | frames | P2 | R2 | F2 | segments | "
+            + " | ".join(SEGMENTATION_COLUMNS) + " |")
+    lines = [head, "|---|" + "---:|" * (8 + len(SEGMENTATION_COLUMNS))]
     for r in rows:
-        lines.append(f"| {r['class']} | " + " | ".join(
-            [_number(r["P1"]), _number(r["R1"]), _number(r["F1"]), str(r["frames"]),
-             _number(r["P2"]), _number(r["R2"]), _number(r["F2"]), str(r["segments"])]) + " |")
+        lines.append(f"| {r['class']} | " + " | ".join(_cells(r)) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -128,16 +135,14 @@ def _tex(text: str) -> str:
 
 def latex_table(rows: Sequence[dict]) -> str:
     """Per-class rows as a LaTeX ``tabular`` (booktabs rules), the overall row last."""
-    lines = [r"\begin{tabular}{lrrrrrrrr}", r"\toprule",
-             r"class & $P_1$ & $R_1$ & $F_1$ & frames & $P_2$ & $R_2$ & $F_2$ & segments \\",
+    lines = [r"\begin{tabular}{l" + "r" * (8 + len(SEGMENTATION_COLUMNS)) + "}", r"\toprule",
+             r"class & $P_1$ & $R_1$ & $F_1$ & frames & $P_2$ & $R_2$ & $F_2$ & segments & "
+             r"Acc & Edit & F1@10 & F1@25 & F1@50 \\",
              r"\midrule"]
     for r in rows:
         if r["class"] == "overall":
             lines.append(r"\midrule")
-        lines.append(" & ".join([_tex(str(r["class"])), _number(r["P1"]), _number(r["R1"]),
-                                 _number(r["F1"]), str(r["frames"]), _number(r["P2"]),
-                                 _number(r["R2"]), _number(r["F2"]), str(r["segments"])])
-                     + r" \\")
+        lines.append(" & ".join([_tex(str(r["class"])), *_cells(r)]) + r" \\")
     lines += [r"\bottomrule", r"\end{tabular}"]
     return "\n".join(lines) + "\n"
 
@@ -177,7 +182,8 @@ def _html_table(rows: Sequence[dict]) -> str:
         cells = []
         for c in cols:
             v = r[c]
-            cells.append(f"<td>{_number(v) if isinstance(v, float) else html.escape(str(v))}</td>")
+            text = _number(v) if v is None or isinstance(v, float) else html.escape(str(v))
+            cells.append(f"<td>{text}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     return "\n".join(out) + "</table>"
 
@@ -271,8 +277,9 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         frames[d] = max(frames.get(d, 0), last)
     frames = {d: frames[d] for d in docs}
     out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in annotation]
-    ev = evaluate_annotations(truth, out, documents=docs)
+    ev = evaluate_annotations(truth, out, documents=docs, frames=frames)
     result.evaluation = ev
+    result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
     rows = ev.rows()
     prov = dict(provenance or {})
     import pyarrow as pa
@@ -288,7 +295,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         result.notes.append("the annotation's segments overlap; in the confusion matrix and "
                             "timelines each frame counts for the covering segment with the "
                             "smallest cost (use `mtanno annotate --single-label` for an exact "
-                            "partition by Δ̄)")
+                            "partition by Δ̄); the Acc column, like `mtanno evaluate`, gives "
+                            "each frame to the covering segment that starts last")
     table = {"truth": labels, **{lab: M[:, j].tolist() for j, lab in enumerate(labels)}}
     write_table(folder / "confusion.csv", pa.table(table), provenance=prov)
     result.files += [folder / "confusion.csv", folder / "confusion.csv.meta.json"]
