@@ -382,7 +382,7 @@ def test_a_write_that_fails_in_place_or_to_stdout_names_it(tmp_path, monkeypatch
 
     import pyarrow as pa
 
-    from mtanno import output
+    from mtanno.util import output
     from mtanno.util.tables import write_table
 
     class Full(io.StringIO):
