@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno import _parquet
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import JSONError, MtannoError, parse_json, read_input
 from mtanno.output import atomic_path, write_bytes
 
 __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
@@ -340,9 +340,10 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
         raise MtannoError("Parquet file has no mtanno metadata (not written by mtanno "
                           "features?)", path=spath)
     try:
-        meta = json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise MtannoError("mtanno metadata is not valid JSON", path=spath) from None
+        meta = parse_json(raw)
+    except JSONError as exc:
+        raise MtannoError(f"mtanno metadata is not valid JSON ({exc.message})",
+                          path=spath) from None
     meta = _check_meta(meta, spath)
     names = [c for c in table.column_names if c != "native_frame"]
     if "native_frame" not in table.column_names or not names:

@@ -47,7 +47,7 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import MtannoError, read_json
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "format_query",
@@ -478,17 +478,7 @@ def _count_before(raw: list, j: int, key: str) -> int:
 def load_keyframes(path: str | os.PathLike) -> KeyframeQuery:
     """Read and validate a keyframe query file (``mtanno.keyframes/1``)."""
     spath = str(path)
-    try:
-        text = read_input(path, what="keyframe file").decode("utf-8")
-    except UnicodeDecodeError:
-        raise MtannoError("not a UTF-8 text file", path=spath) from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise MtannoError(f"malformed JSON: {exc.msg} (column {exc.colno})", path=spath,
-                          line=exc.lineno) from None
-    except RecursionError:
-        raise MtannoError("malformed JSON: nested too deeply", path=spath) from None
+    d, text = read_json(path, what="keyframe file")
     return parse_keyframes(d, text=text, path=spath)
 
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import MtannoError, read_json
 from mtanno.store import atomic_path
 
 __all__ = [
@@ -292,15 +292,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     """Read and validate a template JSON file; every problem is an :class:`MtannoError`
     naming the file (and the line where it is known)."""
     spath = str(path)
-    try:
-        text = read_input(path, what="template file").decode("utf-8")
-    except UnicodeDecodeError:
-        raise MtannoError("not a UTF-8 text file", path=spath) from None
-    try:
-        d = json.loads(text, parse_constant=lambda c: float(c))
-    except json.JSONDecodeError as exc:
-        raise MtannoError(f"malformed JSON: {exc.msg} (column {exc.colno})", path=spath,
-                          line=exc.lineno) from None
+    d, text = read_json(path, what="template file")
     if not isinstance(d, dict):
         raise MtannoError("a template file must hold one JSON object", path=spath, line=1)
     if d.get("schema") != SCHEMA:
