@@ -9,6 +9,7 @@ batch that went on), nothing written, no input changed.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ import pytest
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
+from mtanno.index import open_index
 from mtanno.keyframes import Gap, Keyframe, KeyframeQuery
 from mtanno.keyframes.model import feature_groups_of
 from mtanno.store import read_features
@@ -171,3 +173,111 @@ def test_deeply_nested_metadata_and_sidecars(world, tmp_path):
     r = cli("annotate", "--mt", world.mt, world.doc_files[0], "--output-dir", out)
     assert r.exit_code == 0 and r.exception is None, r.output
     assert "1 computed" in r.output  # no readable provenance: not up to date
+
+
+# --------------------------------------------------------------------- 2. feature metadata
+
+
+def _rewrite(src: Path, dst: Path, *, native=None, **meta_changes) -> Path:
+    """``src`` written again as ``dst`` with its metadata changed (None removes a key)
+    and, if given, another native_frame column: a file only a hand (or a bug) makes."""
+    ff = read_features(src)
+    meta = {k: v for k, v in ff.meta.items()}
+    for k, v in meta_changes.items():
+        if v is None:
+            meta.pop(k, None)
+        else:
+            meta[k] = v
+    col = pa.array(ff.native_frames.astype(np.int32) if native is None else native)
+    t = pa.table({"native_frame": col,
+                  **{n: pa.array(ff.X[i].astype(bool)) for i, n in enumerate(ff.names)}})
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(t.replace_schema_metadata({b"mtanno": json.dumps(meta).encode()}), dst)
+    return dst
+
+
+def _contradictions(src: Path, d: Path) -> dict[str, Path]:
+    ff = read_features(src)
+    n = ff.X.shape[1]
+    ids = [f"F{i + 1:02d}" for i in range(len(ff.names))]
+    return {
+        "analysis_frames": _rewrite(src, d / "af.parquet", analysis_frames=99_999),
+        "native_frames huge": _rewrite(src, d / "nh.parquet", native_frames=2**40),
+        "native frame near 2**40": _rewrite(
+            src, d / "n40.parquet", native_frames=None,
+            native=np.arange(n, dtype=np.int64) * 4 + 2**40),
+        "native frame past the count": _rewrite(src, d / "past.parquet",
+                                                native=ff.native_frames.astype(np.int64) * 50),
+        "native_fps": _rewrite(src, d / "nfps.parquet", native_fps=-120),
+        "feature_ids twice": _rewrite(src, d / "ids2.parquet", feature_ids=["F01"] * len(ids)),
+        "feature_ids of others": _rewrite(src, d / "idsx.parquet",
+                                          feature_ids=[ids[1], ids[0], *ids[2:]]),
+        "group of no column": _rewrite(src, d / "gx.parquet", groups={"upper": ["nose"]}),
+        "groups of another set": _rewrite(src, d / "gs.parquet",
+                                          groups={"all": list(ff.names)}),
+    }
+
+
+def test_feature_metadata_that_contradicts_the_rows_is_refused(world, tmp_path):
+    """The reader refuses each contradiction in one line naming the file (read_features is
+    every command's reader); the good files read."""
+    for kind, bad in _contradictions(world.doc_files[0], tmp_path).items():
+        with pytest.raises(MtannoError) as info:
+            read_features(bad)
+        assert str(info.value).startswith(f"{bad}: "), (kind, str(info.value))
+    for f in [*world.doc_files, *sorted(world.feats.rglob("*.parquet"))]:
+        read_features(f)
+
+
+FEATURE_COMMANDS = ["info", "annotate", "retrieve", "index", "index add", "query --example",
+                    "learn-mt", "align", "evaluate-retrieval"]
+
+
+@pytest.mark.parametrize("command", FEATURE_COMMANDS)
+def test_contradicting_feature_files_through_every_command(world, tmp_path, command):
+    """Every command refuses them: a batch names the file and goes on (exit 1), a single
+    input is exit 2; nothing is made from the bad file."""
+    w, out = world, tmp_path / "out"
+    good = w.copy(w.doc_files[0], tmp_path / "in" / "good.parquet")
+    cases = _contradictions(w.doc_files[0], tmp_path / "in")
+    before = checksums(tmp_path / "in", w.root)
+
+    def check(r, bad, codes=(2,)):
+        _checked(r, bad, before, [tmp_path / "in", w.root], codes=codes)
+
+    for kind, bad in cases.items():
+        if command == "info":
+            check(cli("info", bad), bad)
+        elif command == "annotate":
+            check(cli("annotate", "--mt", w.mt, good, bad, "-o", out / "a.csv"), bad,
+                  codes=(1,))
+            assert {r["doc"] for r in read_table(out / "a.csv").rows} <= {"good"}
+        elif command == "retrieve":
+            check(cli("retrieve", "--mt", w.template, good, bad, "-o", out / "h.csv",
+                      "--tau", "0.5"), bad, codes=(1,))
+            assert {r["doc"] for r in read_table(out / "h.csv").rows} <= {"good"}
+        elif command == "index":
+            check(cli("index", good, bad, "-o", out / kind), bad, codes=(1,))
+            assert [d.name for d in open_index(out / kind).documents] == ["good"]
+        elif command == "index add":
+            idx = w.copy(w.index, out / kind)
+            check(cli("index", "add", idx, bad), bad, codes=(1,))
+            assert [d.name for d in open_index(idx).documents] == \
+                [d.name for d in open_index(w.index).documents]
+        elif command == "query --example":
+            check(cli("query", w.index, "--example", bad, "--features", "rknee_bent", "-o",
+                      out / "q.csv"), bad)
+        elif command == "learn-mt":
+            tree = tmp_path / "tree" / kind.replace(" ", "_")
+            w.copy(bad, tree / "squat" / bad.name)
+            w.copy(good, tree / "kick" / "good.parquet")
+            r = cli("learn-mt", tree, "-o", out / kind)
+            assert_one_line(r, tree / "squat" / bad.name, codes=(1,))
+            assert not (out / kind / "squat.json").exists()
+        elif command == "align":
+            check(cli("align", good, bad, "--cost", "features", "-o", out / "p.csv"), bad)
+        elif command == "evaluate-retrieval":
+            check(cli("evaluate-retrieval", good, bad, "--mt", w.mt, "--truth", w.truth,
+                      "--json", out / "r.json"), bad, codes=(1,))
+    if command in ("info", "query --example", "align"):
+        assert not out.exists()
