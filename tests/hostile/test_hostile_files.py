@@ -20,7 +20,7 @@ from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
 from mtanno.index import open_index
-from mtanno.keyframes import Gap, Keyframe, KeyframeQuery
+from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, load_keyframes, save_keyframes
 from mtanno.keyframes.model import feature_groups_of
 from mtanno.store import read_features
 from mtanno.tables import read_table
@@ -281,3 +281,64 @@ def test_contradicting_feature_files_through_every_command(world, tmp_path, comm
                       "--json", out / "r.json"), bad, codes=(1,))
     if command in ("info", "query --example", "align"):
         assert not out.exists()
+
+
+# --------------------------------------------------------------------- 3. keyframe queries
+
+
+def _keyframe_cases(d: Path) -> dict[str, Path]:
+    good = _query(provenance={"method": "heuristic", "template": {"class": "squat",
+                                                                   "length": 30}}).to_dict()
+
+    def case(name, edit):
+        obj = json.loads(json.dumps(good))
+        edit(obj)
+        p = d / name / "squat.json"
+        p.parent.mkdir(parents=True)
+        p.write_text(json.dumps(obj, indent=1))
+        return p
+
+    return {
+        "template_length 999": case("k999", lambda o: o.update(template_length=999)),
+        "absurd template_length": case("kabs", lambda o: (o.update(template_length=10**12),
+                                                         o.update(provenance={}))),
+        "absurd extension": case("ext", lambda o: o.update(extension={"factor": 2,
+                                                                      "offset": 10**15})),
+        "no extension": case("noext", lambda o: o.pop("extension")),
+        "no fps": case("nofps", lambda o: o.pop("fps")),
+    }
+
+
+@pytest.mark.parametrize("command", ["keyframes show", "query --keyframes",
+                                     "annotate --keyframes"])
+def test_keyframe_queries_that_contradict_themselves_are_refused(world, tmp_path, command):
+    """A template length other than the one its provenance records, absurd lengths or
+    widths, no extension or no frame rate (a default was used): refused when read."""
+    for kind, bad in _keyframe_cases(tmp_path).items():
+        with pytest.raises(MtannoError):
+            load_keyframes(bad)
+        out = tmp_path / "out.csv"
+        before = checksums(bad.parent, world.root)
+        args = {"keyframes show": ["keyframes", "show", bad],
+                "query --keyframes": ["query", world.index, "--keyframes", bad, "-o", out],
+                "annotate --keyframes": ["annotate", "--mt", world.mt, "--keyframes",
+                                         bad.parent, world.doc_files[0], "-o", out]}[command]
+        _checked(cli(*args), bad, before, [bad.parent, world.root])
+        assert not out.exists(), kind
+
+
+def test_keyframes_at_another_frame_rate_than_the_templates(world, tmp_path):
+    """annotate (and tune) match a query's gaps and windows in frames of the templates'
+    rate: a query at 25 Hz for 30 Hz templates is refused, naming it."""
+    bad = tmp_path / "kf" / "squat.json"
+    save_keyframes(bad, _query(fps=25.0))
+    before = checksums(bad.parent, world.root)
+    line = _checked(cli("annotate", "--mt", world.mt, "--keyframes", bad.parent,
+                        world.doc_files[0], "-o", tmp_path / "a.csv"), bad, before,
+                    [bad.parent, world.root])
+    assert "25 Hz" in line and not (tmp_path / "a.csv").exists()
+    save_keyframes(bad, _query())  # at 30 Hz: used
+    r = cli("annotate", "--mt", world.mt, "--keyframes", bad.parent, world.doc_files[0],
+            "-o", tmp_path / "a.csv")
+    assert r.exit_code == 0, r.output
+
