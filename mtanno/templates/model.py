@@ -238,6 +238,27 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def check_feature_names(mt: MotionTemplate, path: str | None = None,
+                        line: int | None = None) -> None:
+    """A template of a built-in feature set names only features of that set (its table
+    says which names it has; matching, mirroring and keyframes rely on them): checked when
+    a template file is read or written, so ``mt quantize`` refuses what ``mt mirror``
+    refuses. A feature set of the caller's own (API) has no table here to check against,
+    nor have templates made in memory for a test or a plot."""
+    from mtanno.features import get_feature_set
+
+    try:
+        fs = get_feature_set(mt.feature_set)
+    except MtannoError:
+        return
+    known = set(fs.names)
+    unknown = [n for n in mt.feature_names if n not in known]
+    if unknown:
+        more = " …" if len(unknown) > 3 else ""
+        raise MtannoError(f"feature(s) not in the {mt.feature_set} feature set: "
+                          f"{', '.join(unknown[:3])}{more}", path=path, line=line)
+
+
 # --------------------------------------------------------------------------- JSON I/O
 
 
@@ -272,6 +293,7 @@ def _dumps(mt: MotionTemplate) -> str:
 def save_template(path: str | os.PathLike, mt: MotionTemplate) -> None:
     """Write ``mt`` as JSON to ``path`` atomically (a crash leaves no partial file)."""
     _validate(mt)
+    check_feature_names(mt, str(path))
     text = _dumps(mt)
     with atomic_path(path) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
@@ -359,6 +381,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     mt.history = d.get("history", {})
     mt.path = spath
     _validate(mt, spath, line_of=line_of)
+    check_feature_names(mt, spath, _line_of(text, "feature_names"))
     mt.fps = float(mt.fps)
     mt.final_cost = float(mt.final_cost)
     mt.delta = None if mt.delta is None else float(mt.delta)

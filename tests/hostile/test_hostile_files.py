@@ -342,3 +342,29 @@ def test_keyframes_at_another_frame_rate_than_the_templates(world, tmp_path):
             "-o", tmp_path / "a.csv")
     assert r.exit_code == 0, r.output
 
+
+# --------------------------------------------------------------------- 4. template features
+
+
+@pytest.mark.parametrize("command", ["mt quantize", "mt mirror", "mt show", "mt scale",
+                                     "retrieve", "annotate"])
+def test_template_features_outside_their_feature_set(world, tmp_path, command):
+    """A template of mr06-ak40 naming a feature that set lacks: `mt mirror` refused it and
+    `mt quantize` wrote it; now the template reader refuses it for every command."""
+    d = json.loads(world.template.read_text())
+    d["feature_names"][3] = "nose_wiggle"
+    mts = world.copy(world.mt, tmp_path / "mts")
+    bad = mts / "squat.json"
+    bad.write_text(json.dumps(d))
+    out = tmp_path / "out"
+    before = checksums(mts, world.root)
+    args = {"mt quantize": ["mt", "quantize", bad, "--delta", "0.1", "-o", out / "q.json"],
+            "mt mirror": ["mt", "mirror", bad, "-o", out / "m.json"],
+            "mt show": ["mt", "show", bad],
+            "mt scale": ["mt", "scale", bad, "--factor", "0.6", "-o", out / "s.json"],
+            "retrieve": ["retrieve", "--mt", bad, world.doc_files[0], "-o", out / "h.csv"],
+            "annotate": ["annotate", "--mt", mts, world.doc_files[0], "-o", out / "a.csv"],
+            }[command]
+    line = _checked(cli(*args), bad, before, [mts, world.root])
+    assert "nose_wiggle" in line and "not in the mr06-ak40 feature set" in line
+    assert not out.exists()
