@@ -368,3 +368,18 @@ def test_template_features_outside_their_feature_set(world, tmp_path, command):
     line = _checked(cli(*args), bad, before, [mts, world.root])
     assert "nose_wiggle" in line and "not in the mr06-ak40 feature set" in line
     assert not out.exists()
+
+
+# --------------------------------------------------------------------- 6. index --groups
+
+
+@pytest.mark.parametrize("value", ["", ",", " , "])
+def test_index_groups_naming_no_group_is_a_usage_error(world, tmp_path, value):
+    """``index --groups ''`` built an index of every group; now it is refused before any
+    work (exit 2, nothing written)."""
+    out = tmp_path / "idx"
+    r = cli("index", world.doc_files[0], "-o", out, "--groups", value)
+    assert "names no group" in assert_one_line(r, "--groups", codes=(2,))
+    assert not out.exists()
+    r = cli("index", world.doc_files[0], "-o", out, "--groups", "lower", "-q")
+    assert r.exit_code == 0 and list(open_index(out).groups) == ["lower"]
