@@ -258,41 +258,66 @@ def _schema(names: tuple[str, ...]) -> pa.Schema:
     return schema
 
 
-def _found_feature_files(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:
+def _found_feature_files(inputs: Iterable[str | os.PathLike], failures: list[str] | None = None,
+                         ) -> list[tuple[Path, Path]]:
     """(file, its path below the folder it was found in — its name for a file given as
     such) for every feature file named by ``inputs`` (see :func:`feature_files`)."""
     out: list[tuple[Path, Path]] = []
+    problems: list[MtannoError] = []
     for item in inputs:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.rglob("*.parquet") if q.is_file())
-            if not found:
-                raise MtannoError("no feature files (*.parquet) in this folder", path=str(p))
+            found, odd = [], []
+            for q in sorted(p.rglob("*.parquet")):
+                if q.is_file():
+                    found.append(q)
+                elif not q.is_dir():  # a FIFO (reading it would block), device, broken link
+                    odd.append(q)
+            problems += [MtannoError("not a regular file (a FIFO, device or broken link)",
+                                     path=str(q)) for q in odd]
+            if not found and not odd:
+                problems.append(MtannoError("no feature files (*.parquet) in this folder",
+                                            path=str(p)))
             out.extend((q, q.relative_to(p)) for q in found)
         elif p.is_file():
             out.append((p, Path(p.name)))
+        elif p.exists() or p.is_symlink():
+            problems.append(MtannoError("not a regular file (a FIFO, device or broken link)",
+                                        path=str(p)))
         else:
-            raise MtannoError("no such feature file or folder", path=str(p))
+            problems.append(MtannoError("no such feature file or folder", path=str(p)))
+        if problems and failures is None:
+            raise problems[0]
     if not out:
-        raise MtannoError("no feature files (*.parquet) in the inputs")
+        raise problems[0] if problems else MtannoError("no feature files (*.parquet) in the "
+                                                       "inputs")
+    if failures is not None:
+        failures.extend(str(e) for e in problems)
     return out
 
 
-def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+def feature_files(inputs: Iterable[str | os.PathLike], *,
+                  failures: list[str] | None = None) -> list[Path]:
     """Feature files named by ``inputs``: files as given, directories searched recursively
-    for ``*.parquet`` (sorted). A missing input, a directory without feature files, or no
-    file at all is an error."""
-    return [f for f, _ in _found_feature_files(inputs)]
+    for ``*.parquet`` (sorted). The one expansion of every command's feature inputs.
+
+    An input that names no feature file — missing, a folder without feature files (also
+    one named ``x.parquet``), a FIFO or other non-regular file given or found — is an
+    error; with ``failures``, a batch goes on past it: its message is appended there and
+    the others are returned. No feature file at all is an error either way (the first
+    problem, naming its input)."""
+    return [f for f, _ in _found_feature_files(inputs, failures)]
 
 
-def document_files_below(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:
+def document_files_below(inputs: Iterable[str | os.PathLike], *,
+                         failures: list[str] | None = None) -> list[tuple[Path, Path]]:
     """:func:`document_files` with each file's path below the folder it was found in (its
     name for a file given as such): for outputs that mirror the inputs' tree
     (``annotate --output-dir``)."""
     out: list[tuple[Path, Path]] = []
     names: dict[str, Path] = {}
     seen: set[Path] = set()
-    for p, rel in _found_feature_files(inputs):
+    for p, rel in _found_feature_files(inputs, failures):
         key = p.resolve()
         if key in seen:  # the same file given twice (a folder and a file in it)
             continue
@@ -305,10 +330,11 @@ def document_files_below(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path
     return out
 
 
-def document_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+def document_files(inputs: Iterable[str | os.PathLike], *,
+                   failures: list[str] | None = None) -> list[Path]:
     """:func:`feature_files`, where no two files may name the same document (file stem):
     for commands whose outputs are keyed by document name."""
-    return [p for p, _ in document_files_below(inputs)]
+    return [p for p, _ in document_files_below(inputs, failures=failures)]
 
 
 #: Largest native frame number (and frame count) a feature file may give: the column is

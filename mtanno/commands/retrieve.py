@@ -65,7 +65,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
 
     table_format(output)
     tau = check_tau(tau, what="--tau")
-    files = feature_files(features)
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
+    files = feature_files(features, failures=missing)
     check_outputs(output_files(output), [mt_path, *files])
     mt = load_template(mt_path)
     if mt.quantized:
@@ -77,6 +78,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
                                                               else DEFAULT_DELTA))
     layout = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
                            f"template {mt_path}")
+    for message in missing:
+        click.echo(f"mtanno: {message}", err=True)
     bar = tqdm(total=len(files), unit="file", disable=not show_progress(quiet), desc="retrieve")
 
     def progress(path, error):
@@ -98,8 +101,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     if not quiet:
         click.echo(f"retrieve: {len(hits)} hit(s) of {mt.class_name} in "
                    f"{len(files) - len(batch.failed)} document(s), tau {tau:g}, "
-                   f"{len(batch.failed)} failed" + (f" -> {output}" if output != "-" else ""),
-                   err=True)
-    sys.exit(1 if batch.failed else 0)
+                   f"{len(batch.failed) + len(missing)} failed"
+                   + (f" -> {output}" if output != "-" else ""), err=True)
+    sys.exit(1 if batch.failed or missing else 0)
 
 COMMANDS = [retrieve_cmd]

@@ -80,7 +80,7 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
     With ``failures``, a file that cannot be read or does not fit the others is left out
     and its message appended there (a batch goes on past it); without, it is raised.
     """
-    paths = collect_feature_files(feature_files)
+    paths = collect_feature_files(feature_files, failures=failures)
     if not paths:
         raise MtannoError("no feature files given")
     root = None if out_dir is None else Path(out_dir)
@@ -147,7 +147,7 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     from mtanno.store import FeatureLayout
 
     root = Path(index_dir)
-    paths = collect_feature_files(feature_files)
+    paths = collect_feature_files(feature_files, failures=failures)
     with write_lock(root, wait=wait, on_wait=on_wait):
         index = read_index(root)
         layout = FeatureLayout(index.feature_set, tuple(index.features), float(index.fps),

@@ -383,3 +383,76 @@ def test_index_groups_naming_no_group_is_a_usage_error(world, tmp_path, value):
     assert not out.exists()
     r = cli("index", world.doc_files[0], "-o", out, "--groups", "lower", "-q")
     assert r.exit_code == 0 and list(open_index(out).groups) == ["lower"]
+
+
+# --------------------------------------------------------------------- 5. batches go on
+
+
+def _batch_inputs(world, d: Path, kind: str) -> tuple[Path, Path]:
+    """(input folder holding a good feature file, the input that names no feature file)."""
+    import os
+
+    inp = d / "in"
+    world.copy(world.doc_files[0], inp / "good.parquet")
+    if kind == "empty folder x.parquet":
+        bad = d / "x.parquet"
+        bad.mkdir()
+    elif kind == "missing":
+        bad = d / "gone.parquet"
+    else:  # a FIFO inside the input folder: reading it would block
+        bad = inp / "fifo.parquet"
+        os.mkfifo(bad)
+    return inp, bad
+
+
+BATCH_KINDS = ["empty folder x.parquet", "missing", "fifo in a folder"]
+
+
+@pytest.mark.parametrize("kind", BATCH_KINDS)
+@pytest.mark.parametrize("command", ["annotate", "annotate --output-dir", "retrieve", "index",
+                                     "index add", "evaluate-retrieval"])
+def test_an_input_naming_no_feature_file_does_not_stop_the_batch(world, tmp_path, command,
+                                                                 kind):
+    """An empty folder named ``x.parquet`` (or a missing input, or a FIFO found in a
+    folder) ended the batch with exit 2 and none of the good inputs done; now it is one
+    line naming it, the good file is processed, exit code 1."""
+    w, out = world, tmp_path / "out"
+    inp, bad = _batch_inputs(w, tmp_path, kind)
+    before = checksums(inp, w.root)
+    extra = [bad] if kind != "fifo in a folder" else []
+    args = {
+        "annotate": ["annotate", "--mt", w.mt, inp, *extra, "-o", out / "a.csv"],
+        "annotate --output-dir": ["annotate", "--mt", w.mt, inp, *extra, "--output-dir", out],
+        "retrieve": ["retrieve", "--mt", w.template, inp, *extra, "-o", out / "h.csv",
+                     "--tau", "0.5"],
+        "index": ["index", inp, *extra, "-o", out / "idx"],
+        "index add": ["index", "add", out / "idx", inp, *extra],
+        "evaluate-retrieval": ["evaluate-retrieval", inp, *extra, "--mt", w.mt, "--truth",
+                               w.truth, "--json", out / "r.json"],
+    }[command]
+    if command == "index add":
+        w.copy(w.index, out / "idx")
+    r = cli(*args)
+    assert_one_line(r, bad, codes=(1,))
+    assert checksums(inp, w.root) == before and temporaries(tmp_path) == []
+    if command == "annotate":
+        assert {x["doc"] for x in read_table(out / "a.csv").rows} == {"good"}
+    elif command == "annotate --output-dir":
+        assert (out / "good.csv").is_file()
+    elif command == "retrieve":
+        assert {x["doc"] for x in read_table(out / "h.csv").rows} <= {"good"}
+        assert "1 document(s)" in r.output and "1 failed" in r.output
+    elif command in ("index", "index add"):
+        assert "good" in [d.name for d in open_index(out / "idx").documents]
+    else:
+        assert json.loads((out / "r.json").read_text())["classes"]
+
+
+def test_only_inputs_naming_no_feature_file_is_still_bad_input(world, tmp_path):
+    """With no feature file at all the command has nothing to do: exit 2, the input
+    named, nothing written (as before)."""
+    bad = tmp_path / "x.parquet"
+    bad.mkdir()
+    r = cli("annotate", "--mt", world.mt, bad, "-o", tmp_path / "a.csv")
+    assert "no feature files" in assert_one_line(r, bad, codes=(2,))
+    assert not (tmp_path / "a.csv").exists()
