@@ -488,6 +488,18 @@ def template_files(folder: str | os.PathLike) -> list[Path]:
     return sorted(root.glob("*.json")) if root.is_dir() else [root]
 
 
+def load_one_template(path: str | os.PathLike, *, what: str = "--mt") -> MotionTemplate:
+    """The template of a file, or of a folder holding exactly one (``*.json``), as the
+    folders ``annotate --mt`` takes: for commands that use one class. A folder of several
+    templates is an error saying to name one (``what`` names the option)."""
+    files = template_files(path)
+    if Path(path).is_dir() and len(files) != 1:
+        hint = (f"; name one of them, e.g. {what} {files[0]}" if files else "")
+        raise MtannoError(f"this command uses one template, but the folder holds "
+                          f"{len(files)}{hint}", path=str(path))
+    return load_template(files[0])
+
+
 def load_template_folder(path: str | os.PathLike, *,
                          classes: Sequence[str] = ()) -> dict[str, MotionTemplate]:
     """Class name → template of every ``*.json`` in a folder (or of one template file),
