@@ -471,3 +471,14 @@ def test_retrieve_takes_a_template_folder_holding_one_template(world, tmp_path):
     r = cli("retrieve", "--mt", world.mt, world.doc_files[0], "-o", tmp_path / "x.csv")
     assert "name one of them, e.g. --mt" in assert_one_line(r, world.mt, codes=(2,))
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_deeply_nested_class_configuration_is_one_line(world, tmp_path):
+    """The class configuration (TOML) is mtanno's file too: arrays nested thousands deep
+    were a RecursionError traceback in annotate --classes."""
+    bad = tmp_path / "classes.toml"
+    bad.write_text("[decoder]\ndelta = " + "[" * 5000 + "]" * 5000 + "\n")
+    r = cli("annotate", "--mt", world.mt, world.doc_files[0], "--classes", bad, "-o",
+            tmp_path / "a.csv")
+    assert "nested too deeply" in _checked(r, bad, checksums(bad, world.root), [bad, world.root])
+    assert not (tmp_path / "a.csv").exists()
