@@ -164,7 +164,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
         from mtanno.keyframes import load_class_keyframes
 
         queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
-                                                feature_set=layout.feature_set)
+                                                feature_set=layout.feature_set, fps=layout.fps)
     whole = any(s.start is not None for s in sources)
     read_document = (lambda path: read_features(path).X) if whole else None
     folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
