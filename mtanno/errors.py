@@ -107,7 +107,9 @@ def _nesting_at(text: str) -> int | None:
 
 def _lone_surrogate_at(text: str) -> int | None:
     """Offset of a ``\\uXXXX`` escape of a UTF-16 surrogate that is not part of a high-low
-    pair, else None: JSON decodes it to a string no file or terminal can take."""
+    pair, else None: JSON decodes it to a string no file or terminal can take. Low
+    surrogates U+DC80 … U+DCFF are allowed alone: they are how a path's bytes that are not
+    UTF-8 are written (:func:`mtanno.tables.dumps`, ``surrogateescape``)."""
     if "\\u" not in text:
         return None
     pending = None  # end offset of an unpaired high surrogate escape
@@ -120,6 +122,8 @@ def _lone_surrogate_at(text: str) -> int | None:
                 continue
             return pending - 6
         if not high:
+            if 0xDC80 <= int(text[start + 2:start + 6], 16) <= 0xDCFF:
+                continue  # a byte of a file name that is not UTF-8 (os.fsdecode's escape)
             return start
         pending = m.end()
     return pending - 6 if pending is not None else None
