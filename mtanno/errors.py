@@ -8,7 +8,9 @@ as it is and never shows a traceback for user error.
 
 from __future__ import annotations
 
+import json
 import os
+import re
 from pathlib import Path
 
 
@@ -61,3 +63,147 @@ def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
         raise MtannoError("binary data (NUL byte) in a text file", path=str(path),
                           line=raw[:nul].count(b"\n") + 1)
     return raw
+
+
+# --------------------------------------------------------------------------- JSON files
+
+#: Deepest nesting of arrays and objects accepted in a JSON file mtanno reads. Its own
+#: files nest a few levels; Python's parser (and any recursive walk of the result) fails
+#: with RecursionError near a thousand, so deeper input is refused before parsing.
+MAX_JSON_DEPTH = 100
+#: Largest JSON file read (bytes). An index manifest of a large archive or a provenance
+#: sidecar listing every input is a few megabytes; parsing a gigabyte would need many.
+MAX_JSON_BYTES = 256 << 20
+
+# a JSON string (closed or not), or one bracket: brackets inside strings are skipped
+_JSON_TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"?|[][{}]', re.DOTALL)
+# a \uXXXX escape of a UTF-16 surrogate: only valid as a high-low pair
+_SURROGATE = re.compile(r"(?<!\\)((?:\\\\)*)\\u[dD]([89abAB]|[c-fC-F])[0-9a-fA-F]{2}")
+
+
+class JSONError(MtannoError):
+    """A file that is not well-formed JSON (syntax, encoding, nesting, size): raised by
+    :func:`parse_json` and :func:`read_json`, so a reader can give it its own wording (an
+    index manifest is a corrupt index)."""
+
+
+def _nesting_at(text: str) -> int | None:
+    """Offset of the first bracket nested deeper than :data:`MAX_JSON_DEPTH` in ``text``
+    (brackets inside strings do not count), else None. A loop over tokens, not a
+    recursion, so any depth is measured."""
+    if text.count("[") + text.count("{") <= MAX_JSON_DEPTH:  # cannot be deeper
+        return None
+    depth = 0
+    for m in _JSON_TOKEN.finditer(text):
+        c = text[m.start()]
+        if c == "[" or c == "{":
+            depth += 1
+            if depth > MAX_JSON_DEPTH:
+                return m.start()
+        elif c == "]" or c == "}":
+            depth -= 1
+    return None
+
+
+def _lone_surrogate_at(text: str) -> int | None:
+    """Offset of a ``\\uXXXX`` escape of a UTF-16 surrogate that is not part of a high-low
+    pair, else None: JSON decodes it to a string no file or terminal can take. Low
+    surrogates U+DC80 … U+DCFF are allowed alone: they are how a path's bytes that are not
+    UTF-8 are written (:func:`mtanno.util.tables.dumps`, ``surrogateescape``)."""
+    if "\\u" not in text:
+        return None
+    pending = None  # end offset of an unpaired high surrogate escape
+    for m in _SURROGATE.finditer(text):
+        start = m.start() + len(m.group(1))
+        high = m.group(2) in "89abAB"
+        if pending is not None:
+            if not high and start == pending:  # the low half of a pair
+                pending = None
+                continue
+            return pending - 6
+        if not high:
+            if 0xDC80 <= int(text[start + 2:start + 6], 16) <= 0xDCFF:
+                continue  # a byte of a file name that is not UTF-8 (os.fsdecode's escape)
+            return start
+        pending = m.end()
+    return pending - 6 if pending is not None else None
+
+
+def _line_col(text: str, pos: int) -> tuple[int, int]:
+    line = text.count("\n", 0, pos) + 1
+    return line, pos - (text.rfind("\n", 0, pos) + 1) + 1
+
+
+def parse_json(data: str | bytes, *, path: str | os.PathLike | None = None,
+               line: int | None = None):
+    """The value of JSON text (bytes are UTF-8, a leading BOM allowed), checked before and
+    while parsing so that any input is one :class:`JSONError` naming ``path`` (and the line,
+    offset by ``line`` for text that starts there): not UTF-8, empty, nested deeper than
+    :data:`MAX_JSON_DEPTH`, malformed, a number too long to convert, or a lone UTF-16
+    surrogate escape. The one JSON parser of every mtanno file (templates, keyframe and
+    index queries, index manifests, provenance, feature-file metadata, mocap6 labels)."""
+    spath = None if path is None else str(path)
+    first = 1 if line is None else line
+
+    def bad(msg: str, at: int | None = None, text: str = "") -> JSONError:
+        if at is None:
+            return JSONError(msg, path=spath, line=line)
+        ln, col = _line_col(text, at)
+        return JSONError(f"{msg} (column {col})", path=spath, line=first + ln - 1)
+
+    if isinstance(data, (bytes, bytearray, memoryview)):
+        try:
+            text = bytes(data).decode("utf-8-sig")
+        except UnicodeDecodeError:
+            raise bad("not a UTF-8 text file") from None
+    else:
+        text = data[1:] if data.startswith("\ufeff") else data
+    if not text or text.isspace():
+        raise JSONError("malformed JSON: the file is empty", path=spath, line=first)
+    at = _nesting_at(text)
+    if at is not None:
+        raise bad(f"malformed JSON: nested too deeply (more than {MAX_JSON_DEPTH} levels of "
+                  "arrays and objects)", at, text)
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise JSONError(f"malformed JSON: {exc.msg} (column {exc.colno})", path=spath,
+                        line=first + exc.lineno - 1) from None
+    except RecursionError:  # (the scan above makes this unreachable; kept as a guard)
+        raise bad("malformed JSON: nested too deeply") from None
+    except ValueError:  # an integer of thousands of digits
+        raise bad("malformed JSON: a number too long to convert") from None
+    at = _lone_surrogate_at(text)
+    if at is not None:
+        raise bad("malformed JSON: a \\u escape of half a UTF-16 surrogate pair", at, text)
+    return value
+
+
+def read_json(path: str | os.PathLike, *, what: str = "file",
+              max_bytes: int = MAX_JSON_BYTES) -> tuple[object, str]:
+    """(value, text) of a JSON file (:func:`parse_json`; the text for line numbers in a
+    caller's messages). A missing or unreadable file, one that is not a regular file (a
+    FIFO would block) or one larger than ``max_bytes`` is one :class:`MtannoError` naming
+    it (``what`` names the kind of file)."""
+    import stat
+
+    spath = str(path)
+    try:
+        st = os.stat(path)
+    except OSError:
+        st = None  # read_input says what is wrong
+    if st is not None and not stat.S_ISREG(st.st_mode) and not stat.S_ISDIR(st.st_mode):
+        raise JSONError(f"{what} is not a regular file", path=spath)
+    if st is not None and st.st_size > max_bytes:
+        raise JSONError(f"{what} is too large ({st.st_size} bytes; at most {max_bytes} for "
+                        "a JSON file)", path=spath)
+    raw = read_input(path, what=what)
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise JSONError("binary data (NUL byte) in a text file", path=spath,
+                        line=raw[:nul].count(b"\n") + 1)
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise JSONError("not a UTF-8 text file", path=spath) from None
+    return parse_json(text, path=spath), text

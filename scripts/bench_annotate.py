@@ -48,7 +48,8 @@ def tiled(src: Path, dst: Path, frames: int) -> Path:
     reps = -(-frames // ff.X.shape[1])
     X = np.tile(ff.X, (1, reps))[:, :frames]
     native = np.arange(1, frames + 1) * 4 - 3
-    meta = dict(ff.meta, document=dst.stem, analysis_frames=frames)
+    meta = dict(ff.meta, document=dst.stem, analysis_frames=frames,
+                native_frames=int(native[-1]))  # (as read_features checks)
     meta.pop("schema", None)
     write_features(dst, X, ff.names, native, meta)
     return dst

@@ -452,7 +452,7 @@ def test_json_query_end_to_end(tmp_path):
     hits = search(idx, load_query(p, idx))
     assert hits.start.tolist() == [0, 4] and hits.end.tolist() == [5, 8]
     p.write_text("{bad")
-    with pytest.raises(MtannoError, match="invalid JSON"):
+    with pytest.raises(MtannoError, match="malformed JSON"):
         load_query(p, idx)
 
 

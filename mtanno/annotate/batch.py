@@ -333,5 +333,6 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
 
         (setup.keyframes, setup.keyframe_files, setup.keyframes_missing,
          setup.keyframes_extra) = load_class_keyframes(keyframes_dir, setup.classes,
-                                                       feature_set=setup.layout.feature_set)
+                                                       feature_set=setup.layout.feature_set,
+                                                       fps=setup.layout.fps)
     return setup

@@ -243,6 +243,9 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
         data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MtannoError(f"not a valid TOML class configuration: {exc}", path=spath) from None
+    except RecursionError:  # arrays or tables nested thousands deep (tomllib recurses)
+        raise MtannoError("not a valid TOML class configuration: nested too deeply",
+                          path=spath) from None
     cfg = ClassConfig(path=spath, lines=_key_lines(text))
 
     def bad(section: str, key: str | None, msg: str) -> MtannoError:

@@ -92,11 +92,12 @@ class FolderSummary:
 
 
 def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
-                fmt: str = "csv") -> list[DocJob]:
+                fmt: str = "csv", failures: list[str] | None = None) -> list[DocJob]:
     """One job per feature file named by ``inputs`` (files, folders searched recursively;
     :func:`mtanno.util.store.document_files_below`): a file ``F.parquet`` gives
     ``outdir/F.<fmt>``, a file found in folder ``D`` gives ``outdir/<its path below
-    D>`` with the format's suffix. Jobs are sorted by document name. Parquet tables in a
+    D>`` with the format's suffix (``failures``: as :func:`mtanno.util.store.feature_files`).
+    Jobs are sorted by document name. Parquet tables in a
     folder inside an input folder would be read as feature files by the next run: refused.
     """
     from mtanno.util.store import document_files_below
@@ -114,7 +115,7 @@ def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, 
                                   "Parquet tables would be read as feature files; choose "
                                   "another folder, or --format csv", path=str(outdir))
     jobs = [DocJob(src, outdir / rel.with_suffix(FORMATS[fmt]))
-            for src, rel in document_files_below(inputs)]
+            for src, rel in document_files_below(inputs, failures=failures)]
     return sorted(jobs, key=lambda j: j.doc)
 
 

@@ -119,13 +119,14 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                                   "written anew, in the format of its suffix)")
     if tau is not None:
         tau = check_tau(tau, what="--tau")
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
     if out_dir is not None:
         from mtanno.annotate.folder import plan_folder
 
-        folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv")
+        folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv", failures=missing)
         paths = [j.src for j in folder_jobs]
     else:
-        folder_jobs, paths = [], feature_paths(features)
+        folder_jobs, paths = [], feature_paths(features, failures=missing)
     tables = [f for out in outputs for f in output_files(out)]
     written = [*(f for j in folder_jobs for f in output_files(j.dst)), *tables]
     # a document's table that cannot be written fails alone: only -o is tried first; no
@@ -148,6 +149,8 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     if not quiet and setup.keyframes_extra:
         click.echo("annotate: note: keyframe queries without a template ignored: "
                    f"{', '.join(setup.keyframes_extra)}", err=True)
+    for message in missing:
+        click.echo(f"mtanno: {message}", err=True)
     bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")
 
     def note_failure(error):
@@ -179,14 +182,17 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                 for out in outputs:
                     write_table(out, table, provenance=prov)
         failed, seconds = len(summary.failed), summary.seconds
-        what = f"{len(folder_jobs)} documents: {summary.line()}"
+        what = f"{len(folder_jobs)} documents: {summary.line()}" + (
+            f", {len(missing)} input(s) without feature files" if missing else "")
         outputs = (out_dir, *outputs)
+    if out_dir is None:
+        failed += len(missing)
     if not quiet:
         kf = f", keyframes for {len(setup.keyframes)}" if setup.keyframes else ""
         tail = "" if out_dir is not None else f", {failed} failed"
         click.echo(f"annotate: {what}, {len(setup.classes)} classes{kf}{tail}, "
                    f"{seconds:.2f} s of annotation -> {', '.join(map(str, outputs))}", err=True)
-    sys.exit(1 if failed else 0)
+    sys.exit(1 if failed or missing else 0)
 
 
 @click.command("evaluate")
@@ -300,13 +306,16 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
         table_format(table_path)
     if json_path == "-" and table_path == "-":
         raise MtannoError("--json - and -o - would both write to standard output")
-    paths = feature_paths(features)
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
+    paths = feature_paths(features, failures=missing)
     check_outputs([json_path, *output_files(table_path)],
                   [mt_dir, *template_files(mt_dir), truth_path, *paths],
                   scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
     models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
     truth = read_truth(truth_path)
-    documents, files, failed = [], [], 0
+    for message in missing:
+        click.echo(f"mtanno: {message}", err=True)
+    documents, files, failed = [], [], len(missing)
     for p in paths:
         try:
             ff = read_features(p, sha256=True)

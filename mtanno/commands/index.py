@@ -42,9 +42,15 @@ def index_group() -> None:
 
 
 def _groups_option(value: str | None):
-    if not value:
+    """``--groups G1,G2`` as a list of names; None when not given (every group). A value
+    that names no group (``''``, ``,``) is refused: it would have meant every group."""
+    if value is None:
         return None
-    return [g.strip() for g in value.split(",") if g.strip()]
+    names = [g.strip() for g in value.split(",") if g.strip()]
+    if not names:
+        raise MtannoError(f"--groups {value!r} names no group (give some of the feature "
+                          "set's groups, e.g. lower,upper, or leave --groups out for all)")
+    return names
 
 
 def _summary(index) -> str:

@@ -20,9 +20,9 @@ from mtanno.util.store import feature_files
 @click.command("retrieve", epilog="Exit codes: 0 success, 1 some feature files failed (the "
                "others were searched), 2 usage error or bad input.")
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
-@click.option("--mt", "mt_path", required=True, type=click.Path(dir_okay=False),
+@click.option("--mt", "mt_path", required=True, type=click.Path(),
               help="Template JSON of the class (from learn-mt; quantized with its delta, or "
-                   "with --delta, when it is not quantized yet).")
+                   "with --delta, when it is not quantized yet), or a folder holding one.")
 @click.option("--tau", default=DEFAULT_TAU, show_default=True, type=float,
               help="Quality threshold: hits have cost Δ ≤ tau (MR06: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
@@ -59,16 +59,18 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
 
     from mtanno.annotate import check_tau
     from mtanno.retrieve import retrieve_files, write_hits
-    from mtanno.templates.model import load_template, quantize
+    from mtanno.templates.model import load_one_template, quantize, template_files
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)
     tau = check_tau(tau, what="--tau")
-    files = feature_files(features)
-    check_outputs(output_files(output), [mt_path, *files],  # (hits.parquet: not among them)
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
+    files = feature_files(features, failures=missing)
+    check_outputs(output_files(output), [mt_path, *template_files(mt_path), *files],
                   scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
-    mt = load_template(mt_path)
+    mt = load_one_template(mt_path)
+    mt_path = mt.path  # the file, for messages and the provenance
     if mt.quantized:
         if qdelta is not None and qdelta != mt.delta:
             raise MtannoError(f"template is already quantized with delta {mt.delta:g}; "
@@ -77,6 +79,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
         mt = quantize(mt, qdelta if qdelta is not None else (mt.delta if mt.delta is not None
                                                               else DEFAULT_DELTA))
     layout = mt.layout(f"template {mt_path}")
+    for message in missing:
+        click.echo(f"mtanno: {message}", err=True)
     bar = tqdm(total=len(files), unit="file", disable=not show_progress(quiet), desc="retrieve")
 
     def progress(path, error):
@@ -98,8 +102,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     if not quiet:
         click.echo(f"retrieve: {len(hits)} hit(s) of {mt.class_name} in "
                    f"{len(files) - len(batch.failed)} document(s), tau {tau:g}, "
-                   f"{len(batch.failed)} failed" + (f" -> {output}" if output != "-" else ""),
-                   err=True)
-    sys.exit(1 if batch.failed else 0)
+                   f"{len(batch.failed) + len(missing)} failed"
+                   + (f" -> {output}" if output != "-" else ""), err=True)
+    sys.exit(1 if batch.failed or missing else 0)
 
 COMMANDS = [retrieve_cmd]

@@ -10,14 +10,13 @@ stem), ``start`` and ``end`` (1-based inclusive frames), ``label`` and optionall
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
 
-from mtanno.errors import MtannoError, read_text_input
+from mtanno.errors import MtannoError, read_json
 
 ANALYSIS_FPS = 30.0
 
@@ -99,13 +98,7 @@ def truth_from_mocap6(path: str | os.PathLike) -> list[Segment]:
     document and segment.
     """
     spath = str(path)
-    raw = read_text_input(path)
-    try:
-        data = json.loads(raw.decode("utf-8-sig"))
-    except UnicodeDecodeError:
-        raise MtannoError("not a UTF-8 text file", path=spath) from None
-    except json.JSONDecodeError as exc:
-        raise MtannoError(f"malformed JSON: {exc.msg}", path=spath, line=exc.lineno) from None
+    data, _ = read_json(path, what="labels file")
 
     def bad(msg: str) -> MtannoError:
         return MtannoError(f"not a mocap6 labels file: {msg}", path=spath)

@@ -265,16 +265,15 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
 
 def _stored_meta(path: Path) -> dict | None:
     """The ``mtanno`` metadata of an existing output (None if it cannot be read)."""
-    import json
-
     import pyarrow.parquet as pq
 
+    from mtanno.errors import parse_json
     from mtanno.util.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
-        meta = json.loads(raw) if raw else None
-    except (OSError, ValueError, TypeError):
+        meta = parse_json(raw) if raw else None
+    except (OSError, ValueError, TypeError, MtannoError):
         return None
     return meta if isinstance(meta, dict) else None
 

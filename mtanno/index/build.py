@@ -81,7 +81,7 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
     and its message appended there (a batch goes on past it); without, it is raised.
     """
     feature_files = list(feature_files)
-    paths = collect_feature_files(feature_files)
+    paths = collect_feature_files(feature_files, failures=failures)
     if not paths:
         raise MtannoError("no feature files given")
     root = None if out_dir is None else Path(out_dir)
@@ -149,7 +149,7 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
 
     root = Path(index_dir)
     feature_files = list(feature_files)
-    paths = collect_feature_files(feature_files)
+    paths = collect_feature_files(feature_files, failures=failures)
     # as for a build: no input inside the index, no index inside a folder of feature files
     # read here (the next add would read its Parquet files), and a writable index folder
     check_outputs([], paths, folders={root: None},

@@ -236,9 +236,11 @@ def read_feature_docs(paths: Sequence[str | os.PathLike], *,
     return [g for g in got if not isinstance(g, str)]
 
 
-def collect_feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Feature files named by ``inputs`` (see :func:`mtanno.util.store.feature_files`)."""
-    return feature_files(inputs)
+def collect_feature_files(inputs: Iterable[str | os.PathLike], *,
+                          failures: list[str] | None = None) -> list[Path]:
+    """Feature files named by ``inputs`` (see :func:`mtanno.util.store.feature_files`; with
+    ``failures``, an input naming no feature file is reported there and the rest go on)."""
+    return feature_files(inputs, failures=failures)
 
 
 @dataclass

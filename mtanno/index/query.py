@@ -40,7 +40,6 @@ segment lengths (query by example), else listed in document order.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
@@ -735,15 +734,10 @@ def parse_query(spec: dict, index: Index, *, path: str | None = None) -> Query:
 
 def load_query(path: str | os.PathLike, index: Index) -> Query:
     """Read a JSON query file (see :func:`parse_query`)."""
-    from mtanno.errors import read_text_input
+    from mtanno.errors import read_json
 
     p = Path(path)
-    try:
-        spec = json.loads(read_text_input(p).decode("utf-8-sig"))
-    except UnicodeDecodeError:
-        raise MtannoError("not a UTF-8 text file", path=str(p)) from None
-    except json.JSONDecodeError as exc:
-        raise MtannoError(f"invalid JSON ({exc.msg})", path=str(p), line=exc.lineno) from None
+    spec, _ = read_json(p, what="query file")
     return parse_query(spec, index, path=str(p))
 
 

@@ -34,7 +34,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno._version import __version__
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import JSONError, MtannoError, read_json
 from mtanno.index.core import Document, GroupIndex, Index
 from mtanno.util.output import current_umask
 
@@ -141,9 +141,10 @@ def read_index_manifest(root: Path) -> dict:
                                path=str(root))
         raise MtannoError("not an index directory (no manifest.json)", path=str(root))
     try:
-        manifest = json.loads(read_input(path, what="index manifest").decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise CorruptIndex("corrupt index: manifest.json is not valid JSON", path=str(path)) from None
+        manifest, _ = read_json(path, what="index manifest")
+    except JSONError as exc:
+        raise CorruptIndex(f"corrupt index: manifest.json is not valid JSON ({exc.message})",
+                           path=str(path), line=exc.line) from None
     if not isinstance(manifest, dict) or manifest.get("format") != INDEX_FORMAT:
         fmt = manifest.get("format") if isinstance(manifest, dict) else None
         raise CorruptIndex(f"unsupported index format {fmt!r} (expected {INDEX_FORMAT})",

@@ -47,7 +47,7 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import MtannoError, read_json
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "format_query",
@@ -58,6 +58,10 @@ __all__ = [
 SCHEMA = "mtanno.keyframes/1"
 #: Upper gap bound used for "no upper bound" inside the kernels (frames).
 UNBOUNDED = 1 << 40
+#: Largest template length (columns at 30 Hz, an hour) and window extension (frames) a
+#: query may give: more is no learned query, and would overflow the kernels' frame numbers.
+MAX_TEMPLATE_LENGTH = 108_000
+MAX_EXTENSION = 1 << 30
 
 
 def stiffness_bounds(distance: int, stiffness: Fraction | float | str) -> tuple[int, int]:
@@ -194,8 +198,9 @@ class Extension:
             v = getattr(self, name)
             if v is None:
                 continue
-            if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-                raise MtannoError(f"extension {name} must be an integer ≥ 0, got {v!r}")
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= MAX_EXTENSION:
+                raise MtannoError(f"extension {name} must be an integer in 0..{MAX_EXTENSION}, "
+                                  f"got {v!r}")
         if (self.left is None) != (self.right is None):
             raise MtannoError("extension needs both left and right, or factor/offset")
 
@@ -306,8 +311,13 @@ def _validate(q: KeyframeQuery, text: str | None = None, path: str | None = None
     if not _is_number(q.fps) or not math.isfinite(q.fps) or q.fps <= 0:
         raise bad(f"fps must be a positive number, got {q.fps!r}", "fps")
     K = q.template_length
-    if not isinstance(K, int) or isinstance(K, bool) or K < 1:
-        raise bad(f"template_length must be a positive integer, got {K!r}", "template_length")
+    if not isinstance(K, int) or isinstance(K, bool) or not 1 <= K <= MAX_TEMPLATE_LENGTH:
+        raise bad(f"template_length must be an integer in 1..{MAX_TEMPLATE_LENGTH}, got {K!r}",
+                  "template_length")
+    recorded = _recorded_length(q.provenance)
+    if recorded is not None and K != recorded[1]:
+        raise bad(f"template_length is {K} but the provenance records {recorded[0]} "
+                  f"{recorded[1]} (the template the positions refer to)", "template_length")
     for g, feats in q.groups.items():
         if not feats or not all(isinstance(f, str) and f for f in feats):
             raise bad(f"group '{g}' must list its feature names", "groups")
@@ -355,6 +365,21 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def _recorded_length(prov: Any) -> tuple[str, int] | None:
+    """(where, length) of the template a learned query's positions refer to, as its
+    provenance records it (learn-keyframes: ``hard_template.length`` for the hard method,
+    else ``template.length``); None when the provenance records none (a query written by
+    hand)."""
+    if not isinstance(prov, dict):
+        return None
+    for key in ("hard_template", "template"):
+        info = prov.get(key)
+        n = info.get("length") if isinstance(info, dict) else None
+        if isinstance(n, int) and not isinstance(n, bool):
+            return f"{key}.length", n
+    return None
+
+
 def _line_of(text: str, key: str, nth: int = 0) -> int | None:
     """1-based line of the ``nth`` (0-based) ``"key":`` in JSON text, for messages."""
     needle = json.dumps(key) + ":"
@@ -390,15 +415,15 @@ def parse_keyframes(d: Any, *, text: str | None = None, path: str | None = None,
     if unknown:
         raise bad(f"unknown key '{unknown[0]}' (known: {', '.join(sorted(_KEYS))})",
                   unknown[0])
-    missing = [k for k in ("class", "feature_set", "template_length", "groups", "keyframes")
-               if k not in d]
+    missing = [k for k in ("class", "feature_set", "fps", "template_length", "extension",
+                           "groups", "keyframes") if k not in d]
     if missing:
         raise bad(f"missing field(s): {', '.join(missing)}")
     groups = d["groups"]
     if not isinstance(groups, dict) or not all(
             isinstance(v, list) and all(isinstance(f, str) for f in v) for v in groups.values()):
         raise bad("'groups' must map group names to lists of feature names", "groups")
-    ext = d.get("extension", ANNOTATION_EXTENSION.to_dict())
+    ext = d["extension"]
     if not isinstance(ext, dict) or not ext or set(ext) - {"factor", "offset", "left", "right"}:
         raise bad("'extension' must be {\"factor\": F, \"offset\": O} or "
                   "{\"left\": L, \"right\": R}", "extension")
@@ -461,7 +486,7 @@ def parse_keyframes(d: Any, *, text: str | None = None, path: str | None = None,
     prov = d.get("provenance", {})
     if not isinstance(prov, dict):
         raise bad("'provenance' must be an object", "provenance")
-    fps = d.get("fps", 30.0)
+    fps = d["fps"]
     fields = dict(class_name=d["class"], feature_set=d["feature_set"],
                   groups={str(g): tuple(v) for g, v in groups.items()},
                   keyframes=tuple(keyframes), gaps=tuple(gaps),
@@ -478,17 +503,7 @@ def _count_before(raw: list, j: int, key: str) -> int:
 def load_keyframes(path: str | os.PathLike) -> KeyframeQuery:
     """Read and validate a keyframe query file (``mtanno.keyframes/1``)."""
     spath = str(path)
-    try:
-        text = read_input(path, what="keyframe file").decode("utf-8")
-    except UnicodeDecodeError:
-        raise MtannoError("not a UTF-8 text file", path=spath) from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise MtannoError(f"malformed JSON: {exc.msg} (column {exc.colno})", path=spath,
-                          line=exc.lineno) from None
-    except RecursionError:
-        raise MtannoError("malformed JSON: nested too deeply", path=spath) from None
+    d, text = read_json(path, what="keyframe file")
     return parse_keyframes(d, text=text, path=spath)
 
 
@@ -524,12 +539,13 @@ def keyframe_files(folder: str | os.PathLike) -> list[Path]:
 
 
 def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
-                         feature_set: str) -> tuple[dict[str, KeyframeQuery], list[dict],
-                                                    list[str], list[str]]:
+                         feature_set: str, fps: float | None = None,
+                         ) -> tuple[dict[str, KeyframeQuery], list[dict], list[str], list[str]]:
     """The keyframe queries of a folder for annotating ``classes``: (class → query for the
     classes that have one; the files read with their SHA-256, for provenance; classes
     without a query; queries of classes not among ``classes``). Queries must be for
-    ``feature_set``."""
+    ``feature_set`` and, when ``fps`` is given (the templates' frame rate), at that rate:
+    their gaps and extensions count frames at it."""
     from mtanno.util.store import sha256_file
 
     queries, files = {}, []
@@ -538,6 +554,9 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
             raise MtannoError(f"keyframes of class '{q.class_name}' are for feature set "
                               f"'{q.feature_set}' but the templates use '{feature_set}'",
                               path=str(f))
+        if fps is not None and float(q.fps) != float(fps):
+            raise MtannoError(f"keyframes of class '{q.class_name}' are at {q.fps:g} Hz but "
+                              f"the templates at {float(fps):g} Hz", path=str(f))
         queries[q.class_name] = q
         if q.class_name in classes:
             files.append({"path": str(f), "sha256": sha256_file(f), "class": q.class_name})

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import MtannoError, read_json
 from mtanno.util.store import atomic_path
 
 if TYPE_CHECKING:
@@ -250,6 +250,27 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
+def check_feature_names(mt: MotionTemplate, path: str | None = None,
+                        line: int | None = None) -> None:
+    """A template of a built-in feature set names only features of that set (its table
+    says which names it has; matching, mirroring and keyframes rely on them): checked when
+    a template file is read or written, so ``mt quantize`` refuses what ``mt mirror``
+    refuses. A feature set of the caller's own (API) has no table here to check against,
+    nor have templates made in memory for a test or a plot."""
+    from mtanno.features import get_feature_set
+
+    try:
+        fs = get_feature_set(mt.feature_set)
+    except MtannoError:
+        return
+    known = set(fs.names)
+    unknown = [n for n in mt.feature_names if n not in known]
+    if unknown:
+        more = " …" if len(unknown) > 3 else ""
+        raise MtannoError(f"feature(s) not in the {mt.feature_set} feature set: "
+                          f"{', '.join(unknown[:3])}{more}", path=path, line=line)
+
+
 # --------------------------------------------------------------------------- JSON I/O
 
 
@@ -284,6 +305,7 @@ def _dumps(mt: MotionTemplate) -> str:
 def save_template(path: str | os.PathLike, mt: MotionTemplate) -> None:
     """Write ``mt`` as JSON to ``path`` atomically (a crash leaves no partial file)."""
     _validate(mt)
+    check_feature_names(mt, str(path))
     text = _dumps(mt)
     with atomic_path(path) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
@@ -304,15 +326,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     """Read and validate a template JSON file; every problem is an :class:`MtannoError`
     naming the file (and the line where it is known)."""
     spath = str(path)
-    try:
-        text = read_input(path, what="template file").decode("utf-8")
-    except UnicodeDecodeError:
-        raise MtannoError("not a UTF-8 text file", path=spath) from None
-    try:
-        d = json.loads(text, parse_constant=lambda c: float(c))
-    except json.JSONDecodeError as exc:
-        raise MtannoError(f"malformed JSON: {exc.msg} (column {exc.colno})", path=spath,
-                          line=exc.lineno) from None
+    d, text = read_json(path, what="template file")
     if not isinstance(d, dict):
         raise MtannoError("a template file must hold one JSON object", path=spath, line=1)
     if d.get("schema") != SCHEMA:
@@ -379,6 +393,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     mt.history = d.get("history", {})
     mt.path = spath
     _validate(mt, spath, line_of=line_of)
+    check_feature_names(mt, spath, _line_of(text, "feature_names"))
     mt.fps = float(mt.fps)
     mt.final_cost = float(mt.final_cost)
     mt.delta = None if mt.delta is None else float(mt.delta)
@@ -483,6 +498,18 @@ def template_files(folder: str | os.PathLike) -> list[Path]:
     """The template files of a folder (``*.json``, sorted), or the one file given."""
     root = Path(folder)
     return sorted(root.glob("*.json")) if root.is_dir() else [root]
+
+
+def load_one_template(path: str | os.PathLike, *, what: str = "--mt") -> MotionTemplate:
+    """The template of a file, or of a folder holding exactly one (``*.json``), as the
+    folders ``annotate --mt`` takes: for commands that use one class. A folder of several
+    templates is an error saying to name one (``what`` names the option)."""
+    files = template_files(path)
+    if Path(path).is_dir() and len(files) != 1:
+        hint = (f"; name one of them, e.g. {what} {files[0]}" if files else "")
+        raise MtannoError(f"this command uses one template, but the folder holds "
+                          f"{len(files)}{hint}", path=str(path))
+    return load_template(files[0])
 
 
 def load_template_folder(path: str | os.PathLike, *,

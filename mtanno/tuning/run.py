@@ -215,7 +215,7 @@ def _tune_inputs(sources, mt_dir, keyframes_dir):
         from mtanno.keyframes import load_class_keyframes
 
         queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
-                                                feature_set=layout.feature_set)
+                                                feature_set=layout.feature_set, fps=layout.fps)
     return templates, layout, examples, queries
 
 

@@ -551,13 +551,13 @@ class LockBusy(MtannoError):
 
 
 def _holder(fh) -> dict:
-    import json
+    from mtanno.errors import parse_json
 
     try:
         fh.seek(0)
-        data = json.loads(fh.read() or "{}")
+        data = parse_json(fh.read() or "{}")
         return data if isinstance(data, dict) else {}
-    except (OSError, ValueError):
+    except (OSError, ValueError, MtannoError):
         return {}
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import JSONError, MtannoError, parse_json, read_input
 from mtanno.util import _parquet
 from mtanno.util.output import atomic_path, write_bytes
 
@@ -258,41 +258,66 @@ def _schema(names: tuple[str, ...]) -> pa.Schema:
     return schema
 
 
-def _found_feature_files(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:
+def _found_feature_files(inputs: Iterable[str | os.PathLike], failures: list[str] | None = None,
+                         ) -> list[tuple[Path, Path]]:
     """(file, its path below the folder it was found in — its name for a file given as
     such) for every feature file named by ``inputs`` (see :func:`feature_files`)."""
     out: list[tuple[Path, Path]] = []
+    problems: list[MtannoError] = []
     for item in inputs:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.rglob("*.parquet") if q.is_file())
-            if not found:
-                raise MtannoError("no feature files (*.parquet) in this folder", path=str(p))
+            found, odd = [], []
+            for q in sorted(p.rglob("*.parquet")):
+                if q.is_file():
+                    found.append(q)
+                elif not q.is_dir():  # a FIFO (reading it would block), device, broken link
+                    odd.append(q)
+            problems += [MtannoError("not a regular file (a FIFO, device or broken link)",
+                                     path=str(q)) for q in odd]
+            if not found and not odd:
+                problems.append(MtannoError("no feature files (*.parquet) in this folder",
+                                            path=str(p)))
             out.extend((q, q.relative_to(p)) for q in found)
         elif p.is_file():
             out.append((p, Path(p.name)))
+        elif p.exists() or p.is_symlink():
+            problems.append(MtannoError("not a regular file (a FIFO, device or broken link)",
+                                        path=str(p)))
         else:
-            raise MtannoError("no such feature file or folder", path=str(p))
+            problems.append(MtannoError("no such feature file or folder", path=str(p)))
+        if problems and failures is None:
+            raise problems[0]
     if not out:
-        raise MtannoError("no feature files (*.parquet) in the inputs")
+        raise problems[0] if problems else MtannoError("no feature files (*.parquet) in the "
+                                                       "inputs")
+    if failures is not None:
+        failures.extend(str(e) for e in problems)
     return out
 
 
-def feature_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+def feature_files(inputs: Iterable[str | os.PathLike], *,
+                  failures: list[str] | None = None) -> list[Path]:
     """Feature files named by ``inputs``: files as given, directories searched recursively
-    for ``*.parquet`` (sorted). A missing input, a directory without feature files, or no
-    file at all is an error."""
-    return [f for f, _ in _found_feature_files(inputs)]
+    for ``*.parquet`` (sorted). The one expansion of every command's feature inputs.
+
+    An input that names no feature file — missing, a folder without feature files (also
+    one named ``x.parquet``), a FIFO or other non-regular file given or found — is an
+    error; with ``failures``, a batch goes on past it: its message is appended there and
+    the others are returned. No feature file at all is an error either way (the first
+    problem, naming its input)."""
+    return [f for f, _ in _found_feature_files(inputs, failures)]
 
 
-def document_files_below(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path, Path]]:
+def document_files_below(inputs: Iterable[str | os.PathLike], *,
+                         failures: list[str] | None = None) -> list[tuple[Path, Path]]:
     """:func:`document_files` with each file's path below the folder it was found in (its
     name for a file given as such): for outputs that mirror the inputs' tree
     (``annotate --output-dir``)."""
     out: list[tuple[Path, Path]] = []
     names: dict[str, Path] = {}
     seen: set[Path] = set()
-    for p, rel in _found_feature_files(inputs):
+    for p, rel in _found_feature_files(inputs, failures):
         key = p.resolve()
         if key in seen:  # the same file given twice (a folder and a file in it)
             continue
@@ -305,10 +330,83 @@ def document_files_below(inputs: Iterable[str | os.PathLike]) -> list[tuple[Path
     return out
 
 
-def document_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+def document_files(inputs: Iterable[str | os.PathLike], *,
+                   failures: list[str] | None = None) -> list[Path]:
     """:func:`feature_files`, where no two files may name the same document (file stem):
     for commands whose outputs are keyed by document name."""
-    return [p for p, _ in document_files_below(inputs)]
+    return [p for p, _ in document_files_below(inputs, failures=failures)]
+
+
+#: Largest native frame number (and frame count) a feature file may give: the column is
+#: int32 (docs/formats.md), and tables refuse frames beyond 2³¹.
+MAX_NATIVE_FRAME = 2**31 - 1
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath: str) -> None:
+    """What the metadata says about the rows must be true of them (a file whose metadata
+    contradicts its rows is refused, not used with one or the other): ``analysis_frames``
+    is the number of rows; ``native_frames`` is a frame count no kept ``native_frame``
+    exceeds (both at most :data:`MAX_NATIVE_FRAME`); ``native_fps`` is a positive number;
+    ``feature_ids`` has one distinct id per feature column and ``groups`` name only
+    feature columns, each once; and a file with exactly a built-in feature set's columns
+    has that set's ids and groups."""
+    def bad(msg: str) -> MtannoError:
+        return MtannoError(msg, path=spath)
+
+    rows = int(native.size)
+    if native.size and native.max() > MAX_NATIVE_FRAME:
+        raise bad(f"native_frame must be at most {MAX_NATIVE_FRAME}; rows "
+                  f"{_rows(native > MAX_NATIVE_FRAME)} are not")
+    if "analysis_frames" in meta:
+        n = meta["analysis_frames"]
+        if not _is_int(n) or n != rows:
+            raise bad(f"analysis_frames in the mtanno metadata is {n!r} but the file has "
+                      f"{rows} rows")
+    if "native_frames" in meta:
+        n = meta["native_frames"]
+        if not _is_int(n) or not 0 <= n <= MAX_NATIVE_FRAME:
+            raise bad(f"native_frames in the mtanno metadata must be a frame count in "
+                      f"0..{MAX_NATIVE_FRAME}, got {n!r}")
+        if rows and native.max() > n:
+            raise bad(f"native_frame {int(native.max())} (row {int(native.argmax()) + 1}) is "
+                      f"beyond native_frames {n}, the frame count of the motion file")
+    nfps = meta.get("native_fps")
+    if "native_fps" in meta and (not isinstance(nfps, (int, float)) or isinstance(nfps, bool)
+                                 or not np.isfinite(nfps) or nfps <= 0):
+        raise bad(f"native_fps in the mtanno metadata must be a positive number, got {nfps!r}")
+    ids = meta.get("feature_ids")
+    if "feature_ids" in meta and not (
+            isinstance(ids, list) and len(ids) == len(names)
+            and all(isinstance(i, str) and i for i in ids) and len(set(ids)) == len(ids)):
+        raise bad(f"feature_ids in the mtanno metadata must list one distinct id per feature "
+                  f"column ({len(names)})")
+    groups = meta.get("groups") or {}
+    columns = set(names)
+    for g, members in groups.items():
+        if not g:
+            raise bad("groups in the mtanno metadata: a group without a name")
+        if len(set(members)) != len(members):
+            raise bad(f"group '{g}' in the mtanno metadata names a feature twice")
+        stray = [m for m in members if m not in columns]
+        if stray:
+            raise bad(f"group '{g}' in the mtanno metadata names '{stray[0]}', which is not "
+                      "a feature column of the file")
+    from mtanno.features import FEATURE_SETS
+
+    fs = FEATURE_SETS.get(meta["feature_set"])
+    if fs is not None and tuple(names) == fs.names:  # the set's own columns: its own table
+        if "feature_ids" in meta and ids != [f.id for f in fs.features]:
+            k = next(i for i, (a, f) in enumerate(zip(ids, fs.features)) if a != f.id)
+            raise bad(f"feature_ids in the mtanno metadata give {ids[k]!r} for column "
+                      f"'{names[k]}', which is {fs.features[k].id} in {fs.name}")
+        want = {g: [fs.names[i] for i in rows_] for g, rows_ in fs.groups.items()}
+        if "groups" in meta and meta["groups"] != want:
+            raise bad(f"groups in the mtanno metadata differ from those of {fs.name} "
+                      f"({', '.join(want)})")
 
 
 def _rows(mask: np.ndarray) -> str:
@@ -324,8 +422,11 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     Everything later stages rely on is checked here, once, so a malformed file is one
     :class:`MtannoError` naming it (and the batch it is part of can go on): the ``mtanno``
     metadata is a JSON object of the right schema with a positive ``analysis_fps`` and a
-    ``feature_set``; ``native_frame`` is an integer column without nulls, ≥ 1 and never
-    decreasing; every feature column is boolean without nulls, names unique. The file is
+    ``feature_set``; ``native_frame`` is an integer column without nulls, ≥ 1, never
+    decreasing and below 2³¹; every feature column is boolean without nulls, names unique;
+    and what the metadata says of the rows is true of them (``analysis_frames``,
+    ``native_frames``, ``native_fps``, ``feature_ids``, ``groups``:
+    :func:`_check_against_rows`). The file is
     read once; with ``sha256`` its hash is computed from the same bytes
     (``FeatureFile.sha256``), for indexes that record what they were built from.
     """
@@ -340,9 +441,10 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
         raise MtannoError("Parquet file has no mtanno metadata (not written by mtanno "
                           "features?)", path=spath)
     try:
-        meta = json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise MtannoError("mtanno metadata is not valid JSON", path=spath) from None
+        meta = parse_json(raw)
+    except JSONError as exc:
+        raise MtannoError(f"mtanno metadata is not valid JSON ({exc.message})",
+                          path=spath) from None
     meta = _check_meta(meta, spath)
     names = [c for c in table.column_names if c != "native_frame"]
     if "native_frame" not in table.column_names or not names:
@@ -375,6 +477,7 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     if native.size > 1 and np.any(np.diff(native) < 0):
         raise MtannoError(f"native_frame decreases at row(s) {_rows(np.diff(native) < 0)}",
                           path=spath)
+    _check_against_rows(meta, names, native, spath)
     meta["analysis_fps"] = float(meta["analysis_fps"])
     return FeatureFile(X=X, names=names, native_frames=native, meta=meta, path=spath,
                        sha256=hashlib.sha256(data).hexdigest() if sha256 else None)

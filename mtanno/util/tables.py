@@ -37,7 +37,7 @@ from typing import Any
 
 import pyarrow as pa
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_json
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
@@ -348,10 +348,7 @@ def _read_jsonl(text: str, spath: str) -> Table:
     for n, line in enumerate(text.splitlines(), 1):
         if not line.strip():
             continue
-        try:
-            obj = json.loads(line)
-        except json.JSONDecodeError as exc:
-            raise MtannoError(f"malformed JSON ({exc.msg})", path=spath, line=n) from None
+        obj = parse_json(line, path=spath, line=n)
         if not isinstance(obj, dict):
             raise MtannoError("each line must be a JSON object", path=spath, line=n)
         for k in obj:
@@ -373,8 +370,8 @@ def _read_parquet(raw: bytes, spath: str) -> Table:
     prov = None
     if meta is not None:
         try:
-            prov = json.loads(meta)
-        except (json.JSONDecodeError, UnicodeDecodeError):
+            prov = parse_json(meta)
+        except JSONError:
             prov = None
     try:
         rows = t.to_pylist()
@@ -390,8 +387,8 @@ def read_provenance(path: str | os.PathLike) -> dict | None:
     if side is None or not side.is_file():
         return None
     try:
-        obj = json.loads(side.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        obj, _ = read_json(side, what="provenance sidecar")
+    except MtannoError:
         return None
     return obj if isinstance(obj, dict) else None
 
@@ -406,8 +403,8 @@ def table_provenance(path: str | os.PathLike) -> dict | None:
     try:
         with open(path, "rb") as fh:  # a file object: pyarrow cannot open non-UTF-8 names
             raw = (pq.read_schema(fh).metadata or {}).get(_META_KEY)
-        prov = json.loads(raw) if raw else None
-    except (OSError, ValueError, TypeError, pa.ArrowException):
+        prov = parse_json(raw) if raw else None
+    except (OSError, ValueError, TypeError, pa.ArrowException, JSONError):
         return None
     return prov if isinstance(prov, dict) else None
 

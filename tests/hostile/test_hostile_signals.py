@@ -150,7 +150,8 @@ def long_documents(tmp_path_factory):
     long = d / "long"
     for i in range(12):
         write_features(long / f"d{i:02d}.parquet", X, ff.names, np.arange(1, X.shape[1] + 1),
-                       {**meta, "native_frames": int(X.shape[1])})
+                       {**meta, "native_frames": int(X.shape[1]),
+                        "analysis_frames": int(X.shape[1])})
     return w.mt, long
 
 
