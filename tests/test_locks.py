@@ -14,7 +14,7 @@ import time
 import pytest
 from world import cli
 
-from mtanno.util.output import EXIT_BUSY, LockBusy, folder_lock
+from mtanno.util.locks import EXIT_BUSY, LockBusy, folder_lock
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]

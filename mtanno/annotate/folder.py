@@ -15,7 +15,7 @@ templates, class configuration, keyframe queries), and its recorded provenance s
 made from this feature file (SHA-256) with the same templates, keyframe queries and
 configuration (SHA-256, wherever the files are now), the same options and the same mtanno
 version (:func:`recipe`). The caller holds the folder's lock
-(:func:`mtanno.util.output.folder_lock`) so that two runs never work on one folder at once.
+(:func:`mtanno.util.locks.folder_lock`) so that two runs never work on one folder at once.
 """
 
 from __future__ import annotations
@@ -187,7 +187,7 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
     suffix) as soon as its document is done, with its provenance. A document that fails
     (unreadable, other features than the templates, unwritable output) is recorded and
     the batch goes on. ``progress`` is called once per job. Hold the output folder's lock
-    (:func:`mtanno.util.output.folder_lock`) around this call."""
+    (:func:`mtanno.util.locks.folder_lock`) around this call."""
     from mtanno.annotate import write_annotations
     from mtanno.util.tables import provenance_as_read
 

@@ -34,7 +34,7 @@ def user_errors(code: int):
 
 def wait_option(fn):
     """``--wait``: wait for another run that holds the output folder's lock instead of
-    exiting with code 3 (:func:`mtanno.util.output.folder_lock`)."""
+    exiting with code 3 (:func:`mtanno.util.locks.folder_lock`)."""
     return click.option("--wait", is_flag=True,
                         help="If another mtanno run is writing into the same output, wait "
                              "for it to finish instead of exiting with code 3.")(fn)
@@ -83,9 +83,9 @@ def waiting_note(folder):
 
 
 def lock_output(folder, *, wait: bool, what: str = "output folder"):
-    """The folder lock of a command's output (:func:`mtanno.util.output.folder_lock`), saying on
+    """The folder lock of a command's output (:func:`mtanno.util.locks.folder_lock`), saying on
     standard error when it waits."""
-    from mtanno.util.output import folder_lock
+    from mtanno.util.locks import folder_lock
 
     return folder_lock(folder, wait=wait, what=what, on_wait=waiting_note(folder))
 

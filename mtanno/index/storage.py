@@ -49,10 +49,10 @@ class CorruptIndex(MtannoError):
 
 
 def write_lock(root: Path, *, wait: bool = False, on_wait=None):
-    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.util.output.folder_lock`: a dead
-    process releases it; a busy index raises :class:`mtanno.util.output.LockBusy`, exit code 3,
+    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.util.locks.folder_lock`: a dead
+    process releases it; a busy index raises :class:`mtanno.util.locks.LockBusy`, exit code 3,
     naming the run that holds it, or waits with ``wait``)."""
-    from mtanno.util.output import folder_lock
+    from mtanno.util.locks import folder_lock
 
     return folder_lock(root, wait=wait, what="index", name=".lock", on_wait=on_wait)
 

@@ -1,7 +1,8 @@
 """Plumbing shared by every stage and command (no algorithms here):
 
 * :mod:`~mtanno.util.output` — atomic writes, the umask, temporaries of dead writers,
-  outputs checked against inputs, folder locks;
+  outputs checked against inputs;
+* :mod:`~mtanno.util.locks` — the writer lock of an output folder (cron safety);
 * :mod:`~mtanno.util.tables` — the one I/O convention of every table (CSV, Parquet, JSON
   Lines by suffix; provenance; ``-`` for standard input and output);
 * :mod:`~mtanno.util.store` — feature files (Parquet): the one reader and writer, layouts;
@@ -14,4 +15,4 @@ The modules are imported by name (``from mtanno.util.store import read_features`
 file imports none of them, so that loading one does not load the others.
 """
 
-__all__ = ["jitnote", "output", "store", "tables", "workers"]
+__all__ = ["jitnote", "locks", "output", "store", "tables", "workers"]
