@@ -240,7 +240,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     import time
 
     from mtanno.index import example_query, load_query, open_index, search
-    from mtanno.index.query import DEFAULT_MIN_SEGMENT, example_matrix, resolve_features, warm_up
+    from mtanno.index.example import DEFAULT_MIN_SEGMENT, example_matrix, resolve_features
+    from mtanno.index.query import warm_up
     from mtanno.index.storage import index_files
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import output_files, table_format
@@ -292,8 +293,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
 
 def _write_hits(index, hits, *, output, rank_mt, top, quiet, inputs, **record) -> None:
     """Rank the hits by the ``--rank-mt`` template (a note counts the hits it cannot fit)
-    and write them (:func:`mtanno.index.query.write_query_hits`)."""
-    from mtanno.index.query import rank_by_template_file, write_query_hits
+    and write them (:func:`mtanno.index.ranking.write_query_hits`)."""
+    from mtanno.index.ranking import rank_by_template_file, write_query_hits
 
     if rank_mt is not None:
         hits, columns = rank_by_template_file(index, hits, rank_mt)
