@@ -20,18 +20,42 @@ class MtannoError(Exception):
     Parameters
     ----------
     message:
-        What is wrong, as one sentence without a trailing period.
+        What is wrong, as one sentence without a trailing period. With ``options``, the
+        names of the caller's parameters it speaks of are written ``{name}``: the message
+        then reads ``name=`` from Python and ``--name`` on the command line
+        (:meth:`for_command`), so the API never speaks in flags.
     path:
         The file the error is about, if any.
     line:
         The 1-based line number in ``path``, if known.
+    options:
+        The parameter names the message names as ``{name}``.
     """
 
-    def __init__(self, message: str, *, path: str | None = None, line: int | None = None):
-        self.message = message
+    def __init__(self, message: str, *, path: str | None = None, line: int | None = None,
+                 options: tuple[str, ...] = ()):
+        self.template = message
+        self.options = tuple(options)
+        self.message = self._render({o: f"{o}=" for o in self.options})
         self.path = None if path is None else str(path)
         self.line = line
         super().__init__(str(self))
+
+    def _render(self, names: dict[str, str]) -> str:
+        out = self.template
+        for name, text in names.items():  # (not str.format: other braces stay as they are)
+            out = out.replace("{" + name + "}", text)
+        return out
+
+    def for_command(self, flags: dict[str, str] | None = None) -> str:
+        """The one-line message as the command line shows it: each option as its flag
+        (``flags[name]``, else ``--name`` with dashes for underscores)."""
+        names = {o: (flags or {}).get(o, "--" + o.replace("_", "-")) for o in self.options}
+        message = self._render(names)
+        if self.path is None:
+            return message
+        return f"{self.path}: {message}" if self.line is None else \
+            f"{self.path}:{self.line}: {message}"
 
     def __str__(self) -> str:
         if self.path is None:

@@ -673,9 +673,10 @@ def test_ambiguous_rig_lists_what_it_could_not_place(tmp_path, names, expected):
         read_motion(path)
     msg = str(e.value)
     assert "\n" not in msg and msg.startswith(f"{path}: no skeleton map fits this BVH rig")
-    assert expected in msg and msg.endswith("pass --skeleton MAP.toml (docs/formats.md)")
+    assert expected in msg and msg.endswith("pass skeleton= MAP.toml (docs/formats.md)")
     result = CliRunner().invoke(main, ["info", str(path)])
     assert result.exit_code == 2 and result.output.count("\n") == 1
+    assert result.output.rstrip().endswith("pass --skeleton MAP.toml (docs/formats.md)")
     assert "Traceback" not in result.output
 
 

@@ -72,10 +72,10 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
         if len(asfs) == 1:
             return asfs[0]
         raise MtannoError(f"several ASF files in {folder} and none is named like the AMC "
-                          f"({', '.join(p.name for p in asfs[:5])}); pass --asf FILE",
-                          path=str(amc_path))
-    raise MtannoError("no ASF skeleton found in the AMC's folder or above it; pass --asf FILE",
-                      path=str(amc_path))
+                          f"({', '.join(p.name for p in asfs[:5])}); pass {{asf}} FILE",
+                          path=str(amc_path), options=("asf",))
+    raise MtannoError("no ASF skeleton found in the AMC's folder or above it; pass {asf} FILE",
+                      path=str(amc_path), options=("asf",))
 
 
 def _asf_folders(amc: Path):

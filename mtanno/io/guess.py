@@ -303,8 +303,8 @@ def _heading_axis(t: _Tree, lhip: int, rhip: int) -> tuple[float, float, float]:
     n = float(np.linalg.norm(v))
     if n == 0.0:
         raise MtannoError(f"the hips {t.names[lhip]} and {t.names[rhip]} are at the same "
-                          "point in the rest pose: no heading axis; pass --skeleton MAP.toml",
-                          path=t.rig.source)
+                          "point in the rest pose: no heading axis; pass {skeleton} MAP.toml",
+                          path=t.rig.source, options=("skeleton",))
     k = int(np.argmax(np.abs(v)))
     if abs(v[k]) / n >= math.cos(math.radians(_SNAP_DEG)):
         axis = [0.0, 0.0, 0.0]
@@ -392,7 +392,8 @@ def guess_map(rig: Rig, channels: Channels | None = None, *,
         detail = "; ".join(f"{', '.join(ks)}: {why}" for why, ks in reasons.items())
         raise MtannoError(f"no skeleton map fits this BVH rig and it cannot be mapped "
                           f"automatically: could not place {', '.join(missing)} ({detail}); "
-                          f"pass --skeleton MAP.toml (docs/formats.md)", path=rig.source)
+                          "pass {skeleton} MAP.toml (docs/formats.md)", path=rig.source,
+                          options=("skeleton",))
     j = out.joints
     if swap_sides:
         j = {_SWAP.get(k, k): v for k, v in j.items()}

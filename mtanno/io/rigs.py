@@ -262,4 +262,4 @@ def select_map(kind: str, names, override: str | os.PathLike | None = None, *,
             return m
     raise MtannoError(f"no skeleton map fits this {kind.upper()} rig (nodes: "
                       f"{', '.join(list(names)[:8])}, ...); add one to {user_dir()} or "
-                      f"pass --skeleton MAP.toml", path=source)
+                      "pass {skeleton} MAP.toml", path=source, options=("skeleton",))

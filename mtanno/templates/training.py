@@ -129,8 +129,8 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     table, rows = read_clip_manifest(manifest)
     spath = table.path
     if split is not None and "split" not in table.columns:
-        raise MtannoError("manifest has no split column to filter by --split", path=spath,
-                          line=table.header_line)
+        raise MtannoError("manifest has no split column to filter by {split}", path=spath,
+                          line=table.header_line, options=("split",))
     fdir = Path(features_dir)
     if not fdir.is_dir():
         raise MtannoError("features folder not found", path=str(fdir))
@@ -218,17 +218,22 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
     :func:`ignored_documents_note`), or class folders. Contradictory combinations are
     errors saying which options go together."""
     if manifest is not None and truth is not None:
-        raise MtannoError("--manifest and --truth exclude each other")
+        raise MtannoError("{manifest} and {truth} exclude each other",
+                          options=("manifest", "truth"))
     if manifest is not None:
         if training:
-            raise MtannoError("no TRAINING arguments with --manifest (it lists the files)")
+            raise MtannoError("no {training} arguments with {manifest} (it lists the files)",
+                              options=("training", "manifest"))
         if features_dir is None:
-            raise MtannoError("--manifest needs --features-dir DIR")
+            raise MtannoError("{manifest} needs {features_dir} (the folder of its feature files)",
+                              options=("manifest", "features_dir"))
         return sources_from_manifest(manifest, features_dir=features_dir, split=split)
     if features_dir is not None or split is not None:
-        raise MtannoError("--features-dir and --split go with --manifest")
+        raise MtannoError("{features_dir} and {split} go with {manifest}",
+                          options=("features_dir", "split", "manifest"))
     if not training:
-        raise MtannoError("give TRAINING folders or files (or --manifest)")
+        raise MtannoError("give {training} folders or files (or {manifest})",
+                          options=("training", "manifest"))
     if truth is None:
         return sources_from_tree(training)
     missing: list[str] = []

@@ -137,8 +137,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     t0 = time.perf_counter()
     methods = check_methods(methods)
     if documents not in DOCUMENT_MODES:
-        raise MtannoError(f"unknown --documents {documents!r} (choose from "
-                          f"{', '.join(DOCUMENT_MODES)})")
+        raise MtannoError(f"unknown {{documents}} {documents!r} (choose from "
+                          f"{', '.join(DOCUMENT_MODES)})", options=("documents",))
     if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
         raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
     templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir)
