@@ -1,9 +1,11 @@
 """Command line: a thin Click layer over the Python API.
 
 Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
-bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM). Errors a
-user can fix are printed as one line ``mtanno: path:line: what is wrong``; an interruption
-as ``mtanno: interrupted (SIGINT)``.
+bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM), 129 hung up
+(SIGHUP). Errors a user can fix are printed as one line ``mtanno: path:line: what is
+wrong``, usage errors too; an interruption as ``mtanno: interrupted (SIGINT)``. The
+``mtanno`` program starts in :mod:`mtanno.__main__`, which handles the signals before this
+module is imported and after the command returned.
 """
 
 from __future__ import annotations
@@ -18,15 +20,38 @@ import click
 import mtanno.commands
 from mtanno._version import __version__
 
-#: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
+#: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it);
+#: SIGHUP gives 129 (:func:`mtanno.util.workers.exit_code`).
 EXIT_INTERRUPTED = 130
+
+
+class _UsageLine(click.UsageError):
+    """A usage error (bad option value, unknown option, missing argument) as one line,
+    ``mtanno: <what is wrong> (see 'mtanno CMD --help')``, exit code 2, instead of Click's
+    usage, hint and error lines."""
+
+    def __init__(self, exc: click.UsageError):
+        super().__init__(exc.format_message(), exc.ctx)
+
+    def show(self, file=None) -> None:
+        where = self.ctx.command_path if self.ctx is not None else "mtanno"
+        click.echo(f"mtanno: {self.format_message().rstrip('.')} (see '{where} --help')",
+                   err=True)
+
+
+def _one_line(exc: click.UsageError) -> click.UsageError:
+    # "no arguments: show the help" is a UsageError too, and must show the help
+    if isinstance(exc, (_UsageLine, getattr(click.exceptions, "NoArgsIsHelpError", ()))):
+        return exc
+    return _UsageLine(exc)
 
 
 class _Main(click.Group):
     """The ``mtanno`` group: records the command line for the provenance of outputs, says
     when numba compiles the kernels (:mod:`mtanno.util.jitnote`), and turns an interruption
-    (SIGINT, or SIGTERM handled like it, see :mod:`mtanno.util.workers`)
-    into one line and exit code 130 instead of Click's "Aborted!" and 1."""
+    (SIGINT, or SIGTERM or SIGHUP handled like it, see :mod:`mtanno.util.workers`) into one
+    line and exit code 130 (129 for SIGHUP) instead of Click's "Aborted!" and 1; usage
+    errors are one line too (:class:`_UsageLine`)."""
 
     def main(self, args=None, prog_name=None, **extra):
         from mtanno.util.tables import set_command_line
@@ -34,7 +59,14 @@ class _Main(click.Group):
         set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
         return super().main(args=args, prog_name=prog_name, **extra)
 
+    def make_context(self, info_name, args, parent=None, **extra):
+        try:  # the group's own options (mtanno --bogus)
+            return super().make_context(info_name, args, parent=parent, **extra)
+        except click.UsageError as exc:
+            raise _one_line(exc) from None
+
     def invoke(self, ctx):
+        from mtanno.__main__ import interrupted_line
         from mtanno.util.jitnote import install_compile_note
         from mtanno.util.workers import Interrupted, interruptible, must_hard_exit
 
@@ -42,16 +74,18 @@ class _Main(click.Group):
         try:
             with interruptible():
                 return super().invoke(ctx)
+        except click.UsageError as exc:
+            raise _one_line(exc) from None
         except KeyboardInterrupt as exc:
             name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
-            click.echo(f"mtanno: interrupted ({name}); finished outputs are complete, "
-                       "unfinished ones were not written", err=True)
+            code = exc.exit_code if isinstance(exc, Interrupted) else EXIT_INTERRUPTED
+            click.echo(interrupted_line(name), err=True)
             if must_hard_exit() and sys.stdout is sys.__stdout__:  # not under CliRunner
                 # a stopped worker pool could hold up the interpreter's shutdown
                 sys.stdout.flush()
                 sys.stderr.flush()
-                os._exit(EXIT_INTERRUPTED)
-            sys.exit(EXIT_INTERRUPTED)
+                os._exit(code)
+            sys.exit(code)
 
 
 @click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})

@@ -9,7 +9,6 @@ import os
 import subprocess
 import sys
 import threading
-import time
 
 import pytest
 from world import cli
@@ -18,6 +17,31 @@ from mtanno.util.locks import EXIT_BUSY, LockBusy, folder_lock
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
+#: Generous bound on waiting for another process (a hung run fails instead of hanging).
+HANG = 120.0
+
+
+def _lines_until(proc: subprocess.Popen, text: str) -> list[str]:
+    """Read ``proc``'s standard error line by line until a line holds ``text`` (the event
+    the test waits for, instead of a fixed sleep); the lines read. Fails if the process ends
+    first or nothing comes within :data:`HANG` seconds."""
+    lines: list[str] = []
+    found = threading.Event()
+
+    def read():
+        for line in proc.stderr:
+            lines.append(line)
+            if text in line:
+                found.set()
+                return
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(HANG)
+    if not found.is_set():
+        proc.kill()
+        pytest.fail(f"no line with {text!r} from the run: {''.join(lines)}")
+    return lines
 
 
 def test_second_holder_is_refused_with_the_holder_named(tmp_path):
@@ -34,18 +58,22 @@ def test_second_holder_is_refused_with_the_holder_named(tmp_path):
 def test_wait_takes_the_lock_when_it_is_released(tmp_path):
     order = []
     notes = []
-    first = threading.Event()
+    first, waiting = threading.Event(), threading.Event()
 
     def holder():
         with folder_lock(tmp_path):
             first.set()
-            time.sleep(0.3)
+            waiting.wait(HANG)  # release only once the second says it waits
             order.append("first done")
+
+    def on_wait(note):
+        notes.append(note)
+        waiting.set()
 
     t = threading.Thread(target=holder)
     t.start()
     first.wait()
-    with folder_lock(tmp_path, wait=True, on_wait=notes.append):
+    with folder_lock(tmp_path, wait=True, on_wait=on_wait):
         order.append("second in")
     t.join()
     assert order == ["first done", "second in"]
@@ -78,11 +106,10 @@ def test_commands_exit_3_or_wait(world, tmp_path):
         proc = subprocess.Popen([*MTANNO, "learn-mt", "--manifest", str(world.manifest),
                                  "--features-dir", str(world.feats), "-o", str(out), "-q",
                                  "--wait"], stderr=subprocess.PIPE, text=True)
-        time.sleep(1.0)
+        lines = _lines_until(proc, "waiting for pid")  # it reached the lock and waits
         assert proc.poll() is None  # still waiting
-    _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 0, err
-    assert "waiting for pid" in err
+    _, err = proc.communicate(timeout=HANG)
+    assert proc.returncode == 0, "".join(lines) + err
     assert sorted(p.name for p in out.glob("*.json"))
 
 

@@ -1,8 +1,11 @@
-"""Helpers shared by the command modules: error reporting, progress bars."""
+"""Helpers shared by the command modules: error reporting, progress bars, and the option
+types that refuse values which make no sense (NaN, an empty name list, a scheduler address
+that is none) before a command starts."""
 
 from __future__ import annotations
 
 import functools
+import math
 import sys
 
 import click
@@ -40,10 +43,81 @@ def wait_option(fn):
                              "for it to finish instead of exiting with code 3.")(fn)
 
 
+class Number(click.FloatRange):
+    """A float option inside ``[min, max]`` that is a number: NaN is refused always (it
+    passes every comparison, so a range alone lets it through), ±∞ unless ``allow_inf``.
+    A refused value is a usage error (exit code 2): ``--tau must be a number ≥ 0, got nan``."""
+
+    name = "number"
+
+    def __init__(self, min: float | None = None, max: float | None = None, *,
+                 allow_inf: bool = False, **kwargs):
+        super().__init__(min, max, **kwargs)
+        self.allow_inf = allow_inf
+
+    def convert(self, value, param, ctx):
+        rv = click.FLOAT.convert(value, param, ctx)
+        if math.isnan(rv) or (math.isinf(rv) and not self.allow_inf):
+            kind = "a number" if self.allow_inf else "a finite number"
+            if self.min is not None and self.max is not None:
+                kind += f" in [{self.min:g}, {self.max:g}]"
+            elif self.min is not None:
+                kind += f" ≥ {self.min:g}"
+            elif self.max is not None:
+                kind += f" ≤ {self.max:g}"
+            raise click.UsageError(f"{_option(param)} must be {kind}, got {value}", ctx)
+        return super().convert(rv, param, ctx)
+
+
+def _option(param) -> str:
+    """How the user wrote the option (``--tau``), for a message."""
+    opts = getattr(param, "opts", None)
+    return opts[0] if opts else getattr(param, "name", None) or "the value"
+
+
+#: τ, the threshold on a match's cost: a number ≥ 0; ∞ is allowed (every match counts).
+TAU = Number(min=0, allow_inf=True)
+#: δ, the quantization delta of a template: a number in [0, 0.5].
+DELTA = Number(0, 0.5)
+
+
+class NameList(click.ParamType):
+    """A comma-separated list of names (``NAME,...``): every name non-empty, so ``''`` or
+    ``a,,b`` is a usage error instead of "no names" read as "all". The value stays a
+    string (names stripped, joined by commas), as the commands split it."""
+
+    name = "names"
+
+    def convert(self, value, param, ctx):
+        names = [n.strip() for n in str(value).split(",")]
+        if not all(names):
+            raise click.UsageError(f"{_option(param)} must be comma-separated names, none "
+                                   f"empty, got {value!r}", ctx)
+        return ",".join(names)
+
+
+NAMES = NameList()
+
+
+def _check_scheduler(ctx, param, value):
+    """The ``--scheduler`` callback: the address checked before the command starts."""
+    if value is None:
+        return None
+    from mtanno.errors import MtannoError
+    from mtanno.util.workers import scheduler_address
+
+    try:
+        return scheduler_address(value)
+    except MtannoError as exc:
+        raise click.UsageError(exc.message, ctx) from None
+
+
 def scheduler_option(fn):
     """``--scheduler ADDRESS|local:N``: run the tasks on a dask.distributed cluster
-    (:class:`mtanno.util.workers.DaskPool`, docs/scaling.md) instead of ``--jobs`` processes."""
+    (:class:`mtanno.util.workers.DaskPool`, docs/scaling.md) instead of ``--jobs`` processes;
+    an address that is none is a usage error (:func:`mtanno.util.workers.scheduler_address`)."""
     return click.option("--scheduler", default=None, metavar="ADDRESS|local:N",
+                        callback=_check_scheduler,
                         help="Run the tasks on a dask.distributed cluster (scheduler address, "
                              "or local:N for N local workers) instead of --jobs processes; "
                              "same results. Needs pip install 'mtanno[dask]'; "

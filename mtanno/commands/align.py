@@ -8,14 +8,14 @@ from __future__ import annotations
 import click
 
 from mtanno.align.options import COSTS, DEFAULT_BAND, DEFAULT_COST
-from mtanno.commands._common import user_errors
+from mtanno.commands._common import NAMES, user_errors
 
 
 @click.command("align", epilog="Exit codes: 0 success, 2 usage error or bad input (nothing "
                "written), 130 interrupted.")
 @click.argument("motion_a", metavar="A", type=click.Path(dir_okay=False))
 @click.argument("motion_b", metavar="B", type=click.Path(dir_okay=False))
-@click.option("--features", "features", default=None, metavar="NAME,...",
+@click.option("--features", "features", default=None, metavar="NAME,...", type=NAMES,
               help="Features to segment by (and to compare with --cost features), "
                    "comma-separated names.")
 @click.option("--group", default=None, metavar="GROUP",

@@ -9,6 +9,8 @@ import click
 
 from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, load_class_models
 from mtanno.commands._common import (
+    DELTA,
+    TAU,
     lock_output,
     scheduler_option,
     show_progress,
@@ -46,9 +48,9 @@ check_features = check_layout
 @click.option("--classes", "config_path", type=click.Path(dir_okay=False), default=None,
               help="Class configuration (TOML): per-class tau, superclasses, and the methods "
                    "`mtanno tune` writes (docs/annotation.md).")
-@click.option("--tau", type=float, default=None,
+@click.option("--tau", type=TAU, default=None,
               help=f"Threshold tau for every class without its own [default: {DEFAULT_TAU:g}].")
-@click.option("--delta", type=float, default=None,
+@click.option("--delta", type=DELTA, default=None,
               help="Quantization delta of the templates [default: [decoder] delta of "
                    f"--classes, else {DEFAULT_DELTA:g}].")
 @click.option("--dbar", "--variant", "variant", type=click.Choice(["reference", "paper"]),
@@ -278,7 +280,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
 @click.option("--truth", "truth_path", required=True,
               type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth of the documents (doc,start,end,label[,fps]).")
-@click.option("--delta", type=float, default=RETRIEVAL_DELTA, show_default=True,
+@click.option("--delta", type=DELTA, default=RETRIEVAL_DELTA, show_default=True,
               help=f"Quantization delta of the templates (MR06 retrieval: {RETRIEVAL_DELTA:g}).")
 @click.option("--max-hits", default=2000, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")

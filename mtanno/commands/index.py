@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import parse_frames, user_errors, wait_option, waiting_note
+from mtanno.commands._common import NAMES, parse_frames, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
 
@@ -63,7 +63,7 @@ def _summary(index) -> str:
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
 @click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
               help="Index directory (new, empty, or an index to replace).")
-@click.option("--groups", default=None, metavar="G1,G2",
+@click.option("--groups", default=None, metavar="G1,G2", type=NAMES,
               help="Index only these groups of the feature set (default: all).")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line.")
 @wait_option
@@ -181,7 +181,7 @@ def info_cmd(index_dir, as_json, output):
               help="Query by example: a feature file, or the name of an indexed document.")
 @click.option("--frames", default=None, metavar="A:B",
               help="Example frames, 1-based inclusive at 30 Hz (default: all).")
-@click.option("--features", "feature_list", default=None, metavar="NAME,...",
+@click.option("--features", "feature_list", default=None, metavar="NAME,...", type=NAMES,
               help="Features of the example that matter (names, ids such as F07, or MRC05 "
                    "Table 1 names such as Fl7).")
 @click.option("--query", "query_file", default=None, type=click.Path(dir_okay=False),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from mtanno.commands._common import user_errors
+from mtanno.commands._common import DELTA, TAU, user_errors
 from mtanno.errors import MtannoError
 
 
@@ -21,10 +21,10 @@ from mtanno.errors import MtannoError
 @click.option("--features", "features", multiple=True, type=click.Path(exists=True),
               help="Feature files or folders of the annotated documents (with --mt). "
                    "Repeatable.")
-@click.option("--tau", type=float, default=None,
+@click.option("--tau", type=TAU, default=None,
               help="Threshold drawn in the Δ plots [default: the annotation's tau, and "
                    "its per-class taus in the classes' colours].")
-@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+@click.option("--delta", type=DELTA, default=None,
               help="Quantization delta of the templates for the Δ plots [default: the "
                    "annotation's, else 0.05].")
 @click.option("--title", default="mtanno annotation report", show_default=True,

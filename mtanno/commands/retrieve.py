@@ -11,7 +11,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import show_progress, user_errors
+from mtanno.commands._common import DELTA, TAU, show_progress, user_errors
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA, DEFAULT_MAX_HITS, DEFAULT_TAU
 from mtanno.util.store import feature_files
@@ -23,7 +23,7 @@ from mtanno.util.store import feature_files
 @click.option("--mt", "mt_path", required=True, type=click.Path(),
               help="Template JSON of the class (from learn-mt; quantized with its delta, or "
                    "with --delta, when it is not quantized yet), or a folder holding one.")
-@click.option("--tau", default=DEFAULT_TAU, show_default=True, type=float,
+@click.option("--tau", default=DEFAULT_TAU, show_default=True, type=TAU,
               help="Quality threshold: hits have cost Δ ≤ tau (MR06: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
 @click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
@@ -34,7 +34,7 @@ from mtanno.util.store import feature_files
               help="Matching variant (as annotate --match): the reference implementation's "
                    "(weights expand the template) or the papers' as written "
                    "(docs/retrieval.md); --variant is its former name.")
-@click.option("--delta", "qdelta", default=None, type=click.FloatRange(0, 0.5),
+@click.option("--delta", "qdelta", default=None, type=DELTA,
               help="Quantize an unquantized template with this δ (default: the template's "
                    f"own delta, else {DEFAULT_DELTA:g} as in MR06). A quantized template keeps "
                    "its own delta.")

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import click
 
-from mtanno.commands._common import parse_frames, user_errors
+from mtanno.commands._common import NAMES, parse_frames, user_errors
 
 
 @click.command("show", epilog="Exit codes: 0 success, 2 bad input.")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--frames", default=None, metavar="A:B",
               help="Frames to show, 1-based inclusive at 30 Hz (default: all).")
-@click.option("--features", "feature_list", default=None, metavar="NAME,...",
+@click.option("--features", "feature_list", default=None, metavar="NAME,...", type=NAMES,
               help="Features to show, by name or id (F20); default: all. `mtanno info "
                    "FILE --features` lists them.")
 @click.option("--width", default=100, show_default=True, type=click.IntRange(min=10),

@@ -11,7 +11,15 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mtanno.commands._common import lock_output, show_progress, training_options, user_errors, wait_option
+from mtanno.commands._common import (
+    DELTA,
+    Number,
+    lock_output,
+    show_progress,
+    training_options,
+    user_errors,
+    wait_option,
+)
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 
@@ -40,7 +48,7 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
               help="Learn only this class (repeatable). Default: every class found.")
 @click.option("--iterations", default=10, show_default=True, type=click.IntRange(min=1),
               help="Maximum number of learning iterations.")
-@click.option("--thresh", default=0.005, show_default=True, type=click.FloatRange(min=0),
+@click.option("--thresh", default=0.005, show_default=True, type=Number(min=0),
               help="Stop once the largest normalised alignment cost is at most this.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
@@ -140,7 +148,7 @@ _PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
 
 @mt_group.command("show", epilog="Exit codes: 0 success, 2 bad input.")
 @click.argument("template", type=click.Path(dir_okay=False))
-@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+@click.option("--delta", type=DELTA, default=None,
               help="Quantization δ for the feature ranking and picture of an unquantized "
                    f"template  [default: {RETRIEVAL_DELTA:g}, MR06]")
 @click.option("--top", default=10, show_default=True, type=click.IntRange(min=0),
@@ -240,7 +248,7 @@ def mt_mirror_cmd(template, output, name):
 
 @mt_group.command("scale", epilog="Exit codes: 0 success, 2 bad input.")
 @click.argument("template", type=click.Path(dir_okay=False))
-@click.option("--factor", required=True, type=click.FloatRange(0.1, 10),
+@click.option("--factor", required=True, type=Number(0.1, 10),
               help="Performances this many times as long: 0.6 for faster ones, 1.6 for "
                    "slower ones (0.1–10).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
@@ -271,7 +279,7 @@ def mt_scale_cmd(template, factor, output):
 
 @mt_group.command("quantize", epilog="Exit codes: 0 success, 2 bad input.")
 @click.argument("template", type=click.Path(dir_okay=False))
-@click.option("--delta", required=True, type=click.FloatRange(0, 0.5),
+@click.option("--delta", required=True, type=DELTA,
               help="Entries ≤ δ become 0, entries ≥ 1−δ become 1, the rest the wildcard "
                    "0.5 (0.1 for retrieval, MR06; 0.05 for annotation, MBS09; 0 keeps only "
                    "unanimous entries).")
@@ -298,7 +306,7 @@ def mt_quantize_cmd(template, delta, output):
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Picture file: .png, .svg or .pdf.")
-@click.option("--delta", type=click.FloatRange(0, 0.5), default=None,
+@click.option("--delta", type=DELTA, default=None,
               help="Quantize first with this δ (0: only unanimous entries stay 0 or 1).")
 @user_errors(2)
 def mt_plot_cmd(template, output, delta):

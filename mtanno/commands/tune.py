@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import scheduler_option, training_options, user_errors
+from mtanno.commands._common import Number, scheduler_option, training_options, user_errors
 from mtanno.tuning.cv import DOCUMENT_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
@@ -38,7 +38,7 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
               help=f"Leave a method as in the reference annotation (repeatable): "
                    f"{', '.join(METHODS)}.")
 @click.option("--unknown-weight", default=UNKNOWN_WEIGHT, show_default=True,
-              type=click.FloatRange(min=0),
+              type=Number(min=0),
               help="Weight w of the unknown-class rate in the objective (F1 + F2)/2 − w·U.")
 @click.option("--ablation", "ablation_dir", type=click.Path(file_okay=False), default=None,
               help="Also tune with each method left out, and with none, on the same folds; "

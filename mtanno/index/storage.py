@@ -191,8 +191,12 @@ def _read_verified(gen_dir: Path, name: str, entry: dict) -> pa.Table:
         raise CorruptIndex("corrupt index: file size or checksum differs from manifest.json",
                            path=str(path))
     try:
-        return pq.read_table(pa.BufferReader(data))
-    except (pa.ArrowInvalid, OSError) as exc:
+        # Read in this thread (as store.read_features does): pq.read_table's dataset
+        # scanner may drop its last reference to ``data`` from an Arrow thread after it
+        # returned, and that thread aborts the process (SIGABRT) if the interpreter is
+        # shutting down by then — after a "corrupt index" error, say.
+        return pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
+    except (pa.ArrowException, OSError, ValueError, IndexError) as exc:
         raise CorruptIndex(f"corrupt index: unreadable Parquet ({exc})", path=str(path)) from None
 
 

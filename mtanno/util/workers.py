@@ -1,16 +1,24 @@
 """Worker processes and signals: the one policy of every command that runs in parallel.
 
-* **SIGTERM is handled like SIGINT.** Inside :func:`interruptible` (the command line wraps
-  every command in it) SIGTERM raises :class:`Interrupted`, a :class:`KeyboardInterrupt`,
-  so the same code runs for both: temporary files are removed
-  (:func:`mtanno.util.output.atomic_path`), workers are stopped, and the command line prints one
-  line and exits 130.
+* **SIGTERM and SIGHUP are handled like SIGINT.** Inside :func:`interruptible` (the command
+  line wraps every command in it) they raise :class:`Interrupted`, a
+  :class:`KeyboardInterrupt`, so the same code runs for all three: temporary files are
+  removed (:func:`mtanno.util.output.atomic_path`), workers are stopped, and the command line
+  prints one line and exits 130 (129 for SIGHUP). Before and after the command (imports,
+  interpreter shutdown) :mod:`mtanno.__main__` holds the same policy.
+* **An interruption inside a ctypes callback is delivered again.** numba loads its cached
+  kernels through ctypes callbacks; an exception raised there is printed ("Exception
+  ignored on calling ctypes callback") and dropped by ctypes. :func:`interruptible` and the
+  workers catch that :class:`Interrupted` in ``sys.unraisablehook`` and send the signal
+  again, so it is raised at the next point outside the callback.
 * **Workers never outlive the parent.** A :class:`WorkerPool` worker asks the Linux kernel
   for SIGTERM when its parent dies (``prctl(PR_SET_PDEATHSIG)`` through :mod:`ctypes`) and,
   as a fallback on every system, watches the parent's pid from a thread: when the parent
   is gone (killed with SIGKILL, say), the worker stops within a fraction of a second.
-* **Workers ignore SIGINT.** Ctrl-C reaches the whole process group; the parent decides:
-  it stops its workers (SIGTERM, then SIGKILL for one that does not end) and unwinds.
+* **Workers ignore SIGINT and SIGHUP.** Ctrl-C (or a hangup) reaches the whole process
+  group; the parent decides: it stops its workers (SIGTERM, then SIGKILL for one that does
+  not end) and unwinds. Also a worker forked a moment ago that has not set its own handlers
+  yet (:func:`_raise_interrupted` sees another pid) ignores them, and exits on SIGTERM.
 * **A worker that gets SIGTERM** unwinds the task it is running (so its temporary files are
   removed) and exits; an idle worker exits at once; further SIGTERMs are ignored while it
   unwinds (the watchdog ends it after :data:`STOP_GRACE` if it has not). Nothing is
@@ -22,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import re
 import signal
 import sys
 import threading
@@ -32,18 +41,31 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 __all__ = ["DaskPool", "Interrupted", "SerialPool", "WorkerPool", "interruptible", "make_pool",
-           "must_hard_exit", "shared"]
+           "must_hard_exit", "scheduler_address", "shared"]
 
 #: How often a worker checks that its parent is alive (seconds).
 WATCHDOG_INTERVAL = 0.2
 #: How long a stopped worker may take to unwind before it is killed (seconds).
 STOP_GRACE = 0.5
+#: How soon an interruption lost in a ctypes callback is delivered again (seconds).
+REDELIVER_DELAY = 0.005
 
 _PR_SET_PDEATHSIG = 1
 
 
+#: The signals a command handles alike (SIGINT, SIGTERM, SIGHUP where there is one).
+SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+_SIGHUP = getattr(signal, "SIGHUP", None)
+
+
+def exit_code(signum: int) -> int:
+    """The exit code of a command stopped by ``signum``: 129 for SIGHUP (128 + 1, as a shell
+    reports it), else 130 (SIGINT's, also for SIGTERM: "interrupted")."""
+    return 129 if signum == _SIGHUP else 130
+
+
 class Interrupted(KeyboardInterrupt):
-    """SIGINT or SIGTERM received: unwind like Ctrl-C. ``signum`` says which."""
+    """SIGINT, SIGTERM or SIGHUP received: unwind like Ctrl-C. ``signum`` says which."""
 
     def __init__(self, signum: int = signal.SIGINT):
         super().__init__(signum)
@@ -53,28 +75,68 @@ class Interrupted(KeyboardInterrupt):
     def name(self) -> str:
         return signal.Signals(self.signum).name
 
+    @property
+    def exit_code(self) -> int:
+        return exit_code(self.signum)
+
+
+#: The process that installed :func:`_raise_interrupted` (a forked worker inherits it).
+_HANDLER_PID = 0
+
 
 def _raise_interrupted(signum, frame):
+    if os.getpid() != _HANDLER_PID:
+        # a worker just forked, before its initializer set the worker's handlers: it
+        # behaves as a worker (no traceback from the pool's bootstrap code)
+        if signum == signal.SIGTERM:
+            os._exit(128 + signum)
+        return
     raise Interrupted(signum)
+
+
+def _redeliver_interrupt(unraisable) -> None:
+    """``sys.unraisablehook`` while signals are handled: an :class:`Interrupted` raised
+    where Python cannot propagate it (a ctypes callback, numba loading its cached kernels;
+    a ``__del__``) is not printed and lost but delivered again, so that it is raised at
+    the next point that can propagate it. Anything else goes to the previous hook."""
+    exc = unraisable.exc_value
+    if not isinstance(exc, Interrupted):
+        _PREVIOUS_HOOK(unraisable)
+        return
+    if os.getpid() != _HANDLER_PID and exc.signum == signal.SIGTERM:
+        signal.signal(signal.SIGTERM, _worker_sigterm)  # the worker's handler, re-armed
+    # From another thread, a moment later: sent from here, the handler would run at once,
+    # still inside this hook (and be lost again). Should it land in a callback once more,
+    # this hook sends it again.
+    again = threading.Timer(REDELIVER_DELAY, os.kill, (os.getpid(), exc.signum))
+    again.daemon = True
+    again.start()
+
+
+_PREVIOUS_HOOK = sys.unraisablehook
 
 
 @contextlib.contextmanager
 def interruptible() -> Iterator[None]:
-    """While inside, SIGTERM (like SIGINT) raises :class:`Interrupted` in the main thread.
+    """While inside, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` in the main thread
+    (also when they arrive inside a ctypes callback: :func:`_redeliver_interrupt`).
 
     Outside the main thread (where Python cannot install handlers) nothing changes. The
     previous handlers are restored on exit.
     """
+    global _HANDLER_PID
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old_term = signal.signal(signal.SIGTERM, _raise_interrupted)
-    old_int = signal.signal(signal.SIGINT, _raise_interrupted)
+    _HANDLER_PID = os.getpid()
+    old = {s: signal.signal(s, _raise_interrupted) for s in SIGNALS}
+    old_hook, sys.unraisablehook = sys.unraisablehook, _redeliver_interrupt
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, old_term)
-        signal.signal(signal.SIGINT, old_int)
+        sys.unraisablehook = old_hook
+        for s, handler in old.items():
+            signal.signal(s, handler)
 
 
 # ----------------------------------------------------------------------------- in a worker
@@ -126,7 +188,10 @@ def _init_worker(parent: int, data: Any = None) -> None:
     global _SHARED
     _SHARED = data
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if _SIGHUP is not None:
+        signal.signal(_SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_sigterm)
+    sys.unraisablehook = _redeliver_interrupt  # SIGTERM inside a ctypes callback
     _set_parent_death_signal(signal.SIGTERM)
     if os.getppid() != parent:  # the parent died before the kernel was asked
         os._exit(128 + signal.SIGTERM)
@@ -255,6 +320,33 @@ def _dask_task(fn: Callable[..., Any], data: Any, args: tuple) -> Any:
     return fn(*args)
 
 
+#: A scheduler address: [PROTOCOL://]HOST[:PORT], HOST a name, an IPv4 or a bracketed IPv6.
+_ADDRESS = re.compile(r"(?:(?:tcp|tls|ws|wss|ucx)://)?"
+                      r"(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9._-]*[A-Za-z0-9])?)"
+                      r"(?::(\d{1,5}))?")
+
+
+def scheduler_address(scheduler: str) -> str:
+    """``scheduler`` checked: ``local:N`` with N ≥ 1, or the address of a dask scheduler,
+    ``[tcp://]HOST[:PORT]`` (also ``tls://``, ``ws://``, ``wss://``, ``ucx://``). Anything
+    else is a :class:`~mtanno.errors.MtannoError`, raised before any work (dask itself
+    would raise a ValueError, or wait 30 s for a host that is none)."""
+    from mtanno.errors import MtannoError
+
+    text = str(scheduler).strip()
+    if text.startswith("local:"):
+        n = text.split(":", 1)[1]
+        if not (n.isascii() and n.isdigit() and int(n) >= 1):
+            raise MtannoError(f"--scheduler local:N needs a positive number of workers, "
+                              f"got {scheduler!r}")
+        return f"local:{int(n)}"
+    m = _ADDRESS.fullmatch(text)
+    if m is None or (m.group(1) is not None and not 1 <= int(m.group(1)) <= 65535):
+        raise MtannoError(f"--scheduler must be a dask scheduler address such as "
+                          f"tcp://HOST:8786, or local:N, got {scheduler!r}")
+    return text
+
+
 class DaskPool:
     """The pool interface on a dask.distributed cluster (``--scheduler``).
 
@@ -275,16 +367,9 @@ class DaskPool:
             raise MtannoError("--scheduler needs dask.distributed, an optional extra: "
                               "pip install 'mtanno[dask]'") from None
         self._cluster = None
+        scheduler = scheduler_address(scheduler)
         if scheduler.startswith("local:"):
-            try:
-                n = int(scheduler.split(":", 1)[1])
-                if n < 1:
-                    raise ValueError
-            except ValueError:
-                from mtanno.errors import MtannoError
-
-                raise MtannoError(f"--scheduler local:N needs a positive number of workers, "
-                                  f"got {scheduler!r}") from None
+            n = int(scheduler.split(":", 1)[1])
             with warnings.catch_warnings():
                 # Its scheduler's HTTP server falls back to a free port when another dask
                 # holds 8787; that is no concern of this run.

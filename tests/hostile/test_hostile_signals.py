@@ -184,19 +184,23 @@ def test_workers_stop_when_the_parent_dies_without_the_kernels_help(tmp_path):
     """The watchdog alone (no PR_SET_PDEATHSIG, as on systems other than Linux) stops a
     busy worker when its parent is killed."""
     script = tmp_path / "parent.py"
+    busy = tmp_path / "busy"
     script.write_text(
         "import os, sys, time\n"
         "import mtanno.util.workers as w\n"
+        "def task(path):\n"
+        "    open(path, 'w').close()  # the worker is in its task\n"
+        "    time.sleep(60)\n"
         "w._set_parent_death_signal = lambda signum: False\n"
         "pool = w.WorkerPool(1)\n"
-        "pool.submit(time.sleep, 60)\n"
+        f"pool.submit(task, {str(busy)!r})\n"
         "while not pool._pool._processes: time.sleep(0.01)\n"
         "print(*pool._pool._processes, flush=True)\n"
         "time.sleep(60)\n")
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     worker = int(proc.stdout.readline())
     assert _alive(worker)
-    time.sleep(0.3)  # the worker is in its task
+    _wait_until(busy.exists, proc, "the worker was in its task")
     proc.kill()
     proc.wait()
     ended = time.monotonic()
