@@ -66,7 +66,7 @@ class _Main(click.Group):
             raise _one_line(exc) from None
 
     def invoke(self, ctx):
-        from mtanno.__main__ import interrupted_line
+        from mtanno.errors import interrupted_line
         from mtanno.util.jitnote import install_compile_note
         from mtanno.util.workers import Interrupted, interruptible, must_hard_exit
 

@@ -65,6 +65,13 @@ class MtannoError(Exception):
         return f"{self.path}:{self.line}: {self.message}"
 
 
+def interrupted_line(name: str) -> str:
+    """The one line of a command interrupted by signal ``name`` (``SIGINT`` …), wherever the
+    interruption lands (:mod:`mtanno.__main__`, :mod:`mtanno.cli`)."""
+    return (f"mtanno: interrupted ({name}); finished outputs are complete, unfinished ones "
+            "were not written")
+
+
 def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
     """The bytes of an input file; a missing or unreadable file is a :class:`MtannoError`
     naming it (``what`` names the kind of file in the message)."""

@@ -12,10 +12,15 @@ import click
 
 from mtanno.errors import MtannoError
 
+#: How the API's parameter names read on the command line where they are not ``--name``
+#: (:meth:`mtanno.errors.MtannoError.for_command`).
+ARGUMENT_NAMES = {"training": "TRAINING"}
+
 
 def user_errors(code: int):
     """Turn MtannoError (and an OSError of the file system) into a one-line message and
-    exit ``code`` (no traceback)."""
+    exit ``code`` (no traceback). The API's parameter names in the message become the
+    command's flags (``features_dir=`` → ``--features-dir``)."""
 
     def deco(fn):
         @functools.wraps(fn)
@@ -23,7 +28,7 @@ def user_errors(code: int):
             try:
                 return fn(*args, **kwargs)
             except MtannoError as exc:
-                click.echo(f"mtanno: {exc}", err=True)
+                click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
                 sys.exit(getattr(exc, "exit_code", code))  # LockBusy: 3
             except OSError as exc:  # the file system said no where no reader expected it
                 where = f"{exc.filename}: " if exc.filename else ""
@@ -109,7 +114,7 @@ def _check_scheduler(ctx, param, value):
     try:
         return scheduler_address(value)
     except MtannoError as exc:
-        raise click.UsageError(exc.message, ctx) from None
+        raise click.UsageError(exc.for_command(), ctx) from None
 
 
 def scheduler_option(fn):

@@ -337,13 +337,14 @@ def scheduler_address(scheduler: str) -> str:
     if text.startswith("local:"):
         n = text.split(":", 1)[1]
         if not (n.isascii() and n.isdigit() and int(n) >= 1):
-            raise MtannoError(f"--scheduler local:N needs a positive number of workers, "
-                              f"got {scheduler!r}")
+            raise MtannoError(f"{{scheduler}} local:N needs a positive number of workers, "
+                              f"got {scheduler!r}", options=("scheduler",))
         return f"local:{int(n)}"
     m = _ADDRESS.fullmatch(text)
     if m is None or (m.group(1) is not None and not 1 <= int(m.group(1)) <= 65535):
-        raise MtannoError(f"--scheduler must be a dask scheduler address such as "
-                          f"tcp://HOST:8786, or local:N, got {scheduler!r}")
+        raise MtannoError(f"{{scheduler}} must be a dask scheduler address such as "
+                          f"tcp://HOST:8786, or local:N, got {scheduler!r}",
+                          options=("scheduler",))
     return text
 
 
@@ -364,8 +365,8 @@ class DaskPool:
         except ImportError:
             from mtanno.errors import MtannoError
 
-            raise MtannoError("--scheduler needs dask.distributed, an optional extra: "
-                              "pip install 'mtanno[dask]'") from None
+            raise MtannoError("{scheduler} needs dask.distributed, an optional extra: "
+                              "pip install 'mtanno[dask]'", options=("scheduler",)) from None
         self._cluster = None
         scheduler = scheduler_address(scheduler)
         if scheduler.startswith("local:"):

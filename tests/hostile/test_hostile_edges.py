@@ -117,7 +117,7 @@ def test_a_scheduler_address_is_checked_for_the_api_too():
     assert scheduler_address("tcp://10.0.0.1:8786") == "tcp://10.0.0.1:8786"
     assert scheduler_address("local:2") == "local:2"
     for bad in ("not an address", "local:0", "tcp://", "h:0", ":8786", ""):
-        with pytest.raises(MtannoError, match="--scheduler"):
+        with pytest.raises(MtannoError, match="scheduler="):  # the API names its parameter
             scheduler_address(bad)
 
 
