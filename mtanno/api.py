@@ -131,21 +131,24 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
     by default over the annotated documents. ``Report.table()`` prints it, and
     ``Report.warnings`` says when truth and annotation share no label.
     (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
-    from mtanno.annotate import read_annotation_tables
-    from mtanno.evaluation.metrics import evaluate_annotations
-    from mtanno.evaluation.truth import Segment, read_truth
+    from mtanno.annotate import read_annotation_tables, to_segments
+    from mtanno.evaluation.metrics import documents_evaluated, evaluate_annotations
+    from mtanno.evaluation.truth import check_within, read_truth
 
     frames = getattr(annotations, "frames", None)  # documents' lengths, for frame accuracy
     if isinstance(annotations, (str, os.PathLike)):
         annotations, frames, _ = read_annotation_tables([annotations])
     rows = getattr(annotations, "rows", annotations)
     try:
-        output = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
+        output = to_segments(rows)
     except AttributeError:
         raise MtannoError("annotations must be an annotate_documents() result, its rows or an "
                           "annotation table file") from None
     if isinstance(truth, (str, os.PathLike)):
+        path = str(truth)
         truth = read_truth(truth)
+        check_within(truth, frames or {}, path=path)
+    truth = list(truth)
     if documents is None:
-        documents = {s.doc for s in output} or {s.doc for s in truth}
-    return evaluate_annotations(list(truth), output, documents=documents, frames=frames)
+        documents = documents_evaluated(truth, output, frames)
+    return evaluate_annotations(truth, output, documents=documents, frames=frames)

@@ -61,6 +61,7 @@ from mtanno.annotate.tables import (
     read_annotation_table,
     read_annotation_tables,
     read_annotations,
+    to_segments,
     write_annotations,
 )
 
@@ -73,4 +74,4 @@ __all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "DECODER_KEYS", "DEFAULT
            "load_config_templates", "merge_annotation_tables", "merged_spans",
            "modified_delta", "read_annotation_table", "read_annotation_tables",
            "read_annotations", "segments_from_labels", "single_label_segments",
-           "write_annotations", "write_class_config"]
+           "to_segments", "write_annotations", "write_class_config"]

@@ -21,7 +21,7 @@ from mtanno.errors import MtannoError
 
 __all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "Annotation", "annotation_files",
            "annotation_table", "merge_annotation_tables", "read_annotation_table",
-           "read_annotation_tables", "read_annotations", "write_annotations"]
+           "read_annotation_tables", "read_annotations", "to_segments", "write_annotations"]
 
 
 class Annotation(NamedTuple):
@@ -33,6 +33,14 @@ class Annotation(NamedTuple):
     end: int
     label: str
     cost: float
+
+
+def to_segments(rows: Sequence[Annotation]) -> list:
+    """The rows as :class:`mtanno.evaluation.truth.Segment` (1-based inclusive frames, what
+    the evaluation compares): the one 0-based → 1-based conversion of annotation rows."""
+    from mtanno.evaluation.truth import Segment
+
+    return [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
 
 
 ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")

@@ -228,9 +228,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     record their documents' lengths, a truth segment past the end of its document is an
     error.
     """
-    from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files, read_annotation_tables
-    from mtanno.evaluation.metrics import evaluate_annotations
-    from mtanno.evaluation.truth import Segment, check_within, read_truth
+    from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
+    from mtanno.evaluation.metrics import evaluate_files
     from mtanno.util.output import check_outputs, write_stdout
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
@@ -244,22 +243,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     check_outputs([json_path, *output_files(table_path)], inputs, scanned=scanned)
     if json_path == "-" and table_path == "-":
         raise MtannoError("--json - and -o - would both write to standard output")
-    truth = read_truth(truth_path)
-    rows, frames, _ = read_annotation_tables(annotations)
-    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
-    check_within(truth, frames, path=truth_path)
-    if docs:
-        known = {s.doc for s in truth} | {s.doc for s in out}
-        unknown = [d for d in docs if d not in known]
-        if unknown:
-            raise MtannoError(f"--doc {unknown[0]} is in neither the truth nor the annotations")
-        documents = set(docs)
-    elif all_docs:
-        documents = None
-    else:
-        # documents with rows, and those the annotation records as annotated without any
-        documents = ({s.doc for s in out} | set(frames)) or {s.doc for s in truth}
-    report = evaluate_annotations(truth, out, documents=documents, frames=frames)
+    report = evaluate_files(annotations, truth_path, docs=docs, all_docs=all_docs)
     for warning in report.warnings:
         click.echo(f"mtanno: warning: {warning}", err=True)
     if json_path != "-" and table_path != "-":

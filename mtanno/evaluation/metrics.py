@@ -290,3 +290,43 @@ def evaluate_annotations(truth: Sequence[Segment], output: Sequence[Segment],
     return Report(f, s, fc, sc, sorted(docs),
                   segmentation=segmentation_scores(truth, output, docs, frames=frames),
                   warnings=label_warnings(truth, output, len(docs)))
+
+
+def documents_evaluated(truth: Sequence[Segment], output: Sequence[Segment],
+                        frames: dict[str, int] | None = None, *,
+                        docs: Sequence[str] = (), all_docs: bool = False) -> set[str] | None:
+    """The documents an evaluation counts (the one rule of ``mtanno evaluate`` and
+    :func:`mtanno.api.evaluate_annotation`): ``docs`` when given (each must be in the truth
+    or the output); every truth document with ``all_docs`` (None: no restriction); else the
+    annotated documents — those with output segments and those ``frames`` records as
+    annotated without any — or, when there are none, the truth's."""
+    from mtanno.errors import MtannoError
+
+    if docs:
+        known = {s.doc for s in truth} | {s.doc for s in output}
+        unknown = [d for d in docs if d not in known]
+        if unknown:
+            raise MtannoError(f"{{doc}} {unknown[0]} is in neither the truth nor the "
+                              "annotations", options=("doc",))
+        return set(docs)
+    if all_docs:
+        return None
+    return ({s.doc for s in output} | set(frames or {})) or {s.doc for s in truth}
+
+
+def evaluate_files(annotations: Sequence[str], truth: str, *, docs: Sequence[str] = (),
+                   all_docs: bool = False) -> Report:
+    """:func:`evaluate_annotations` of annotation table files (each document in one of
+    them only) against a truth table file, over :func:`documents_evaluated`; a truth
+    segment past the end of a document whose length the annotations record is an error
+    naming the truth file."""
+    from mtanno.annotate.tables import read_annotation_tables, to_segments
+    from mtanno.evaluation.truth import check_within, read_truth
+
+    truth_segments = read_truth(truth)
+    rows, frames, _ = read_annotation_tables(annotations)
+    output = to_segments(rows)
+    check_within(truth_segments, frames, path=truth)
+    documents = documents_evaluated(truth_segments, output, frames, docs=docs,
+                                    all_docs=all_docs)
+    return evaluate_annotations(truth_segments, output, documents=documents, frames=frames)

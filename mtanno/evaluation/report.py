@@ -276,7 +276,9 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                    + [s.end for s in truth if s.doc == d] + [0])
         frames[d] = max(frames.get(d, 0), last)
     frames = {d: frames[d] for d in docs}
-    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in annotation]
+    from mtanno.annotate.tables import to_segments
+
+    out = to_segments(annotation)
     ev = evaluate_annotations(truth, out, documents=docs, frames=frames)
     result.evaluation = ev
     result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
