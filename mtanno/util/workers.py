@@ -108,11 +108,32 @@ def _redeliver_interrupt(unraisable) -> None:
     # From another thread, a moment later: sent from here, the handler would run at once,
     # still inside this hook (and be lost again). Should it land in a callback once more,
     # this hook sends it again.
-    again = threading.Timer(REDELIVER_DELAY, os.kill, (os.getpid(), exc.signum))
+    # Once per signal: a callback called again and again (qsort's comparator) may be hit
+    # by the same interruption several times, and a second delivery after the command
+    # has unwound would meet the default handler.
+    if exc.signum in _PENDING:
+        return
+    again = threading.Timer(REDELIVER_DELAY, _deliver, (os.getpid(), exc.signum))
     again.daemon = True
+    _PENDING[exc.signum] = again
     again.start()
 
 
+def _deliver(pid: int, signum: int) -> None:
+    if _PENDING.pop(signum, None) is not None:
+        os.kill(pid, signum)
+
+
+def _cancel_redeliveries() -> None:
+    """Drop the deliveries not yet made: the interruption they carry has been handled."""
+    for signum in list(_PENDING):
+        timer = _PENDING.pop(signum, None)
+        if timer is not None:
+            timer.cancel()
+
+
+#: Signals waiting to be delivered again (:func:`_redeliver_interrupt`), with their timers.
+_PENDING: dict[int, threading.Timer] = {}
 _PREVIOUS_HOOK = sys.unraisablehook
 
 
@@ -133,6 +154,9 @@ def interruptible() -> Iterator[None]:
     old_hook, sys.unraisablehook = sys.unraisablehook, _redeliver_interrupt
     try:
         yield
+    except Interrupted:
+        _cancel_redeliveries()  # handled: a late copy must not meet the default handler
+        raise
     finally:
         sys.unraisablehook = old_hook
         for s, handler in old.items():

@@ -379,7 +379,7 @@ def test_index_groups_naming_no_group_is_a_usage_error(world, tmp_path, value):
     work (exit 2, nothing written)."""
     out = tmp_path / "idx"
     r = cli("index", world.doc_files[0], "-o", out, "--groups", value)
-    assert "names no group" in assert_one_line(r, "--groups", codes=(2,))
+    assert "none empty" in assert_one_line(r, "--groups", codes=(2,))  # (the NAMES type)
     assert not out.exists()
     r = cli("index", world.doc_files[0], "-o", out, "--groups", "lower", "-q")
     assert r.exit_code == 0 and list(open_index(out).groups) == ["lower"]
