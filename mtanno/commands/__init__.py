@@ -11,3 +11,6 @@ query), ``retrieve`` (retrieve), ``annotate`` (annotate), ``tune`` (tune), ``eva
 (skeleton guess: a BVH rig's generated skeleton map); ``_common``
 holds what they share (error reporting, common options, progress bars).
 """
+
+__all__ = ["align", "annotate", "evaluation", "features", "index", "keyframes", "retrieve",
+           "show", "skeleton", "templates", "tune"]
