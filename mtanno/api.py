@@ -69,19 +69,16 @@ def learn_templates(training: Sequence[PathLike] = (), *, manifest: PathLike | N
     (soft), in memory; :func:`mtanno.templates.save_template` writes one.
     (:func:`mtanno.templates.training.collect_sources`,
     :func:`mtanno.templates.learn.learn_template`.)"""
-    from mtanno.templates.learn import learn_template
-    from mtanno.templates.training import check_consistent, collect_sources, group_by_class
-    from mtanno.templates.training import load_examples as _load
+    from mtanno.templates.learn import learn_classes
+    from mtanno.templates.training import collect_sources, group_by_class
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth)
     out: dict[str, MotionTemplate] = {}
-    reference = None
-    for name, srcs in group_by_class(sources, classes=classes).items():
-        examples = _load(srcs)
-        check_consistent(examples, like=reference)
-        reference = reference or examples[0]
-        out[name] = learn_template(examples, class_name=name, hard=hard)
+    for done in learn_classes(group_by_class(sources, classes=classes), hard=hard):
+        if done.error is not None:
+            raise MtannoError(f"class {done.class_name}: {done.error}")
+        out[done.class_name] = done.template
     return out
 
 

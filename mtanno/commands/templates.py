@@ -22,6 +22,7 @@ from mtanno.commands._common import (
 )
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
+from mtanno.templates.learn import ITER_MAX, ITER_THRESH
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
@@ -46,9 +47,9 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
                    "instead of soft ones (MR06 §4.1).")
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class found.")
-@click.option("--iterations", default=10, show_default=True, type=click.IntRange(min=1),
+@click.option("--iterations", default=ITER_MAX, show_default=True, type=click.IntRange(min=1),
               help="Maximum number of learning iterations.")
-@click.option("--thresh", default=0.005, show_default=True, type=Number(min=0),
+@click.option("--thresh", default=ITER_THRESH, show_default=True, type=Number(min=0),
               help="Stop once the largest normalised alignment cost is at most this.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
@@ -84,51 +85,39 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     """
     from tqdm import tqdm
 
-    from mtanno.templates.learn import learn_template
+    from mtanno.templates.learn import learn_classes
     from mtanno.templates.model import save_template
-    from mtanno.templates.training import (
-        check_consistent,
-        collect_sources,
-        few_examples_warning,
-        group_by_class,
-        load_examples,
-    )
+    from mtanno.templates.training import collect_sources, group_by_class
+    from mtanno.util.output import check_outputs
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth,
                               note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
-    from mtanno.util.output import check_outputs
-
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth],
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     written, failed, n_examples = [], [], 0
     with lock_output(out, wait=wait):
-        reference = None
-        bar = tqdm(groups.items(), total=len(groups), unit="class", desc="learn-mt",
+        bar = tqdm(total=len(groups), unit="class", desc="learn-mt",
                    disable=not show_progress(quiet))
-        for class_name, srcs in bar:
-            bar.set_postfix_str(class_name)
+        for done in learn_classes(groups, hard=hard, iter_max=iterations, thresh=thresh):
+            bar.update(1)
+            bar.set_postfix_str(done.class_name)
             try:
-                target = _safe_class_file(out, class_name)
-                examples = load_examples(srcs)
-                check_consistent(examples, like=reference)
-                reference = reference or examples[0]
-                mt = learn_template(examples, class_name=class_name, hard=hard,
-                                    iter_max=iterations, thresh=thresh)
-                save_template(target, mt)
-                warning = few_examples_warning(class_name, len(examples))
-                if warning:
-                    bar.write(f"learn-mt: {warning}", file=sys.stderr)
+                if done.error is not None:
+                    raise MtannoError(done.error)
+                save_template(_safe_class_file(out, done.class_name), done.template)
             except MtannoError as exc:
-                failed.append(class_name)
-                bar.write(f"mtanno: class {class_name}: {exc}", file=sys.stderr)
+                failed.append(done.class_name)
+                bar.write(f"mtanno: class {done.class_name}: {exc}", file=sys.stderr)
                 continue
-            written.append(class_name)
-            n_examples += len(examples)
+            if done.warning:
+                bar.write(f"learn-mt: {done.warning}", file=sys.stderr)
+            written.append(done.class_name)
+            n_examples += done.n_examples
         bar.close()
     if not quiet:
         kind = "hard" if hard else "soft"

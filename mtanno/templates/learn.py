@@ -416,3 +416,41 @@ def learn_template(examples: Sequence[TrainingExample], *, class_name: str | Non
         training=[ex.record() for ex in examples], params=params,
         iterations=res.iterations, final_cost=res.final_cost,
         history={"max": res.cost_max, "mean": res.cost_mean})
+
+
+@dataclass(frozen=True)
+class ClassLearned:
+    """One class of :func:`learn_classes`: its template (None when it failed, ``error``
+    saying why), how many examples it was learned from, and a warning for few examples."""
+
+    class_name: str
+    template: MotionTemplate | None
+    n_examples: int = 0
+    error: str | None = None
+    warning: str | None = None
+
+
+def learn_classes(groups: dict, *, hard: bool = False, iter_max: int = ITER_MAX,
+                  thresh: float = ITER_THRESH):
+    """Learn every class of ``groups`` (class name → its example sources,
+    :func:`mtanno.templates.training.group_by_class`), in order, yielding a
+    :class:`ClassLearned` per class as it is done. A class that cannot be learned (an
+    example that cannot be read, features unlike the first class's) is yielded with its
+    error and the others go on: the batch of ``mtanno learn-mt`` and
+    :func:`mtanno.api.learn_templates`. The examples of every class must have the layout of
+    the first class learned."""
+    from mtanno.templates.training import few_examples_warning, load_examples
+
+    reference = None
+    for name, sources in groups.items():
+        try:
+            examples = load_examples(sources)
+            check_consistent(examples, like=reference)
+            reference = reference or examples[0]
+            mt = learn_template(examples, class_name=name, hard=hard, iter_max=iter_max,
+                                thresh=thresh)
+        except MtannoError as exc:
+            yield ClassLearned(name, None, error=str(exc))
+            continue
+        yield ClassLearned(name, mt, len(examples),
+                           warning=few_examples_warning(name, len(examples)))
