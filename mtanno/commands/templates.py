@@ -22,6 +22,7 @@ from mtanno.commands._common import (
 )
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
+from mtanno.templates.describe import TOP_FEATURES
 from mtanno.templates.learn import ITER_MAX, ITER_THRESH
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
@@ -132,15 +133,12 @@ def mt_group():
     """Inspect and transform motion-template files (CLASS.json from `mtanno learn-mt`)."""
 
 
-_PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
-
-
 @mt_group.command("show", epilog="Exit codes: 0 success, 2 bad input.")
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization δ for the feature ranking and picture of an unquantized "
                    f"template  [default: {RETRIEVAL_DELTA:g}, MR06]")
-@click.option("--top", default=10, show_default=True, type=click.IntRange(min=0),
+@click.option("--top", default=TOP_FEATURES, show_default=True, type=click.IntRange(min=0),
               help="How many features to list.")
 @click.option("--picture", is_flag=True,
               help="Draw the quantized template: one row per feature, one character per "
@@ -156,59 +154,12 @@ def mt_show_cmd(template, delta, top, picture, files):
     with the most non-wildcard entries after quantization (those the matching relies
     on); --picture draws the quantized template.
     """
-    from mtanno.templates.match import match_lengths
-    from mtanno.templates.model import load_template, quantize, rank_features
-    from mtanno.templates.tempo import matched_columns
+    from mtanno.templates.describe import format_template
+    from mtanno.templates.model import load_template
 
     mt = load_template(template)
-    if mt.quantized:
-        q, d = mt, mt.delta
-        state = f"quantized, δ = {mt.delta:g}"
-    else:
-        d = RETRIEVAL_DELTA if delta is None else delta
-        q = quantize(mt, d)
-        state = "not quantized"
-    w = mt.weights
-    echo = click.echo
-    echo(f"template      {mt.class_name} ({mt.kind}, {state})")
-    echo(f"file          {template}")
-    echo(f"features      {mt.n_features} of feature set {mt.feature_set}, {mt.fps:g} Hz")
-    echo(f"length        {mt.length} columns ({mt.length / mt.fps:.2f} s)")
-    lo, hi = match_lengths(mt.weights)
-    echo(f"matches       performances of {lo}-{hi} frames ({lo / mt.fps:.2f}-{hi / mt.fps:.2f} s;"
-         f" the DTW steps allow half to twice its {matched_columns(mt.weights)} "
-         f"matched columns)")
-    echo(f"weights       sum {w.sum():.3f}, min {w.min():.3f}, mean {w.mean():.3f}, "
-         f"max {w.max():.3f}")
-    hist = mt.history.get("max", [])
-    hist_txt = f" (per iteration: {' '.join(f'{x:.4g}' for x in hist)})" if hist else ""
-    echo(f"learning      {mt.iterations} iteration(s), final cost {mt.final_cost:.6g}"
-         f"{hist_txt}")
-    n = len(mt.training)
-    spans = [int(t["frames"][1]) - int(t["frames"][0]) + 1 for t in mt.training
-             if isinstance(t.get("frames"), list) and len(t["frames"]) == 2]
-    echo(f"training      {n} example(s)" + (f", {min(spans)}-{max(spans)} frames" if spans else ""))
-    if spans and (min(spans) < 1.25 * lo or max(spans) > hi / 1.25):
-        echo("  (examples near the matchable lengths: a faster or slower performer may be "
-             "missed; `mtanno mt scale` makes a copy for them)")
-    shown = mt.training if files else mt.training[:3]
-    for t in shown:
-        fr = t.get("frames", ["?", "?"])
-        echo(f"  {t.get('document')}  frames {fr[0]}-{fr[1]}  {t.get('file')}  "
-             f"sha256 {str(t.get('sha256'))[:12]}")
-    if len(shown) < n:
-        echo(f"  ... {n - len(shown)} more (--files lists them all)")
-    if top:
-        echo(f"features with most non-wildcard entries (δ = {d:g}; of {mt.length} columns):")
-        width = max(len(x) for x in mt.feature_names)
-        for f in rank_features(q)[:top]:
-            echo(f"  {f.name:<{width}}  {f.fixed:>4}  (1: {f.ones}, 0: {f.fixed - f.ones})")
-    V = q.values
-    if picture:
-        echo(f"quantized template (δ = {d:g}): '#' 1, '.' 0, '~' wildcard")
-        width = max(len(x) for x in mt.feature_names)
-        for r, name in enumerate(mt.feature_names):
-            echo(f"  {name:<{width}} " + "".join(_PICTURE[float(x)] for x in V[r]))
+    click.echo(format_template(mt, path=template, delta=delta, top=top, picture=picture,
+                               files=files))
 
 
 @mt_group.command("mirror", epilog="Exit codes: 0 success, 2 bad input.")

@@ -14,6 +14,7 @@
 * :mod:`~mtanno.templates.match` — matching a template over documents: the streaming
   masked subsequence DTW of algorithms.md §3.4 (:func:`match_template`,
   :class:`PreparedTemplate`).
+* :mod:`~mtanno.templates.describe` — a template as text for a person (``mtanno mt show``).
 * :mod:`~mtanno.templates.tempo` — time-scaled copies of a template (faster or slower
   performers; ``mtanno mt scale``, and several templates per class in ``tune``).
 
