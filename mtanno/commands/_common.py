@@ -171,19 +171,3 @@ def lock_output(folder, *, wait: bool, what: str = "output folder"):
 
 def show_progress(quiet: bool) -> bool:
     return not quiet and sys.stderr.isatty()
-
-
-def parse_frames(text: str | None, n: int) -> tuple[int, int] | None:
-    """'A:B' (1-based, inclusive; either side may be empty) → 0-based (a, b) inside a
-    document of ``n`` frames; None for None."""
-    if text is None:
-        return None
-    a, sep, b = text.partition(":")
-    try:
-        lo = int(a) if a.strip() else 1
-        hi = int(b) if b.strip() else n
-    except ValueError:
-        raise MtannoError(f"--frames must be A:B with 1-based frame numbers, got '{text}'") from None
-    if not sep or lo < 1 or hi < lo or hi > n:
-        raise MtannoError(f"--frames {text} is not a range inside 1:{n}")
-    return lo - 1, hi - 1

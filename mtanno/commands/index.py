@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import NAMES, parse_frames, user_errors, wait_option, waiting_note
+from mtanno.commands._common import NAMES, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
 
@@ -234,8 +234,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     """
     import time
 
-    from mtanno.index import example_query, load_query, open_index, search
-    from mtanno.index.example import DEFAULT_MIN_SEGMENT, example_matrix, resolve_features
+    from mtanno.index import load_query, open_index, search
+    from mtanno.index.example import DEFAULT_MIN_SEGMENT, example_file_query
     from mtanno.index.query import warm_up
     from mtanno.index.storage import index_files
     from mtanno.util.output import check_outputs
@@ -258,12 +258,9 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     if example is not None:
         if not feature_list:
             raise MtannoError("--example needs --features NAME,...")
-        X, names, _ = example_matrix(index, example)
-        feats = resolve_features(index, feature_list.split(","))
-        rng = parse_frames(frames, X.shape[1])
-        query = example_query(index, X, names, feats, frames=rng, mode=mode or "adaptive",
-                              mismatches=mismatches or 0,
-                              min_segment=min_segment or DEFAULT_MIN_SEGMENT)
+        query = example_file_query(index, example, feature_list.split(","), frames=frames,
+                                   mode=mode or "adaptive", mismatches=mismatches or 0,
+                                   min_segment=min_segment or DEFAULT_MIN_SEGMENT)
     else:
         if frames or feature_list:
             raise MtannoError("--frames and --features go with --example, not --query")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from mtanno.commands._common import NAMES, parse_frames, user_errors
+from mtanno.commands._common import NAMES, user_errors
 
 
 @click.command("show", epilog="Exit codes: 0 success, 2 bad input.")
@@ -33,6 +33,7 @@ def show_cmd(file, frames, feature_list, width, plot_path):
     from mtanno.info import feature_rows, select_features, text_timeline
     from mtanno.util.output import check_outputs
     from mtanno.util.store import read_features
+    from mtanno.util.tables import parse_frame_range
 
     if plot_path is not None:
         from mtanno.plot import require_matplotlib
@@ -40,7 +41,7 @@ def show_cmd(file, frames, feature_list, width, plot_path):
         require_matplotlib()
         check_outputs([plot_path], [file])
     ff = read_features(file)
-    a, b = parse_frames(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)
+    a, b = parse_frame_range(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)
     rows = select_features(ff, feature_list.split(",")) if feature_list else \
         list(range(len(ff.names)))
     info = feature_rows(ff)

@@ -16,8 +16,8 @@ from mtanno.errors import MtannoError
 from mtanno.index.core import Index, segment
 from mtanno.index.query import FuzzySet, GroupQuery, Query
 
-__all__ = ["DEFAULT_MIN_SEGMENT", "drop_short_segments", "example_matrix", "example_query",
-           "load_query", "parse_query", "resolve_features"]
+__all__ = ["DEFAULT_MIN_SEGMENT", "drop_short_segments", "example_matrix", "example_file_query",
+           "example_query", "load_query", "parse_query", "resolve_features"]
 
 
 def example_matrix(index: Index, example: str | os.PathLike
@@ -251,3 +251,19 @@ def load_query(path: str | os.PathLike, index: Index) -> Query:
     p = Path(path)
     spec, _ = read_json(p, what="query file")
     return parse_query(spec, index, path=str(p))
+
+
+def example_file_query(index: Index, example: str | os.PathLike, features: Sequence[str], *,
+                       frames: str | None = None, mode: str = "adaptive", mismatches: int = 0,
+                       min_segment: int = DEFAULT_MIN_SEGMENT) -> Query:
+    """:func:`example_query` of an example file (a feature file at the index's rate, or an
+    indexed document's name: :func:`example_matrix`): ``features`` are names, ids or
+    aliases of the index's feature set (:func:`resolve_features`), ``frames`` the range
+    ``'A:B'`` of the example (1-based inclusive, either side may be empty; None: all of
+    it) — ``mtanno query --example FILE --frames A:B --features ...``."""
+    from mtanno.util.tables import parse_frame_range
+
+    X, names, _ = example_matrix(index, example)
+    return example_query(index, X, names, resolve_features(index, features),
+                         frames=parse_frame_range(frames, X.shape[1]), mode=mode,
+                         mismatches=mismatches, min_segment=min_segment)

@@ -41,7 +41,7 @@ from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_j
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
-           "command_line", "dumps", "file_record", "output_files", "provenance",
+           "command_line", "dumps", "file_record", "parse_frame_range", "output_files", "provenance",
            "provenance_as_read", "read_clip_manifest", "read_provenance", "read_table",
            "set_command_line", "sidecar_path", "string_array", "table_format",
            "table_provenance", "text", "write_json", "write_table"]
@@ -525,3 +525,21 @@ def read_clip_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow
     if not out:
         raise MtannoError("manifest lists no files", path=table.path)
     return table, out
+
+
+def parse_frame_range(text: str | None, n: int) -> tuple[int, int] | None:
+    """``'A:B'`` (1-based, inclusive, as every file gives frames; either side may be empty)
+    → 0-based (a, b) inside a document of ``n`` frames; None for None (``--frames``)."""
+    if text is None:
+        return None
+    a, sep, b = text.partition(":")
+    try:
+        lo = int(a) if a.strip() else 1
+        hi = int(b) if b.strip() else n
+    except ValueError:
+        raise MtannoError(f"{{frames}} must be A:B with 1-based frame numbers, got '{text}'",
+                          options=("frames",)) from None
+    if not sep or lo < 1 or hi < lo or hi > n:
+        raise MtannoError(f"{{frames}} {text} is not a range inside 1:{n}", options=("frames",))
+    return lo - 1, hi - 1
+
