@@ -293,3 +293,20 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
     batch.hits = retrieve(template_values, weights, documents(), tau=tau, max_hits=max_hits,
                           variant=variant)
     return batch
+
+
+def retrieval_template(mt, *, delta: float | None = None):
+    """The template as retrieval uses it (MR06 §5.4): quantized with ``delta``, else with
+    its own δ, else :data:`DEFAULT_DELTA`; a template quantized already keeps its δ (a
+    ``delta`` that differs is an error: its values cannot be quantized again)."""
+    from mtanno.templates.model import quantize
+
+    if mt.quantized:
+        if delta is not None and delta != mt.delta:
+            raise MtannoError(f"template is already quantized with delta {mt.delta:g}; "
+                              "{delta} only applies to unquantized templates", path=mt.path,
+                              options=("delta",))
+        return mt
+    return quantize(mt, delta if delta is not None else (mt.delta if mt.delta is not None
+                                                          else DEFAULT_DELTA))
+

@@ -12,7 +12,6 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import DELTA, TAU, show_progress, user_errors
-from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA, DEFAULT_MAX_HITS, DEFAULT_TAU
 from mtanno.util.store import feature_files
 
@@ -58,8 +57,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     from tqdm import tqdm
 
     from mtanno.annotate import check_tau
-    from mtanno.retrieve import retrieve_files, write_hits
-    from mtanno.templates.model import load_one_template, quantize, template_files
+    from mtanno.retrieve import retrieval_template, retrieve_files, write_hits
+    from mtanno.templates.model import load_one_template, template_files
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
@@ -69,15 +68,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     files = feature_files(features, failures=missing)
     check_outputs(output_files(output), [mt_path, *template_files(mt_path), *files],
                   scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
-    mt = load_one_template(mt_path)
+    mt = retrieval_template(load_one_template(mt_path), delta=qdelta)
     mt_path = mt.path  # the file, for messages and the provenance
-    if mt.quantized:
-        if qdelta is not None and qdelta != mt.delta:
-            raise MtannoError(f"template is already quantized with delta {mt.delta:g}; "
-                              "--delta only applies to unquantized templates", path=mt_path)
-    else:
-        mt = quantize(mt, qdelta if qdelta is not None else (mt.delta if mt.delta is not None
-                                                              else DEFAULT_DELTA))
     layout = mt.layout(f"template {mt_path}")
     for message in missing:
         click.echo(f"mtanno: {message}", err=True)
