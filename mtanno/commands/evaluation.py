@@ -17,7 +17,7 @@ from mtanno.commands._common import (
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.model import template_files
-from mtanno.util.store import check_layout, document_files
+from mtanno.util.store import document_files
 
 
 @click.command("evaluate")
@@ -105,10 +105,13 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
     quotient, each template retrieved in all FEATURES documents. A feature file that
     cannot be used is reported and left out (exit code 1)."""
-    from mtanno.evaluation.retrieval import retrieval_evaluation, retrieval_report, retrieval_table
-    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.evaluation.retrieval import (
+        evaluate_retrieval_files,
+        retrieval_report,
+        retrieval_table,
+    )
+    from mtanno.evaluation.truth import read_truth
     from mtanno.util.output import check_outputs, write_stdout
-    from mtanno.util.store import read_features
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
@@ -124,20 +127,10 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
     truth = read_truth(truth_path)
     for message in missing:
         click.echo(f"mtanno: {message}", err=True)
-    documents, files, failed = [], [], len(missing)
-    for p in paths:
-        try:
-            ff = read_features(p, sha256=True)
-            check_layout(ff, key)
-        except MtannoError as exc:
-            failed += 1
-            click.echo(f"mtanno: {exc}", err=True)
-            continue
-        documents.append((ff.document, ff.X))
-        files.append({"path": str(p), "sha256": ff.sha256})
-    check_within(truth, {name: X.shape[1] for name, X in documents}, path=truth_path)
-    results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
-                                    max_hits=max_hits) for m in models]
+    run = evaluate_retrieval_files(models, key, paths, truth, max_hits=max_hits,
+                                   truth_path=truth_path,
+                                   progress=lambda m: click.echo(f"mtanno: {m}", err=True))
+    results, files = run.results, run.files
     if json_path != "-" and table_path != "-":
         write_stdout(retrieval_report(results) + "\n")
     prov = provenance(inputs=[*files, truth_path], templates=[m.record() for m in models],
@@ -147,7 +140,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
                                "classes": [r.as_dict() for r in results], "provenance": prov})
     if table_path:
         write_table(table_path, retrieval_table(results), provenance=prov)
-    sys.exit(1 if failed else 0)
+    sys.exit(1 if run.failed or missing else 0)
 
 
 @click.command("compose")

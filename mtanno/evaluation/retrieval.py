@@ -180,3 +180,45 @@ def retrieval_table(results: Sequence[ClassRetrieval]):
     if not rows:
         return pa.table({c: pa.array([], pa.string()) for c in ("class",)})
     return pa.Table.from_pylist(rows)
+
+
+@dataclass
+class RetrievalRun:
+    """What :func:`evaluate_retrieval_files` measured: one :class:`ClassRetrieval` per
+    template, the feature files used (path, SHA-256), and one message per file that could
+    not be used (it was left out; the others were measured)."""
+
+    results: list
+    files: list[dict]
+    failed: list[str]
+
+
+def evaluate_retrieval_files(models, layout, paths, truth: Sequence[Segment], *,
+                             max_hits: int, truth_path: str | None = None,
+                             progress=None) -> RetrievalRun:
+    """:func:`retrieval_evaluation` of every class model (quantized templates,
+    :func:`mtanno.annotate.load_class_models`, with their feature ``layout``) over the
+    feature files ``paths`` ([MR06] Tables 2 and 4). A file that cannot be read or has
+    another layout is recorded in ``failed`` and left out; ``progress(message)`` is called
+    with each such message. A truth segment past the end of its document is an error
+    naming ``truth_path``."""
+    from mtanno.errors import MtannoError
+    from mtanno.evaluation.truth import check_within
+    from mtanno.util.store import check_layout, read_features
+
+    documents, files, failed = [], [], []
+    for p in paths:
+        try:
+            ff = read_features(p, sha256=True)
+            check_layout(ff, layout)
+        except MtannoError as exc:
+            failed.append(str(exc))
+            if progress:
+                progress(str(exc))
+            continue
+        documents.append((ff.document, ff.X))
+        files.append({"path": str(p), "sha256": ff.sha256})
+    check_within(truth, {name: X.shape[1] for name, X in documents}, path=truth_path)
+    results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
+                                    max_hits=max_hits) for m in models]
+    return RetrievalRun(results, files, failed)
