@@ -41,6 +41,8 @@ if TYPE_CHECKING:
     from mtanno.annotate.tables import Annotation
 
 NONE = "none"
+#: Title of a report page.
+REPORT_TITLE = "mtanno annotation report"
 FORMATS = ("png", "svg")
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
 #: after documents and classes), for :func:`mtanno.util.output.check_outputs`.
@@ -240,7 +242,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
                  tau: float | None = None, tau_per_class: dict[str, float] | None = None,
                  delta: float | None = None, extra_templates: Sequence[str] = (),
-                 title: str = "mtanno annotation report",
+                 title: str = REPORT_TITLE,
                  provenance: dict | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each

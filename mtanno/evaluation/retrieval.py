@@ -14,6 +14,8 @@ import numpy as np
 from mtanno.evaluation.metrics import overlaps
 from mtanno.evaluation.truth import Segment
 
+#: Hit cap per class and document of the retrieval table (the reference driver's).
+DEFAULT_MAX_HITS = 2000
 #: τ grid of the retrieval table (algorithms.md §8, MR06 Table 2).
 TAU_GRID = (0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1)
 
@@ -119,7 +121,7 @@ class ClassRetrieval:
 
 def retrieval_evaluation(label: str, values: np.ndarray, weights: np.ndarray,
                          documents: Sequence[tuple[str, np.ndarray]], truth: Sequence[Segment],
-                         *, taus: Sequence[float] = TAU_GRID, max_hits: int = 2000,
+                         *, taus: Sequence[float] = TAU_GRID, max_hits: int = DEFAULT_MAX_HITS,
                          variant: str = "reference") -> ClassRetrieval:
     """Retrieve one class (quantized template) in every document and score the hits.
 
