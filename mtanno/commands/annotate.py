@@ -48,10 +48,11 @@ from mtanno.util.store import document_files
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization delta of the templates [default: [decoder] delta of "
                    f"--classes, else {DEFAULT_DELTA:g}].")
-@click.option("--dbar", "--variant", "variant", type=click.Choice(["reference", "paper"]),
+@click.option("--dbar", "variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True,
-              help="Modified-distance (Δ̄) variant (algorithms.md §7); --variant is its "
-                   "former name.")
+              help="Modified-distance (Δ̄) variant (algorithms.md §7).")
+@click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
+              default=None, hidden=True, help="The former name of --dbar.")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True, help="Matching cost variant (§3.4).")
 @click.option("--single-label", is_flag=True,
@@ -65,7 +66,8 @@ from mtanno.util.store import document_files
 @scheduler_option
 @user_errors(2)
 def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
-                 delta, variant, match_variant, single_label, jobs, quiet, wait, scheduler):
+                 delta, variant, former_variant, match_variant, single_label, jobs, quiet,
+                 wait, scheduler):
     """Label every frame of documents with motion classes (MBS09 §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
@@ -92,6 +94,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     input (nothing written), 3 OUT/ locked by another run, 130 interrupted (finished
     tables are complete and are skipped by the rerun).
     """
+    variant = former_variant or variant  # --variant: the former name of --dbar
     from tqdm import tqdm
 
     from mtanno.annotate import check_tau, load_annotation_setup, write_annotations

@@ -28,11 +28,13 @@ from mtanno.util.store import feature_files
 @click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Report at most this many hits (a note on stderr says when the cap cut "
                    "hits off).")
-@click.option("--match", "--variant", "variant", default="reference", show_default=True,
+@click.option("--match", "variant", default="reference", show_default=True,
               type=click.Choice(["reference", "paper"]),
               help="Matching variant (as annotate --match): the reference implementation's "
                    "(weights expand the template) or the papers' as written "
-                   "(docs/retrieval.md); --variant is its former name.")
+                   "(docs/retrieval.md).")
+@click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
+              default=None, hidden=True, help="The former name of --match.")
 @click.option("--delta", "qdelta", default=None, type=DELTA,
               help="Quantize an unquantized template with this δ (default: the template's "
                    f"own delta, else {DEFAULT_DELTA:g} as in MR06). A quantized template keeps "
@@ -43,7 +45,8 @@ from mtanno.util.store import feature_files
                    "or - for CSV on standard output.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quiet):
+def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdelta, output,
+                 quiet):
     """Find all occurrences of the class of a motion template in feature files (MR06 §5.4).
 
     FEATURES are feature files (.parquet, from `mtanno features`) or folders searched
@@ -54,6 +57,7 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
 
     Example: mtanno retrieve --mt mts/squat1Reps.json feats/ --tau 0.06 -o squat_hits.csv
     """
+    variant = former_variant or variant  # --variant: the former name of --match
     from tqdm import tqdm
 
     from mtanno.annotate import check_tau
