@@ -17,8 +17,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from mtanno.errors import MtannoError, read_json
-
-ANALYSIS_FPS = 30.0
+from mtanno.util.units import ANALYSIS_FPS
 
 
 @dataclass(frozen=True, order=True)
