@@ -46,7 +46,7 @@ def read_motion(path: PathLike, *, asf: PathLike | None = None,
 def compute_features(motion: Motion | PathLike, *, feature_set: str = "ak40",
                      up: str = "y") -> np.ndarray:
     """The (features × frames) 0/1 matrix (uint8) of a motion at 30 Hz: the 40 relational
-    features of MR06 Table 6 + F40 (``feature_set="ak40"``) or the 31 of MRC05
+    features of [MR06] Table 6 + F40 (``feature_set="ak40"``) or the 31 of [MRC05]
     (``"mrc05"``); row names in :func:`mtanno.features.get_feature_set`. ``motion`` is a
     :class:`~mtanno.io.skeleton.Motion` or a motion file; ``up`` its up axis ("y" or "z").
     (:func:`mtanno.features.extract.features_from_motion`.)"""
@@ -62,7 +62,7 @@ def learn_templates(training: Sequence[PathLike] = (), *, manifest: PathLike | N
                     features_dir: PathLike | None = None, split: str | None = None,
                     truth: PathLike | None = None, classes: Sequence[str] | None = None,
                     hard: bool = False) -> dict[str, MotionTemplate]:
-    """One motion template per class (MR06 §4.1; ``hard``: thesis §3.3), from training
+    """One motion template per class ([MR06] §4.1; ``hard``: thesis §3.3), from training
     examples named as ``mtanno learn-mt`` takes them: class folders ``training``, a
     ``manifest`` with ``features_dir`` (and ``split``), or a ``truth`` table with the
     documents' feature files ``training``. Returns class name → template, unquantized
@@ -95,7 +95,7 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
              delta: float | None = None, config: ClassConfig | None = None,
              single_label: bool = False, n_jobs: int = 1) -> AnnotationBatch:
     """Label every frame of feature files (files or folders) with the classes of
-    ``templates`` (a template folder or class name → template), MBS09 §4: τ = 0.13 and
+    ``templates`` (a template folder or class name → template), [MBS09] §4: τ = 0.13 and
     δ = 0.05 unless given. ``config`` (e.g. ``load_class_config("tuned.toml")``, what
     ``mtanno tune`` writes) is applied as ``mtanno annotate --classes`` applies it: its δ
     unless ``delta`` is given, its further templates, and a :class:`UserWarning` when the
@@ -123,7 +123,7 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
              documents: Iterable[str] | None = None) -> Report:
     """Frame- and segment-level precision, recall and F of annotations (an
     :func:`annotate_documents` result, its rows, or an annotation table file) against ground truth (a
-    truth table file or its segments), MBS09 §7, with frame accuracy, Edit and F1@{10,25,50}
+    truth table file or its segments), [MBS09] §7, with frame accuracy, Edit and F1@{10,25,50}
     (Lea et al. 2017; on the documents' recorded lengths when the batch or table has them);
     by default over the annotated documents. ``Report.table()`` prints it, and
     ``Report.warnings`` says when truth and annotation share no label.

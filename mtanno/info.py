@@ -3,7 +3,7 @@
 This is the API behind ``mtanno info FILE.parquet --features`` and ``mtanno show``: read
 a document's features as a compact text timeline (one row per feature, one character per
 frame or per block of frames) to pick the frames and features of a query by example
-(MRC05 §6.2, ``mtanno query --example``). Frames are 1-based and inclusive at 30 Hz, as in
+([MRC05] §6.2, ``mtanno query --example``). Frames are 1-based and inclusive at 30 Hz, as in
 every file.
 """
 

@@ -1,4 +1,4 @@
-"""Retrieval hits from the distance function Δ of a motion template (MR06 §5.4).
+"""Retrieval hits from the distance function Δ of a motion template ([MR06] §5.4).
 
 :func:`extract_hits` turns one document's Δ and start frames (from
 :func:`mtanno.templates.match.match_template`) into hits; :func:`retrieve` matches a template
@@ -41,9 +41,9 @@ __all__ = ["DEFAULT_DELTA", "DEFAULT_MAX_HITS", "DEFAULT_TAU", "HIT_MODES", "Hit
 HIT_MODES = ("retrieval", "classification")
 #: Hit cap per document.
 DEFAULT_MAX_HITS = 1000
-#: Quality threshold of retrieval: hits have Δ ≤ τ (MR06 §5.4).
+#: Quality threshold of retrieval: hits have Δ ≤ τ ([MR06] §5.4).
 DEFAULT_TAU = 0.06
-#: Quantization δ of templates for retrieval (MR06 §5.2).
+#: Quantization δ of templates for retrieval ([MR06] §5.2).
 DEFAULT_DELTA = 0.1
 
 
@@ -106,7 +106,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
                  end_excl: tuple[float, float] = (0.5, 0.1),
                  start_excl: tuple[float, float] = (0.1, 0.5),
                  doc: str | int = 0, doc_index: int = 0) -> HitList:
-    """Greedy hits of one document's Δ below ``tau`` (MR06 §5.4, algorithms.md §3.5).
+    """Greedy hits of one document's Δ below ``tau`` ([MR06] §5.4, algorithms.md §3.5).
 
     Parameters
     ----------
@@ -116,7 +116,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
         (L,) 0-based start frame of the optimal match ending at each frame.
     tau:
         Quality threshold: candidates have Δ ≤ tau. The reference drivers use 0.175
-        (retrieval) and 0.13 (classification); MR06 recommends 0.06.
+        (retrieval) and 0.13 (classification); [MR06] recommends 0.06.
     mode:
         ``"retrieval"`` or ``"classification"`` (module docstring).
     max_hits:
@@ -189,7 +189,7 @@ def retrieve(template_values: np.ndarray, weights: np.ndarray,
              step_weights: Sequence[float] = DEFAULT_STEP_WEIGHTS,
              end_excl: tuple[float, float] = (0.5, 0.1),
              start_excl: tuple[float, float] = (0.1, 0.5)) -> HitList:
-    """Match a quantized template against documents and rank all hits by cost (MR06 §5.4).
+    """Match a quantized template against documents and rank all hits by cost ([MR06] §5.4).
 
     ``documents`` yields ``(name, X)`` pairs, X (f × L) 0/1 features at 30 Hz; each is
     matched on its own (:func:`mtanno.templates.match.match_template`, paths never cross
@@ -296,7 +296,7 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
 
 
 def retrieval_template(mt, *, delta: float | None = None):
-    """The template as retrieval uses it (MR06 §5.4): quantized with ``delta``, else with
+    """The template as retrieval uses it ([MR06] §5.4): quantized with ``delta``, else with
     its own δ, else :data:`DEFAULT_DELTA`; a template quantized already keeps its δ (a
     ``delta`` that differs is an error: its values cannot be quantized again)."""
     from mtanno.templates.model import quantize

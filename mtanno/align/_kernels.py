@@ -1,4 +1,4 @@
-"""Numba kernels of time alignment (MRC05 §7): DTW inside a staircase area, its backtracking,
+"""Numba kernels of time alignment ([MRC05] §7): DTW inside a staircase area, its backtracking,
 and the area spanned by matched segment pairs.
 
 An *area* of an n × m cost matrix is given per row a (a frame, or a segment, of motion A) by

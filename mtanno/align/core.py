@@ -1,4 +1,4 @@
-"""Two-stage time alignment of two motions (MRC05 §7), and its table.
+"""Two-stage time alignment of two motions ([MRC05] §7), and its table.
 
 :func:`align` runs stage 1 (:func:`mtanno.align.coarse.coarse_alignment`: adaptive segments
 matched with merges, their rectangles widened by a band) and stage 2 (DTW inside that area
@@ -96,7 +96,7 @@ def _codes(p: Performance, features: Sequence[str]) -> np.ndarray:
 def align(a: Performance, b: Performance, *, features: Sequence[str] | None = None,
           group: str | None = None, band: int = DEFAULT_BAND, cost: str = DEFAULT_COST,
           full: bool = False) -> Alignment:
-    """Align motion B to motion A in two stages (MRC05 §7, module docstring).
+    """Align motion B to motion A in two stages ([MRC05] §7, module docstring).
 
     Parameters
     ----------

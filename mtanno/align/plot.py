@@ -1,4 +1,4 @@
-"""An alignment drawn like MRC05 Fig. 11: the area of the cost matrix that was computed
+"""An alignment drawn like [MRC05] Fig. 11: the area of the cost matrix that was computed
 (gray), the matched segment pairs' rectangles, and the warping path.
 
 Needs matplotlib (``pip install 'mtanno[plot]'``); it is imported inside the functions, so

@@ -1,4 +1,4 @@
-"""What alignment reads of a motion, and the pose normalisation of the pose distance (MRC05 §7).
+"""What alignment reads of a motion, and the pose normalisation of the pose distance ([MRC05] §7).
 
 A :class:`Performance` is one motion prepared for alignment: its features at the analysis
 rate (30 Hz) with the native frame each analysis frame was taken from, and — when it comes

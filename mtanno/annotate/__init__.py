@@ -1,4 +1,4 @@
-"""The annotate stage: per-frame class labels of documents from motion templates (MBS09
+"""The annotate stage: per-frame class labels of documents from motion templates ([MBS09]
 §4–5, algorithms.md §7) and the tuned methods of issue 10 (``docs/annotation.md``).
 
 Modules, in the order the data flows through them:

@@ -1,7 +1,7 @@
 """The numba kernels of the annotate stage (private; each is wrapped by a public function
 that validates its input, and tested against a slow reference in ``tests/naive*.py``):
 
-* the reference modified distance Δ̄ (MBS09 §4, algorithms.md §7 step 2;
+* the reference modified distance Δ̄ ([MBS09] §4, algorithms.md §7 step 2;
   :func:`mtanno.annotate.dbar.modified_delta`);
 * labels and extended runs of a Δ̄ matrix (§7 steps 3–4;
   :func:`mtanno.annotate.label.segments_from_labels`);
@@ -29,7 +29,7 @@ import numpy as np
 
 from mtanno.util._bits import popcount64 as _popcount
 
-# ----------------------------------------------------------- reference Δ̄ (MBS09 §4)
+# ----------------------------------------------------------- reference Δ̄ ([MBS09] §4)
 
 
 @numba.njit(cache=True)

@@ -178,7 +178,7 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     (:class:`mtanno.util.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
     queries (:mod:`mtanno.keyframes`), or is a :class:`mtanno.keyframes.KeyframeSet` of
     them: those classes are matched only inside their
-    candidate windows in each document (MBS09 §5), the others everywhere. A file that
+    candidate windows in each document ([MBS09] §5), the others everywhere. A file that
     cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
     and the batch goes on. ``progress`` is called once per file with its path and its
     failure message (None on success). ``single_label`` resolves overlapping segments

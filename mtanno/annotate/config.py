@@ -1,5 +1,5 @@
 """Class configurations: per-class τ, superclasses and the tuned annotation methods
-(MBS09 §4 thresholds; the issue-10 methods of ``docs/annotation.md``), read from and
+([MBS09] §4 thresholds; the issue-10 methods of ``docs/annotation.md``), read from and
 written to TOML (``mtanno annotate --classes``, ``mtanno tune``).
 
 :data:`DEFAULT_TAU` and :data:`DEFAULT_DELTA` are the published method's τ and δ;
@@ -31,11 +31,11 @@ __all__ = ["DECODER_KEYS", "DEFAULT_DELTA", "DEFAULT_TAU", "ClassConfig", "check
            "class_config_text", "load_class_config", "write_class_config"]
 
 
-#: Annotation threshold τ of MBS09 (used for every class without its own τ).
+#: Annotation threshold τ of [MBS09] (used for every class without its own τ).
 DEFAULT_TAU = 0.13
 
 
-#: Quantization δ of the templates for annotation (MBS09).
+#: Quantization δ of the templates for annotation ([MBS09]).
 DEFAULT_DELTA = 0.05
 
 
@@ -46,7 +46,7 @@ class ClassConfig:
 
     ``tau`` maps class (or superclass) names to τ; ``superclasses`` maps a superclass
     name to the classes it joins (its Δ̄ is the frame-wise minimum over them). The methods,
-    all off by default (MBS09 as the reference implementation runs it):
+    all off by default ([MBS09] as the reference implementation runs it):
 
     * ``resolve`` — overlap resolution: the segment decoder (:mod:`mtanno.annotate.decode`) picks
       one least-cost partition into matches instead of Δ̄ labels and extension;

@@ -1,4 +1,4 @@
-"""The modified distance Δ̄ of a class over a document (MBS09 §4, algorithms.md §7 step 2):
+"""The modified distance Δ̄ of a class over a document ([MBS09] §4, algorithms.md §7 step 2):
 each match's cost spread over the frames it covers, in the reference implementation's
 greedy order (the kernels of :mod:`mtanno.annotate._kernels`) or as the paper writes it.
 
@@ -57,12 +57,12 @@ def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT
                    variant: str = "reference", max_hits: int | None = None,
                    out: np.ndarray | None = None,
                    spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Δ̄ from a distance curve Δ and start frames (algorithms.md §7 step 2; MBS09 §4).
+    """Δ̄ from a distance curve Δ and start frames (algorithms.md §7 step 2; [MBS09] §4).
 
     ``variant="reference"`` (default, what the reference implementation does): repeatedly
     take the smallest remaining Δ(ℓ) ≤ τ (ties: earliest frame), fill the frames of
     [a_ℓ, ℓ] that are still ∞ with Δ(ℓ), and exclude that range from further picks;
-    ``max_hits`` caps the picks (the reference used 2000). ``variant="paper"`` (MBS09 as
+    ``max_hits`` caps the picks (the reference used 2000). ``variant="paper"`` ([MBS09] as
     written): for every local minimum ℓ of Δ below τ, Δ̄(k) = min(Δ̄(k), Δ(ℓ)) on [a_ℓ, ℓ].
     Frames are 0-based; Δ = ∞ where no match ends. ``out`` (float64, Δ's length) receives
     Δ̄ instead of a new array (a batch reuses one buffer). ``spans``: (firsts, lasts),

@@ -1,7 +1,7 @@
 """The segment decoder of tuned annotation: overlap resolution, boundary refinement,
 rejection and frame-wise tie-breaking (issue 10; ``docs/annotation.md``).
 
-MBS09's annotation (§4, algorithms.md §7) labels every frame with the class of smallest
+[MBS09]'s annotation (§4, algorithms.md §7) labels every frame with the class of smallest
 modified distance Δ̄ and then extends the runs outward, so segments of different classes
 overlap and extended segments run past the true boundaries. The segment decoder instead
 chooses, per document, the cheapest *partition* into matches and unlabelled frames, by
@@ -98,7 +98,7 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
                     weight: float = 0.0, segment_cost: float = 0.0,
                     boundaries: Sequence[int] = ()) -> list[Decoded]:
     """The least-cost partition of a document into label segments and unlabelled frames
-    (module docstring; issue 10, built on MBS09 §4's distance functions).
+    (module docstring; issue 10, built on [MBS09] §4's distance functions).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Frame-wise labels of one document (MBS09 §4–5, algorithms.md §7): every class
+"""Frame-wise labels of one document ([MBS09] §4–5, algorithms.md §7): every class
 template's distance Δ_p over the document (optionally only inside keyframe windows),
 its modified distance Δ̄_p (:mod:`mtanno.annotate.dbar`), the label of each frame (the
 class of smallest Δ̄) and the maximal runs of one label, extended while Δ̄ keeps falling
@@ -154,7 +154,7 @@ def class_deltas(X: np.ndarray, classes: Sequence[ClassModel], *,
     [first, last] (0-based inclusive; clipped to the document, overlapping ones merged; or
     a (firsts, lasts) pair of sorted disjoint arrays, :func:`mtanno.keyframes.class_spans`):
     Δ_p is computed inside each window (windows are matched as separate documents) and is
-    ∞ elsewhere (MBS09 §5). Classes without an entry are matched everywhere. The document
+    ∞ elsewhere ([MBS09] §5). Classes without an entry are matched everywhere. The document
     is bit-packed once for all classes.
     """
     from mtanno.templates.match import pack_document
@@ -241,7 +241,7 @@ def annotate_document(doc: str, X: np.ndarray, classes: Sequence[ClassModel], *,
                       single_label: bool = False, packed: np.ndarray | None = None,
                       matrix: bool = True,
                       ) -> tuple[list[Annotation], list[str], np.ndarray | None]:
-    """Annotate one document (MBS09 §4–5): returns (segments, label names, Δ̄ matrix).
+    """Annotate one document ([MBS09] §4–5): returns (segments, label names, Δ̄ matrix).
 
     Labels are the classes, or the superclasses of ``config`` joining them (classes not in
     a superclass keep their name); Δ̄ of a label is the frame-wise minimum of its classes'.
@@ -356,7 +356,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
     per class, the merged windows outside which its Δ is ∞ (keyframe preselection), so
     that Δ̄ and the decoder's rows read Δ only inside them.
 
-    * Default (MBS09, the reference implementation): Δ̄ per class with τ (at most the
+    * Default ([MBS09], the reference implementation): Δ̄ per class with τ (at most the
       class's rejection ceiling ρ), labels, extension (``config.refine``: only over
       frames of no other label).
     * ``config.resolve``: the segment decoder (:func:`mtanno.annotate.decode.decode_segments`) on
@@ -397,7 +397,7 @@ def _limits(config: ClassConfig, name: str, lab: str) -> tuple[float, float]:
 
 def _dbar_segments(doc, matches, L: int, layout, config: ClassConfig, *, dbar_variant,
                    max_hits, extend, single_label, spans, matrix):
-    """:func:`label_document` without ``config.resolve`` (MBS09, the reference
+    """:func:`label_document` without ``config.resolve`` ([MBS09], the reference
     implementation): Δ̄ rows (a label's templates folded by the frame-wise minimum),
     labels and extended runs, and ``single_label`` resolution."""
     labels, member_of, count = layout

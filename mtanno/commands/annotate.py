@@ -39,7 +39,7 @@ from mtanno.util.store import document_files
               help="With --output-dir: recompute tables that are up to date.")
 @click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
               help="Folder of keyframe queries (CLASS.json from learn-keyframes): a class's "
-                   "template is matched only inside its candidate windows (MBS09 §5).")
+                   "template is matched only inside its candidate windows ([MBS09] §5).")
 @click.option("--classes", "config_path", type=click.Path(dir_okay=False), default=None,
               help="Class configuration (TOML): per-class tau, superclasses, and the methods "
                    "`mtanno tune` writes (docs/annotation.md).")
@@ -68,7 +68,7 @@ from mtanno.util.store import document_files
 def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
                  delta, variant, former_variant, match_variant, single_label, jobs, quiet,
                  wait, scheduler):
-    """Label every frame of documents with motion classes (MBS09 §4).
+    """Label every frame of documents with motion classes ([MBS09] §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
     every document; frames get the class whose modified distance is smallest (below tau),

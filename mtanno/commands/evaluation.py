@@ -42,7 +42,7 @@ from mtanno.util.store import document_files
 @user_errors(2)
 def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs):
     """Frame- and segment-level precision, recall and F-measure of annotation tables
-    against ground truth, overall and per class, with support counts (MBS09 §7), and the
+    against ground truth, overall and per class, with support counts ([MBS09] §7), and the
     action-segmentation measures: frame accuracy, Edit score, F1@{10,25,50} (Lea et al.
     2017, as MS-TCN computes them; 0-1, "–" where undefined).
 
@@ -90,7 +90,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
               type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth of the documents (doc,start,end,label[,fps]).")
 @click.option("--delta", type=DELTA, default=RETRIEVAL_DELTA, show_default=True,
-              help=f"Quantization delta of the templates (MR06 retrieval: {RETRIEVAL_DELTA:g}).")
+              help=f"Quantization delta of the templates ([MR06] retrieval: {RETRIEVAL_DELTA:g}).")
 @click.option("--max-hits", default=RETRIEVAL_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")
 @click.option("--class", "classes", multiple=True, help="Only these classes.")
@@ -103,7 +103,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
 @user_errors(2)
 def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path,
                            table_path):
-    """Retrieval quality per class (MR06 Tables 2 and 4): hits |H|, relevant hits |H+|,
+    """Retrieval quality per class ([MR06] Tables 2 and 4): hits |H|, relevant hits |H+|,
     precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
     quotient, each template retrieved in all FEATURES documents. A feature file that
     cannot be used is reported and left out (exit code 1)."""
@@ -233,7 +233,7 @@ def truth_mocap6(labels, output):
 @user_errors(2)
 def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, title,
                quiet):
-    """Write a report of annotation tables against ground truth (MBS09 §7) into a folder.
+    """Write a report of annotation tables against ground truth ([MBS09] §7) into a folder.
 
     \b
     index.html                 self-contained page (images inline): open it in a browser

@@ -35,8 +35,8 @@ from mtanno.errors import MtannoError
 @click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
 @click.option("--feature-set", "feature_set", default="ak40", show_default=True,
               type=click.Choice(["ak40", "mrc05", "mrc05-reference"]),
-              help="ak40: the 40 annotation features (MR06 + F40); mrc05: the 31 features "
-                   "of MRC05 (reference bugs fixed, docs/index.md); mrc05-reference: as the "
+              help="ak40: the 40 annotation features ([MR06] + F40); mrc05: the 31 features "
+                   "of [MRC05] (reference bugs fixed, docs/index.md); mrc05-reference: as the "
                    "reference implementation computes them.")
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
               help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
@@ -48,7 +48,7 @@ from mtanno.errors import MtannoError
 def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait,
                  scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
-    annotation features, or the 31 MRC05 features with --feature-set mrc05.
+    annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
     INPUT is a motion file (.amc, .bvh), a directory (searched recursively) or `-` to read
     file names from standard input, one per line. A file FILE.amc gives OUTDIR/FILE.parquet;

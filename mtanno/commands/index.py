@@ -1,5 +1,5 @@
 """``mtanno index`` (build, add, remove, info) and ``mtanno query``: thin layers over
-:mod:`mtanno.index` (MRC05 §5–6)."""
+:mod:`mtanno.index` ([MRC05] §5–6)."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ class _IndexGroup(click.Group):
 
 @click.group("index", cls=_IndexGroup, context_settings={"help_option_names": ["-h", "--help"]})
 def index_group() -> None:
-    """Build, update and describe a relational index (MRC05 §5).
+    """Build, update and describe a relational index ([MRC05] §5).
 
     \b
     mtanno index FEATURES... -o INDEX/     build (FEATURES = feature files or directories)
@@ -177,7 +177,7 @@ def info_cmd(index_dir, as_json, output):
 @click.option("--frames", default=None, metavar="A:B",
               help="Example frames, 1-based inclusive at 30 Hz (default: all).")
 @click.option("--features", "feature_list", default=None, metavar="NAME,...", type=NAMES,
-              help="Features of the example that matter (names, ids such as F07, or MRC05 "
+              help="Features of the example that matter (names, ids such as F07, or [MRC05] "
                    "Table 1 names such as Fl7).")
 @click.option("--query", "query_file", default=None, type=click.Path(dir_okay=False),
               metavar="Q.json", help="JSON query file (docs/index.md).")
@@ -209,8 +209,8 @@ def info_cmd(index_dir, as_json, output):
 @user_errors(2)
 def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, windows, mode,
               mismatches, min_segment, rank_mt, top, output, quiet):
-    """Find motions in INDEX (MRC05 §5–6): by example, with a JSON query file, or with a
-    keyframe query (MBS09 §5).
+    """Find motions in INDEX ([MRC05] §5–6): by example, with a JSON query file, or with a
+    keyframe query ([MBS09] §5).
 
     \b
     mtanno query INDEX --example FILE.parquet [--frames A:B] --features NAME,...
@@ -219,7 +219,7 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
 
     Hits are written as a table (CSV on standard output unless -o names a .csv, .parquet
     or .jsonl file): doc, start, end (1-based inclusive frames at 30 Hz), rank,
-    score (sum of segment length differences to the example, MRC05 §6.2; lower is better),
+    score (sum of segment length differences to the example, [MRC05] §6.2; lower is better),
     mt_cost (with --rank-mt; empty where the template cannot fit the hit, which a note
     counts), span_start, span_end (queries with segment lengths: the hit before trimming),
     boundaries (per group: first frame of each matched segment, then the last frame; for

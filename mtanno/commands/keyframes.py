@@ -38,8 +38,8 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
                "training clip of its label.")
 @click.option("--method", type=click.Choice(["ga", "hard", "heuristic"]), default="ga",
               show_default=True,
-              help="ga: genetic algorithm (MBS09 §6); hard: hard-template columns (thesis); "
-                   "heuristic: quantized-template columns (MR06).")
+              help="ga: genetic algorithm ([MBS09] §6); hard: hard-template columns (thesis); "
+                   "heuristic: quantized-template columns ([MR06]).")
 @click.option("--runs", default=DEFAULT_RUNS, show_default=True, type=click.IntRange(min=1),
               help="ga: independent runs per class; the query whose keyframes occur most "
                    "often among the winners is kept.")
@@ -63,7 +63,7 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
 def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split, truth, method,
                         runs, seed, jobs, generations, population, columns, classes, quiet,
                         wait, scheduler):
-    """Learn a keyframe query per class (MBS09 §6): a few key poses, each over one feature
+    """Learn a keyframe query per class ([MBS09] §6): a few key poses, each over one feature
     group, with gap bounds, that the class's training clips share and other classes' clips
     lack. `mtanno annotate --keyframes` matches templates only where they occur.
 

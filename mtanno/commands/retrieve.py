@@ -1,4 +1,4 @@
-"""``mtanno retrieve``: all occurrences of one motion class in feature files (MR06 §5.4).
+"""``mtanno retrieve``: all occurrences of one motion class in feature files ([MR06] §5.4).
 
 Exit codes: 0 success (also with no hits), 1 some feature files could not be used (the
 others were searched), 2 usage error or bad input (unreadable template, no feature files).
@@ -23,7 +23,7 @@ from mtanno.util.store import feature_files
               help="Template JSON of the class (from learn-mt; quantized with its delta, or "
                    "with --delta, when it is not quantized yet), or a folder holding one.")
 @click.option("--tau", default=DEFAULT_TAU, show_default=True, type=TAU,
-              help="Quality threshold: hits have cost Δ ≤ tau (MR06: 0.06; the reference "
+              help="Quality threshold: hits have cost Δ ≤ tau ([MR06]: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
 @click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Report at most this many hits (a note on stderr says when the cap cut "
@@ -37,7 +37,7 @@ from mtanno.util.store import feature_files
               default=None, hidden=True, help="The former name of --match.")
 @click.option("--delta", "qdelta", default=None, type=DELTA,
               help="Quantize an unquantized template with this δ (default: the template's "
-                   f"own delta, else {DEFAULT_DELTA:g} as in MR06). A quantized template keeps "
+                   f"own delta, else {DEFAULT_DELTA:g} as in [MR06]). A quantized template keeps "
                    "its own delta.")
 @click.option("-o", "--output", default="-", show_default=True,
               type=click.Path(dir_okay=False, allow_dash=True),
@@ -47,7 +47,7 @@ from mtanno.util.store import feature_files
 @user_errors(2)
 def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdelta, output,
                  quiet):
-    """Find all occurrences of the class of a motion template in feature files (MR06 §5.4).
+    """Find all occurrences of the class of a motion template in feature files ([MR06] §5.4).
 
     FEATURES are feature files (.parquet, from `mtanno features`) or folders searched
     recursively. Each file is one document; matches never cross documents. Hits are

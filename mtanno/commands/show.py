@@ -1,5 +1,5 @@
 """``mtanno show``: a feature file as a compact text timeline (or a picture), to pick the
-frames and features of a query by example (MRC05 §6.2)."""
+frames and features of a query by example ([MRC05] §6.2)."""
 
 from __future__ import annotations
 

@@ -45,7 +45,7 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
                "TRAINING feature files is an example of its label.")
 @click.option("--hard", is_flag=True,
               help="Learn hard templates (thesis §3.3: wildcard where examples disagree) "
-                   "instead of soft ones (MR06 §4.1).")
+                   "instead of soft ones ([MR06] §4.1).")
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class found.")
 @click.option("--iterations", default=ITER_MAX, show_default=True, type=click.IntRange(min=1),
@@ -57,7 +57,7 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
 @user_errors(2)
 def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, classes,
                  iterations, thresh, quiet, wait):
-    """Learn one motion template per class from example clips (MR06 §4.1).
+    """Learn one motion template per class from example clips ([MR06] §4.1).
 
     Training examples come from one of:
 
@@ -171,7 +171,7 @@ def mt_show_cmd(template, delta, top, picture, files):
                    "'_mirrored' appended, or removed if present]")
 @user_errors(2)
 def mt_mirror_cmd(template, output, name):
-    """Swap left and right in a template (MR06 §5.4).
+    """Swap left and right in a template ([MR06] §5.4).
 
     The rows of every left/right feature pair (e.g. rhand_fast and lhand_fast) are
     swapped, so a template learned from left-handed examples finds the right-handed
@@ -221,7 +221,7 @@ def mt_scale_cmd(template, factor, output):
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", required=True, type=DELTA,
               help="Entries ≤ δ become 0, entries ≥ 1−δ become 1, the rest the wildcard "
-                   "0.5 (0.1 for retrieval, MR06; 0.05 for annotation, MBS09; 0 keeps only "
+                   "0.5 (0.1 for retrieval, [MR06]; 0.05 for annotation, [MBS09]; 0 keeps only "
                    "unanimous entries).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output template file.")
@@ -250,7 +250,7 @@ def mt_quantize_cmd(template, delta, output):
               help="Quantize first with this δ (0: only unanimous entries stay 0 or 1).")
 @user_errors(2)
 def mt_plot_cmd(template, output, delta):
-    """Draw a motion template as a heat map (MR06 Fig. 4): one row per feature, one
+    """Draw a motion template as a heat map ([MR06] Fig. 4): one row per feature, one
     column per template column, black 0, white 1, grey in between (wildcards 0.5).
     Needs matplotlib (pip install 'mtanno[plot]')."""
     from mtanno.plot import plot_template, require_matplotlib, save_figure

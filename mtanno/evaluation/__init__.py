@@ -6,11 +6,11 @@ Modules:
 * :mod:`~mtanno.evaluation.truth` — ground-truth segments (1-based frames at 30 Hz),
   truth tables and the CMU mocap6 label converter;
 * :mod:`~mtanno.evaluation.metrics` — frame- and segment-level P/R/F of annotations
-  (MBS09 §7), per class, with support counts, in one report with the measures below;
+  ([MBS09] §7), per class, with support counts, in one report with the measures below;
 * :mod:`~mtanno.evaluation.segmentation` — the action-segmentation measures: frame
   accuracy, Edit score, F1@{10, 25, 50} (Lea et al. 2017; MS-TCN);
 * :mod:`~mtanno.evaluation.retrieval` — retrieval P/R per τ, top-k recall, separation
-  (MR06 §5.4–5.5);
+  ([MR06] §5.4–5.5);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
   clips (``mtanno compose``);
 * :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``).

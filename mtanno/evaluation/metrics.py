@@ -1,4 +1,4 @@
-"""Evaluation of annotations against ground truth: MBS09 §7's P1/R1/F1 (frames) and
+"""Evaluation of annotations against ground truth: [MBS09] §7's P1/R1/F1 (frames) and
 P2/R2/F2 (segments), and in the same :class:`Report` the action-segmentation measures
 (frame accuracy, Edit, F1@{10, 25, 50}: :mod:`mtanno.evaluation.segmentation`).
 
@@ -92,7 +92,7 @@ def _intersection(a: np.ndarray, b: np.ndarray) -> int:
 
 
 def frame_level(truth: Sequence[Segment], output: Sequence[Segment]) -> tuple[PRF, dict[str, PRF]]:
-    """P1/R1/F1 over all documents together and per class (MBS09 §7).
+    """P1/R1/F1 over all documents together and per class ([MBS09] §7).
 
     M = {(frame, label)} of the truth, A = of the output; P1 = |M∩A|/|A|, R1 = |M∩A|/|M|.
     Computed on merged frame intervals, so the cost does not grow with segment lengths.
@@ -121,7 +121,7 @@ def overlaps(a: Segment, b: Segment) -> bool:
 
 def segment_level(truth: Sequence[Segment], output: Sequence[Segment]) -> tuple[PRF, dict[str, PRF]]:
     """P2/R2/F2: an output segment is correct if it overlaps a truth segment of its label; a
-    truth segment is found if an output segment of its label overlaps it (MBS09 §7)."""
+    truth segment is found if an output segment of its label overlaps it ([MBS09] §7)."""
     by_key: dict[tuple[str, str], list[Segment]] = {}
     for s in truth:
         by_key.setdefault((s.doc, s.label), []).append(s)
@@ -158,7 +158,7 @@ def _defined(prf: PRF) -> tuple[float | None, float | None, float | None]:
 
 @dataclass
 class Report:
-    """Frame- and segment-level results, overall and per class: MBS09's P/R/F and the
+    """Frame- and segment-level results, overall and per class: [MBS09]'s P/R/F and the
     action-segmentation measures (``segmentation``: frame accuracy, Edit, F1@k), and
     ``warnings`` about the inputs (one sentence each, e.g. truth and annotation without a
     common label)."""

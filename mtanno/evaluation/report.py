@@ -6,12 +6,12 @@ documents' feature files) :func:`write_report` writes into one folder:
 * ``index.html`` — a self-contained page (every image inline as a data URI, no other file
   needed) with the tables and figures below;
 * ``per_class.csv`` / ``.md`` / ``.tex`` — per-class P/R/F at frame and segment level with
-  their support (MBS09 §7), frame accuracy, Edit and F1@{10,25,50} (the rows of ``mtanno
+  their support ([MBS09] §7), frame accuracy, Edit and F1@{10,25,50} (the rows of ``mtanno
   evaluate``, "–" where undefined), CSV with provenance;
 * ``confusion.csv`` and ``confusion.png``/``.svg`` — the frame-level confusion matrix,
   truth × annotation, with a "none" row and column (frames without a label);
 * ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
-* with templates and features: ``template_<class>.png``/``.svg`` (heat maps, MR06 Fig. 4)
+* with templates and features: ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4)
   and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4).
 
 A confusion matrix needs one label per frame. Annotations from ``annotate

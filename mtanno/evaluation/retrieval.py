@@ -1,4 +1,4 @@
-"""Evaluation of retrieval against ground truth (MR06 §5.4–5.5, algorithms.md §8): hits
+"""Evaluation of retrieval against ground truth ([MR06] §5.4–5.5, algorithms.md §8): hits
 and relevant hits per τ, top-k recall, the separation quotient, per class.
 
 Frames are 1-based inclusive at 30 Hz (:class:`mtanno.evaluation.truth.Segment`).
@@ -16,13 +16,13 @@ from mtanno.evaluation.truth import Segment
 
 #: Hit cap per class and document of the retrieval table (the reference driver's).
 DEFAULT_MAX_HITS = 2000
-#: τ grid of the retrieval table (algorithms.md §8, MR06 Table 2).
+#: τ grid of the retrieval table (algorithms.md §8, [MR06] Table 2).
 TAU_GRID = (0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1)
 
 
 @dataclass
 class RetrievalRow:
-    """One class at one τ (MR06 Table 2): hits, relevant hits, occurrences, P, R."""
+    """One class at one τ ([MR06] Table 2): hits, relevant hits, occurrences, P, R."""
 
     label: str
     tau: float
@@ -87,7 +87,7 @@ def top_k_recall(hits: Sequence[Segment], truth: Sequence[Segment], label: str,
 
 def separation_quotient(delta_median: float, hits: Sequence[Segment], costs: Sequence[float],
                         truth: Sequence[Segment], label: str, *, top: int = 10) -> float:
-    """s = median(Δ) / median(cost of the correct hits among the ``top`` best) (MR06 Table 4).
+    """s = median(Δ) / median(cost of the correct hits among the ``top`` best) ([MR06] Table 4).
 
     Large values mean the correct hits stand out from the distance curve; ∞ when the best
     correct hit has cost 0, NaN when no correct hit is among the top.
@@ -102,7 +102,7 @@ def separation_quotient(delta_median: float, hits: Sequence[Segment], costs: Seq
 
 @dataclass
 class ClassRetrieval:
-    """The retrieval evaluation of one class over a set of documents (MR06 Tables 2, 4)."""
+    """The retrieval evaluation of one class over a set of documents ([MR06] Tables 2, 4)."""
 
     label: str
     rows: list[RetrievalRow]

@@ -2,7 +2,7 @@
 and F1@{10, 25, 50} (Lea et al., "Temporal Convolutional Networks for Action Segmentation and
 Detection", CVPR 2017; as computed by MS-TCN, Farha & Gall, CVPR 2019, and its successors).
 
-They complement MBS09's P1/R1/F1 and P2/R2/F2 (:mod:`mtanno.evaluation.metrics`): P2/R2
+They complement [MBS09]'s P1/R1/F1 and P2/R2/F2 (:mod:`mtanno.evaluation.metrics`): P2/R2
 count a segment right when it shares one frame with a truth segment of its label, with no
 one-to-one matching; F1@k matches one to one by intersection over union, and the Edit
 score penalises over-segmentation and wrong order.

@@ -4,7 +4,7 @@
 (velocities and hysteresis included) and reduces the result to the 30 Hz analysis rate.
 Three named feature sets (:data:`FEATURE_SETS`, selected by :func:`get_feature_set`):
 ``mr06-ak40`` (alias ``ak40``, the default: the 40 annotation features of
-:mod:`~mtanno.features.table`), ``mrc05`` and ``mrc05-reference`` (the 31 features of MRC05,
+:mod:`~mtanno.features.table`), ``mrc05`` and ``mrc05-reference`` (the 31 features of [MRC05],
 :mod:`~mtanno.features.table31`).
 
 Modules: :mod:`~mtanno.features.table` and :mod:`~mtanno.features.table31` (the feature

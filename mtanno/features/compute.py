@@ -59,7 +59,7 @@ MEASURE_JOINTS = {
 
 @dataclass(frozen=True)
 class FeatureSet:
-    """A named feature table with its index groups (algorithms.md §2, MRC05 §5.3).
+    """A named feature table with its index groups (algorithms.md §2, [MRC05] §5.3).
 
     Attributes
     ----------
@@ -102,7 +102,7 @@ class FeatureSet:
 
     def index(self, name: str) -> int:
         """0-based row of a feature given by name, id (``F07``), reference name or, for the
-        31-set, its MRC05 Table 1 name (``Fl7`` or ``Fℓ7``)."""
+        31-set, its [MRC05] Table 1 name (``Fl7`` or ``Fℓ7``)."""
         key = name.strip()
         for i, f in enumerate(self.features):
             paper = getattr(f, "paper", "")

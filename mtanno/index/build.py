@@ -1,4 +1,4 @@
-"""Building and updating an index directory from feature files (MRC05 §5.3, §6.1).
+"""Building and updating an index directory from feature files ([MRC05] §5.3, §6.1).
 
 :func:`build_index` segments every feature file per group and writes a new index;
 :func:`add_documents` and :func:`remove_documents` update one in place: they reuse the stored

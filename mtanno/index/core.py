@@ -1,6 +1,6 @@
 """The relational index in memory: adaptive segmentation, inverted lists, documents, groups.
 
-MRC05 §4 and §5.3 (algorithms.md §4): for a feature group F (a named subset of the feature
+[MRC05] §4 and §5.3 (algorithms.md §4): for a feature group F (a named subset of the feature
 set's features, e.g. lower/upper/mix), the F-segments of a document are the maximal runs of
 frames with equal F-feature vectors. A segment's vector is stored as an integer *code*,
 ``Σ_k bit_k · 2^k`` over the group's features in group order (the reference
@@ -52,7 +52,7 @@ class Document:
 
 
 class GroupIndex:
-    """Segments and inverted lists of one feature group (MRC05 §5.3).
+    """Segments and inverted lists of one feature group ([MRC05] §5.3).
 
     Attributes (arrays over segment rows unless said otherwise)
     ----------------------------------------------------------
@@ -163,7 +163,7 @@ class GroupIndex:
 
 def inverted_lists(code: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(list codes, CSR offsets, postings) of the inverted lists over segment codes: list v
-    holds the rows with code ``list_codes[v]``, ascending (MRC05 §5.1, eq. 6)."""
+    holds the rows with code ``list_codes[v]``, ascending ([MRC05] §5.1, eq. 6)."""
     order = np.argsort(code, kind="stable")
     sorted_codes = code[order]
     if len(code):
@@ -184,7 +184,7 @@ def frame_codes(X: np.ndarray, rows: Sequence[int]) -> np.ndarray:
 
 
 def segment(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Adaptive segmentation (MRC05 §4): (start frames, lengths, codes) of the maximal runs
+    """Adaptive segmentation ([MRC05] §4): (start frames, lengths, codes) of the maximal runs
     of equal per-frame codes, frames 0-based."""
     n = len(codes)
     if n == 0:
@@ -387,7 +387,7 @@ def check_compatible(docs: Sequence[FeatureDoc], *, layout: FeatureLayout | None
 
 def doc_segments(X: np.ndarray, names: Sequence[str], groups: Mapping[str, Sequence[str]],
                  ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Group → (starts, lengths, codes) of one document's F-segments (MRC05 §4)."""
+    """Group → (starts, lengths, codes) of one document's F-segments ([MRC05] §4)."""
     pos = {n: i for i, n in enumerate(names)}
     return {g: segment(frame_codes(X, [pos[f] for f in feats])) for g, feats in groups.items()}
 

@@ -1,4 +1,4 @@
-"""Queries made from an example or read from a file (MRC05 §5.2–5.3, ``docs/index.md``):
+"""Queries made from an example or read from a file ([MRC05] §5.2–5.3, ``docs/index.md``):
 query by example (:func:`example_query`: the example's F-segments as a sequence of fuzzy
 sets, with their lengths for ranking; short segments turned into transitions), and the
 JSON query file (:func:`parse_query`, :func:`load_query`).
@@ -93,7 +93,7 @@ def drop_short_segments(lengths: np.ndarray, values: np.ndarray, min_segment: in
 def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: Sequence[str], *,
                   frames: tuple[int, int] | None = None, mode: str = "adaptive",
                   mismatches: int = 0, min_segment: int = 1) -> Query:
-    """Query by example (MRC05 §6.2, algorithms.md §4): the example's segmentation over the
+    """Query by example ([MRC05] §6.2, algorithms.md §4): the example's segmentation over the
     chosen features, per group, becomes a sequence of fuzzy sets that fix the chosen bits
     and leave the group's other features free; segment lengths (frames) go along for the
     ranking. ``X`` is the example's (features × frames) matrix with row ``names`` (the
@@ -127,7 +127,7 @@ def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: S
 
 def _feature_pos(index: Index, name: str) -> int:
     """Position of a feature in the index's feature set, by name or, for a built-in set,
-    by id, reference name or MRC05 Table 1 name (``F07``, ``kneeRightAngle``, ``Fl7``)."""
+    by id, reference name or [MRC05] Table 1 name (``F07``, ``kneeRightAngle``, ``Fl7``)."""
     if name in index.features:
         return index.features.index(name)
     from mtanno.features import FEATURE_SETS

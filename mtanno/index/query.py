@@ -1,13 +1,13 @@
 """Queries on the relational index: exact, fuzzy, adaptive fuzzy and m-mismatch hits.
 
-MRC05 §5.1–5.2 and §6.2 (algorithms.md §4). A query over one feature group is a sequence of
+[MRC05] §5.1–5.2 and §6.2 (algorithms.md §4). A query over one feature group is a sequence of
 *fuzzy sets* V_1 … V_L of that group's feature vectors. A fuzzy set is written as patterns
 ``(mask, value)`` over the group's bits: vector v is in the set iff ``v & mask == value`` for
 some pattern (features outside ``mask`` are free, "*"); an exact query has one full-mask
 pattern per position. Adjacent sets that intersect are merged (their union) until neighbours
-are disjoint, as MRC05 §5.2 prescribes; this coarsens the query.
+are disjoint, as [MRC05] §5.2 prescribes; this coarsens the query.
 
-Hits on a document with F-feature sequence w_1 … w_M (its F-segments, MRC05 §4):
+Hits on a document with F-feature sequence w_1 … w_M (its F-segments, [MRC05] §4):
 
 * ``exact`` / ``fuzzy``: segment k with w_{k+i−1} ∈ V_i for i = 1 … L (eq. 4 and 9); computed
   as the intersection of the inverted lists L(V_i) shifted by i − 1 (eq. 7 and 11): the
@@ -19,7 +19,7 @@ Hits on a document with F-feature sequence w_1 … w_M (its F-segments, MRC05 §
   match), or the smallest list of a position that may not mismatch.
 * ``adaptive``: the document's segmentation is coarsened into maximal runs of V_1-segments,
   V_2-segments, …; a hit is the first segment of a maximal V_1 run followed directly by
-  runs of V_2 … V_L; the hit reports the coarsened boundaries (MRC05 §5.2, the example
+  runs of V_2 … V_L; the hit reports the coarsened boundaries ([MRC05] §5.2, the example
   after eq. 11). With ``min_segment = N > 1`` the runs need not be adjacent: between two
   consecutive runs the document may pass through other vectors for at most N − 1 frames
   (a *transition*: one knee bending a frame before the other), and query by example turns
@@ -33,7 +33,7 @@ ranking score is computed on the untrimmed runs.
 
 Queries over several groups are answered per group and intersected on frames: a hit is a
 combination of one hit per group in the same document whose frame ranges overlap, reported
-as the common frames. Hits are ranked by the segment-length heuristic of MRC05 §6.2 (sum over
+as the common frames. Hits are ranked by the segment-length heuristic of [MRC05] §6.2 (sum over
 positions of |query segment length − hit segment length| in frames) when the query has
 segment lengths (query by example), else listed in document order.
 """
@@ -117,7 +117,7 @@ class GroupQuery:
 
     def normalized(self) -> GroupQuery:
         """Adjacent intersecting sets merged into their union, repeatedly, until neighbours
-        are disjoint (MRC05 §5.2); lengths add up, a merged position may mismatch if any of
+        are disjoint ([MRC05] §5.2); lengths add up, a merged position may mismatch if any of
         its parts may."""
         sets = list(self.sets)
         lengths = list(self.lengths) if self.lengths is not None else None
@@ -148,7 +148,7 @@ class Query:
     """A query: one :class:`GroupQuery` per group, the mode, the number of mismatches and,
     for the adaptive mode, the shortest run in frames that counts as a phase of the motion
     (``min_segment``; shorter runs between two phases are transitions, module docstring;
-    1 is MRC05's rule)."""
+    1 is [MRC05]'s rule)."""
 
     parts: tuple[GroupQuery, ...]
     mode: str = "adaptive"
@@ -371,7 +371,7 @@ def _intersect(a_doc, a_start, a_end, gh: GroupHits):
 
 def search(index: Index, query: Query) -> Hits:
     """Answer ``query`` on ``index``: per group, then intersected on frames, then ranked by
-    the segment-length heuristic (MRC05 §6.2) or, without query lengths, in document order.
+    the segment-length heuristic ([MRC05] §6.2) or, without query lengths, in document order.
     Hits of queries with segment lengths are trimmed (module docstring); their untrimmed
     frames are the hits' ``span_start``/``span_end``."""
     parts = [p.normalized() for p in query.parts]
@@ -397,7 +397,7 @@ def search(index: Index, query: Query) -> Hits:
         doc, start, end, span_s, span_e = (a[order] for a in (doc, start, end, span_s, span_e))
         picks = [p[order] for p in picks]
     score = np.zeros(len(doc))
-    for p, gh, pick in zip(parts, ghits, picks):  # MRC05's score: the runs as matched
+    for p, gh, pick in zip(parts, ghits, picks):  # [MRC05]'s score: the runs as matched
         score += _length_score(gh.bounds[pick], p.lengths)
     with_span = any(p.lengths is not None and len(p.sets) > 1 for p in parts)
     hits = Hits(doc, start, end, score,

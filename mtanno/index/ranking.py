@@ -1,5 +1,5 @@
 """Hits of an index query ranked and written: finer ranking by a motion template on the
-hits' frames only (MRC05 §6.2, :func:`rank_by_template`) and the query hit table
+hits' frames only ([MRC05] §6.2, :func:`rank_by_template`) and the query hit table
 (:func:`write_query_hits`, ``docs/index.md``).
 """
 
@@ -22,7 +22,7 @@ __all__ = ["QUERY_HIT_COLUMNS", "hit_table", "rank_by_template", "rank_by_templa
 def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.ndarray,
                      features: Sequence[str]) -> Hits:
     """Re-rank hits by the cost of a quantized motion template on each hit's frames only
-    (MRC05 §6.2, "finer ranking … on the few hits"; algorithms.md §3.4): cost = min Δ over
+    ([MRC05] §6.2, "finer ranking … on the few hits"; algorithms.md §3.4): cost = min Δ over
     the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
     template (such hits are ranked last; :attr:`Hits.unfit` counts them). ``values``
     (f × K, 0/1/0.5), ``weights`` (K,), ``features`` the template's feature names (rebuilt
@@ -68,7 +68,7 @@ def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
     """:func:`rank_by_template` with a motion-template JSON file (``query --rank-mt``):
     read with :func:`mtanno.templates.model.load_template`, checked against the index's
     feature set, quantized with the retrieval δ (:data:`mtanno.retrieve.DEFAULT_DELTA`,
-    MR06 §5.2) unless it already is. Returns (ranked hits, the template's columns)."""
+    [MR06] §5.2) unless it already is. Returns (ranked hits, the template's columns)."""
     from mtanno.retrieve import DEFAULT_DELTA
     from mtanno.templates.model import load_template, quantize
 

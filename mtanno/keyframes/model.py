@@ -1,6 +1,6 @@
 """Keyframe queries: what they are, their JSON files, and how they read as a table.
 
-A keyframe query (MBS09 §5; thesis ch. 4; algorithms.md §5) is a sequence of keyframes
+A keyframe query ([MBS09] §5; thesis ch. 4; algorithms.md §5) is a sequence of keyframes
 V_1 … V_n, each a fuzzy feature vector in {0, 1, *} over the features of ONE feature group
 (upper, lower, mix …), taken from template column q_j, and gap bounds
 (dmin_j, dmax_j) in frames at 30 Hz between V_j and V_{j+1}. A document segment is
@@ -14,7 +14,7 @@ distance d = q_{j+1} − q_j: dmin = ⌈s·d⌉, dmax = ⌊d/s⌋, in exact rati
 
 The candidate windows a query gives for annotation are its hits widened by
 ``factor·(q_1 − 1) + offset`` frames on the left and ``factor·(K − q_n) + offset`` on the
-right (K = template length): MBS09's annotation uses factor 2, offset 0; the reference
+right (K = template length): [MBS09]'s annotation uses factor 2, offset 0; the reference
 implementation's classification driver factor 3, offset 3. Explicit widths can be given
 instead.
 
@@ -137,7 +137,7 @@ class Keyframe:
     """One keyframe: ``vector`` has one of ``0``, ``1``, ``*`` per feature of ``group``
     (in the group's feature order); ``position`` is the 1-based template column.
     ``mismatches`` is how many of the fixed entries may differ at a matching frame (0:
-    all must agree, as in MBS09; 1 or 2: MRC05's mismatch tolerance, for keyframes that
+    all must agree, as in [MBS09]; 1 or 2: [MRC05]'s mismatch tolerance, for keyframes that
     must carry over to performers who differ in a feature or two)."""
 
     group: str
@@ -218,7 +218,7 @@ class Extension:
         return {"factor": self.factor, "offset": self.offset}
 
 
-#: MBS09's annotation widening (the reference annotation script): 2·(q1−1), 2·(K−qn).
+#: [MBS09]'s annotation widening (the reference annotation script): 2·(q1−1), 2·(K−qn).
 ANNOTATION_EXTENSION = Extension(2, 0)
 
 

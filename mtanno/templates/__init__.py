@@ -2,8 +2,8 @@
 
 * :mod:`~mtanno.templates.model` — :class:`MotionTemplate`, its JSON file
   (:func:`save_template`, :func:`load_template`), :func:`quantize` (§3.3) and
-  :func:`mirror` (MR06 §5.4).
-* :mod:`~mtanno.templates.learn` — soft MT learning (MR06 §4.1, exactly as the reference
+  :func:`mirror` ([MR06] §5.4).
+* :mod:`~mtanno.templates.learn` — soft MT learning ([MR06] §4.1, exactly as the reference
   implementation, features.md App. A) and hard MTs (thesis §3.3):
   :func:`mtanno.templates.learn.learn` on matrices, :func:`learn_template` on training
   examples (the function ``learn`` is not re-exported here, so that

@@ -1,4 +1,4 @@
-"""Learning motion templates from example clips: soft MTs (MR06 §4.1) and hard MTs (thesis §3.3).
+"""Learning motion templates from example clips: soft MTs ([MR06] §4.1) and hard MTs (thesis §3.3).
 
 Soft MT learning follows the reference implementation ("strategy 5") operation for
 operation, as written down in ``features.md`` Appendix A, so that it reproduces the golden
@@ -331,7 +331,7 @@ def learn(examples: Sequence[np.ndarray], *, hard: bool = False, iter_max: int =
         Their order matters: the template learned with example 1 as reference is
         returned, and ties are broken by order.
     hard:
-        Learn a hard MT (thesis §3.3.1) instead of a soft one (MR06 §4.1).
+        Learn a hard MT (thesis §3.3.1) instead of a soft one ([MR06] §4.1).
     iter_max, thresh:
         Stop after ``iter_max`` iterations, or once the maximum normalised alignment cost
         is ≤ ``thresh`` or no longer changes.
@@ -399,7 +399,7 @@ def learn_template(examples: Sequence[TrainingExample], *, class_name: str | Non
     res = learn([ex.X for ex in examples], hard=hard, iter_max=iter_max, thresh=thresh)
     first = examples[0]
     params = {
-        "method": "hard (thesis 3.3.1)" if hard else "soft (MR06 4.1, reference strategy 5)",
+        "method": "hard (thesis 3.3.1)" if hard else "soft ([MR06] 4.1, reference strategy 5)",
         "iter_max": iter_max,
         "iter_thresh": thresh,
         "contract_min_weight": CONTRACT_MIN_WEIGHT,

@@ -1,6 +1,6 @@
 """Matching a quantized motion template against documents: the distance function Δ.
 
-Subsequence DTW with a masked local cost (MR06 §5.2, MBS09 §4; algorithms.md §3.4). For a
+Subsequence DTW with a masked local cost ([MR06] §5.2, [MBS09] §4; algorithms.md §3.4). For a
 quantized template X (f × K, entries 0, 1 and the wildcard 0.5) and a document Y (f × L,
 0/1, one column per 30 Hz frame), Δ(ℓ) is the cost of the cheapest warping path that ends at
 document frame ℓ and covers the whole template, starting at any frame a_ℓ ≤ ℓ. Small values
@@ -23,7 +23,7 @@ Two variants:
     steps of D(predecessor) + weight(step) · c(k, ℓ) (ties: the first step); Δ(ℓ) = D(K, ℓ)/K.
 
 Steps are (template, document) increments; the default is (1,1), (1,2), (2,1) with weights
-1, 1, 2 (MR06 §5.2). A cell no path reaches is +∞ (the reference writes NaN); ``start`` is then
+1, 1, 2 ([MR06] §5.2). A cell no path reaches is +∞ (the reference writes NaN); ``start`` is then
 −1. Paths never cross a document boundary.
 
 The kernels stream over the document: they keep only a few columns of D and of the start
@@ -358,7 +358,7 @@ def match_lengths(weights: np.ndarray, *, variant: str = "reference",
     a template with these column ``weights`` can cover: its warping path runs from the
     first to the last template column (the reference variant's expanded columns,
     :func:`column_repeats`; the paper variant's K columns) by ``steps`` (template, document)
-    increments (MR06 §5.2). With the default steps (1,1), (1,2), (2,1) a match over n
+    increments ([MR06] §5.2). With the default steps (1,1), (1,2), (2,1) a match over n
     columns covers n // 2 + 1 to 2n − 1 frames: a performance much faster or slower than
     the template cannot match at all (``mtanno mt scale`` makes a time-scaled copy). None
     for the longest: a step that advances the document only makes it unbounded."""
@@ -464,7 +464,7 @@ class PreparedTemplate:
         """(delta, start) over a whole packed document (:func:`pack_document`) of which only
         the disjoint spans [starts[i], ends[i]] (0-based inclusive) are matched, each as a
         document of its own; starts are frames of the whole document; Δ = ∞ and start = −1
-        elsewhere. One kernel call for all spans, nothing copied (MBS09 §5: templates
+        elsewhere. One kernel call for all spans, nothing copied ([MBS09] §5: templates
         matched only inside keyframe windows). ``out``: (delta, start) arrays of length L
         to write into instead of new ones; with ``clear=False`` their frames outside the
         spans are left as they are (for a reader that looks inside the spans only)."""
@@ -549,7 +549,7 @@ def match_template(values: np.ndarray, weights: np.ndarray, X: np.ndarray, *,
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Distance function Δ and match start frames of a quantized template on one document.
 
-    MR06 §5.2, MBS09 §4, algorithms.md §3.4 (the module docstring describes both variants).
+    [MR06] §5.2, [MBS09] §4, algorithms.md §3.4 (the module docstring describes both variants).
 
     Parameters
     ----------

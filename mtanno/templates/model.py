@@ -1,6 +1,6 @@
 """The motion template (MT) object, its JSON file, quantization and mirroring.
 
-An MT of a motion class (MR06 §4) is a (features × K) matrix with entries in [0, 1] and one
+An MT of a motion class ([MR06] §4) is a (features × K) matrix with entries in [0, 1] and one
 weight per column; columns are time steps at the 30 Hz analysis rate, and the weights sum
 to about the mean length of the training examples in frames. A *quantized* MT
 (algorithms.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
@@ -39,7 +39,7 @@ __all__ = [
 
 #: Schema identifier written into (and required from) every template file.
 SCHEMA = "mtanno.template/1"
-#: Template kinds: soft (MR06 §4.1) and hard (thesis §3.3.1).
+#: Template kinds: soft ([MR06] §4.1) and hard (thesis §3.3.1).
 KINDS = ("soft", "hard")
 #: Appended to (or removed from) the class name by :func:`mirror`.
 MIRROR_SUFFIX = "_mirrored"
@@ -404,12 +404,12 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
 
 
 def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
-    """Quantized copy of ``mt`` (algorithms.md §3.3; MR06 §5.2): entries ≤ δ become 0,
+    """Quantized copy of ``mt`` (algorithms.md §3.3; [MR06] §5.2): entries ≤ δ become 0,
     entries ≥ 1 − δ become 1, the rest the wildcard 0.5.
 
     Both comparisons are inclusive and tested in that order, so δ = 0 keeps exactly the
     unanimous entries (0 and 1) and δ = 0.5 leaves no wildcard (0.5 itself becomes 0).
-    δ = 0.1 is MR06's retrieval setting, 0.05 MBS09's annotation setting.
+    δ = 0.1 is [MR06]'s retrieval setting, 0.05 [MBS09]'s annotation setting.
     """
     if not _is_number(delta) or not 0.0 <= float(delta) <= 0.5:
         raise MtannoError(f"quantization delta must be a number in [0, 0.5], got {delta!r}")
@@ -447,7 +447,7 @@ def rank_features(q: MotionTemplate) -> list[FeatureRank]:
 
 def mirror_names(feature_set: str) -> dict[str, str]:
     """Feature name → name of its left/right partner (itself when unpaired) for a known
-    feature set (MR06 Table 6 / MRC05 Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`)."""
+    feature set ([MR06] Table 6 / [MRC05] Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`)."""
     from mtanno.features import FEATURE_SETS, get_feature_set
 
     try:
@@ -464,7 +464,7 @@ def mirror_names(feature_set: str) -> dict[str, str]:
 
 
 def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
-    """Left/right mirrored copy of ``mt`` (MR06 §5.4): the rows of every left/right feature
+    """Left/right mirrored copy of ``mt`` ([MR06] §5.4): the rows of every left/right feature
     pair are swapped (by feature name, using the feature set's mirror table), so a
     template of 'CartwheelLeft' finds right cartwheels.
 

@@ -16,7 +16,7 @@ Collecting gives :class:`ExampleSource` records (cheap, nothing read yet);
 :func:`load_examples` reads the feature files, cuts the segments, checks that every
 example has the same feature names, feature set and frame rate, and orders them by file
 name, then start frame — the order the golden templates were learned in (the first
-example is the reference whose template MT learning returns, MR06 §4.1).
+example is the reference whose template MT learning returns, [MR06] §4.1).
 """
 
 from __future__ import annotations
@@ -152,7 +152,7 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     return out
 
 
-#: Fewer examples than this make a template that has seen too little variation (MR06 §4
+#: Fewer examples than this make a template that has seen too little variation ([MR06] §4
 #: learns from 7–26); learn-mt warns for such classes.
 MIN_EXAMPLES = 3
 
@@ -164,7 +164,7 @@ def few_examples_warning(class_name: str, n: int) -> str | None:
         return None
     return (f"warning: class {class_name} is learned from {n} example{'s' if n != 1 else ''} "
             f"only; a template needs at least {MIN_EXAMPLES} to average over the variation "
-            "of a motion (MR06 §4.1)")
+            "of a motion ([MR06] §4.1)")
 
 
 def ignored_documents_note(ignored: Sequence[str]) -> str | None:

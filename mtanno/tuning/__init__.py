@@ -4,7 +4,7 @@
 * :mod:`~mtanno.tuning.cv` — folds (one performer held out), held-out documents built
   from the held-out examples only.
 * :mod:`~mtanno.tuning.cluster` — several templates per class: groups of similar examples.
-* :mod:`~mtanno.tuning.score` — the evaluation counts of MBS09 §7 on frame arrays.
+* :mod:`~mtanno.tuning.score` — the evaluation counts of [MBS09] §7 on frame arrays.
 * :mod:`~mtanno.tuning.search` — learning and matching per fold, the objective and the
   coordinate search.
 * :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run) and :func:`write_tuned` (the

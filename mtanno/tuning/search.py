@@ -10,7 +10,7 @@ exactly what ``annotate --classes`` does). The objective is
 
     J = (F1 + F2) / 2 − w · U
 
-with F1, F2 the frame and segment F-measures over all folds (MBS09 §7) and U the
+with F1, F2 the frame and segment F-measures over all folds ([MBS09] §7) and U the
 unknown-class rate — for each class in turn left out of the templates, the fraction of
 its held-out frames that another class labels — weighted by ``unknown_weight`` (w). A
 class without a template in a fold (its examples all held out) is unknown there: its
@@ -65,7 +65,7 @@ __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCA
 
 #: The methods ``tune`` can switch on (all by default); ``--disable`` names them.
 METHODS = ("tau", "reject", "refine", "resolve", "segments", "templates", "frames", "delta")
-#: Quantization δ tried (MBS09 uses 0.05; examples of varied styles want a larger one).
+#: Quantization δ tried ([MBS09] uses 0.05; examples of varied styles want a larger one).
 DELTA_GRID = (0.05, 0.15, 0.25, 0.35)
 #: One τ for all classes, tried first.
 TAU_GRID = (0.03, 0.04, 0.05, 0.065, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.4, 0.5)

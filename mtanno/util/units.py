@@ -7,6 +7,6 @@ file's own frames are *native* frames.
 
 __all__ = ["ANALYSIS_FPS"]
 
-#: The analysis frame rate (Hz): features are reduced to it (MR06 §2), and every table's
+#: The analysis frame rate (Hz): features are reduced to it ([MR06] §2), and every table's
 #: frames count at it unless a column says ``native``.
 ANALYSIS_FPS = 30.0
