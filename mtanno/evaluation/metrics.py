@@ -25,6 +25,16 @@ from mtanno.evaluation.truth import Segment
 EVALUATION_SCHEMA = "mtanno.evaluation/1"
 
 
+def ratio(part: float, whole: float) -> float:
+    """``part / whole``, 0.0 when ``whole`` is 0: precision and recall of nothing."""
+    return part / whole if whole else 0.0
+
+
+def f_measure(p: float, r: float) -> float:
+    """The harmonic mean of precision ``p`` and recall ``r`` (0.0 when both are 0)."""
+    return 2 * p * r / (p + r) if p + r else 0.0
+
+
 @dataclass
 class PRF:
     """Precision, recall and F-measure with the counts they come from."""
@@ -36,16 +46,15 @@ class PRF:
 
     @property
     def P(self) -> float:
-        return self.tp_p / self.n_p if self.n_p else 0.0
+        return ratio(self.tp_p, self.n_p)
 
     @property
     def R(self) -> float:
-        return self.tp_r / self.n_r if self.n_r else 0.0
+        return ratio(self.tp_r, self.n_r)
 
     @property
     def F(self) -> float:
-        p, r = self.P, self.R
-        return 2 * p * r / (p + r) if p + r else 0.0
+        return f_measure(self.P, self.R)
 
     def as_dict(self) -> dict[str, float]:
         """P, R, F and the counts: ``support`` (truth frames or segments), ``predicted``

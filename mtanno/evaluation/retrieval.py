@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtanno.evaluation.metrics import overlaps
+from mtanno.evaluation.metrics import overlaps, ratio
 from mtanno.evaluation.truth import Segment
 
 #: Hit cap per class and document of the retrieval table (the reference driver's).
@@ -32,11 +32,11 @@ class RetrievalRow:
 
     @property
     def P(self) -> float:
-        return self.relevant / self.hits if self.hits else 0.0
+        return ratio(self.relevant, self.hits)
 
     @property
     def R(self) -> float:
-        return self.relevant / self.occurrences if self.occurrences else 0.0
+        return ratio(self.relevant, self.occurrences)
 
 
 def retrieval_rows(label: str, hits: Sequence[Segment], costs: Sequence[float],

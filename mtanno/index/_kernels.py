@@ -32,6 +32,9 @@ def fixed_hits(src, src_lists, src_lists_off, offsets, postings, member, seg_lis
     n_pos = member.shape[0]
     n_rows = seg_list.shape[0]
     cnt = 0
+    # numba twin of the candidate loop of adaptive_hits: both walk the postings of some
+    # lists, but a shared walk would have to collect the candidates into an array first
+    # (numba has no cheap callbacks), an extra pass and allocation per query
     for p in range(src.shape[0]):
         j = src[p]
         for li in range(src_lists_off[p], src_lists_off[p + 1]):
@@ -79,6 +82,7 @@ def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, seg_le
     """
     n_pos = member.shape[0]
     cnt = 0
+    # numba twin of the candidate loop of fixed_hits (see there): written out for speed
     for li in range(lists.shape[0]):
         v = lists[li]
         for idx in range(offsets[v], offsets[v + 1]):
@@ -152,6 +156,9 @@ def overlap_pairs(doc_a, start_a, end_a, doc_b, start_b, end_b, out_a, out_b):
     cnt = 0
     j0 = 0
     nb = doc_b.shape[0]
+    # numba twin of keyframes/_kernels.py pair_spans (the same two-pointer walk): it writes
+    # spans, this the pairs' indices, and a kernel calls kernels of its own file only
+    # (numba's cache does not see changes to another file; util/_bits.py)
     for i in range(doc_a.shape[0]):
         while j0 < nb and doc_b[j0] < doc_a[i]:
             j0 += 1

@@ -567,42 +567,27 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
 
 def dumps(q: KeyframeQuery) -> str:
     """JSON text meant to be read and edited: one line per keyframe and per group."""
-    d = q.to_dict()
+    from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
-    def one(x) -> str:
-        return json.dumps(x, ensure_ascii=False)
-
-    lines = []
-    for key, value in d.items():
-        if key == "keyframes":
-            text = "[\n" + ",\n".join("    " + one(k) for k in value) + "\n  ]"
-        elif key == "groups":
-            text = "{\n" + ",\n".join(f"    {one(g)}: {one(f)}" for g, f in value.items()) \
-                + "\n  }"
-        elif key == "provenance":
-            text = _dumps_provenance(value)
-        else:
-            text = one(value)
-        lines.append(f"  {one(key)}: {text}")
-    return "{\n" + ",\n".join(lines) + "\n}\n"
+    layouts = {"keyframes": lambda v: json_list_lines(json_compact(k) for k in v),
+               "groups": lambda v: json_object_lines(v, level=1),
+               "provenance": _dumps_provenance}
+    return json_object_lines(q.to_dict(), layouts) + "\n"
 
 
 def _dumps_provenance(prov: dict) -> str:
     """One line per provenance entry; a list of objects (the training clips) one line per
     object."""
-    def one(x) -> str:
-        return json.dumps(x, ensure_ascii=False)
+    from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
     if not prov:
         return "{}"
-    items = []
-    for k, v in prov.items():
-        if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
-            text = "[\n" + ",\n".join("      " + one(x) for x in v) + "\n    ]"
-        else:
-            text = one(v)
-        items.append(f"    {one(k)}: {text}")
-    return "{\n" + ",\n".join(items) + "\n  }"
+
+    def objects(v: list) -> str:
+        return json_list_lines((json_compact(x) for x in v), level=2)
+
+    return json_object_lines(prov, {k: objects for k, v in prov.items() if isinstance(v, list)
+                                    and v and all(isinstance(x, dict) for x in v)}, level=1)
 
 
 def save_keyframes(path: str | os.PathLike, q: KeyframeQuery) -> None:

@@ -28,6 +28,7 @@ import numpy as np
 
 from mtanno.errors import MtannoError, read_json
 from mtanno.util.store import atomic_path
+from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
 if TYPE_CHECKING:
     from mtanno.util.store import FeatureLayout
@@ -277,29 +278,15 @@ def check_feature_names(mt: MotionTemplate, path: str | None = None,
 def _dumps(mt: MotionTemplate) -> str:
     """JSON text meant to be read: one line per scalar field, per training file, per
     feature name, per 10 weights and per feature row of ``values``."""
-    d = mt.to_dict()
-
-    def one(x) -> str:
-        return json.dumps(x, ensure_ascii=False)
-
-    def block(items: list[str]) -> str:
-        return "[\n" + ",\n".join("    " + it for it in items) + "\n  ]"
-
-    lines = []
-    for key, value in d.items():
-        if key == "training":
-            text = block([one(t) for t in value]) if value else "[]"
-        elif key == "feature_names":
-            text = block([one(n) for n in value])
-        elif key == "weights":
-            text = block([", ".join(repr(x) for x in value[i:i + 10])
-                          for i in range(0, len(value), 10)])
-        elif key == "values":
-            text = block(["[" + ", ".join(repr(x) for x in row) + "]" for row in value])
-        else:
-            text = one(value)
-        lines.append(f"  {one(key)}: {text}")
-    return "{\n" + ",\n".join(lines) + "\n}\n"
+    layouts = {
+        "training": lambda v: json_list_lines(json_compact(t) for t in v) if v else "[]",
+        "feature_names": lambda v: json_list_lines(json_compact(n) for n in v),
+        "weights": lambda v: json_list_lines(", ".join(repr(x) for x in v[i:i + 10])
+                                             for i in range(0, len(v), 10)),
+        "values": lambda v: json_list_lines("[" + ", ".join(repr(x) for x in row) + "]"
+                                            for row in v),
+    }
+    return json_object_lines(mt.to_dict(), layouts) + "\n"
 
 
 def save_template(path: str | os.PathLike, mt: MotionTemplate) -> None:

@@ -30,7 +30,7 @@ import math
 import os
 import re
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,7 +41,8 @@ from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_j
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
-           "command_line", "dumps", "file_record", "parse_frame_range", "output_files", "provenance",
+           "command_line", "dumps", "file_record", "json_compact", "json_list_lines",
+           "json_object_lines", "output_files", "parse_frame_range", "provenance",
            "provenance_as_read", "read_clip_manifest", "read_provenance", "read_table",
            "set_command_line", "sidecar_path", "string_array", "table_format",
            "table_provenance", "text", "write_json", "write_table"]
@@ -222,6 +223,32 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
     from mtanno.util.output import write_text
 
     write_text(path, dumps(obj, indent=1) + "\n")
+
+
+def json_compact(x: Any) -> str:
+    """One value as compact JSON with non-ASCII characters kept (no other change: the
+    value of one line of :func:`json_object_lines`)."""
+    return json.dumps(x, ensure_ascii=False)
+
+
+def json_list_lines(items: Iterable[str], level: int = 1) -> str:
+    """A JSON array of items already written as JSON text, one a line, for a file meant
+    to be read and edited; ``level`` is how deep it stands (two spaces a level)."""
+    pad = "  " * level
+    return "[\n" + ",\n".join(pad + "  " + it for it in items) + "\n" + pad + "]"
+
+
+def json_object_lines(d: Mapping[str, Any], layouts: Mapping[str, Callable[[Any], str]] | None
+                      = None, level: int = 0) -> str:
+    """A JSON object meant to be read and edited: one line per key, its value as
+    :func:`json_compact`, or as the function ``layouts`` gives for its key writes it
+    (such as :func:`json_list_lines`); ``level`` as there. The one layout of template,
+    keyframe and provenance files."""
+    layouts = layouts or {}
+    pad = "  " * level
+    lines = [f"{pad}  {json_compact(k)}: {layouts[k](v) if k in layouts else json_compact(v)}"
+             for k, v in d.items()]
+    return "{\n" + ",\n".join(lines) + "\n" + pad + "}"
 
 
 def _clean(x: Any) -> Any:
