@@ -22,18 +22,29 @@ from mtanno.templates.model import template_files
 from mtanno.util.store import document_files
 
 
+def json_and_table_options(*, json_what: str, schema: str, table_what: str):
+    """``--json FILE`` and ``-o TABLE``: the two further outputs of evaluate and
+    evaluate-retrieval (``-`` for standard output)."""
+    def deco(fn):
+        fn = click.option("-o", "--output", "table_path", default=None,
+                          type=click.Path(dir_okay=False, allow_dash=True),
+                          help=f"Also write {table_what} (.csv, .parquet, .jsonl, or - for "
+                               "CSV on standard output).")(fn)
+        return click.option("--json", "json_path", default=None,
+                            type=click.Path(dir_okay=False, allow_dash=True),
+                            help=f"Also write {json_what} as JSON (schema {schema}; - for "
+                                 "standard output).")(fn)
+    return deco
+
+
 @click.command("evaluate")
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
                 type=click.Path(allow_dash=True))
 @click.option("--truth", "truth_path", required=True,
               type=click.Path(dir_okay=False, allow_dash=True),
               help="Ground truth table (doc,start,end,label[,fps]).")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True),
-              default=None, help="Also write the report as JSON (schema mtanno.evaluation/1; "
-                                 "- for standard output).")
-@click.option("-o", "--output", "table_path", type=click.Path(dir_okay=False, allow_dash=True),
-              default=None, help="Also write the per-class table (.csv, .parquet, .jsonl, "
-                                 "or - for CSV on standard output).")
+@json_and_table_options(json_what="the report", schema="mtanno.evaluation/1",
+                        table_what="the per-class table")
 @click.option("--all-docs", is_flag=True,
               help="Count every truth document, also those not annotated at all (default: "
                    "the documents of ANNOTATIONS — with rows, or recorded in their "
@@ -94,12 +105,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
 @click.option("--max-hits", default=RETRIEVAL_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")
 @click.option("--class", "classes", multiple=True, help="Only these classes.")
-@click.option("--json", "json_path", type=click.Path(dir_okay=False, allow_dash=True),
-              default=None, help="Also write the results as JSON (schema "
-                                 "mtanno.retrieval-evaluation/1; - for standard output).")
-@click.option("-o", "--output", "table_path", type=click.Path(dir_okay=False, allow_dash=True),
-              default=None, help="Also write the table, one row per class and tau (.csv, "
-                                 ".parquet, .jsonl, or - for CSV on standard output).")
+@json_and_table_options(json_what="the results", schema="mtanno.retrieval-evaluation/1",
+                        table_what="the table, one row per class and tau")
 @user_errors(2)
 def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path,
                            table_path):

@@ -71,15 +71,21 @@ def build_cmd(features, out, groups, quiet, wait):
     failures: list[str] = []
     index = build_index(features, out, groups=_groups_option(groups), failures=failures,
                         wait=wait, on_wait=waiting_note(out))
-    _report(failures)
-    if not quiet:
-        click.echo(f"index: {_summary(index)}, {len(failures)} failed -> {out}", err=True)
-    sys.exit(1 if failures else 0)
+    _finish(failures, None if quiet else
+            f"index: {_summary(index)}, {len(failures)} failed -> {out}")
 
 
 def _report(failures: list[str]) -> None:
     for message in failures:
         click.echo(f"mtanno: {message}", err=True)
+
+
+def _finish(failures: list[str], summary: str | None) -> None:
+    """The failures, one line each, the summary line, and exit code 1 if any failed."""
+    _report(failures)
+    if summary:
+        click.echo(summary, err=True)
+    sys.exit(1 if failures else 0)
 
 
 @index_group.command("add")
@@ -97,11 +103,8 @@ def add_cmd(index_dir, features, quiet, wait):
     failures: list[str] = []
     index, report = add_documents(index_dir, features, failures=failures, wait=wait,
                                   on_wait=waiting_note(index_dir))
-    _report(failures)
-    if not quiet:
-        click.echo(f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}",
-                   err=True)
-    sys.exit(1 if failures else 0)
+    _finish(failures, None if quiet else
+            f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}")
 
 
 @index_group.command("remove")
