@@ -7,7 +7,10 @@ commit, ``make demo OUT=out/after`` at the new one), byte for byte except for wh
 * provenance timestamps (``"created"``) and version strings (``"mtanno_version"``,
   ``extractor_version``), in JSON sidecars, Parquet metadata, TOML and HTML headers;
 * the command line recorded in provenance, where it names the output folder (``out/before``
-  vs ``out/after``): the folder names are replaced by one placeholder before comparing.
+  vs ``out/after``): the folder names are replaced by one placeholder before comparing;
+* SHA-256 digests (a file's provenance records the digests of inputs that carry their own
+  timestamps), the random clip-path and marker ids matplotlib writes into SVG files, and
+  the folder the package is installed in (a skeleton map's recorded path).
 
 Parquet files are compared by their data (every column, every row) and their metadata
 after the same normalisation; PNG/SVG figures by bytes (matplotlib writes a creation date
@@ -27,7 +30,9 @@ from pathlib import Path
 _STAMP = re.compile(rb'("created"\s*:\s*)"[^"]*"|("mtanno_version"\s*:\s*)"[^"]*"'
                     rb'|("extractor_version"\s*:\s*)"[^"]*"'
                     rb'|(<dc:date>)[^<]*(</dc:date>)|(CreationDate\s*\(?)[^)\n]*'
-                    rb'|(mtanno )\d+\.\d+\.\d+[^\s"<,]*|(Date: )[^\n]*')
+                    rb'|(mtanno )\d+\.\d+\.\d+[^\s"<,]*|(Date: )[^\n]*'
+                    rb'|(\b)[0-9a-f]{64}\b|(#|id=")(?:[mp]|image)[0-9a-f]{10}\b'
+                    rb'|()(?<![\w./-])[\w./-]+(/mtanno/skeletons/)')
 
 
 def _norm(data: bytes, roots: tuple[bytes, bytes]) -> bytes:
@@ -47,10 +52,29 @@ def _parquet(path: Path, roots) -> bytes:
                                       for k, v in sorted(meta.items())}).encode()
 
 
+_PNG = re.compile(rb"data:image/png;base64,([A-Za-z0-9+/=\s]+)")
+
+
+def _pixels(m: re.Match) -> bytes:
+    """An image embedded in an SVG file by its pixels (the PNG's own bytes vary from run
+    to run while the picture does not)."""
+    import base64
+    import hashlib
+    import io
+
+    from matplotlib.image import imread
+
+    data = imread(io.BytesIO(base64.b64decode(b"".join(m.group(1).split()))), format="png")
+    return b"data:image/png;pixels=" + hashlib.sha256(data.tobytes()).hexdigest().encode()
+
+
 def _content(path: Path, roots) -> bytes:
     if path.suffix == ".parquet":
         return _parquet(path, roots)
-    return _norm(path.read_bytes(), roots)
+    data = path.read_bytes()
+    if path.suffix in (".svg", ".html"):
+        data = _PNG.sub(_pixels, data)
+    return _norm(data, roots)
 
 
 def main(argv: list[str]) -> int:

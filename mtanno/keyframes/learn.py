@@ -262,7 +262,7 @@ def _learn_ga(ctx: _Context, template, *, runs: int, seed: int, jobs: int, param
     }
     info = {"length": template.length, "quantized_for_init": 0.0}
     return _query(ctx, r.genes, gaps, template.length,
-                  _provenance(ctx, "ga ([MBS09] §6)", _template_info(template, info), extra),
+                  _provenance(ctx, "ga (MBS09 §6)", _template_info(template, info), extra),
                   params.mismatches, extension)
 
 
@@ -395,7 +395,7 @@ def _learn_heuristic(ctx: _Context, template, *, columns: int, beta: float) -> K
              "fitness": _score_dict(ctx, genes, gaps, beta)}
     ext = _extension(ctx, genes, [(g.dmin, g.dmax) for g in gaps], template.length, 0)
     return _query(ctx, genes, gaps, template.length,
-                  _provenance(ctx, "heuristic ([MR06] §5.4: quantized-template columns)",
+                  _provenance(ctx, "heuristic (MR06 §5.4: quantized-template columns)",
                               _template_info(template, {"length": template.length}), extra),
                   0, ext)
 

@@ -399,7 +399,7 @@ def learn_template(examples: Sequence[TrainingExample], *, class_name: str | Non
     res = learn([ex.X for ex in examples], hard=hard, iter_max=iter_max, thresh=thresh)
     first = examples[0]
     params = {
-        "method": "hard (thesis 3.3.1)" if hard else "soft ([MR06] 4.1, reference strategy 5)",
+        "method": "hard (thesis 3.3.1)" if hard else "soft (MR06 4.1, reference strategy 5)",
         "iter_max": iter_max,
         "iter_thresh": thresh,
         "contract_min_weight": CONTRACT_MIN_WEIGHT,
