@@ -2,7 +2,8 @@
 
 Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
 bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM), 129 hung up
-(SIGHUP). Errors a user can fix are printed as one line ``mtanno: path:line: what is
+(SIGHUP), 141 standard output closed by its reader (``mtanno info X | head``: no message,
+the SIGPIPE convention). Errors a user can fix are printed as one line ``mtanno: path:line: what is
 wrong``, usage errors too; an interruption as ``mtanno: interrupted (SIGINT)``. The
 ``mtanno`` program starts in :mod:`mtanno.__main__`, which handles the signals before this
 module is imported and after the command returned.
@@ -64,6 +65,11 @@ class _Main(click.Group):
             return super().make_context(info_name, args, parent=parent, **extra)
         except click.UsageError as exc:
             raise _one_line(exc) from None
+        except BrokenPipeError as exc:  # mtanno --help | head -1
+            from mtanno.commands._common import closed_output_edge
+
+            closed_output_edge(exc)
+            raise
 
     def invoke(self, ctx):
         from mtanno.errors import interrupted_line
@@ -76,6 +82,11 @@ class _Main(click.Group):
                 return super().invoke(ctx)
         except click.UsageError as exc:
             raise _one_line(exc) from None
+        except BrokenPipeError as exc:  # outside user_errors (Click's help, a summary line)
+            from mtanno.commands._common import closed_output_edge
+
+            closed_output_edge(exc)
+            raise
         except KeyboardInterrupt as exc:
             name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
             code = exc.exit_code if isinstance(exc, Interrupted) else EXIT_INTERRUPTED

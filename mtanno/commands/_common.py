@@ -20,7 +20,9 @@ ARGUMENT_NAMES = {"training": "TRAINING"}
 def user_errors(code: int):
     """Turn MtannoError (and an OSError of the file system) into a one-line message and
     exit ``code`` (no traceback). The API's parameter names in the message become the
-    command's flags (``features_dir=`` → ``--features-dir``)."""
+    command's flags (``features_dir=`` → ``--features-dir``). A reader that closed
+    standard output early (``| head``) ends the command quietly with exit code 141
+    (:func:`closed_output_edge`)."""
 
     def deco(fn):
         @functools.wraps(fn)
@@ -31,6 +33,7 @@ def user_errors(code: int):
                 click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
                 sys.exit(getattr(exc, "exit_code", code))  # LockBusy: 3
             except OSError as exc:  # the file system said no where no reader expected it
+                closed_output_edge(exc)
                 where = f"{exc.filename}: " if exc.filename else ""
                 click.echo(f"mtanno: {where}{exc.strerror or exc}", err=True)
                 sys.exit(code)
@@ -38,6 +41,18 @@ def user_errors(code: int):
         return wrapper
 
     return deco
+
+
+def closed_output_edge(exc: BaseException) -> None:
+    """End the command quietly (no message, exit code 141: the SIGPIPE convention) if
+    ``exc`` is a broken pipe because the reader of standard output or error is gone
+    (``mtanno info X | head -2``); return otherwise (another pipe broke: an error)."""
+    if not isinstance(exc, BrokenPipeError):
+        return
+    from mtanno.util.output import end_closed_output, output_closed
+
+    if output_closed():
+        end_closed_output()
 
 
 def wait_option(fn):

@@ -1,0 +1,62 @@
+"""The frictions a new user met (issue 25, section 2): each has a test here that failed on
+the code before its fix."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import subprocess
+import sys
+
+import pytest
+
+MTANNO = [sys.executable, "-m", "mtanno"]
+
+
+# --- a closed standard output ends a command quietly (mtanno info X | head -2) ------------
+
+
+def _run_into_closed_pipe(args: list[str]) -> subprocess.CompletedProcess:
+    """Run ``mtanno ARGS`` with standard output a pipe whose reader has already gone."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        return subprocess.run([*MTANNO, *args], stdout=write_end, stderr=subprocess.PIPE,
+                              text=True)
+    finally:
+        os.close(write_end)
+
+
+@pytest.mark.parametrize("command", ["info", "show", "info --features", "help"])
+def test_a_closed_standard_output_ends_the_command_quietly(world, command):
+    args = ["--help"] if command == "help" else [*command.split()[:1], str(world.doc_files[0]),
+                                                 *command.split()[1:]]
+    r = _run_into_closed_pipe(args)
+    assert r.stderr == ""  # not "mtanno: Broken pipe"
+    assert r.returncode == 141  # 128 + SIGPIPE, as a shell reports a tool SIGPIPE ended
+
+
+def test_a_reader_that_reads_one_line_and_closes(world, tmp_path):
+    """``mtanno show X | head -1``: the reader takes one line and goes while mtanno is still
+    writing (the pipe is made small, so mtanno is blocked in a write when the reader goes)."""
+    doc = str(world.doc_files[0])
+    full = subprocess.run([*MTANNO, "show", doc, "--width", "2000"], capture_output=True,
+                          text=True, check=True).stdout
+    read_end, write_end = os.pipe()
+    size = fcntl.fcntl(write_end, fcntl.F_SETPIPE_SZ, 4096)  # before mtanno writes a byte
+    p = subprocess.Popen([*MTANNO, "show", doc, "--width", "2000"], stdout=write_end,
+                         stderr=subprocess.PIPE)
+    os.close(write_end)
+    line = b""
+    while not line.endswith(b"\n"):  # one line, byte by byte: nothing more is taken
+        byte = os.read(read_end, 1)
+        assert byte, line  # mtanno ended before its first line
+        line += byte
+    os.close(read_end)
+    first = line.decode()
+    assert len(full) - len(first) > 2 * size  # more than the pipe holds was still to come
+    err = p.stderr.read().decode()
+    p.stderr.close()
+    assert p.wait() == 141
+    assert err == ""
+    assert first == full.splitlines(keepends=True)[0]
