@@ -76,7 +76,8 @@ class _Main(click.Group):
         from mtanno.util.jitnote import install_compile_note
         from mtanno.util.workers import Interrupted, interruptible, must_hard_exit
 
-        install_compile_note()  # one line on stderr if kernels must be compiled first
+        # one line on stderr if kernels must be compiled first (not with -q: _quiet_note)
+        install_compile_note().set_quiet(False)
         try:
             with interruptible():
                 return super().invoke(ctx)
@@ -110,6 +111,25 @@ def main() -> None:
     """
 
 
+def _silence_note(ctx, param, value):
+    """The callback of every command's ``-q``/``--quiet``: no compile note either."""
+    if value:
+        from mtanno.util.jitnote import silence
+
+        silence()
+    return value
+
+
+def _quiet_note(command: click.Command) -> None:
+    """Make ``-q``/``--quiet`` of ``command`` (and of its subcommands) silence the compile
+    note (:mod:`mtanno.util.jitnote`), so a quiet run prints nothing but errors."""
+    for param in command.params:
+        if param.name == "quiet" and param.callback is None:
+            param.callback = _silence_note
+    for sub in getattr(command, "commands", {}).values():
+        _quiet_note(sub)
+
+
 def _register_command_modules() -> None:
     """Add the commands of every module in :mod:`mtanno.commands` (each lists its Click
     commands in ``COMMANDS``), so a pipeline stage brings its own command module."""
@@ -118,6 +138,7 @@ def _register_command_modules() -> None:
             continue
         module = importlib.import_module(f"mtanno.commands.{info.name}")
         for command in getattr(module, "COMMANDS", ()):
+            _quiet_note(command)
             main.add_command(command)
 
 

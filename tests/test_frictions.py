@@ -9,6 +9,10 @@ import subprocess
 import sys
 
 import pytest
+from world import cli
+
+import mtanno.index
+from mtanno.util.jitnote import NOTE, install_compile_note
 
 MTANNO = [sys.executable, "-m", "mtanno"]
 
@@ -60,3 +64,37 @@ def test_a_reader_that_reads_one_line_and_closes(world, tmp_path):
     assert p.wait() == 141
     assert err == ""
     assert first == full.splitlines(keepends=True)[0]
+
+
+# --- the compile note never prints with -q --------------------------------------------------
+
+
+def _compile_a_kernel(k: int) -> None:
+    """Compile a fresh numba function of an mtanno module (numba says so: the note's cue)."""
+    import numba
+
+    ns: dict = {}
+    exec(f"def f(x):\n    return x + {k}\n", ns)
+    ns["f"].__module__ = "mtanno.fake"
+    numba.njit(ns["f"])(1)
+
+
+@pytest.mark.skipif(os.environ.get("NUMBA_DISABLE_JIT") == "1", reason="no JIT, no compiling")
+@pytest.mark.parametrize("quiet", [False, True])
+def test_the_compile_note_is_not_printed_with_quiet(world, tmp_path, monkeypatch, quiet):
+    build = mtanno.index.build_index
+
+    def compiling_build(*args, **kwargs):
+        _compile_a_kernel(1000 + quiet)  # as a first run compiles the index kernels
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(mtanno.index, "build_index", compiling_build)
+    done = install_compile_note()._done
+    before, done.value = done.value, 0  # as if no command of this process had said it
+    try:
+        r = cli("index", "build", world.docfeats, "-o", tmp_path / "idx",
+                *(["-q"] if quiet else []))
+    finally:
+        done.value = before
+    assert r.exit_code == 0, r.output
+    assert (NOTE in r.output) is not quiet
