@@ -98,3 +98,19 @@ def test_the_compile_note_is_not_printed_with_quiet(world, tmp_path, monkeypatch
         done.value = before
     assert r.exit_code == 0, r.output
     assert (NOTE in r.output) is not quiet
+
+
+# --- tune's log reads as text, not as Python values -------------------------------------------
+
+
+def test_the_search_log_of_tune_prints_no_python_values():
+    from test_tune import _fold_data, _with_scaled
+
+    from mtanno.tuning.search import Tuner
+
+    fold, prepared = _fold_data()
+    tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0)
+    params, _, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
+    assert params.scales == {"a": (0.6,)}
+    assert any(s.startswith("time-scaled templates a ×0.6:") for s in steps), steps
+    assert not any(c in s for s in steps for c in ("{", "}", "'", ",)")), steps  # {'a': (0.6,)}
