@@ -114,3 +114,19 @@ def test_the_search_log_of_tune_prints_no_python_values():
     assert params.scales == {"a": (0.6,)}
     assert any(s.startswith("time-scaled templates a ×0.6:") for s in steps), steps
     assert not any(c in s for s in steps for c in ("{", "}", "'", ",)")), steps  # {'a': (0.6,)}
+
+
+# --- dir(mtanno) lists the facade -------------------------------------------------------------
+
+
+def test_dir_of_the_package_lists_the_facade():
+    code = "import mtanno; print(' '.join(dir(mtanno)))"
+    names = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True).stdout.split()
+    for name in ("annotate_documents", "compute_features", "evaluate_annotation",
+                 "learn_templates", "load_templates", "read_motion", "MtannoError",
+                 "__version__"):
+        assert name in names
+    code = "import sys, mtanno; dir(mtanno); print('numpy' in sys.modules)"  # stays light
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.strip() == "False"
