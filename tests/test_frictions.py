@@ -130,3 +130,30 @@ def test_dir_of_the_package_lists_the_facade():
     code = "import sys, mtanno; dir(mtanno); print('numpy' in sys.modules)"  # stays light
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True).stdout.strip() == "False"
+
+
+# --- the API's annotations as the table the files hold ----------------------------------------
+
+
+def test_an_annotation_batch_is_the_table_annotate_writes(world, tmp_path, monkeypatch):
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "a.parquet"
+    r = cli("annotate", "--mt", world.mt, world.docfeats, "-o", out, "-q")
+    assert r.exit_code == 0, r.output
+    batch = mtanno.annotate_documents(world.docfeats, world.mt)
+    assert batch.rows
+    table = batch.to_arrow()
+    written = pq.read_table(out)
+    assert table.column_names == written.column_names
+    assert table.equals(written)
+    assert table.column("start").to_pylist() == [row.start + 1 for row in batch.rows]
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        assert batch.to_pandas()["end"].tolist() == [row.end + 1 for row in batch.rows]
+    monkeypatch.setitem(sys.modules, "pandas", None)  # pandas not installed
+    with pytest.raises(mtanno.MtannoError, match="needs pandas"):
+        batch.to_pandas()
