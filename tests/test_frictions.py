@@ -157,3 +157,40 @@ def test_an_annotation_batch_is_the_table_annotate_writes(world, tmp_path, monke
     monkeypatch.setitem(sys.modules, "pandas", None)  # pandas not installed
     with pytest.raises(mtanno.MtannoError, match="needs pandas"):
         batch.to_pandas()
+
+
+# --- errors a new user meets: a motion file for a feature file, a whole batch of the wrong set -
+
+
+def test_a_motion_file_given_for_a_feature_file_says_run_features_first(world, tmp_path):
+    from world import assert_one_line
+
+    amc = next(world.docs.glob("*.amc"))
+    renamed = world.copy(amc, tmp_path / "motion.parquet")  # found by its content too
+    for given in (amc, renamed):
+        for args in (["annotate", "--mt", world.mt, given, "-o", tmp_path / "a.csv"],
+                     ["show", given]):
+            line = assert_one_line(cli(*args), given)
+            assert "this is a motion file: run `mtanno features` first" in line, line
+            assert "magic bytes" not in line
+
+
+def test_a_batch_of_the_wrong_feature_set_is_one_line_and_writes_nothing(world, tmp_path):
+    from world import assert_one_line
+
+    feats31 = tmp_path / "feats31"
+    assert cli("features", world.docs, "-o", feats31, "--feature-set", "mrc05",
+               "-q").exit_code == 0
+    files = sorted(feats31.glob("*.parquet"))
+    assert len(files) > 1
+    out = tmp_path / "a.csv"
+    r = cli("annotate", "--mt", world.mt, feats31, "-o", out)
+    line = assert_one_line(r, files[0], codes=(1,))
+    assert "feature set 'mrc05'" in line and f"all {len(files)} documents" in line, line
+    assert not out.exists() and not (tmp_path / "a.csv.meta.json").exists()
+    # one good document beside them: every failure said, the table written
+    good = next(world.feats.rglob("*.parquet"))  # (a clip: another document name)
+    r = cli("annotate", "--mt", world.mt, feats31, good, "-o", out)
+    assert r.exit_code == 1
+    assert sum(ln.startswith("mtanno:") for ln in r.output.splitlines()) == len(files)
+    assert out.exists()
