@@ -7,6 +7,7 @@ import fcntl
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from world import cli
@@ -194,3 +195,58 @@ def test_a_batch_of_the_wrong_feature_set_is_one_line_and_writes_nothing(world, 
     assert r.exit_code == 1
     assert sum(ln.startswith("mtanno:") for ln in r.output.splitlines()) == len(files)
     assert out.exists()
+
+
+# --- compose, report and index show a progress bar on a terminal -------------------------------
+
+
+def _stderr_on_a_terminal(args: list) -> tuple[int, str]:
+    """Run ``mtanno ARGS`` with standard error a terminal (a pseudo-terminal read here);
+    return the exit code and what it wrote there."""
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 100 columns
+    p = subprocess.Popen([*MTANNO, *map(str, args)], stdin=subprocess.DEVNULL,
+                         stdout=subprocess.DEVNULL, stderr=slave)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 65536)
+        except OSError:  # EIO: the program ended, the terminal's other side is closed
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(master)
+    return p.wait(), b"".join(chunks).decode(errors="replace")
+
+
+def _progress_cases(world, tmp: Path) -> dict[str, list]:
+    return {
+        "compose": ["compose", world.manifest, "--actor", "c", "--docs", "2", "--seed", "5",
+                    "-o", tmp / "docs"],
+        "report": ["report", world.annotation, "--truth", world.truth, "-o", tmp / "report"],
+        "index": ["index", world.docfeats, "-o", tmp / "idx"],
+    }
+
+
+@pytest.mark.parametrize("command", ["compose", "report", "index"])
+def test_long_commands_show_a_progress_bar_on_a_terminal(world, tmp_path, command):
+    if command == "report":
+        pytest.importorskip("matplotlib")
+    args = _progress_cases(world, tmp_path / "shown")[command]
+    code, err = _stderr_on_a_terminal(args)
+    assert code == 0, err
+    assert f"{command}: 100%" in err, err  # tqdm's bar, to its end
+    code, err = _stderr_on_a_terminal([*_progress_cases(world, tmp_path / "quiet")[command],
+                                       "-q"])
+    assert code == 0, err
+    assert "%|" not in err and err == "", err  # -q: neither bar nor summary
+    r = subprocess.run([*MTANNO, *map(str, _progress_cases(world, tmp_path / "piped")[command])],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "%|" not in r.stderr  # not a terminal: no bar

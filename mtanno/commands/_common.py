@@ -185,4 +185,33 @@ def lock_output(folder, *, wait: bool, what: str = "output folder"):
 
 
 def show_progress(quiet: bool) -> bool:
+    """Whether a command shows a progress bar: on a terminal, and not with -q."""
     return not quiet and sys.stderr.isatty()
+
+
+class ProgressBar:
+    """A tqdm bar on standard error fed by an API's ``progress(done, total)`` callback
+    (``compose``, ``report``, ``index``): shown only where :func:`show_progress` says so,
+    made at the first call (when the total is known), closed on leaving the ``with``."""
+
+    def __init__(self, desc: str, unit: str, *, quiet: bool = False):
+        self.desc, self.unit = desc, unit
+        self.shown = show_progress(quiet)
+        self.bar = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.shown:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit=self.unit, desc=self.desc)
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> ProgressBar:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()
