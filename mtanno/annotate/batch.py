@@ -112,6 +112,27 @@ class AnnotationBatch:
     failed: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
+    def to_arrow(self):
+        """The annotation table of the batch as a :class:`pyarrow.Table`, the table
+        ``mtanno annotate -o`` writes (:func:`mtanno.annotate.tables.annotation_table`):
+        doc, start, end (1-based inclusive 30 Hz frames, as in every file; ``rows`` are
+        0-based), label, cost, and start_native, end_native (1-based native frames) when
+        the batch knows every document's native frames."""
+        from mtanno.annotate.tables import annotation_table
+
+        known = all(r.doc in self.native for r in self.rows)
+        return annotation_table(self.rows, self.native if known else None)
+
+    def to_pandas(self):
+        """:meth:`to_arrow` as a :class:`pandas.DataFrame` (1-based frames); pandas is not
+        a dependency of mtanno, so without it this is an :class:`MtannoError` saying so."""
+        try:
+            import pandas  # noqa: F401
+        except ImportError:
+            raise MtannoError("AnnotationBatch.to_pandas needs pandas (pip install pandas); "
+                              "to_arrow() gives the same table without it") from None
+        return self.to_arrow().to_pandas()
+
 
 def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes,
                    single_label=False):

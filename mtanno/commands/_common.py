@@ -20,7 +20,9 @@ ARGUMENT_NAMES = {"training": "TRAINING"}
 def user_errors(code: int):
     """Turn MtannoError (and an OSError of the file system) into a one-line message and
     exit ``code`` (no traceback). The API's parameter names in the message become the
-    command's flags (``features_dir=`` → ``--features-dir``)."""
+    command's flags (``features_dir=`` → ``--features-dir``). A reader that closed
+    standard output early (``| head``) ends the command quietly with exit code 141
+    (:func:`closed_output_edge`)."""
 
     def deco(fn):
         @functools.wraps(fn)
@@ -31,6 +33,7 @@ def user_errors(code: int):
                 click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
                 sys.exit(getattr(exc, "exit_code", code))  # LockBusy: 3
             except OSError as exc:  # the file system said no where no reader expected it
+                closed_output_edge(exc)
                 where = f"{exc.filename}: " if exc.filename else ""
                 click.echo(f"mtanno: {where}{exc.strerror or exc}", err=True)
                 sys.exit(code)
@@ -38,6 +41,18 @@ def user_errors(code: int):
         return wrapper
 
     return deco
+
+
+def closed_output_edge(exc: BaseException) -> None:
+    """End the command quietly (no message, exit code 141: the SIGPIPE convention) if
+    ``exc`` is a broken pipe because the reader of standard output or error is gone
+    (``mtanno info X | head -2``); return otherwise (another pipe broke: an error)."""
+    if not isinstance(exc, BrokenPipeError):
+        return
+    from mtanno.util.output import end_closed_output, output_closed
+
+    if output_closed():
+        end_closed_output()
 
 
 def wait_option(fn):
@@ -170,4 +185,33 @@ def lock_output(folder, *, wait: bool, what: str = "output folder"):
 
 
 def show_progress(quiet: bool) -> bool:
+    """Whether a command shows a progress bar: on a terminal, and not with -q."""
     return not quiet and sys.stderr.isatty()
+
+
+class ProgressBar:
+    """A tqdm bar on standard error fed by an API's ``progress(done, total)`` callback
+    (``compose``, ``report``, ``index``): shown only where :func:`show_progress` says so,
+    made at the first call (when the total is known), closed on leaving the ``with``."""
+
+    def __init__(self, desc: str, unit: str, *, quiet: bool = False):
+        self.desc, self.unit = desc, unit
+        self.shown = show_progress(quiet)
+        self.bar = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.shown:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit=self.unit, desc=self.desc)
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> ProgressBar:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()

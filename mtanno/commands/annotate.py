@@ -119,19 +119,22 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     check_outputs(written, setup.files(), writable=False)  # the configuration's templates
     _notes(setup, missing, quiet)
     bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")
+    failures = _FailureLines(lambda line: bar.write(line, file=sys.stderr))
 
-    def note_failure(error):
+    def note_failure(path, error):
         bar.update(1)
-        if error is not None:
-            bar.write(f"mtanno: {error}", file=sys.stderr)
+        failures.add(path, error)
 
     if out_dir is None:
-        batch = setup.annotate(paths, n_jobs=jobs, scheduler=scheduler,
-                               progress=lambda path, error: note_failure(error))
+        batch = setup.annotate(paths, n_jobs=jobs, scheduler=scheduler, progress=note_failure)
         bar.close()
+        failures.finish()
         prov = setup.provenance(inputs=batch.files, documents=batch.frames)
-        for out in outputs:
-            write_annotations(out, batch.rows, batch.native, provenance=prov)
+        if paths and len(batch.failed) == len(paths):  # nothing annotated: no empty table
+            outputs = ["nothing written"]
+        else:
+            for out in outputs:
+                write_annotations(out, batch.rows, batch.native, provenance=prov)
         failed, what = len(batch.failed), f"{len(paths) - len(batch.failed)} documents, " \
                                               f"{len(batch.rows)} segments"
         seconds = batch.seconds
@@ -142,8 +145,10 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
         with lock_output(out_dir, wait=wait):
             summary = annotate_folder(
                 folder_jobs, setup, force=force, n_jobs=jobs, scheduler=scheduler,
-                progress=lambda o: note_failure(o.message if o.status == "failed" else None))
+                progress=lambda o: note_failure(o.job.src,
+                                                o.message if o.status == "failed" else None))
             bar.close()
+            failures.finish()
             if outputs:
                 table, prov = folder_table(summary, setup)
                 for out in outputs:
@@ -160,6 +165,43 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
         click.echo(f"annotate: {what}, {len(setup.classes)} classes{kf}{tail}, "
                    f"{seconds:.2f} s of annotation -> {', '.join(map(str, outputs))}", err=True)
     sys.exit(1 if failed or missing else 0)
+
+
+class _FailureLines:
+    """The ``mtanno:`` lines of a batch's failing documents, each as it comes, except that
+    while every document so far failed for the same reason (a feature-set mismatch with
+    the templates: the same message but for the path) the lines are held back; if the whole
+    batch fails so, :meth:`finish` writes one line naming the first file and the count."""
+
+    def __init__(self, write):
+        self.write = write
+        self.held: list[str] = []  # the lines held back
+        self.reason: str | None = None  # their message without the path
+        self.holding = True
+
+    def add(self, path, error: str | None) -> None:
+        """One document done: ``error`` is its failure's message (None: it succeeded)."""
+        reason = None if error is None else error.removeprefix(f"{path}: ")
+        if self.holding and error is not None and self.reason in (None, reason):
+            self.reason = reason
+            self.held.append(f"mtanno: {error}")
+            return
+        self._release()
+        if error is not None:
+            self.write(f"mtanno: {error}")
+
+    def _release(self) -> None:
+        self.holding = False
+        for line in self.held:
+            self.write(line)
+        self.held = []
+
+    def finish(self) -> None:
+        """The batch is done: the lines still held, as one line when there are several."""
+        if len(self.held) > 1:
+            self.write(f"{self.held[0]} (the same for all {len(self.held)} documents)")
+            self.held = []
+        self._release()
 
 
 def _check_options(outputs, out_dir, fmt, force, wait) -> None:

@@ -12,6 +12,7 @@ from mtanno.annotate import DEFAULT_TAU, load_class_models
 from mtanno.commands._common import (
     DELTA,
     TAU,
+    ProgressBar,
     user_errors,
 )
 from mtanno.errors import MtannoError
@@ -172,9 +173,10 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
 @click.option("--in-order", is_flag=True,
               help="Keep the manifest order instead of shuffling (e.g. one document of all "
                    "clips, for retrieval tables).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
 def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, seed, pause, asf,
-                in_order):
+                in_order, quiet):
     """Build long evaluation documents from labelled clips, with their exact ground truth.
 
     MANIFEST is a CSV with columns file,class[,actor,split] (e.g. the HDM05 clips.csv).
@@ -185,11 +187,14 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
     from mtanno.evaluation.compose import compose_documents, read_clips
 
     clips = read_clips(manifest, root=root, actor=actor, split=split)
-    docs, truth = compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
-                                    seed=seed, pause=pause, asf=asf, shuffle=not in_order,
-                                    inputs=[manifest])
-    click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> {out_dir}",
-               err=True)
+    with ProgressBar("compose", "file", quiet=quiet) as bar:
+        docs, truth = compose_documents(clips, out_dir, n_docs=n_docs,
+                                        clips_per_doc=clips_per_doc, seed=seed, pause=pause,
+                                        asf=asf, shuffle=not in_order, inputs=[manifest],
+                                        progress=bar)
+    if not quiet:
+        click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> "
+                   f"{out_dir}", err=True)
 
 
 @click.group("truth")
@@ -236,7 +241,7 @@ def truth_mocap6(labels, output):
                    "annotation's, else 0.05].")
 @click.option("--title", default=REPORT_TITLE, show_default=True,
               help="Title of the page.")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
 def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, title,
                quiet):
@@ -297,12 +302,13 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
         per_class = recorded["tau_per_class"]
     else:
         per_class = {}
-    result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
-                          features=feats or None, tau=tau, tau_per_class=per_class,
-                          delta=delta if delta is not None else recorded["delta"],
-                          extra_templates=recorded["extra_templates"],
-                          title=title, provenance=provenance(
-                              inputs=[*annotations, truth_path], truth=str(truth_path)))
+    with ProgressBar("report", "figure", quiet=quiet) as bar:
+        result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
+                              features=feats or None, tau=tau, tau_per_class=per_class,
+                              delta=delta if delta is not None else recorded["delta"],
+                              extra_templates=recorded["extra_templates"],
+                              title=title, progress=bar, provenance=provenance(
+                                  inputs=[*annotations, truth_path], truth=str(truth_path)))
     if not quiet:
         ov = result.evaluation.frame
         click.echo(f"report: {len(result.evaluation.documents)} documents, F1 {ov.F:.3f}, "

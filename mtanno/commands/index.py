@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import NAMES, user_errors, wait_option, waiting_note
+from mtanno.commands._common import NAMES, ProgressBar, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
 
@@ -60,7 +60,7 @@ def _summary(index) -> str:
               help="Index directory (new, empty, or an index to replace).")
 @click.option("--groups", default=None, metavar="G1,G2", type=NAMES,
               help="Index only these groups of the feature set (default: all).")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @user_errors(2)
 def build_cmd(features, out, groups, quiet, wait):
@@ -69,8 +69,9 @@ def build_cmd(features, out, groups, quiet, wait):
     from mtanno.index import build_index
 
     failures: list[str] = []
-    index = build_index(features, out, groups=_groups_option(groups), failures=failures,
-                        wait=wait, on_wait=waiting_note(out))
+    with ProgressBar("index", "file", quiet=quiet) as bar:
+        index = build_index(features, out, groups=_groups_option(groups), failures=failures,
+                            wait=wait, on_wait=waiting_note(out), progress=bar)
     _finish(failures, None if quiet else
             f"index: {_summary(index)}, {len(failures)} failed -> {out}")
 
@@ -91,7 +92,7 @@ def _finish(failures: list[str], summary: str | None) -> None:
 @index_group.command("add")
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @user_errors(2)
 def add_cmd(index_dir, features, quiet, wait):
@@ -101,8 +102,9 @@ def add_cmd(index_dir, features, quiet, wait):
     from mtanno.index import add_documents
 
     failures: list[str] = []
-    index, report = add_documents(index_dir, features, failures=failures, wait=wait,
-                                  on_wait=waiting_note(index_dir))
+    with ProgressBar("index add", "file", quiet=quiet) as bar:
+        index, report = add_documents(index_dir, features, failures=failures, wait=wait,
+                                      on_wait=waiting_note(index_dir), progress=bar)
     _finish(failures, None if quiet else
             f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}")
 

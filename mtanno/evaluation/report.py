@@ -26,7 +26,7 @@ import base64
 import html
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -156,10 +156,12 @@ def _safe(name: str) -> str:
 class _Writer:
     """Writes the figures (PNG and SVG), remembers them for the page."""
 
-    def __init__(self, folder: Path, result: ReportResult):
+    def __init__(self, folder: Path, result: ReportResult, figures: int = 0,
+                 progress: Callable[[int, int], None] | None = None):
         self.folder = folder
         self.result = result
         self.images: list[tuple[str, str, Path]] = []  # section, caption, png
+        self.figures, self.progress = figures, progress  # progress(done, of figures)
 
     def figure(self, ax, stem: str, section: str, caption: str) -> None:
         from mtanno.plot import save_figure
@@ -169,6 +171,8 @@ class _Writer:
             save_figure(ax, path)
             self.result.files.append(path)
         self.images.append((section, caption, self.folder / f"{stem}.png"))
+        if self.progress is not None:
+            self.progress(len(self.images), max(self.figures, len(self.images)))
 
     def text(self, name: str, text: str) -> None:
         from mtanno.util.output import write_text
@@ -242,8 +246,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
                  tau: float | None = None, tau_per_class: dict[str, float] | None = None,
                  delta: float | None = None, extra_templates: Sequence[str] = (),
-                 title: str = REPORT_TITLE,
-                 provenance: dict | None = None) -> ReportResult:
+                 title: str = REPORT_TITLE, provenance: dict | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
     document's length (default: the last labelled frame of truth or annotation);
@@ -254,7 +258,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     it. ``extra_templates`` names the classes the annotation also matched further
     templates for (a tuned configuration's ``[templates]``): their curves, of the class's
     own template only, are not the annotation's Δ, and the page says so. Documents are
-    those annotated."""
+    those annotated. ``progress(done, total)`` is called after each figure."""
     from mtanno.plot import (
         label_colours,
         plot_confusion,
@@ -290,7 +294,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
 
     write_table(folder / "per_class.csv", pa.Table.from_pylist(rows), provenance=prov)
     result.files += [folder / "per_class.csv", folder / "per_class.csv.meta.json"]
-    w = _Writer(folder, result)
+    w = _Writer(folder, result, progress=progress, figures=1 + len(docs) + len(templates or {})
+                + (sum(d in features for d in docs) if templates and features else 0))
     w.text("per_class.md", markdown_table(rows))
     w.text("per_class.tex", latex_table(rows))
     M, labels, overlapped = confusion_matrix(truth, annotation, frames)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -214,10 +214,11 @@ def read_feature_doc(path: str | os.PathLike) -> FeatureDoc:
 
 
 def read_feature_docs(paths: Sequence[str | os.PathLike], *,
-                      failures: list[str] | None = None) -> list[FeatureDoc]:
+                      failures: list[str] | None = None,
+                      progress: Callable[[int, int], None] | None = None) -> list[FeatureDoc]:
     """Read many feature files, in threads (Parquet decoding releases the GIL). With
     ``failures``, a file that cannot be read is left out and its message appended there;
-    without, it is raised."""
+    without, it is raised. ``progress(done, total)`` is called after each file."""
     def one(p):
         try:
             return read_feature_doc(p)
@@ -226,11 +227,19 @@ def read_feature_docs(paths: Sequence[str | os.PathLike], *,
                 raise
             return str(exc)
 
+    def collect(results) -> list:
+        out = []
+        for result in results:  # in the order of paths, as they are read
+            out.append(result)
+            if progress is not None:
+                progress(len(out), len(paths))
+        return out
+
     if len(paths) < 8:
-        got = [one(p) for p in paths]
+        got = collect(map(one, paths))
     else:
         with ThreadPoolExecutor(max_workers=min(8, os.cpu_count() or 1)) as pool:
-            got = list(pool.map(one, paths))
+            got = collect(pool.map(one, paths))
     if failures is not None:
         failures.extend(g for g in got if isinstance(g, str))
     return [g for g in got if not isinstance(g, str)]

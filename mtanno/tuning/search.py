@@ -256,6 +256,22 @@ def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
                      fd.groups)
 
 
+
+def _groups_text(split: dict[str, int]) -> str:
+    """The classes with several templates, for the search log: ``squat 2, kick 3 (others
+    one)``, or ``one per class``."""
+    if not split:
+        return "one per class"
+    return ", ".join(f"{c} {k}" for c, k in split.items()) + " (others one)"
+
+
+def _scales_text(scaled: dict[str, Sequence[float]]) -> str:
+    """The tempo factors of the classes' time-scaled templates, for the search log:
+    ``lieDownFloor ×0.6, squat ×0.6 ×1.6``, or ``none``."""
+    if not scaled:
+        return "none"
+    return ", ".join(f"{c} " + " ".join(f"×{f:g}" for f in fs) for c, fs in scaled.items())
+
 class Tuner:
     """Scores parameter points on cached fold data and searches them (module docstring)."""
 
@@ -494,12 +510,12 @@ class Tuner:
                 if got is not None:
                     cur, cur_ev = got, ev
             split = {c: k for c, k in cur.groups.items() if k > 1}
-            note(f"templates {split or 'one per class'}", cur_ev)
+            note(f"templates {_groups_text(split)}", cur_ev)
             cur, cur_ev, used = self._copies(cur, cur_ev)
             scaled = {c: fs for c, fs in cur.scales.items() if fs}
             budget = "" if self.columns is None else \
                 f" ({used} of {self._budget()} columns)"
-            note(f"time-scaled templates {scaled or 'none'}{budget}", cur_ev)
+            note(f"time-scaled templates {_scales_text(scaled)}{budget}", cur_ev)
         # 4. per-class τ
         if "tau" in on:
             for _ in range(2):

@@ -30,11 +30,13 @@ import re
 import socket
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
+from typing import NoReturn
 
 from mtanno.errors import MtannoError
 
-__all__ = ["atomic_path", "check_outputs", "current_umask", "make_folder", "remove_stale_temporaries",
-           "write_bytes", "write_error", "write_stdout", "write_text"]
+__all__ = ["EXIT_CLOSED_OUTPUT", "atomic_path", "check_outputs", "current_umask", "end_closed_output",
+           "make_folder", "output_closed", "remove_stale_temporaries", "write_bytes",
+           "write_error", "write_stdout", "write_text"]
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
@@ -265,14 +267,57 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
     _replace(made[0], target, fd)
 
 
+#: Exit code of a command whose standard output was closed by its reader
+#: (``mtanno info X | head -2``): 128 + SIGPIPE, what a shell reports for a program that
+#: SIGPIPE ended (docs/reliability.md, exit codes).
+EXIT_CLOSED_OUTPUT = 141
+
+
+def output_closed() -> bool:
+    """True if the reader of standard output or standard error is gone (a pipe whose
+    reading end was closed: ``mtanno show X | head -1``). Only the process's real streams
+    count; a stream that is no file (a test runner's buffer) is never closed."""
+    import select
+    import sys
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            poll = select.poll()
+            poll.register(stream.fileno(), select.POLLOUT)
+            if any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0)):
+                return True
+        except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation: no file
+            continue
+    return False
+
+
+def end_closed_output() -> NoReturn:
+    """End the command quietly because its reader closed standard output (the SIGPIPE
+    convention: no message, exit code :data:`EXIT_CLOSED_OUTPUT`). Standard output and
+    error are pointed at the null device first, so the final flushes write nowhere instead
+    of failing again."""
+    import sys
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            os.dup2(devnull, stream.fileno())
+    os.close(devnull)
+    sys.exit(EXIT_CLOSED_OUTPUT)
+
+
 def write_stdout(text: str) -> None:
-    """Write ``text`` to standard output and flush it; a failure (a full device, a closed
-    pipe) is one :class:`MtannoError` that says it was standard output."""
+    """Write ``text`` to standard output and flush it; a failure (a full device) is one
+    :class:`MtannoError` that says it was standard output. A reader that closed the pipe
+    early is no error: :class:`BrokenPipeError` goes up to the command's edge, which ends
+    quietly (:func:`end_closed_output`)."""
     import sys
 
     try:
         sys.stdout.write(text)
         sys.stdout.flush()
+    except BrokenPipeError:
+        raise
     except OSError as exc:
         raise MtannoError(f"cannot write to standard output: {exc.strerror or exc}") from None
 

@@ -432,6 +432,24 @@ def _column(table: pa.Table, name: str, kind: str, spath: str, note: str = "",
     return col
 
 
+#: Suffixes of the motion files ``mtanno features`` reads (:data:`mtanno.io.MOCAP_SUFFIXES`).
+_MOTION_SUFFIXES = (".amc", ".bvh")
+#: How the first line of a BVH or an AMC file (after ``#`` comments) begins.
+_MOTION_HEADS = (b"HIERARCHY", b":FULLY-SPECIFIED", b":DEGREES", b":RADIANS")
+
+
+def _is_motion_file(path: str, data) -> bool:
+    """True if a file that is no Parquet file is a motion file (by its suffix, or by its
+    first line: BVH's ``HIERARCHY``, AMC's ``:FULLY-SPECIFIED``/``:DEGREES``)."""
+    if Path(path).suffix.lower() in _MOTION_SUFFIXES:
+        return True
+    for line in bytes(memoryview(data)[:4096]).splitlines():
+        line = line.strip()
+        if line and not line.startswith(b"#"):
+            return line.upper().startswith(_MOTION_HEADS)
+    return False
+
+
 def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFile:
     """Read and validate a feature file written by :func:`write_features` (or ``mtanno
     features``): the one reader every command uses.
@@ -452,6 +470,9 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     try:
         table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
     except (pa.ArrowException, OSError, ValueError, IndexError) as exc:
+        if _is_motion_file(spath, data):
+            raise MtannoError("this is a motion file: run `mtanno features` first (later "
+                              "stages read its Parquet feature file)", path=spath) from None
         raise MtannoError(f"not a readable Parquet feature file ({exc})", path=spath) from None
     raw = (table.schema.metadata or {}).get(META_KEY)
     if raw is None:
