@@ -1,10 +1,13 @@
 """mtanno: find, retrieve and annotate human motions in motion-capture archives.
 
 The package reads the pipeline left to right: :mod:`mtanno.io` (mocap files to joint
-positions), :mod:`mtanno.features` (40 boolean relational features at 30 Hz),
-:mod:`mtanno.store` (Parquet feature files), :mod:`mtanno.templates`, :mod:`mtanno.index`,
-:mod:`mtanno.keyframes`, :mod:`mtanno.annotate`, :mod:`mtanno.evaluate`. The command
-line (:mod:`mtanno.cli`) is a thin layer over these functions.
+positions), :mod:`mtanno.features` (40 boolean relational features at 30 Hz, stored as
+Parquet feature files by :mod:`mtanno.util.store`), :mod:`mtanno.templates` (motion
+templates), :mod:`mtanno.index` (relational index and queries), :mod:`mtanno.keyframes`,
+:mod:`mtanno.annotate`, :mod:`mtanno.tuning` and :mod:`mtanno.evaluation`;
+:mod:`mtanno.align` and :mod:`mtanno.retrieve` beside them, the plumbing in
+:mod:`mtanno.util`. The command line (:mod:`mtanno.cli`, :mod:`mtanno.commands`) is a thin
+layer over these functions.
 
 The short way in (:mod:`mtanno.api`, loaded on first use so that ``import mtanno`` stays
 light): :func:`read_motion`, :func:`compute_features`, :func:`learn_templates`,
@@ -17,9 +20,8 @@ light): :func:`read_motion`, :func:`compute_features`, :func:`learn_templates`,
     print(mtanno.evaluate_annotation(result, truth="docs/truth.csv").table())
 """
 
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
-
-__version__ = "0.1.0"
 
 _API = ("annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
         "load_templates", "read_motion")
@@ -33,3 +35,9 @@ def __getattr__(name: str):
 
         return getattr(api, name)
     raise AttributeError(f"module 'mtanno' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    """The module's names with the facade's (loaded lazily, so not yet in the module's
+    namespace): a notebook's completion offers ``mtanno.annotate_documents`` at once."""
+    return sorted(set(globals()) | set(__all__))

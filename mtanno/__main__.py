@@ -1,7 +1,7 @@
 """The ``mtanno`` program (console script and ``python -m mtanno``): the signal policy at the
 edges of a command, before :mod:`mtanno.cli` and its heavy imports are loaded.
 
-A command handles SIGINT, SIGTERM and SIGHUP through :func:`mtanno.workers.interruptible`
+A command handles SIGINT, SIGTERM and SIGHUP through :func:`mtanno.util.workers.interruptible`
 (temporary files removed, workers stopped, one line, exit 130 or 129). Outside it — while
 Python imports click, numpy, numba and pyarrow (about a second), while Click parses the
 command line, and after the command returned — the same signals are handled here: nothing
@@ -12,7 +12,8 @@ functions, flushing the output), so no late shutdown step runs with the default 
 (Python restores them while it finalizes: SIGTERM then killed the process, exit −15), and
 no library thread can abort the process while the interpreter is torn down.
 
-This module imports only what Python has already loaded at start-up (os, signal, sys).
+This module imports only what is loaded already when it runs: os, signal, sys and
+:mod:`mtanno.errors` (which the package imports).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from __future__ import annotations
 import os
 import signal
 import sys
+
+from mtanno.errors import interrupted_line  # (loaded already: the package imports it)
 
 #: Exit codes of an interrupted command: 128 + the signal as shells report it, SIGTERM like
 #: SIGINT ("interrupted"), SIGHUP its own.
@@ -30,12 +33,6 @@ EXIT_CODES = {"SIGINT": 130, "SIGTERM": 130, "SIGHUP": 129}
 #: and wait there for a signal, so that tests can send one at that moment without guessing
 #: a time.
 PAUSE_VARIABLE = "MTANNO_TEST_PAUSE"
-
-
-def interrupted_line(name: str) -> str:
-    """The one line of an interrupted command."""
-    return (f"mtanno: interrupted ({name}); finished outputs are complete, unfinished ones "
-            "were not written")
 
 
 def _at_the_edge(signum, frame) -> None:

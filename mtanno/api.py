@@ -22,10 +22,10 @@ if TYPE_CHECKING:
     import numpy as np
 
     from mtanno.annotate import AnnotationBatch, ClassConfig
-    from mtanno.evaluate import Report
+    from mtanno.evaluation.metrics import Report
+    from mtanno.evaluation.truth import Segment
     from mtanno.io.skeleton import Motion
     from mtanno.templates.model import MotionTemplate
-    from mtanno.truth import Segment
 
 __all__ = ["annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
            "load_templates", "read_motion"]
@@ -46,7 +46,7 @@ def read_motion(path: PathLike, *, asf: PathLike | None = None,
 def compute_features(motion: Motion | PathLike, *, feature_set: str = "ak40",
                      up: str = "y") -> np.ndarray:
     """The (features × frames) 0/1 matrix (uint8) of a motion at 30 Hz: the 40 relational
-    features of MR06 Table 6 + F40 (``feature_set="ak40"``) or the 31 of MRC05
+    features of [MR06] Table 6 + F40 (``feature_set="ak40"``) or the 31 of [MRC05]
     (``"mrc05"``); row names in :func:`mtanno.features.get_feature_set`. ``motion`` is a
     :class:`~mtanno.io.skeleton.Motion` or a motion file; ``up`` its up axis ("y" or "z").
     (:func:`mtanno.features.extract.features_from_motion`.)"""
@@ -62,26 +62,23 @@ def learn_templates(training: Sequence[PathLike] = (), *, manifest: PathLike | N
                     features_dir: PathLike | None = None, split: str | None = None,
                     truth: PathLike | None = None, classes: Sequence[str] | None = None,
                     hard: bool = False) -> dict[str, MotionTemplate]:
-    """One motion template per class (MR06 §4.1; ``hard``: thesis §3.3), from training
+    """One motion template per class ([MR06] §4.1; ``hard``: thesis §3.3), from training
     examples named as ``mtanno learn-mt`` takes them: class folders ``training``, a
     ``manifest`` with ``features_dir`` (and ``split``), or a ``truth`` table with the
     documents' feature files ``training``. Returns class name → template, unquantized
     (soft), in memory; :func:`mtanno.templates.save_template` writes one.
     (:func:`mtanno.templates.training.collect_sources`,
     :func:`mtanno.templates.learn.learn_template`.)"""
-    from mtanno.templates.learn import learn_template
-    from mtanno.templates.training import check_consistent, collect_sources, group_by_class
-    from mtanno.templates.training import load_examples as _load
+    from mtanno.templates.learn import learn_classes
+    from mtanno.templates.training import collect_sources, group_by_class
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth)
     out: dict[str, MotionTemplate] = {}
-    reference = None
-    for name, srcs in group_by_class(sources, classes=classes).items():
-        examples = _load(srcs)
-        check_consistent(examples, like=reference)
-        reference = reference or examples[0]
-        out[name] = learn_template(examples, class_name=name, hard=hard)
+    for done in learn_classes(group_by_class(sources, classes=classes), hard=hard):
+        if done.error is not None:
+            raise MtannoError(f"class {done.class_name}: {done.error}")
+        out[done.class_name] = done.template
     return out
 
 
@@ -98,7 +95,7 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
              delta: float | None = None, config: ClassConfig | None = None,
              single_label: bool = False, n_jobs: int = 1) -> AnnotationBatch:
     """Label every frame of feature files (files or folders) with the classes of
-    ``templates`` (a template folder or class name → template), MBS09 §4: τ = 0.13 and
+    ``templates`` (a template folder or class name → template), [MBS09] §4: τ = 0.13 and
     δ = 0.05 unless given. ``config`` (e.g. ``load_class_config("tuned.toml")``, what
     ``mtanno tune`` writes) is applied as ``mtanno annotate --classes`` applies it: its δ
     unless ``delta`` is given, its further templates, and a :class:`UserWarning` when the
@@ -109,7 +106,7 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
     import warnings
 
     from mtanno.annotate import annotation_setup
-    from mtanno.store import document_files
+    from mtanno.util.store import document_files
 
     paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
     if isinstance(templates, (str, os.PathLike)):
@@ -126,22 +123,29 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
              documents: Iterable[str] | None = None) -> Report:
     """Frame- and segment-level precision, recall and F of annotations (an
     :func:`annotate_documents` result, its rows, or an annotation table file) against ground truth (a
-    truth table file or its segments), MBS09 §7; by default over the annotated documents.
-    ``Report.table()`` prints it. (:func:`mtanno.evaluate.evaluate_annotations`.)"""
-    from mtanno.annotate import read_annotations
-    from mtanno.evaluate import evaluate_annotations
-    from mtanno.truth import Segment, read_truth
+    truth table file or its segments), [MBS09] §7, with frame accuracy, Edit and F1@{10,25,50}
+    (Lea et al. 2017; on the documents' recorded lengths when the batch or table has them);
+    by default over the annotated documents. ``Report.table()`` prints it, and
+    ``Report.warnings`` says when truth and annotation share no label.
+    (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
+    from mtanno.annotate import read_annotation_tables, to_segments
+    from mtanno.evaluation.metrics import documents_evaluated, evaluate_annotations
+    from mtanno.evaluation.truth import check_within, read_truth
 
+    frames = getattr(annotations, "frames", None)  # documents' lengths, for frame accuracy
     if isinstance(annotations, (str, os.PathLike)):
-        annotations = read_annotations(annotations)
+        annotations, frames, _ = read_annotation_tables([annotations])
     rows = getattr(annotations, "rows", annotations)
     try:
-        output = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
+        output = to_segments(rows)
     except AttributeError:
         raise MtannoError("annotations must be an annotate_documents() result, its rows or an "
                           "annotation table file") from None
     if isinstance(truth, (str, os.PathLike)):
+        path = str(truth)
         truth = read_truth(truth)
+        check_within(truth, frames or {}, path=path)
+    truth = list(truth)
     if documents is None:
-        documents = {s.doc for s in output} or {s.doc for s in truth}
-    return evaluate_annotations(list(truth), output, documents=documents)
+        documents = documents_evaluated(truth, output, frames)
+    return evaluate_annotations(truth, output, documents=documents, frames=frames)

@@ -2,7 +2,8 @@
 
 Exit codes: 0 success, 1 some inputs failed (the others were processed), 2 usage error or
 bad input, 3 output locked by another run, 130 interrupted (SIGINT or SIGTERM), 129 hung up
-(SIGHUP). Errors a user can fix are printed as one line ``mtanno: path:line: what is
+(SIGHUP), 141 standard output closed by its reader (``mtanno info X | head``: no message,
+the SIGPIPE convention). Errors a user can fix are printed as one line ``mtanno: path:line: what is
 wrong``, usage errors too; an interruption as ``mtanno: interrupted (SIGINT)``. The
 ``mtanno`` program starts in :mod:`mtanno.__main__`, which handles the signals before this
 module is imported and after the command returned.
@@ -18,10 +19,10 @@ import sys
 import click
 
 import mtanno.commands
-from mtanno import __version__
+from mtanno._version import __version__
 
 #: Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it);
-#: SIGHUP gives 129 (:func:`mtanno.workers.exit_code`).
+#: SIGHUP gives 129 (:func:`mtanno.util.workers.exit_code`).
 EXIT_INTERRUPTED = 130
 
 
@@ -48,13 +49,13 @@ def _one_line(exc: click.UsageError) -> click.UsageError:
 
 class _Main(click.Group):
     """The ``mtanno`` group: records the command line for the provenance of outputs, says
-    when numba compiles the kernels (:mod:`mtanno.jitnote`), and turns an interruption
-    (SIGINT, or SIGTERM or SIGHUP handled like it, see :mod:`mtanno.workers`) into one
+    when numba compiles the kernels (:mod:`mtanno.util.jitnote`), and turns an interruption
+    (SIGINT, or SIGTERM or SIGHUP handled like it, see :mod:`mtanno.util.workers`) into one
     line and exit code 130 (129 for SIGHUP) instead of Click's "Aborted!" and 1; usage
     errors are one line too (:class:`_UsageLine`)."""
 
     def main(self, args=None, prog_name=None, **extra):
-        from mtanno.tables import set_command_line
+        from mtanno.util.tables import set_command_line
 
         set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
         return super().main(args=args, prog_name=prog_name, **extra)
@@ -64,18 +65,29 @@ class _Main(click.Group):
             return super().make_context(info_name, args, parent=parent, **extra)
         except click.UsageError as exc:
             raise _one_line(exc) from None
+        except BrokenPipeError as exc:  # mtanno --help | head -1
+            from mtanno.commands._common import closed_output_edge
+
+            closed_output_edge(exc)
+            raise
 
     def invoke(self, ctx):
-        from mtanno.__main__ import interrupted_line
-        from mtanno.jitnote import install_compile_note
-        from mtanno.workers import Interrupted, interruptible, must_hard_exit
+        from mtanno.errors import interrupted_line
+        from mtanno.util.jitnote import install_compile_note
+        from mtanno.util.workers import Interrupted, interruptible, must_hard_exit
 
-        install_compile_note()  # one line on stderr if kernels must be compiled first
+        # one line on stderr if kernels must be compiled first (not with -q: _quiet_note)
+        install_compile_note().set_quiet(False)
         try:
             with interruptible():
                 return super().invoke(ctx)
         except click.UsageError as exc:
             raise _one_line(exc) from None
+        except BrokenPipeError as exc:  # outside user_errors (Click's help, a summary line)
+            from mtanno.commands._common import closed_output_edge
+
+            closed_output_edge(exc)
+            raise
         except KeyboardInterrupt as exc:
             name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
             code = exc.exit_code if isinstance(exc, Interrupted) else EXIT_INTERRUPTED
@@ -99,6 +111,25 @@ def main() -> None:
     """
 
 
+def _silence_note(ctx, param, value):
+    """The callback of every command's ``-q``/``--quiet``: no compile note either."""
+    if value:
+        from mtanno.util.jitnote import silence
+
+        silence()
+    return value
+
+
+def _quiet_note(command: click.Command) -> None:
+    """Make ``-q``/``--quiet`` of ``command`` (and of its subcommands) silence the compile
+    note (:mod:`mtanno.util.jitnote`), so a quiet run prints nothing but errors."""
+    for param in command.params:
+        if param.name == "quiet" and param.callback is None:
+            param.callback = _silence_note
+    for sub in getattr(command, "commands", {}).values():
+        _quiet_note(sub)
+
+
 def _register_command_modules() -> None:
     """Add the commands of every module in :mod:`mtanno.commands` (each lists its Click
     commands in ``COMMANDS``), so a pipeline stage brings its own command module."""
@@ -107,6 +138,7 @@ def _register_command_modules() -> None:
             continue
         module = importlib.import_module(f"mtanno.commands.{info.name}")
         for command in getattr(module, "COMMANDS", ()):
+            _quiet_note(command)
             main.add_command(command)
 
 

@@ -20,18 +20,42 @@ class MtannoError(Exception):
     Parameters
     ----------
     message:
-        What is wrong, as one sentence without a trailing period.
+        What is wrong, as one sentence without a trailing period. With ``options``, the
+        names of the caller's parameters it speaks of are written ``{name}``: the message
+        then reads ``name=`` from Python and ``--name`` on the command line
+        (:meth:`for_command`), so the API never speaks in flags.
     path:
         The file the error is about, if any.
     line:
         The 1-based line number in ``path``, if known.
+    options:
+        The parameter names the message names as ``{name}``.
     """
 
-    def __init__(self, message: str, *, path: str | None = None, line: int | None = None):
-        self.message = message
+    def __init__(self, message: str, *, path: str | None = None, line: int | None = None,
+                 options: tuple[str, ...] = ()):
+        self.template = message
+        self.options = tuple(options)
+        self.message = self._render({o: f"{o}=" for o in self.options})
         self.path = None if path is None else str(path)
         self.line = line
         super().__init__(str(self))
+
+    def _render(self, names: dict[str, str]) -> str:
+        out = self.template
+        for name, text in names.items():  # (not str.format: other braces stay as they are)
+            out = out.replace("{" + name + "}", text)
+        return out
+
+    def for_command(self, flags: dict[str, str] | None = None) -> str:
+        """The one-line message as the command line shows it: each option as its flag
+        (``flags[name]``, else ``--name`` with dashes for underscores)."""
+        names = {o: (flags or {}).get(o, "--" + o.replace("_", "-")) for o in self.options}
+        message = self._render(names)
+        if self.path is None:
+            return message
+        return f"{self.path}: {message}" if self.line is None else \
+            f"{self.path}:{self.line}: {message}"
 
     def __str__(self) -> str:
         if self.path is None:
@@ -39,6 +63,13 @@ class MtannoError(Exception):
         if self.line is None:
             return f"{self.path}: {self.message}"
         return f"{self.path}:{self.line}: {self.message}"
+
+
+def interrupted_line(name: str) -> str:
+    """The one line of a command interrupted by signal ``name`` (``SIGINT`` …), wherever the
+    interruption lands (:mod:`mtanno.__main__`, :mod:`mtanno.cli`)."""
+    return (f"mtanno: interrupted ({name}); finished outputs are complete, unfinished ones "
+            "were not written")
 
 
 def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
@@ -109,7 +140,7 @@ def _lone_surrogate_at(text: str) -> int | None:
     """Offset of a ``\\uXXXX`` escape of a UTF-16 surrogate that is not part of a high-low
     pair, else None: JSON decodes it to a string no file or terminal can take. Low
     surrogates U+DC80 … U+DCFF are allowed alone: they are how a path's bytes that are not
-    UTF-8 are written (:func:`mtanno.tables.dumps`, ``surrogateescape``)."""
+    UTF-8 are written (:func:`mtanno.util.tables.dumps`, ``surrogateescape``)."""
     if "\\u" not in text:
         return None
     pending = None  # end offset of an unpaired high surrogate escape

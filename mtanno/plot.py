@@ -61,7 +61,7 @@ def label_colours(labels: Sequence[str]) -> dict[str, Any]:
 def plot_features(X: np.ndarray, names: Sequence[str], *, first_frame: int = 1,
                   ax: Axes | None = None) -> Axes:
     """A feature matrix (features × frames, 0/1) as an image: one row per feature (named),
-    one column per frame, dark where the feature is on (MRC05 Fig. 3 style). ``first_frame``
+    one column per frame, dark where the feature is on ([MRC05] Fig. 3 style). ``first_frame``
     is the 1-based frame of column 0."""
     X = np.asarray(X)
     ax = _axes(ax, (min(12.0, max(6.0, 2 + X.shape[1] / 15)), 1.2 + 0.22 * X.shape[0]))
@@ -74,7 +74,7 @@ def plot_features(X: np.ndarray, names: Sequence[str], *, first_frame: int = 1,
 
 
 def plot_template(mt: MotionTemplate, *, ax: Axes | None = None) -> Axes:
-    """A motion template as a heat map (MR06 Fig. 4): rows are features, columns the
+    """A motion template as a heat map ([MR06] Fig. 4): rows are features, columns the
     template's columns, colour the entry in [0, 1] (0 black, 1 white, wildcard 0.5 grey)."""
     V = np.asarray(mt.values)
     ax = _axes(ax, (min(12.0, 3 + V.shape[1] / 8), 1.2 + 0.13 * V.shape[0]))
@@ -88,7 +88,7 @@ def plot_template(mt: MotionTemplate, *, ax: Axes | None = None) -> Axes:
 
 def plot_delta(delta: np.ndarray, *, label: str | None = None, tau: float | None = None,
                ax: Axes | None = None) -> Axes:
-    """A distance curve Δ over a document's frames (algorithms.md §3.4; MR06 Fig. 7):
+    """A distance curve Δ over a document's frames (algorithms.md §3.4; [MR06] Fig. 7):
     x = frame (1-based), y = Δ; frames where no match ends (Δ = ∞) leave gaps. ``tau``
     draws the threshold."""
     delta = np.asarray(delta, dtype=np.float64)
@@ -150,7 +150,7 @@ def plot_timeline(rows: dict[str, Sequence[tuple[int, int, str]]], *, n_frames: 
 def save_figure(ax_or_figure, path: str | os.PathLike, *, dpi: int = 110) -> None:
     """Write the figure of ``ax_or_figure`` atomically; the format follows the suffix
     (``.png``, ``.svg``, ``.pdf``)."""
-    from mtanno.output import atomic_path
+    from mtanno.util.output import atomic_path
 
     figure = getattr(ax_or_figure, "figure", ax_or_figure)
     fmt = os.fspath(path).rsplit(".", 1)[-1].lower() if "." in os.fspath(path) else ""

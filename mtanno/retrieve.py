@@ -1,4 +1,4 @@
-"""Retrieval hits from the distance function Δ of a motion template (MR06 §5.4).
+"""Retrieval hits from the distance function Δ of a motion template ([MR06] §5.4).
 
 :func:`extract_hits` turns one document's Δ and start frames (from
 :func:`mtanno.templates.match.match_template`) into hits; :func:`retrieve` matches a template
@@ -41,9 +41,9 @@ __all__ = ["DEFAULT_DELTA", "DEFAULT_MAX_HITS", "DEFAULT_TAU", "HIT_MODES", "Hit
 HIT_MODES = ("retrieval", "classification")
 #: Hit cap per document.
 DEFAULT_MAX_HITS = 1000
-#: Quality threshold of retrieval: hits have Δ ≤ τ (MR06 §5.4).
+#: Quality threshold of retrieval: hits have Δ ≤ τ ([MR06] §5.4).
 DEFAULT_TAU = 0.06
-#: Quantization δ of templates for retrieval (MR06 §5.2).
+#: Quantization δ of templates for retrieval ([MR06] §5.2).
 DEFAULT_DELTA = 0.1
 
 
@@ -91,12 +91,9 @@ def _check_fraction_pair(value, name: str) -> tuple[float, float]:
 
 
 def _check_options(tau, mode, max_hits) -> float:
-    try:
-        tau = float(tau)
-    except (TypeError, ValueError):
-        raise MtannoError(f"tau must be a number, got {tau!r}") from None
-    if math.isnan(tau):
-        raise MtannoError("tau must be a number, got NaN")
+    from mtanno.annotate.config import check_tau  # the one rule for τ: a number ≥ 0
+
+    tau = check_tau(tau)
     if mode not in HIT_MODES:
         raise MtannoError(f"unknown hit mode {mode!r} (choose from {', '.join(HIT_MODES)})")
     if isinstance(max_hits, bool) or not isinstance(max_hits, (int, np.integer)) or max_hits < 1:
@@ -109,7 +106,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
                  end_excl: tuple[float, float] = (0.5, 0.1),
                  start_excl: tuple[float, float] = (0.1, 0.5),
                  doc: str | int = 0, doc_index: int = 0) -> HitList:
-    """Greedy hits of one document's Δ below ``tau`` (MR06 §5.4, algorithms.md §3.5).
+    """Greedy hits of one document's Δ below ``tau`` ([MR06] §5.4, algorithms.md §3.5).
 
     Parameters
     ----------
@@ -119,7 +116,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
         (L,) 0-based start frame of the optimal match ending at each frame.
     tau:
         Quality threshold: candidates have Δ ≤ tau. The reference drivers use 0.175
-        (retrieval) and 0.13 (classification); MR06 recommends 0.06.
+        (retrieval) and 0.13 (classification); [MR06] recommends 0.06.
     mode:
         ``"retrieval"`` or ``"classification"`` (module docstring).
     max_hits:
@@ -192,7 +189,7 @@ def retrieve(template_values: np.ndarray, weights: np.ndarray,
              step_weights: Sequence[float] = DEFAULT_STEP_WEIGHTS,
              end_excl: tuple[float, float] = (0.5, 0.1),
              start_excl: tuple[float, float] = (0.1, 0.5)) -> HitList:
-    """Match a quantized template against documents and rank all hits by cost (MR06 §5.4).
+    """Match a quantized template against documents and rank all hits by cost ([MR06] §5.4).
 
     ``documents`` yields ``(name, X)`` pairs, X (f × L) 0/1 features at 30 Hz; each is
     matched on its own (:func:`mtanno.templates.match.match_template`, paths never cross
@@ -232,7 +229,7 @@ def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
     cost, rank (1 = cheapest)."""
     import pyarrow as pa
 
-    from mtanno.tables import arrow_table
+    from mtanno.util.tables import arrow_table
 
     cols: dict[str, list] = {c: [] for c in HIT_COLUMNS}
     for rank, h in enumerate(hits, 1):
@@ -247,8 +244,8 @@ def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
 def write_hits(path: str | os.PathLike, hits: Sequence[Hit], native: Sequence[np.ndarray], *,
                provenance: dict | None = None) -> None:
     """Write the hit table (:func:`hit_table`) in the format of ``path``'s suffix (``-``:
-    CSV on standard output), atomically and with its provenance (:mod:`mtanno.tables`)."""
-    from mtanno.tables import write_table
+    CSV on standard output), atomically and with its provenance (:mod:`mtanno.util.tables`)."""
+    from mtanno.util.tables import write_table
 
     write_table(path, hit_table(hits, native), provenance=provenance)
 
@@ -269,11 +266,11 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
                    paths: Sequence[str | os.PathLike], *, layout, tau: float,
                    max_hits: int = DEFAULT_MAX_HITS, variant: str = "reference",
                    progress: Callable[[str, str | None], None] | None = None) -> RetrievalBatch:
-    """:func:`retrieve` over feature files: each is read (:func:`mtanno.store.read_features`)
-    and checked against the template's ``layout`` (:func:`mtanno.store.check_layout`); a
+    """:func:`retrieve` over feature files: each is read (:func:`mtanno.util.store.read_features`)
+    and checked against the template's ``layout`` (:func:`mtanno.util.store.check_layout`); a
     file that fails is recorded in ``failed`` and the others are still searched.
     ``progress`` is called once per file with its path and its failure (None on success)."""
-    from mtanno.store import check_layout, read_features
+    from mtanno.util.store import check_layout, read_features
 
     batch = RetrievalBatch(HitList())
 
@@ -296,3 +293,20 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
     batch.hits = retrieve(template_values, weights, documents(), tau=tau, max_hits=max_hits,
                           variant=variant)
     return batch
+
+
+def retrieval_template(mt, *, delta: float | None = None):
+    """The template as retrieval uses it ([MR06] §5.4): quantized with ``delta``, else with
+    its own δ, else :data:`DEFAULT_DELTA`; a template quantized already keeps its δ (a
+    ``delta`` that differs is an error: its values cannot be quantized again)."""
+    from mtanno.templates.model import quantize
+
+    if mt.quantized:
+        if delta is not None and delta != mt.delta:
+            raise MtannoError(f"template is already quantized with delta {mt.delta:g}; "
+                              "{delta} only applies to unquantized templates", path=mt.path,
+                              options=("delta",))
+        return mt
+    return quantize(mt, delta if delta is not None else (mt.delta if mt.delta is not None
+                                                          else DEFAULT_DELTA))
+

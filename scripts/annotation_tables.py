@@ -10,7 +10,8 @@
         {"class", "frames", "labelled"}.
     annotation_tables.py quality NAME=REPORT.json[,REPORT.json...] ...
         A Markdown table: per row the mean over the reports (seeds, styles) of P1 R1 F1
-        P2 R2 F2 and each report's F1/F2 (``mtanno evaluate --json`` reports).
+        P2 R2 F2, frame accuracy, Edit and F1@{10,25,50} ("–" for reports without them),
+        and each report's F1/F2 (``mtanno evaluate --json`` reports).
     annotation_tables.py unknown-table NAME=RATE.json[,RATE.json...] ...
         A Markdown table of unknown-class rates: per class and overall (frames pooled)
         for each named group of rate files.
@@ -44,7 +45,7 @@ def unknown(annotations: list[str], truth: str, cls: str, out: Path) -> int:
     import numpy as np
 
     from mtanno.annotate import read_annotations
-    from mtanno.truth import read_truth
+    from mtanno.evaluation.truth import read_truth
 
     rows = [a for p in annotations for a in read_annotations(p)]
     frames = labelled = 0
@@ -78,17 +79,33 @@ def _groups(specs: list[str]) -> list[tuple[str, list[str]]]:
     return out
 
 
+#: The action-segmentation measures of ``mtanno evaluate --json`` (issue 24) and their columns.
+FIELD_MEASURES = {"accuracy": "Acc", "edit": "Edit", "f1_10": "F1@10", "f1_25": "F1@25",
+                  "f1_50": "F1@50"}
+
+
+def _mean(values: list) -> str:
+    """The mean to 3 decimals, "–" when a report lacks the value (older reports) or it is
+    undefined (null)."""
+    if not values or any(v is None for v in values):
+        return "–"
+    return f"{sum(values) / len(values):.3f}"
+
+
 def quality(specs: list[str]) -> int:
-    print("| annotation | P1 | R1 | F1 | P2 | R2 | F2 | F1 each | F2 each |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    cols = " | ".join(FIELD_MEASURES.values())
+    print(f"| annotation | P1 | R1 | F1 | P2 | R2 | F2 | {cols} | F1 each | F2 each |")
+    print("|---|" + "---|" * (8 + len(FIELD_MEASURES)))
     for name, files in _groups(specs):
         reps = [json.loads(Path(f).read_text()) for f in files]
         mean = {(lvl, k): sum(r[lvl][k] for r in reps) / len(reps)
                 for lvl in ("frame", "segment") for k in "PRF"}
+        field = [_mean([r.get(key) for r in reps]) for key in FIELD_MEASURES]
         each1 = ", ".join(f"{r['frame']['F']:.3f}" for r in reps)
         each2 = ", ".join(f"{r['segment']['F']:.3f}" for r in reps)
         print(f"| {name} | " + " | ".join(f"{mean[(lvl, k)]:.3f}" for lvl in ("frame", "segment")
-                                        for k in "PRF") + f" | {each1} | {each2} |")
+                                        for k in "PRF")
+              + " | " + " | ".join(field) + f" | {each1} | {each2} |")
     return 0
 
 

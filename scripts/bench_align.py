@@ -55,7 +55,7 @@ from mtanno.align import (  # noqa: E402
     warp_codes,
     warp_poses,
 )
-from mtanno.compose import Clip, compose_documents  # noqa: E402
+from mtanno.evaluation.compose import Clip, compose_documents  # noqa: E402
 from mtanno.index.core import frame_codes  # noqa: E402
 from mtanno.io import canonical_positions, read_motion  # noqa: E402
 

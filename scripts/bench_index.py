@@ -51,7 +51,7 @@ from data_cache import SHARED_DATA, unpack_archive  # noqa: E402
 
 from mtanno.index import FuzzySet, GroupQuery, Query, build_index, search  # noqa: E402
 from mtanno.index.core import collect_feature_files, read_feature_docs  # noqa: E402
-from mtanno.index.storage import read_manifest  # noqa: E402
+from mtanno.index.storage import read_index_manifest  # noqa: E402
 
 BENCH = REPO / ".cache" / "bench"
 SET2 = ["set2-active", "set2-elderly", "set2-feminine", "set2-masculine", "set2-normal"]
@@ -113,7 +113,7 @@ def bench_build(feats: Path, out: Path, repeat: int) -> dict:
         t5 = time.perf_counter()
         for k, v in zip(phases, (t1 - t0, t2 - t1, t3 - t2, t5 - t4)):
             phases[k].append(v)
-    manifest = read_manifest(out)
+    manifest = read_index_manifest(out)
     # the whole command, process start-up included (issue 12: < 5 s for Bandai set 2)
     whole = []
     for _ in range(repeat):

@@ -87,8 +87,8 @@ def main() -> int:
     from mtanno.index import build_index, open_index
     from mtanno.keyframes import search_documents, search_index
     from mtanno.keyframes.search import warm_up
-    from mtanno.store import read_features
     from mtanno.templates import group_by_class, load_examples, sources_from_manifest
+    from mtanno.util.store import read_features
 
     print(f"machine: {machine()}")
     # --- data

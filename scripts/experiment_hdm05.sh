@@ -61,8 +61,10 @@ out, seeds = sys.argv[1], sys.argv[2:]
 names = {"reference": "no keyframes (reference Δ̄)", "paper": "no keyframes (paper Δ̄)",
          "kf_reference": "reference hand-made keyframes", "kf_ga": "GA keyframes",
          "kf_hard": "hard-template keyframes", "kf_heuristic": "heuristic keyframes"}
-print("| annotation | P1 | R1 | F1 | P2 | R2 | F2 | seconds | F1 per seed | F2 per seed |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| annotation | P1 | R1 | F1 | P2 | R2 | F2 | Edit | F1@50 | seconds | F1 per seed | F2 per seed |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+field = lambda reps, key: ("–" if any(r.get(key) is None for r in reps)
+                           else "%.3f" % (sum(r[key] for r in reps) / len(reps)))
 for run, name in names.items():
     reps = [json.load(open(f"{out}/seed{s}/report_{run}.json")) for s in seeds]
     secs = [float(re.search(r"([0-9.]+) s of annotation",
@@ -71,7 +73,8 @@ for run, name in names.items():
     mean = lambda lvl, k: sum(r[lvl][k] for r in reps) / len(reps)
     print(f"| {name} | {mean('frame','P'):.3f} | {mean('frame','R'):.3f} | "
           f"{mean('frame','F'):.3f} | {mean('segment','P'):.3f} | {mean('segment','R'):.3f} | "
-          f"{mean('segment','F'):.3f} | {sum(secs) / len(secs):.3f} | "
+          f"{mean('segment','F'):.3f} | {field(reps, 'edit')} | {field(reps, 'f1_50')} | "
+          f"{sum(secs) / len(secs):.3f} | "
           + ", ".join("%.3f" % r["frame"]["F"] for r in reps) + " | "
           + ", ".join("%.3f" % r["segment"]["F"] for r in reps) + " |")
 PY

@@ -56,8 +56,9 @@ import json, re, sys
 out, docs = sys.argv[1], sys.argv[2:]
 names = {"none": "no keyframes", "ga": "GA keyframes", "hard": "hard-template keyframes",
          "heuristic": "heuristic keyframes"}
-print("| annotation (all three rotations) | P1 | R1 | F1 | P2 | R2 | F2 | seconds |")
-print("|---|---|---|---|---|---|---|---|")
+print("| annotation (all three rotations) | P1 | R1 | F1 | P2 | R2 | F2 | Edit | F1@50 | seconds |")
+print("|---|---|---|---|---|---|---|---|---|---|")
+field = lambda r, key: "–" if r.get(key) is None else "%.3f" % r[key]
 for run, name in names.items():
     r = json.load(open(f"{out}/report_{run}.json"))
     secs = sum(float(re.search(r"([0-9.]+) s of annotation",
@@ -65,7 +66,7 @@ for run, name in names.items():
                for d in docs)
     f, g = r["frame"], r["segment"]
     print(f"| {name} | {f['P']:.3f} | {f['R']:.3f} | {f['F']:.3f} | {g['P']:.3f} | "
-          f"{g['R']:.3f} | {g['F']:.3f} | {secs:.3f} |")
+          f"{g['R']:.3f} | {g['F']:.3f} | {field(r, 'edit')} | {field(r, 'f1_50')} | {secs:.3f} |")
 PY
 
 # --------------------------------------------------------------------------- issue 10

@@ -96,8 +96,8 @@ def instrument() -> None:
     import mtanno.features.extract as extract
     import mtanno.io as io
     import mtanno.io.amc as amc
-    import mtanno.output as output
-    import mtanno.store as store
+    import mtanno.util.output as output
+    import mtanno.util.store as store
 
     _patch(extract, "plan_batch", "parent: plan (listing, check_outputs)")
     _patch(extract, "up_to_date", "parent: up-to-date checks")
@@ -123,7 +123,7 @@ def instrument() -> None:
         _patch(mod, "dumps", "write: metadata JSON")
     _patch(pq, "write_table", "write: Parquet encode")
     try:
-        import mtanno._parquet as direct
+        import mtanno.util._parquet as direct
     except ImportError:  # a checkout before the direct encoder
         direct = None
     _patch(direct, "encode", "write: Parquet encode")
@@ -192,7 +192,7 @@ def pool_side(folder: Path, jobs: int, where: Path | None = None) -> None:
     """The batch in a pool of ``jobs`` workers started here (the timers inherited through
     fork); each worker reports its timers and its whole CPU time at exit, so the time
     outside the timed stages (task passing, result pickling, the pool's threads) shows."""
-    import mtanno.workers as workers
+    import mtanno.util.workers as workers
     from mtanno.features.extract import plan_batch, run_batch
 
     out = Path(tempfile.mkdtemp(prefix="mtanno-profile-", dir=where))

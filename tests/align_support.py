@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.align import Alignment, Performance, performance_from_positions
-from mtanno.compose import Clip, compose_documents
+from mtanno.evaluation.compose import Clip, compose_documents
 
 
 def warp_function(m: int, n: int, *, alpha: float = 0.3, beta: float = 0.15) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Slow, obviously-correct segment decoding (mtanno.decode): the oracles of the tests.
+"""Slow, obviously-correct segment decoding (mtanno.annotate.decode): the oracles of the tests.
 
 ``decode_naive`` is the dynamic programme of the module docstring written with Python
 lists and floats, with the same tie rules (and its total cost); ``least_cost_exhaustive``

@@ -188,10 +188,10 @@ def check_reference_dbar(seed: int) -> None:
 
 def check_dbar_strategies(seed: int) -> tuple[int, int]:
     """Δ̄ of real matcher outputs (starts mostly increasing, sometimes crossing) against the
-    naive reading, and each strategy of :mod:`mtanno._dbar` on its own: the divide and
+    naive reading, and each strategy of :mod:`mtanno.annotate._kernels` on its own: the divide and
     conquer either agrees with the naive Δ̄ or declines (−1), the sorted greedy always
     agrees. Returns (spans it solved, spans it declined)."""
-    from mtanno._dbar import _greedy_dbar, _split_dbar
+    from mtanno.annotate._kernels import _greedy_dbar, _split_dbar
     from mtanno.templates.match import PreparedTemplate
 
     rng = np.random.default_rng(seed)
@@ -243,7 +243,7 @@ def test_dbar_strategies_without_jit():
 def test_modified_delta_refuses_starts_outside_their_span():
     """Start frames that no matcher gives (after the end, before the window) and windows
     outside the document are refused instead of being followed out of the arrays."""
-    from mtanno.decode import fold_label
+    from mtanno.annotate.decode import fold_label
     from mtanno.templates.match import PreparedTemplate
 
     delta = np.array([INF, 0.05, 0.02, INF, 0.01])
@@ -430,7 +430,7 @@ def test_annotate_document_in_windows_equals_masked_distances(seed, resolve):
     matched everywhere before leave finite values in it): the default decoder and the
     segment decoder (several templates of a class, frame evidence) read inside the spans."""
     from mtanno.annotate import ClassModel, annotate_document, class_deltas, label_document
-    from mtanno.decode import EVIDENCE_MARGIN
+    from mtanno.annotate.decode import EVIDENCE_MARGIN
     from mtanno.templates.match import pack_document
 
     rng = np.random.default_rng(seed)
@@ -446,7 +446,7 @@ def test_annotate_document_in_windows_equals_masked_distances(seed, resolve):
     got = annotate_document("d", X, models, windows=windows, config=config)
     masked = class_deltas(X, models, windows=windows)  # fresh arrays, ∞ outside
     if resolve:
-        from mtanno.decode import frame_evidence
+        from mtanno.annotate.decode import frame_evidence
 
         ev = [frame_evidence(pack_document(X, 40), m.values) for m in models]
         for i, m in enumerate(models):  # evidence only near the windows, as annotate has it
@@ -476,7 +476,7 @@ def test_labels_matched_into_the_decoder_rows_equal_folded_ones(seed):
     from dataclasses import replace
 
     from mtanno.annotate import ClassModel, annotate_document, class_deltas, label_document
-    from mtanno.decode import frame_evidence
+    from mtanno.annotate.decode import frame_evidence
     from mtanno.templates.match import pack_document
 
     rng = np.random.default_rng(seed)
@@ -544,7 +544,7 @@ def test_segments_read_each_row_inside_its_spans_only(seed):
     """segments_from_labels with row_spans: values outside a row's spans (here garbage,
     even smaller than inside) are never read; the segments equal those of the matrix
     with ∞ there."""
-    from mtanno.annotate import _row_spans
+    from mtanno.annotate.dbar import _row_spans
 
     rng = np.random.default_rng(seed)
     P, L = int(rng.integers(1, 5)), int(rng.integers(1, 120))
@@ -576,7 +576,7 @@ def test_segments_read_each_row_inside_its_spans_only(seed):
 def test_touching_windows_are_joined_for_the_rows():
     """A window that touches the one before is one stretch of the row (the extension may
     walk across)."""
-    from mtanno.annotate import _reference_in_spans
+    from mtanno.annotate.dbar import _reference_in_spans
 
     delta = np.full(12, INF)
     first, last = _reference_in_spans(delta, np.full(12, -1), 0.13, None, np.empty(12),

@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from mtanno import synthetic
 from mtanno.cli import main
-from mtanno.store import read_features, write_features
+from mtanno.util.store import read_features, write_features
 
 
 def run(*args):
@@ -42,7 +42,8 @@ def test_annotate_and_evaluate(pipeline):
     r = run("evaluate", d / "a.csv", "--truth", d / "docs" / "truth.csv", "--json", d / "rep.json")
     assert r.exit_code == 0, r.output
     rep = json.loads((d / "rep.json").read_text())
-    assert set(rep) == {"schema", "documents", "frame", "segment", "per_class", "provenance"}
+    assert set(rep) == {"schema", "documents", "frame", "segment", "per_class", "provenance",
+                        "accuracy", "edit", "f1_10", "f1_25", "f1_50", "segmentation"}
     assert rep["schema"] == "mtanno.evaluation/1" and len(rep["documents"]) == 3
     assert set(rep["per_class"]) == set(synthetic.CLASSES)
     # held-out synthetic actor: the procedurally animated classes are easy

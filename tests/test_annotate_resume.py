@@ -23,15 +23,15 @@ import pytest
 from world import cli, temporaries
 
 from mtanno.annotate import annotation_files, load_annotation_setup
-from mtanno.annotate_folder import DocJob, annotate_folder, plan_folder, recipe, up_to_date
+from mtanno.annotate.folder import DocJob, annotate_folder, plan_folder, recipe, up_to_date
 from mtanno.errors import MtannoError
-from mtanno.store import read_features, write_features
-from mtanno.tables import provenance_as_read
+from mtanno.util.store import read_features, write_features
+from mtanno.util.tables import provenance_as_read
 
 #: mtanno with every document delayed by $MTANNO_TEST_DELAY seconds (one process, --jobs 1).
 SLOW_MTANNO = [sys.executable, "-c", (
     "import os, sys, time\n"
-    "import mtanno.annotate as a\n"
+    "import mtanno.annotate.batch as a\n"
     "_run = a._annotate_file\n"
     "def slow(*args):\n"
     "    time.sleep(float(os.environ['MTANNO_TEST_DELAY']))\n"

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from mtanno import synthetic as synth
 from mtanno.cli import main
-from mtanno.store import read_features
+from mtanno.util.store import read_features
 
 
 @pytest.fixture
@@ -243,13 +243,14 @@ def test_features_up_z_on_a_rotated_clip(world, tmp_path, cls):
 
 def test_describe_api_gives_the_info_lines(tree, tmp_path):
     """`mtanno info` prints exactly the lines of the API functions it calls."""
-    from mtanno.inspect import describe_feature_file, describe_motion
+    from mtanno.info import describe_feature_file, describe_motion
     from mtanno.io import read_motion
 
     amc = tree / "a" / "walk1.amc"
     lines = describe_motion(read_motion(amc))
     assert lines[0] == f"file           {amc}" and "frames         24" in lines
-    assert len(lines) == 7 + 22 and all(" <- " in x for x in lines[7:])
+    assert len(lines) == 8 + 22 and all(" <- " in x for x in lines[8:])
+    assert lines[6].startswith("map made by    built-in map chosen because")
     assert run(["info", str(amc)]).output.splitlines() == lines
     run(["features", str(amc), "-o", str(tmp_path / "o")])
     ff = read_features(tmp_path / "o" / "walk1.parquet")

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from mtanno import synthetic
-from mtanno.compose import Clip, _root_matrix, _yaw, _zyx_angles, compose_documents, read_manifest
 from mtanno.errors import MtannoError
+from mtanno.evaluation.compose import Clip, _root_matrix, _yaw, _zyx_angles, compose_documents, read_clips
+from mtanno.evaluation.truth import read_truth
 from mtanno.features.extract import features_from_motion
 from mtanno.io import canonical_positions, read_motion
-from mtanno.truth import read_truth
 
 
 @pytest.fixture
@@ -81,14 +81,14 @@ def test_manifest_and_errors(tmp_path):
     (tmp_path / "clips.csv").write_text("file,class,actor,split\na.amc,jump,x,dev\nb.amc,kick,y,train\n")
     (tmp_path / "a.amc").write_text("")
     with pytest.raises(MtannoError, match=r"clips.csv:3: clip file .*b.amc not found"):
-        read_manifest(tmp_path / "clips.csv")
-    got = read_manifest(tmp_path / "clips.csv", actor="x")
+        read_clips(tmp_path / "clips.csv")
+    got = read_clips(tmp_path / "clips.csv", actor="x")
     assert got == [Clip(tmp_path / "a.amc", "jump", "x")]
     with pytest.raises(MtannoError, match="no clips"):
-        read_manifest(tmp_path / "clips.csv", actor="z")
+        read_clips(tmp_path / "clips.csv", actor="z")
     (tmp_path / "bad.csv").write_text("name,label\n")
     with pytest.raises(MtannoError, match="bad.csv:1: needs the columns file, class"):
-        read_manifest(tmp_path / "bad.csv")
+        read_clips(tmp_path / "bad.csv")
     with pytest.raises(MtannoError, match="no clips to compose"):
         compose_documents([], tmp_path / "o")
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 import mtanno
-from mtanno.output import folder_lock
+from mtanno.util.locks import folder_lock
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "cron_annotate.sh"
 pytestmark = pytest.mark.skipif(shutil.which("bash") is None, reason="bash is not installed")

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from naive_decode import best_column_naive, decode_naive, least_cost_exhaustive
 
 from mtanno.annotate import ClassConfig, label_document, segments_from_labels
-from mtanno.decode import decode_segments, frame_evidence, relative_evidence
+from mtanno.annotate.decode import decode_segments, frame_evidence, relative_evidence
 from mtanno.errors import MtannoError
 from mtanno.templates.match import pack_document
 
@@ -185,7 +185,7 @@ def check_seeded(seed):
             for p in range(P)]
     assert relative_evidence(E).tolist() == want
     # running sums in place: the same numbers as relative evidence + the decoder's sums
-    from mtanno.decode import EvidenceSums, evidence_sums
+    from mtanno.annotate.decode import EvidenceSums, evidence_sums
 
     buf = np.empty((P, L + 1))
     buf[:, 1:] = E
@@ -201,7 +201,7 @@ def check_seeded(seed):
     assert decode_segments(D, S, evidence=sums, **kw) == \
         decode_segments(D, S, evidence=relative_evidence(E), **kw)
     # folding a label's first template into rows that hold anything
-    from mtanno.decode import fold_label
+    from mtanno.annotate.decode import fold_label
 
     row, row_start = np.full(L, INF), np.full(L, -1, np.int64)
     fold_label(row, row_start, D[0], S[0], tau=0.1, reject=0.05)
@@ -223,7 +223,7 @@ def check_seeded(seed):
                spans=(firsts, lasts))
     assert np.array_equal(junk, row) and np.array_equal(junk_start, row_start)
     # distinct frames (the hash table over run values)
-    from mtanno.decode import distinct_frames
+    from mtanno.annotate.decode import distinct_frames
 
     X = rng.choice(np.array([0, 3, 1 << 40, 2 ** 64 - 1], np.uint64),
                    size=(int(rng.integers(1, 30)), 1))
@@ -238,7 +238,7 @@ def test_decoder_without_jit():
 
 
 def test_distinct_frames_rebuild_the_document():
-    from mtanno.decode import distinct_frames
+    from mtanno.annotate.decode import distinct_frames
 
     rng = np.random.default_rng(3)
     for words in (1, 2):
@@ -284,7 +284,7 @@ def test_frame_evidence_equals_its_definition():
         relative_evidence(E, out=np.empty((3, 2)))
     # kept per distinct frame, with the template's columns made once: the same numbers,
     # written into a buffer (junk before) without a temporary
-    from mtanno.decode import RowEvidence, evidence_columns, row_evidence
+    from mtanno.annotate.decode import RowEvidence, evidence_columns, row_evidence
 
     packed, cols = pack_document(X, 70), evidence_columns(V)
     for spans in (None, (np.array([2, 20, 9]), np.array([5, 40, 3]))):
@@ -333,7 +333,7 @@ def test_refined_extension_stops_at_frames_of_another_class():
 
 
 def test_evidence_sums_bad_input():
-    from mtanno.decode import evidence_sums
+    from mtanno.annotate.decode import evidence_sums
 
     with pytest.raises(MtannoError, match="C-contiguous float64"):
         evidence_sums(np.zeros((2, 3), np.float32))
@@ -349,7 +349,7 @@ def test_evidence_sums_bad_input():
 def test_frame_evidence_refuses_what_would_read_past_its_arrays():
     """Spans, distinct frames, buffers and template columns that do not fit the document
     raise instead of reading or writing past the arrays in the kernels."""
-    from mtanno.decode import (
+    from mtanno.annotate.decode import (
         EvidenceColumns,
         RowEvidence,
         distinct_frames,

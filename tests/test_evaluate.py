@@ -6,15 +6,9 @@ import math
 
 import pytest
 
-from mtanno.evaluate import (
-    evaluate_annotations,
-    frame_level,
-    retrieval_rows,
-    segment_level,
-    separation_quotient,
-    top_k_recall,
-)
-from mtanno.truth import Segment as S
+from mtanno.evaluation.metrics import evaluate_annotations, frame_level, segment_level
+from mtanno.evaluation.retrieval import retrieval_rows, separation_quotient, top_k_recall
+from mtanno.evaluation.truth import Segment as S
 
 
 def test_frame_level_with_overlapping_labels():

@@ -21,7 +21,7 @@ from mtanno.features import (
 from mtanno.features.table31 import FEATURES31, FEATURES31_REFERENCE, Feature31
 from mtanno.io import canonical_positions, read_motion
 from mtanno.io.rigs import CANONICAL_JOINTS
-from mtanno.store import read_features
+from mtanno.util.store import read_features
 
 SETS31 = ("mrc05", "mrc05-reference")
 

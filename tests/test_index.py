@@ -26,7 +26,7 @@ from mtanno.index import (
     storage,
 )
 from mtanno.index.core import frame_codes
-from mtanno.store import write_features
+from mtanno.util.store import write_features
 
 MRC05 = get_feature_set("mrc05")
 
@@ -164,7 +164,7 @@ def _strip(manifest):
 
 
 def _same_index(a, b):
-    ma, mb = storage.read_manifest(a), storage.read_manifest(b)
+    ma, mb = storage.read_index_manifest(a), storage.read_index_manifest(b)
     assert _strip(ma) == _strip(mb)  # includes every file's SHA-256: byte-identical tables
 
 
@@ -197,7 +197,7 @@ def test_incremental_add_remove_equals_rebuild(feature_dir, tmp_path):
     _, rep = add_documents(tmp_path / "inc", files[2:4] + files[:1])
     assert rep.added == [f.stem for f in files[2:4]] and rep.unchanged == [files[0].stem]
     _same_index(tmp_path / "full", tmp_path / "inc")
-    assert storage.read_manifest(tmp_path / "inc")["generation"] == 3
+    assert storage.read_index_manifest(tmp_path / "inc")["generation"] == 3
     # remove two documents == rebuild without them
     remove_documents(tmp_path / "inc", [files[1].stem, str(files[4])])
     build_index(files[:1] + files[2:4] + files[5:], tmp_path / "rebuilt")
@@ -255,7 +255,7 @@ def test_build_rejects_mixed_feature_sets_and_duplicates(feature_dir, tmp_path):
 def test_crash_during_update_leaves_old_index(feature_dir, tmp_path, monkeypatch):
     files = sorted(feature_dir.glob("*.parquet"))
     build_index(files[:3], tmp_path / "idx")
-    before = storage.read_manifest(tmp_path / "idx")
+    before = storage.read_index_manifest(tmp_path / "idx")
     real_replace = os.replace
 
     def crash_on_manifest(src, dst):
@@ -267,7 +267,7 @@ def test_crash_during_update_leaves_old_index(feature_dir, tmp_path, monkeypatch
     with pytest.raises(KeyboardInterrupt):
         add_documents(tmp_path / "idx", files[3:])
     monkeypatch.setattr(storage.os, "replace", real_replace)
-    assert storage.read_manifest(tmp_path / "idx") == before
+    assert storage.read_index_manifest(tmp_path / "idx") == before
 
     def entries():
         return sorted(p.name for p in (tmp_path / "idx").iterdir() if p.name != ".lock")
@@ -288,7 +288,7 @@ def test_crash_during_update_leaves_old_index(feature_dir, tmp_path, monkeypatch
     with pytest.raises(MtannoError, match="cannot write the index: disk full"):
         add_documents(tmp_path / "idx", files[3:])
     monkeypatch.setattr(storage, "_write_table", real_write)
-    assert storage.read_manifest(tmp_path / "idx") == before
+    assert storage.read_index_manifest(tmp_path / "idx") == before
     assert entries() == ["gen-000001", "manifest.json"]
     open_index(tmp_path / "idx")
     add_documents(tmp_path / "idx", files[3:])
@@ -300,7 +300,7 @@ def test_crash_during_update_leaves_old_index(feature_dir, tmp_path, monkeypatch
 def test_corrupt_or_partial_index_is_reported(feature_dir, tmp_path):
     root = tmp_path / "idx"
     build_index([feature_dir], root)
-    m = storage.read_manifest(root)
+    m = storage.read_index_manifest(root)
     seg = root / m["directory"] / "segments-lower.parquet"
     data = seg.read_bytes()
     seg.write_bytes(data[:-10])
@@ -328,7 +328,7 @@ def test_consistent_tables_with_wrong_content_are_reported(feature_dir, tmp_path
     # a manifest that matches its files but whose segments do not cover the documents
     root = tmp_path / "idx"
     build_index([feature_dir], root)
-    m = storage.read_manifest(root)
+    m = storage.read_index_manifest(root)
     gen = root / m["directory"]
     import pyarrow as pa
     import pyarrow.parquet as pq

@@ -153,7 +153,7 @@ def test_query_rejects_other_feature_set_and_empty_set(feats, tmp_path):
 def test_query_and_info_report_corrupt_index(feats, tmp_path):
     idx = tmp_path / "idx"
     run(["index", feats, "-o", idx, "-q"])
-    m = storage.read_manifest(idx)
+    m = storage.read_index_manifest(idx)
     victim = idx / m["directory"] / "lists-upper.parquet"
     victim.write_bytes(victim.read_bytes()[:50])
     for args in (["query", idx, "--example", "squatA", "--features", "rknee_bent"],

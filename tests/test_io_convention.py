@@ -11,8 +11,8 @@ import pyarrow.parquet as pq
 import pytest
 from world import cli
 
-from mtanno.store import sha256_file
-from mtanno.tables import _cell, read_table
+from mtanno.util.store import sha256_file
+from mtanno.util.tables import _cell, read_table
 
 
 def _commands(w, tmp):

@@ -11,7 +11,7 @@ import numba
 import pytest
 from numba.core import event
 
-from mtanno.jitnote import NOTE, CompileNote
+from mtanno.util.jitnote import NOTE, CompileNote
 
 
 def _function(module: str, k: int):

@@ -26,8 +26,8 @@ from mtanno.keyframes import (
     stiffness_bounds,
 )
 from mtanno.keyframes.model import feature_groups_of
-from mtanno.store import read_features
-from mtanno.tables import read_table
+from mtanno.util.store import read_features
+from mtanno.util.tables import read_table
 
 
 def test_stiffness_in_exact_arithmetic():

@@ -13,7 +13,7 @@ import threading
 import pytest
 from world import cli
 
-from mtanno.output import EXIT_BUSY, LockBusy, folder_lock
+from mtanno.util.locks import EXIT_BUSY, LockBusy, folder_lock
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]

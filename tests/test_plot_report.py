@@ -14,8 +14,8 @@ from click.testing import CliRunner
 
 from mtanno.annotate import Annotation
 from mtanno.cli import main
-from mtanno.store import write_features
-from mtanno.truth import Segment
+from mtanno.evaluation.truth import Segment
+from mtanno.util.store import write_features
 
 matplotlib = pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
 matplotlib.use("Agg")
@@ -143,7 +143,7 @@ def test_show_text_timeline(handmade, tmp_path):
     # blocks of frames: '+' where the feature is on in part of the block
     r = run("show", handmade, "--width", "10")
     assert r.exit_code == 0
-    from mtanno.inspect import text_timeline
+    from mtanno.info import text_timeline
 
     X = np.array([[0, 0, 1, 1, 1, 0]] * 1, np.uint8)
     assert text_timeline(X, ["k"], width=3) == ["   1", "k  .#+"]
@@ -167,7 +167,7 @@ def test_mt_plot(world, tmp_path):
 # --- report ---------------------------------------------------------------------------------
 
 def test_confusion_matrix_counts_frames_with_none():
-    from mtanno.report import confusion_matrix
+    from mtanno.evaluation.report import confusion_matrix
 
     truth = [Segment("d", 1, 4, "a"), Segment("d", 5, 8, "b")]
     ann = [Annotation("d", 0, 4, "a", 0.1), Annotation("d", 6, 7, "b", 0.1)]
@@ -207,7 +207,7 @@ def test_report_files_and_tables(world, tmp_path):
     conf = list(csv.DictReader((out / "confusion.csv").open()))
     assert conf[-1]["truth"] == "none" and list(conf[0])[-1] == "none"
     total = sum(int(v) for row in conf for k, v in row.items() if k != "truth")
-    from mtanno.store import read_features
+    from mtanno.util.store import read_features
 
     assert total == sum(read_features(p).X.shape[1] for p in world.doc_files)
     page = (out / "index.html").read_text()
@@ -222,10 +222,10 @@ def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path,
     own τ is drawn in its colour, and the page says which classes had further templates."""
     import json
 
-    import mtanno.report as report
+    import mtanno.evaluation.report as report
     from mtanno.annotate import class_deltas, class_models
-    from mtanno.store import read_features
     from mtanno.templates.model import load_template_folder
+    from mtanno.util.store import read_features
 
     names = sorted(p.stem for p in world.mt.glob("*.json"))
     own, extra = names[0], names[1]

@@ -226,7 +226,7 @@ def test_transitions_in_documents_and_example():
 
 
 def test_drop_short_segments():
-    from mtanno.index.query import drop_short_segments
+    from mtanno.index.example import drop_short_segments
 
     def drop(lengths, values, n):
         return drop_short_segments(np.array(lengths), np.array(values), n)

@@ -55,7 +55,7 @@ def test_squat_by_example_knees_tolerates_transients(hdm05_index):
     rule) its one-frame transient (the left knee bends a frame early) is a query segment
     and only 5 of the 40 squat clips are found; with the default --min-segment they are
     at least 30, and squats are most of the hits."""
-    from mtanno.index.query import DEFAULT_MIN_SEGMENT
+    from mtanno.index.example import DEFAULT_MIN_SEGMENT
 
     index, example = hdm05_index
     ex = read_feature_doc(example)

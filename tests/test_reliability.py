@@ -15,8 +15,8 @@ import pytest
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
-from mtanno.output import _HOST, atomic_path, check_outputs, remove_stale_temporaries
-from mtanno.store import read_features, write_features
+from mtanno.util.output import _HOST, atomic_path, check_outputs, remove_stale_temporaries
+from mtanno.util.store import read_features, write_features
 
 # --------------------------------------------------------------------- 1: outputs = inputs
 
@@ -120,7 +120,7 @@ def test_an_unwritable_output_is_one_line_naming_it(world, tmp_path):
 
 
 def test_write_errors_of_the_file_system_are_one_error(tmp_path, monkeypatch):
-    import mtanno.output as output
+    import mtanno.util.output as output
 
     def refuse(src, dst):
         raise PermissionError(13, "Permission denied", str(dst))
@@ -166,7 +166,7 @@ def test_an_interrupted_write_leaves_no_temporary(tmp_path):
 def test_an_interruption_as_the_temporary_is_created_leaves_none(tmp_path, monkeypatch, writer):
     """SIGINT or SIGTERM handled the moment open() has created the temporary file (before
     the writer holds its descriptor): the file is removed all the same."""
-    import mtanno.output as output
+    import mtanno.util.output as output
 
     real = os.open
 
@@ -192,7 +192,7 @@ def test_a_stopping_worker_ignores_a_second_sigterm():
     import sys
 
     code = """if True:
-        import os, signal, mtanno.workers as w
+        import os, signal, mtanno.util.workers as w
         signal.signal(signal.SIGTERM, w._worker_sigterm)
         w._IN_TASK = True
         try:
@@ -212,8 +212,8 @@ def test_a_stopping_worker_ignores_a_second_sigterm():
 
 
 def test_a_table_never_stands_beside_a_stale_provenance(tmp_path, monkeypatch):
-    import mtanno.output as output
-    from mtanno.tables import read_table, write_table
+    import mtanno.util.output as output
+    from mtanno.util.tables import read_table, write_table
 
     out = tmp_path / "t.csv"
     write_table(out, pa.table({"a": [1]}), provenance={"run": 1})

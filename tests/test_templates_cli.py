@@ -11,8 +11,8 @@ from conftest import HDM05, REFERENCE, require_data
 
 from mtanno.cli import main
 from mtanno.features import FEATURE_NAMES
-from mtanno.store import write_features
 from mtanno.templates.model import load_template, mirror, quantize
+from mtanno.util.store import write_features
 
 
 def run(args):
@@ -184,7 +184,7 @@ def test_mt_quantize_and_mirror(mt_file, tmp_path):
 
 
 def test_mt_scale(mt_file, tmp_path):
-    from mtanno.tuning.tempo import time_scaled
+    from mtanno.templates.tempo import time_scaled
 
     mt = load_template(mt_file)
     for factor in (0.6, 1.6):

@@ -8,7 +8,6 @@ import pytest
 
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES
-from mtanno.store import sha256_file, write_features
 from mtanno.templates.learn import learn, learn_template
 from mtanno.templates.training import (
     ExampleSource,
@@ -18,6 +17,7 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
+from mtanno.util.store import sha256_file, write_features
 
 
 def write_doc(path, X, *, names=FEATURE_NAMES, fps=30.0, feature_set="mr06-ak40"):

@@ -6,7 +6,7 @@ import pytest
 from conftest import DATA, require_data
 
 from mtanno.errors import MtannoError
-from mtanno.truth import (
+from mtanno.evaluation.truth import (
     Segment,
     by_document,
     read_truth,

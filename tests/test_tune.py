@@ -16,14 +16,14 @@ from world import assert_one_line, cli
 
 from mtanno.annotate import ClassConfig, label_document, load_class_config
 from mtanno.errors import MtannoError
-from mtanno.evaluate import evaluate_annotations
-from mtanno.store import sha256_file
+from mtanno.evaluation.metrics import evaluate_annotations
+from mtanno.evaluation.truth import Segment
 from mtanno.templates.training import collect_sources
-from mtanno.truth import Segment
 from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
+from mtanno.util.store import sha256_file
 
 
 def _sources(world):
@@ -399,7 +399,7 @@ def test_tune_names_truth_documents_without_a_feature_file(world, tmp_path):
 
 def test_time_scaled_template_keeps_the_nearest_columns():
     from mtanno.templates.model import MotionTemplate
-    from mtanno.tuning.tempo import scale_columns, time_scaled
+    from mtanno.templates.tempo import scale_columns, time_scaled
 
     assert scale_columns(10, 0.6).tolist() == [0, 2, 4, 5, 7, 9]
     assert scale_columns(4, 1.5).tolist() == [0, 1, 1, 2, 3, 3]
@@ -422,9 +422,9 @@ def test_time_scaled_template_matches_a_fast_performance(world):
     copy at 0.6 times the length can, and prepare_fold_class matches both."""
     from mtanno.templates.match import PreparedTemplate, pack_document
     from mtanno.templates.model import quantize
+    from mtanno.templates.tempo import time_scaled
     from mtanno.templates.training import load_examples
     from mtanno.tuning.search import prepare_fold_class
-    from mtanno.tuning.tempo import time_scaled
 
     examples = load_examples(_sources(world))
     cls = examples[0].class_name
@@ -497,7 +497,7 @@ def test_search_keeps_a_time_scaled_template_only_where_it_pays():
     tuner = Tuner([fold], _with_scaled(prepared), classes=["a", "b"], unknown_weight=0.0)
     params, ev, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
     assert params.scales == {"a": (0.6,)}  # not 1.6: its match lies inside a b
-    assert any(s.startswith("time-scaled templates {'a': (0.6,)}") for s in steps)
+    assert any(s.startswith("time-scaled templates a ×0.6:") for s in steps)
     without = tuner.search(delta=0.05, methods=["resolve"])[1]
     assert ev.J > without.J
 
@@ -507,7 +507,7 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
     """The chosen tempo factors become further templates of the class: its template from
     MT/ time-scaled, written beside the configuration and read back by annotate."""
     from mtanno.templates.model import load_template, load_template_folder
-    from mtanno.tuning.tempo import time_scaled
+    from mtanno.templates.tempo import time_scaled
 
     original = Tuner.search
 
@@ -539,7 +539,7 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
 
 def test_matched_columns_are_what_the_matcher_expands_to():
     from mtanno.templates.match import PreparedTemplate
-    from mtanno.tuning.tempo import matched_columns
+    from mtanno.templates.tempo import matched_columns
 
     w = np.array([0.4, 1.5, 2.49, 2.5, 1.0])
     assert matched_columns(w) == 1 + 2 + 2 + 3 + 1
@@ -547,8 +547,8 @@ def test_matched_columns_are_what_the_matcher_expands_to():
     assert PreparedTemplate(V, w).K == matched_columns(w)
 
 
-@pytest.mark.parametrize("cost, kept", [(3, {"a": (0.6,)}), (4, {})])
-def test_time_scaled_copies_stay_within_their_column_budget(cost, kept):
+@pytest.mark.parametrize("cost, kept, text", [(3, {"a": (0.6,)}, "a ×0.6"), (4, {}, "none")])
+def test_time_scaled_copies_stay_within_their_column_budget(cost, kept, text):
     """All copies together may have 15 % of the templates' columns (here 3 of 20): a copy
     of 4 columns is not tried, however much it would raise J."""
     fold, prepared = _fold_data()
@@ -559,7 +559,7 @@ def test_time_scaled_copies_stay_within_their_column_budget(cost, kept):
     params, _, steps = tuner.search(delta=0.05, methods=["templates", "resolve"])
     assert params.scales == kept
     used = cost if kept else 0
-    assert any(s.startswith(f"time-scaled templates {kept or 'none'} ({used} of 3 columns)")
+    assert any(s.startswith(f"time-scaled templates {text} ({used} of 3 columns)")
                for s in steps), steps
 
 
@@ -567,9 +567,9 @@ def test_annotate_skips_the_evidence_that_a_copy_cannot_change():
     """A time-scaled copy's columns are its template's, so annotate does not compute its
     frame evidence; the rows equal those with every template's evidence taken."""
     from mtanno.annotate import ClassModel, annotate_document, class_deltas, evidence_covered
-    from mtanno.decode import frame_evidence
+    from mtanno.annotate.decode import frame_evidence
     from mtanno.templates.match import pack_document
-    from mtanno.tuning.tempo import scale_columns
+    from mtanno.templates.tempo import scale_columns
 
     rng = np.random.default_rng(3)
     f, K = 12, 20

@@ -1,4 +1,4 @@
-"""Time alignment of two motions (MRC05 §7): a coarse segment-wise alignment from the
+"""Time alignment of two motions ([MRC05] §7): a coarse segment-wise alignment from the
 adaptive segmentations, refined by DTW inside the area it spans (docs/align.md).
 
 * :mod:`~mtanno.align.poses` — :class:`Performance` (a motion's features, native frames and
@@ -11,7 +11,7 @@ adaptive segmentations, refined by DTW inside the area it spans (docs/align.md).
 * :mod:`~mtanno.align.core` — :func:`align`, :func:`align_files`, :class:`Alignment` and
   its table (:func:`write_alignment`).
 * :mod:`~mtanno.align.options` — the cost names and defaults (imports nothing heavy).
-* :mod:`~mtanno.align.plot` — the alignment drawn like MRC05 Fig. 11 (needs matplotlib).
+* :mod:`~mtanno.align.plot` — the alignment drawn like [MRC05] Fig. 11 (needs matplotlib).
 * ``_kernels`` — numba kernels (private).
 
 The names below are attached lazily (PEP 562): ``import mtanno.align`` is cheap, and the

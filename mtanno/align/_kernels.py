@@ -1,4 +1,4 @@
-"""Numba kernels of time alignment (MRC05 §7): DTW inside a staircase area, its backtracking,
+"""Numba kernels of time alignment ([MRC05] §7): DTW inside a staircase area, its backtracking,
 and the area spanned by matched segment pairs.
 
 An *area* of an n × m cost matrix is given per row a (a frame, or a segment, of motion A) by
@@ -35,28 +35,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-_M1 = np.uint64(0x5555555555555555)
-_M2 = np.uint64(0x3333333333333333)
-_M4 = np.uint64(0x0F0F0F0F0F0F0F0F)
-_H01 = np.uint64(0x0101010101010101)
-_S1 = np.uint64(1)
-_S2 = np.uint64(2)
-_S4 = np.uint64(4)
-_S56 = np.uint64(56)
+from mtanno.util._bits import popcount64 as _popcount
 
 POSE = 0
 CODES = 1
 UNREACHED = 3
-
-
-@numba.njit(cache=True, inline="always")
-def _popcount(x):
-    """Set bits of a non-negative int64 (SWAR; the multiply wraps modulo 2**64 by design)."""
-    u = np.uint64(x)
-    u = u - ((u >> _S1) & _M1)
-    u = (u & _M2) + ((u >> _S2) & _M2)
-    u = (u + (u >> _S4)) & _M4
-    return np.int64((u * _H01) >> _S56)
 
 
 @numba.njit(cache=True, inline="always")

@@ -1,6 +1,6 @@
-"""Stage 1 of time alignment (MRC05 §7): a coarse, segment-wise alignment of two motions.
+"""Stage 1 of time alignment ([MRC05] §7): a coarse, segment-wise alignment of two motions.
 
-Each motion is cut into its adaptive segments over the chosen features (MRC05 §4; the
+Each motion is cut into its adaptive segments over the chosen features ([MRC05] §4; the
 segments of the relational index, :func:`mtanno.index.core.segment`): maximal runs of frames
 with the same feature vector. Two motions with the same progression of feature vectors
 would be aligned segment by segment; real performances differ — one actor lifts a heel the
@@ -16,12 +16,12 @@ neighbours on both sides match one longer segment of the other motion) is merged
 neighbouring match, at a price of its length times the features in which it differs from
 the segment it is matched with, so short deviations are absorbed cheaply and long ones are
 matched where their vectors agree best. Equal progressions are matched one to one at no
-cost. The segment sequences are a few percent of the frames long (MRC05: 3–12 %), so this
+cost. The segment sequences are a few percent of the frames long ([MRC05]: 3–12 %), so this
 costs a small fraction of the frame matrix.
 
 Every matched pair (i, j) spans the rectangle of frames of A's segment i times frames of
 B's segment j; their union, widened by ``band`` frames on every side so that segment
-boundaries do not force the path (MRC05 Fig. 11: the gray area), is the :class:`~mtanno.
+boundaries do not force the path ([MRC05] Fig. 11: the gray area), is the :class:`~mtanno.
 align.dtw.Area` stage 2 computes. Consecutive pairs' rectangles touch at least at a corner,
 so the union is a connected staircase from (0, 0) to (n − 1, m − 1).
 """
@@ -61,7 +61,7 @@ def pose_features(names: Sequence[str]) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class Segments:
-    """Adaptive segments of one motion (MRC05 §4): 0-based start frames, lengths in
+    """Adaptive segments of one motion ([MRC05] §4): 0-based start frames, lengths in
     frames and feature codes (bit k = k-th chosen feature)."""
 
     start: np.ndarray

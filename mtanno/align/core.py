@@ -1,4 +1,4 @@
-"""Two-stage time alignment of two motions (MRC05 §7), and its table.
+"""Two-stage time alignment of two motions ([MRC05] §7), and its table.
 
 :func:`align` runs stage 1 (:func:`mtanno.align.coarse.coarse_alignment`: adaptive segments
 matched with merges, their rectangles widened by a band) and stage 2 (DTW inside that area
@@ -25,7 +25,7 @@ from mtanno.align.poses import Performance, load_performance, normalize_poses
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_SET, FeatureSet
 from mtanno.index.core import frame_codes
-from mtanno.store import check_layout
+from mtanno.util.store import check_layout
 
 __all__ = ["Alignment", "align", "align_files", "alignment_table", "summary",
            "write_alignment"]
@@ -96,7 +96,7 @@ def _codes(p: Performance, features: Sequence[str]) -> np.ndarray:
 def align(a: Performance, b: Performance, *, features: Sequence[str] | None = None,
           group: str | None = None, band: int = DEFAULT_BAND, cost: str = DEFAULT_COST,
           full: bool = False) -> Alignment:
-    """Align motion B to motion A in two stages (MRC05 §7, module docstring).
+    """Align motion B to motion A in two stages ([MRC05] §7, module docstring).
 
     Parameters
     ----------
@@ -195,6 +195,6 @@ def write_alignment(path: str | os.PathLike, al: Alignment, *,
                     provenance: dict | None = None) -> None:
     """Write the warping path (:func:`alignment_table`) to ``path`` (``.csv``,
     ``.parquet``, ``.jsonl`` or ``-``) with its provenance."""
-    from mtanno.tables import write_table
+    from mtanno.util.tables import write_table
 
     write_table(path, alignment_table(al), provenance=provenance)

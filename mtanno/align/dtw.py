@@ -1,4 +1,4 @@
-"""Stage 2 of time alignment (MRC05 §7): dynamic time warping inside an area of the cost matrix.
+"""Stage 2 of time alignment ([MRC05] §7): dynamic time warping inside an area of the cost matrix.
 
 The cost matrix of motions A (n frames, rows) and B (m frames, columns) is computed only
 inside an *area* (:class:`Area`): per row a the columns ``lo[a] .. hi[a]``. The area that
@@ -15,7 +15,7 @@ what it enters: the row's weight for (1, 0), the column's for (0, 1), the larger
 for (1, 1) (a diagonal run through a block of equal costs visits max(rows, columns) cells);
 the mean cost is then the total divided by the summed weights of the path's steps.
 
-Local costs (algorithms.md §3.1 for DTW; MRC05 §7 and Kovar and Gleicher's point-cloud
+Local costs (algorithms.md §3.1 for DTW; [MRC05] §7 and Kovar and Gleicher's point-cloud
 distance for the poses):
 
 * ``positions`` — the mean over the joints of the Euclidean distance between two poses

@@ -1,4 +1,4 @@
-"""An alignment drawn like MRC05 Fig. 11: the area of the cost matrix that was computed
+"""An alignment drawn like [MRC05] Fig. 11: the area of the cost matrix that was computed
 (gray), the matched segment pairs' rectangles, and the warping path.
 
 Needs matplotlib (``pip install 'mtanno[plot]'``); it is imported inside the functions, so
@@ -97,7 +97,7 @@ def save_alignment_plot(path: str | os.PathLike, al: Alignment, *,
     kind = check_plot_path(path)
     from matplotlib.figure import Figure
 
-    from mtanno.output import atomic_path
+    from mtanno.util.output import atomic_path
 
     fig = Figure(figsize=(6, 6 * max(0.4, min(2.5, al.a.frames / al.b.frames))))
     ax = fig.add_subplot()

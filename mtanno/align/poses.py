@@ -1,4 +1,4 @@
-"""What alignment reads of a motion, and the pose normalisation of the pose distance (MRC05 §7).
+"""What alignment reads of a motion, and the pose normalisation of the pose distance ([MRC05] §7).
 
 A :class:`Performance` is one motion prepared for alignment: its features at the analysis
 rate (30 Hz) with the native frame each analysis frame was taken from, and — when it comes
@@ -28,7 +28,7 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.features import ANALYSIS_FPS, FEATURE_SET, FeatureSet, compute_features, get_feature_set
 from mtanno.io.rigs import CANONICAL_JOINTS
-from mtanno.store import FeatureLayout
+from mtanno.util.store import FeatureLayout
 
 __all__ = ["Performance", "body_scale", "load_performance", "normalize_poses",
            "performance_from_positions"]
@@ -134,7 +134,7 @@ def load_performance(path: str | os.PathLike, *, asf: str | os.PathLike | None =
     """
     spath = str(path)
     if Path(path).suffix.lower() == ".parquet":
-        from mtanno.store import read_features
+        from mtanno.util.store import read_features
 
         ff = read_features(path)
         if ff.X.shape[1] == 0:

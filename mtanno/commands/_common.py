@@ -12,10 +12,17 @@ import click
 
 from mtanno.errors import MtannoError
 
+#: How the API's parameter names read on the command line where they are not ``--name``
+#: (:meth:`mtanno.errors.MtannoError.for_command`).
+ARGUMENT_NAMES = {"training": "TRAINING"}
+
 
 def user_errors(code: int):
     """Turn MtannoError (and an OSError of the file system) into a one-line message and
-    exit ``code`` (no traceback)."""
+    exit ``code`` (no traceback). The API's parameter names in the message become the
+    command's flags (``features_dir=`` → ``--features-dir``). A reader that closed
+    standard output early (``| head``) ends the command quietly with exit code 141
+    (:func:`closed_output_edge`)."""
 
     def deco(fn):
         @functools.wraps(fn)
@@ -23,9 +30,10 @@ def user_errors(code: int):
             try:
                 return fn(*args, **kwargs)
             except MtannoError as exc:
-                click.echo(f"mtanno: {exc}", err=True)
+                click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
                 sys.exit(getattr(exc, "exit_code", code))  # LockBusy: 3
             except OSError as exc:  # the file system said no where no reader expected it
+                closed_output_edge(exc)
                 where = f"{exc.filename}: " if exc.filename else ""
                 click.echo(f"mtanno: {where}{exc.strerror or exc}", err=True)
                 sys.exit(code)
@@ -35,9 +43,21 @@ def user_errors(code: int):
     return deco
 
 
+def closed_output_edge(exc: BaseException) -> None:
+    """End the command quietly (no message, exit code 141: the SIGPIPE convention) if
+    ``exc`` is a broken pipe because the reader of standard output or error is gone
+    (``mtanno info X | head -2``); return otherwise (another pipe broke: an error)."""
+    if not isinstance(exc, BrokenPipeError):
+        return
+    from mtanno.util.output import end_closed_output, output_closed
+
+    if output_closed():
+        end_closed_output()
+
+
 def wait_option(fn):
     """``--wait``: wait for another run that holds the output folder's lock instead of
-    exiting with code 3 (:func:`mtanno.output.folder_lock`)."""
+    exiting with code 3 (:func:`mtanno.util.locks.folder_lock`)."""
     return click.option("--wait", is_flag=True,
                         help="If another mtanno run is writing into the same output, wait "
                              "for it to finish instead of exiting with code 3.")(fn)
@@ -104,18 +124,18 @@ def _check_scheduler(ctx, param, value):
     if value is None:
         return None
     from mtanno.errors import MtannoError
-    from mtanno.workers import scheduler_address
+    from mtanno.util.workers import scheduler_address
 
     try:
         return scheduler_address(value)
     except MtannoError as exc:
-        raise click.UsageError(exc.message, ctx) from None
+        raise click.UsageError(exc.for_command(), ctx) from None
 
 
 def scheduler_option(fn):
     """``--scheduler ADDRESS|local:N``: run the tasks on a dask.distributed cluster
-    (:class:`mtanno.workers.DaskPool`, docs/scaling.md) instead of ``--jobs`` processes;
-    an address that is none is a usage error (:func:`mtanno.workers.scheduler_address`)."""
+    (:class:`mtanno.util.workers.DaskPool`, docs/scaling.md) instead of ``--jobs`` processes;
+    an address that is none is a usage error (:func:`mtanno.util.workers.scheduler_address`)."""
     return click.option("--scheduler", default=None, metavar="ADDRESS|local:N",
                         callback=_check_scheduler,
                         help="Run the tasks on a dask.distributed cluster (scheduler address, "
@@ -157,28 +177,41 @@ def waiting_note(folder):
 
 
 def lock_output(folder, *, wait: bool, what: str = "output folder"):
-    """The folder lock of a command's output (:func:`mtanno.output.folder_lock`), saying on
+    """The folder lock of a command's output (:func:`mtanno.util.locks.folder_lock`), saying on
     standard error when it waits."""
-    from mtanno.output import folder_lock
+    from mtanno.util.locks import folder_lock
 
     return folder_lock(folder, wait=wait, what=what, on_wait=waiting_note(folder))
 
 
 def show_progress(quiet: bool) -> bool:
+    """Whether a command shows a progress bar: on a terminal, and not with -q."""
     return not quiet and sys.stderr.isatty()
 
 
-def parse_frames(text: str | None, n: int) -> tuple[int, int] | None:
-    """'A:B' (1-based, inclusive; either side may be empty) → 0-based (a, b) inside a
-    document of ``n`` frames; None for None."""
-    if text is None:
-        return None
-    a, sep, b = text.partition(":")
-    try:
-        lo = int(a) if a.strip() else 1
-        hi = int(b) if b.strip() else n
-    except ValueError:
-        raise MtannoError(f"--frames must be A:B with 1-based frame numbers, got '{text}'") from None
-    if not sep or lo < 1 or hi < lo or hi > n:
-        raise MtannoError(f"--frames {text} is not a range inside 1:{n}")
-    return lo - 1, hi - 1
+class ProgressBar:
+    """A tqdm bar on standard error fed by an API's ``progress(done, total)`` callback
+    (``compose``, ``report``, ``index``): shown only where :func:`show_progress` says so,
+    made at the first call (when the total is known), closed on leaving the ``with``."""
+
+    def __init__(self, desc: str, unit: str, *, quiet: bool = False):
+        self.desc, self.unit = desc, unit
+        self.shown = show_progress(quiet)
+        self.bar = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.shown:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit=self.unit, desc=self.desc)
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> ProgressBar:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()

@@ -1,4 +1,4 @@
-"""``mtanno align``: time alignment of two motions (MRC05 §7).
+"""``mtanno align``: time alignment of two motions ([MRC05] §7).
 
 Exit codes: 0 success, 2 usage error or bad input (nothing written), 130 interrupted.
 """
@@ -37,7 +37,7 @@ from mtanno.commands._common import NAMES, user_errors
               help="Warping path table: .csv, .parquet or .jsonl (with provenance, "
                    "docs/formats.md), or - for CSV on standard output.")
 @click.option("--plot", "plot_path", default=None, type=click.Path(dir_okay=False),
-              help="Also draw the alignment like MRC05 Fig. 11 into this .png, .pdf or .svg "
+              help="Also draw the alignment like [MRC05] Fig. 11 into this .png, .pdf or .svg "
                    "file (needs matplotlib: pip install 'mtanno[plot]').")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
               help="ASF skeleton of AMC inputs (default: found beside or above each).")
@@ -50,7 +50,7 @@ from mtanno.commands._common import NAMES, user_errors
 @user_errors(2)
 def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plot_path, asf,
               skeleton, feature_set, quiet):
-    """Align motion B to motion A in time (MRC05 §7): a coarse alignment of their
+    """Align motion B to motion A in time ([MRC05] §7): a coarse alignment of their
     segments, refined by DTW inside the area it spans.
 
     A and B are motion files (.amc, .bvh) or feature files (.parquet, from `mtanno
@@ -68,8 +68,8 @@ def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plo
     Example: mtanno align walk1.bvh walk2.bvh -o path.csv --plot path.png
     """
     from mtanno.align.core import align_files, summary, write_alignment
-    from mtanno.output import check_outputs
-    from mtanno.tables import file_record, output_files, provenance, table_format
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)
     if plot_path is not None:

@@ -35,8 +35,8 @@ from mtanno.errors import MtannoError
 @click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
 @click.option("--feature-set", "feature_set", default="ak40", show_default=True,
               type=click.Choice(["ak40", "mrc05", "mrc05-reference"]),
-              help="ak40: the 40 annotation features (MR06 + F40); mrc05: the 31 features "
-                   "of MRC05 (reference bugs fixed, docs/index.md); mrc05-reference: as the "
+              help="ak40: the 40 annotation features ([MR06] + F40); mrc05: the 31 features "
+                   "of [MRC05] (reference bugs fixed, docs/index.md); mrc05-reference: as the "
                    "reference implementation computes them.")
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
               help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
@@ -48,7 +48,7 @@ from mtanno.errors import MtannoError
 def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait,
                  scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
-    annotation features, or the 31 MRC05 features with --feature-set mrc05.
+    annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
     INPUT is a motion file (.amc, .bvh), a directory (searched recursively) or `-` to read
     file names from standard input, one per line. A file FILE.amc gives OUTDIR/FILE.parquet;
@@ -82,7 +82,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
             listed.extend(line.strip() for line in sys.stdin if line.strip())
         else:
             items.append(item)
-    from mtanno.output import make_folder
+    from mtanno.util.output import make_folder
 
     jobs_list = plan_batch(items, outdir, asf=asf, listed=listed)
     if not jobs_list:
@@ -153,11 +153,11 @@ def info_cmd(file, asf, skeleton, list_features):
     if list_features and path.suffix.lower() != ".parquet":
         raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
-        from mtanno.store import read_features
+        from mtanno.util.store import read_features
 
         ff = read_features(path)
         if list_features:
-            from mtanno.inspect import feature_rows
+            from mtanno.info import feature_rows
 
             rows = feature_rows(ff)
             width = max(len(r["name"]) for r in rows)
@@ -165,12 +165,12 @@ def info_cmd(file, asf, skeleton, list_features):
             for r in rows:
                 click.echo(f"{r['id']:<4} {r['name']:<{width}}  {r['group']}")
             return
-        from mtanno.inspect import describe_feature_file
+        from mtanno.info import describe_feature_file
 
         for line in describe_feature_file(ff):
             click.echo(line)
         return
-    from mtanno.inspect import describe_motion
+    from mtanno.info import describe_motion
     from mtanno.io import read_motion
 
     for line in describe_motion(read_motion(path, asf=asf, skeleton=skeleton)):

@@ -1,5 +1,5 @@
 """``mtanno index`` (build, add, remove, info) and ``mtanno query``: thin layers over
-:mod:`mtanno.index` (MRC05 §5–6)."""
+:mod:`mtanno.index` ([MRC05] §5–6)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import NAMES, parse_frames, user_errors, wait_option, waiting_note
+from mtanno.commands._common import NAMES, ProgressBar, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
 
@@ -27,7 +27,7 @@ class _IndexGroup(click.Group):
 
 @click.group("index", cls=_IndexGroup, context_settings={"help_option_names": ["-h", "--help"]})
 def index_group() -> None:
-    """Build, update and describe a relational index (MRC05 §5).
+    """Build, update and describe a relational index ([MRC05] §5).
 
     \b
     mtanno index FEATURES... -o INDEX/     build (FEATURES = feature files or directories)
@@ -60,7 +60,7 @@ def _summary(index) -> str:
               help="Index directory (new, empty, or an index to replace).")
 @click.option("--groups", default=None, metavar="G1,G2", type=NAMES,
               help="Index only these groups of the feature set (default: all).")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @user_errors(2)
 def build_cmd(features, out, groups, quiet, wait):
@@ -69,12 +69,11 @@ def build_cmd(features, out, groups, quiet, wait):
     from mtanno.index import build_index
 
     failures: list[str] = []
-    index = build_index(features, out, groups=_groups_option(groups), failures=failures,
-                        wait=wait, on_wait=waiting_note(out))
-    _report(failures)
-    if not quiet:
-        click.echo(f"index: {_summary(index)}, {len(failures)} failed -> {out}", err=True)
-    sys.exit(1 if failures else 0)
+    with ProgressBar("index", "file", quiet=quiet) as bar:
+        index = build_index(features, out, groups=_groups_option(groups), failures=failures,
+                            wait=wait, on_wait=waiting_note(out), progress=bar)
+    _finish(failures, None if quiet else
+            f"index: {_summary(index)}, {len(failures)} failed -> {out}")
 
 
 def _report(failures: list[str]) -> None:
@@ -82,10 +81,18 @@ def _report(failures: list[str]) -> None:
         click.echo(f"mtanno: {message}", err=True)
 
 
+def _finish(failures: list[str], summary: str | None) -> None:
+    """The failures, one line each, the summary line, and exit code 1 if any failed."""
+    _report(failures)
+    if summary:
+        click.echo(summary, err=True)
+    sys.exit(1 if failures else 0)
+
+
 @index_group.command("add")
 @click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @user_errors(2)
 def add_cmd(index_dir, features, quiet, wait):
@@ -95,13 +102,11 @@ def add_cmd(index_dir, features, quiet, wait):
     from mtanno.index import add_documents
 
     failures: list[str] = []
-    index, report = add_documents(index_dir, features, failures=failures, wait=wait,
-                                  on_wait=waiting_note(index_dir))
-    _report(failures)
-    if not quiet:
-        click.echo(f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}",
-                   err=True)
-    sys.exit(1 if failures else 0)
+    with ProgressBar("index add", "file", quiet=quiet) as bar:
+        index, report = add_documents(index_dir, features, failures=failures, wait=wait,
+                                      on_wait=waiting_note(index_dir), progress=bar)
+    _finish(failures, None if quiet else
+            f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}")
 
 
 @index_group.command("remove")
@@ -131,14 +136,14 @@ def info_cmd(index_dir, as_json, output):
     import pyarrow as pa
 
     from mtanno.index import open_index
-    from mtanno.index.storage import group_sizes, index_files, read_manifest
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, provenance, table_format, write_table
+    from mtanno.index.storage import group_sizes, index_files, read_index_manifest
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format, write_table
 
     if output is not None:
         table_format(output)
     index = open_index(index_dir)
-    manifest = read_manifest(index.root)
+    manifest = read_index_manifest(index.root)
     total = sum(e["bytes"] for e in manifest["files"].values())
     rows = group_sizes(index)
     if output is not None:
@@ -177,7 +182,7 @@ def info_cmd(index_dir, as_json, output):
 @click.option("--frames", default=None, metavar="A:B",
               help="Example frames, 1-based inclusive at 30 Hz (default: all).")
 @click.option("--features", "feature_list", default=None, metavar="NAME,...", type=NAMES,
-              help="Features of the example that matter (names, ids such as F07, or MRC05 "
+              help="Features of the example that matter (names, ids such as F07, or [MRC05] "
                    "Table 1 names such as Fl7).")
 @click.option("--query", "query_file", default=None, type=click.Path(dir_okay=False),
               metavar="Q.json", help="JSON query file (docs/index.md).")
@@ -209,8 +214,8 @@ def info_cmd(index_dir, as_json, output):
 @user_errors(2)
 def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, windows, mode,
               mismatches, min_segment, rank_mt, top, output, quiet):
-    """Find motions in INDEX (MRC05 §5–6): by example, with a JSON query file, or with a
-    keyframe query (MBS09 §5).
+    """Find motions in INDEX ([MRC05] §5–6): by example, with a JSON query file, or with a
+    keyframe query ([MBS09] §5).
 
     \b
     mtanno query INDEX --example FILE.parquet [--frames A:B] --features NAME,...
@@ -219,7 +224,7 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
 
     Hits are written as a table (CSV on standard output unless -o names a .csv, .parquet
     or .jsonl file): doc, start, end (1-based inclusive frames at 30 Hz), rank,
-    score (sum of segment length differences to the example, MRC05 §6.2; lower is better),
+    score (sum of segment length differences to the example, [MRC05] §6.2; lower is better),
     mt_cost (with --rank-mt; empty where the template cannot fit the hit, which a note
     counts), span_start, span_end (queries with segment lengths: the hit before trimming),
     boundaries (per group: first frame of each matched segment, then the last frame; for
@@ -234,11 +239,12 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     """
     import time
 
-    from mtanno.index import example_query, load_query, open_index, search
-    from mtanno.index.query import DEFAULT_MIN_SEGMENT, example_matrix, resolve_features, warm_up
+    from mtanno.index import load_query, open_index, search
+    from mtanno.index.example import DEFAULT_MIN_SEGMENT, example_file_query
+    from mtanno.index.query import warm_up
     from mtanno.index.storage import index_files
-    from mtanno.output import check_outputs
-    from mtanno.tables import output_files, table_format
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, table_format
 
     if sum(x is not None for x in (example, query_file, kf_file)) != 1:
         raise MtannoError("give one of --example (with --features), --query or --keyframes")
@@ -257,12 +263,9 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     if example is not None:
         if not feature_list:
             raise MtannoError("--example needs --features NAME,...")
-        X, names, _ = example_matrix(index, example)
-        feats = resolve_features(index, feature_list.split(","))
-        rng = parse_frames(frames, X.shape[1])
-        query = example_query(index, X, names, feats, frames=rng, mode=mode or "adaptive",
-                              mismatches=mismatches or 0,
-                              min_segment=min_segment or DEFAULT_MIN_SEGMENT)
+        query = example_file_query(index, example, feature_list.split(","), frames=frames,
+                                   mode=mode or "adaptive", mismatches=mismatches or 0,
+                                   min_segment=min_segment or DEFAULT_MIN_SEGMENT)
     else:
         if frames or feature_list:
             raise MtannoError("--frames and --features go with --example, not --query")
@@ -287,8 +290,8 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
 
 def _write_hits(index, hits, *, output, rank_mt, top, quiet, inputs, **record) -> None:
     """Rank the hits by the ``--rank-mt`` template (a note counts the hits it cannot fit)
-    and write them (:func:`mtanno.index.query.write_query_hits`)."""
-    from mtanno.index.query import rank_by_template_file, write_query_hits
+    and write them (:func:`mtanno.index.ranking.write_query_hits`)."""
+    from mtanno.index.ranking import rank_by_template_file, write_query_hits
 
     if rank_mt is not None:
         hits, columns = rank_by_template_file(index, hits, rank_mt)

@@ -1,4 +1,4 @@
-"""``mtanno retrieve``: all occurrences of one motion class in feature files (MR06 §5.4).
+"""``mtanno retrieve``: all occurrences of one motion class in feature files ([MR06] §5.4).
 
 Exit codes: 0 success (also with no hits), 1 some feature files could not be used (the
 others were searched), 2 usage error or bad input (unreadable template, no feature files).
@@ -12,9 +12,8 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import DELTA, TAU, show_progress, user_errors
-from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA, DEFAULT_MAX_HITS, DEFAULT_TAU
-from mtanno.store import feature_files
+from mtanno.util.store import feature_files
 
 
 @click.command("retrieve", epilog="Exit codes: 0 success, 1 some feature files failed (the "
@@ -24,19 +23,21 @@ from mtanno.store import feature_files
               help="Template JSON of the class (from learn-mt; quantized with its delta, or "
                    "with --delta, when it is not quantized yet), or a folder holding one.")
 @click.option("--tau", default=DEFAULT_TAU, show_default=True, type=TAU,
-              help="Quality threshold: hits have cost Δ ≤ tau (MR06: 0.06; the reference "
+              help="Quality threshold: hits have cost Δ ≤ tau ([MR06]: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
 @click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Report at most this many hits (a note on stderr says when the cap cut "
                    "hits off).")
-@click.option("--match", "--variant", "variant", default="reference", show_default=True,
+@click.option("--match", "variant", default="reference", show_default=True,
               type=click.Choice(["reference", "paper"]),
               help="Matching variant (as annotate --match): the reference implementation's "
                    "(weights expand the template) or the papers' as written "
-                   "(docs/retrieval.md); --variant is its former name.")
+                   "(docs/retrieval.md).")
+@click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
+              default=None, hidden=True, help="The former name of --match.")
 @click.option("--delta", "qdelta", default=None, type=DELTA,
               help="Quantize an unquantized template with this δ (default: the template's "
-                   f"own delta, else {DEFAULT_DELTA:g} as in MR06). A quantized template keeps "
+                   f"own delta, else {DEFAULT_DELTA:g} as in [MR06]). A quantized template keeps "
                    "its own delta.")
 @click.option("-o", "--output", default="-", show_default=True,
               type=click.Path(dir_okay=False, allow_dash=True),
@@ -44,8 +45,9 @@ from mtanno.store import feature_files
                    "or - for CSV on standard output.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quiet):
-    """Find all occurrences of the class of a motion template in feature files (MR06 §5.4).
+def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdelta, output,
+                 quiet):
+    """Find all occurrences of the class of a motion template in feature files ([MR06] §5.4).
 
     FEATURES are feature files (.parquet, from `mtanno features`) or folders searched
     recursively. Each file is one document; matches never cross documents. Hits are
@@ -55,14 +57,14 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
 
     Example: mtanno retrieve --mt mts/squat1Reps.json feats/ --tau 0.06 -o squat_hits.csv
     """
+    variant = former_variant or variant  # --variant: the former name of --match
     from tqdm import tqdm
 
     from mtanno.annotate import check_tau
-    from mtanno.output import check_outputs
-    from mtanno.retrieve import retrieve_files, write_hits
-    from mtanno.store import FeatureLayout
-    from mtanno.tables import file_record, output_files, provenance, table_format
-    from mtanno.templates.model import load_one_template, quantize, template_files
+    from mtanno.retrieve import retrieval_template, retrieve_files, write_hits
+    from mtanno.templates.model import load_one_template, template_files
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)
     tau = check_tau(tau, what="--tau")
@@ -70,17 +72,9 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, qdelta, output, quie
     files = feature_files(features, failures=missing)
     check_outputs(output_files(output), [mt_path, *template_files(mt_path), *files],
                   scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
-    mt = load_one_template(mt_path)
+    mt = retrieval_template(load_one_template(mt_path), delta=qdelta)
     mt_path = mt.path  # the file, for messages and the provenance
-    if mt.quantized:
-        if qdelta is not None and qdelta != mt.delta:
-            raise MtannoError(f"template is already quantized with delta {mt.delta:g}; "
-                              "--delta only applies to unquantized templates", path=mt_path)
-    else:
-        mt = quantize(mt, qdelta if qdelta is not None else (mt.delta if mt.delta is not None
-                                                              else DEFAULT_DELTA))
-    layout = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
-                           f"template {mt_path}")
+    layout = mt.layout(f"template {mt_path}")
     for message in missing:
         click.echo(f"mtanno: {message}", err=True)
     bar = tqdm(total=len(files), unit="file", disable=not show_progress(quiet), desc="retrieve")

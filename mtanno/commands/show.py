@@ -1,11 +1,12 @@
 """``mtanno show``: a feature file as a compact text timeline (or a picture), to pick the
-frames and features of a query by example (MRC05 §6.2)."""
+frames and features of a query by example ([MRC05] §6.2)."""
 
 from __future__ import annotations
 
 import click
 
-from mtanno.commands._common import NAMES, parse_frames, user_errors
+from mtanno.commands._common import NAMES, user_errors
+from mtanno.info import DEFAULT_WIDTH
 
 
 @click.command("show", epilog="Exit codes: 0 success, 2 bad input.")
@@ -15,7 +16,7 @@ from mtanno.commands._common import NAMES, parse_frames, user_errors
 @click.option("--features", "feature_list", default=None, metavar="NAME,...", type=NAMES,
               help="Features to show, by name or id (F20); default: all. `mtanno info "
                    "FILE --features` lists them.")
-@click.option("--width", default=100, show_default=True, type=click.IntRange(min=10),
+@click.option("--width", default=DEFAULT_WIDTH, show_default=True, type=click.IntRange(min=10),
               help="Columns of the timeline; longer ranges show blocks of frames per column.")
 @click.option("--plot", "plot_path", default=None, type=click.Path(dir_okay=False),
               metavar="FILE.png", help="Draw the same as a picture (.png, .svg; needs the "
@@ -30,9 +31,10 @@ def show_cmd(file, frames, feature_list, width, plot_path):
     features that change there, then `mtanno query INDEX --example FILE --frames A:B
     --features NAME,...`.
     """
-    from mtanno.inspect import feature_rows, select_features, text_timeline
-    from mtanno.output import check_outputs
-    from mtanno.store import read_features
+    from mtanno.info import feature_rows, select_features, text_timeline
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import read_features
+    from mtanno.util.tables import parse_frame_range
 
     if plot_path is not None:
         from mtanno.plot import require_matplotlib
@@ -40,7 +42,7 @@ def show_cmd(file, frames, feature_list, width, plot_path):
         require_matplotlib()
         check_outputs([plot_path], [file])
     ff = read_features(file)
-    a, b = parse_frames(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)
+    a, b = parse_frame_range(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)
     rows = select_features(ff, feature_list.split(",")) if feature_list else \
         list(range(len(ff.names)))
     info = feature_rows(ff)

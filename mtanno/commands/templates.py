@@ -22,6 +22,8 @@ from mtanno.commands._common import (
 )
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
+from mtanno.templates.describe import TOP_FEATURES
+from mtanno.templates.learn import ITER_MAX, ITER_THRESH
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
@@ -43,19 +45,19 @@ def _safe_class_file(outdir: Path, class_name: str) -> Path:
                "TRAINING feature files is an example of its label.")
 @click.option("--hard", is_flag=True,
               help="Learn hard templates (thesis §3.3: wildcard where examples disagree) "
-                   "instead of soft ones (MR06 §4.1).")
+                   "instead of soft ones ([MR06] §4.1).")
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class found.")
-@click.option("--iterations", default=10, show_default=True, type=click.IntRange(min=1),
+@click.option("--iterations", default=ITER_MAX, show_default=True, type=click.IntRange(min=1),
               help="Maximum number of learning iterations.")
-@click.option("--thresh", default=0.005, show_default=True, type=Number(min=0),
+@click.option("--thresh", default=ITER_THRESH, show_default=True, type=Number(min=0),
               help="Stop once the largest normalised alignment cost is at most this.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @user_errors(2)
 def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, classes,
                  iterations, thresh, quiet, wait):
-    """Learn one motion template per class from example clips (MR06 §4.1).
+    """Learn one motion template per class from example clips ([MR06] §4.1).
 
     Training examples come from one of:
 
@@ -84,51 +86,39 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     """
     from tqdm import tqdm
 
-    from mtanno.templates.learn import learn_template
+    from mtanno.templates.learn import learn_classes
     from mtanno.templates.model import save_template
-    from mtanno.templates.training import (
-        check_consistent,
-        collect_sources,
-        few_examples_warning,
-        group_by_class,
-        load_examples,
-    )
+    from mtanno.templates.training import collect_sources, group_by_class
+    from mtanno.util.output import check_outputs
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth,
                               note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
-    from mtanno.output import check_outputs
-
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth],
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     written, failed, n_examples = [], [], 0
     with lock_output(out, wait=wait):
-        reference = None
-        bar = tqdm(groups.items(), total=len(groups), unit="class", desc="learn-mt",
+        bar = tqdm(total=len(groups), unit="class", desc="learn-mt",
                    disable=not show_progress(quiet))
-        for class_name, srcs in bar:
-            bar.set_postfix_str(class_name)
+        for done in learn_classes(groups, hard=hard, iter_max=iterations, thresh=thresh):
+            bar.update(1)
+            bar.set_postfix_str(done.class_name)
             try:
-                target = _safe_class_file(out, class_name)
-                examples = load_examples(srcs)
-                check_consistent(examples, like=reference)
-                reference = reference or examples[0]
-                mt = learn_template(examples, class_name=class_name, hard=hard,
-                                    iter_max=iterations, thresh=thresh)
-                save_template(target, mt)
-                warning = few_examples_warning(class_name, len(examples))
-                if warning:
-                    bar.write(f"learn-mt: {warning}", file=sys.stderr)
+                if done.error is not None:
+                    raise MtannoError(done.error)
+                save_template(_safe_class_file(out, done.class_name), done.template)
             except MtannoError as exc:
-                failed.append(class_name)
-                bar.write(f"mtanno: class {class_name}: {exc}", file=sys.stderr)
+                failed.append(done.class_name)
+                bar.write(f"mtanno: class {done.class_name}: {exc}", file=sys.stderr)
                 continue
-            written.append(class_name)
-            n_examples += len(examples)
+            if done.warning:
+                bar.write(f"learn-mt: {done.warning}", file=sys.stderr)
+            written.append(done.class_name)
+            n_examples += done.n_examples
         bar.close()
     if not quiet:
         kind = "hard" if hard else "soft"
@@ -143,15 +133,12 @@ def mt_group():
     """Inspect and transform motion-template files (CLASS.json from `mtanno learn-mt`)."""
 
 
-_PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
-
-
 @mt_group.command("show", epilog="Exit codes: 0 success, 2 bad input.")
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization δ for the feature ranking and picture of an unquantized "
                    f"template  [default: {RETRIEVAL_DELTA:g}, MR06]")
-@click.option("--top", default=10, show_default=True, type=click.IntRange(min=0),
+@click.option("--top", default=TOP_FEATURES, show_default=True, type=click.IntRange(min=0),
               help="How many features to list.")
 @click.option("--picture", is_flag=True,
               help="Draw the quantized template: one row per feature, one character per "
@@ -167,59 +154,12 @@ def mt_show_cmd(template, delta, top, picture, files):
     with the most non-wildcard entries after quantization (those the matching relies
     on); --picture draws the quantized template.
     """
-    from mtanno.templates.match import match_lengths
-    from mtanno.templates.model import load_template, quantize, rank_features
-    from mtanno.tuning.tempo import matched_columns
+    from mtanno.templates.describe import format_template
+    from mtanno.templates.model import load_template
 
     mt = load_template(template)
-    if mt.quantized:
-        q, d = mt, mt.delta
-        state = f"quantized, δ = {mt.delta:g}"
-    else:
-        d = RETRIEVAL_DELTA if delta is None else delta
-        q = quantize(mt, d)
-        state = "not quantized"
-    w = mt.weights
-    echo = click.echo
-    echo(f"template      {mt.class_name} ({mt.kind}, {state})")
-    echo(f"file          {template}")
-    echo(f"features      {mt.n_features} of feature set {mt.feature_set}, {mt.fps:g} Hz")
-    echo(f"length        {mt.length} columns ({mt.length / mt.fps:.2f} s)")
-    lo, hi = match_lengths(mt.weights)
-    echo(f"matches       performances of {lo}-{hi} frames ({lo / mt.fps:.2f}-{hi / mt.fps:.2f} s;"
-         f" the DTW steps allow half to twice its {matched_columns(mt.weights)} "
-         f"matched columns)")
-    echo(f"weights       sum {w.sum():.3f}, min {w.min():.3f}, mean {w.mean():.3f}, "
-         f"max {w.max():.3f}")
-    hist = mt.history.get("max", [])
-    hist_txt = f" (per iteration: {' '.join(f'{x:.4g}' for x in hist)})" if hist else ""
-    echo(f"learning      {mt.iterations} iteration(s), final cost {mt.final_cost:.6g}"
-         f"{hist_txt}")
-    n = len(mt.training)
-    spans = [int(t["frames"][1]) - int(t["frames"][0]) + 1 for t in mt.training
-             if isinstance(t.get("frames"), list) and len(t["frames"]) == 2]
-    echo(f"training      {n} example(s)" + (f", {min(spans)}-{max(spans)} frames" if spans else ""))
-    if spans and (min(spans) < 1.25 * lo or max(spans) > hi / 1.25):
-        echo("  (examples near the matchable lengths: a faster or slower performer may be "
-             "missed; `mtanno mt scale` makes a copy for them)")
-    shown = mt.training if files else mt.training[:3]
-    for t in shown:
-        fr = t.get("frames", ["?", "?"])
-        echo(f"  {t.get('document')}  frames {fr[0]}-{fr[1]}  {t.get('file')}  "
-             f"sha256 {str(t.get('sha256'))[:12]}")
-    if len(shown) < n:
-        echo(f"  ... {n - len(shown)} more (--files lists them all)")
-    if top:
-        echo(f"features with most non-wildcard entries (δ = {d:g}; of {mt.length} columns):")
-        width = max(len(x) for x in mt.feature_names)
-        for f in rank_features(q)[:top]:
-            echo(f"  {f.name:<{width}}  {f.fixed:>4}  (1: {f.ones}, 0: {f.fixed - f.ones})")
-    V = q.values
-    if picture:
-        echo(f"quantized template (δ = {d:g}): '#' 1, '.' 0, '~' wildcard")
-        width = max(len(x) for x in mt.feature_names)
-        for r, name in enumerate(mt.feature_names):
-            echo(f"  {name:<{width}} " + "".join(_PICTURE[float(x)] for x in V[r]))
+    click.echo(format_template(mt, path=template, delta=delta, top=top, picture=picture,
+                               files=files))
 
 
 @mt_group.command("mirror", epilog="Exit codes: 0 success, 2 bad input.")
@@ -231,14 +171,14 @@ def mt_show_cmd(template, delta, top, picture, files):
                    "'_mirrored' appended, or removed if present]")
 @user_errors(2)
 def mt_mirror_cmd(template, output, name):
-    """Swap left and right in a template (MR06 §5.4).
+    """Swap left and right in a template ([MR06] §5.4).
 
     The rows of every left/right feature pair (e.g. rhand_fast and lhand_fast) are
     swapped, so a template learned from left-handed examples finds the right-handed
     motion, without new training data.
     """
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, mirror, save_template
+    from mtanno.util.output import check_outputs
 
     check_outputs([output], [template])
     mt = mirror(load_template(template), name=name)
@@ -265,9 +205,9 @@ def mt_scale_cmd(template, factor, output):
     the template (`mtanno tune` makes such copies itself where cross-validation favours
     them).
     """
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, save_template
-    from mtanno.tuning.tempo import time_scaled
+    from mtanno.templates.tempo import time_scaled
+    from mtanno.util.output import check_outputs
 
     check_outputs([output], [template])
     mt = load_template(template)
@@ -281,7 +221,7 @@ def mt_scale_cmd(template, factor, output):
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", required=True, type=DELTA,
               help="Entries ≤ δ become 0, entries ≥ 1−δ become 1, the rest the wildcard "
-                   "0.5 (0.1 for retrieval, MR06; 0.05 for annotation, MBS09; 0 keeps only "
+                   "0.5 (0.1 for retrieval, [MR06]; 0.05 for annotation, [MBS09]; 0 keeps only "
                    "unanimous entries).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output template file.")
@@ -291,8 +231,8 @@ def mt_quantize_cmd(template, delta, output):
 
     The output records δ; matching uses a quantized template as it is.
     """
-    from mtanno.output import check_outputs
     from mtanno.templates.model import load_template, quantize, save_template
+    from mtanno.util.output import check_outputs
 
     check_outputs([output], [template])
     mt = quantize(load_template(template), delta)
@@ -310,12 +250,12 @@ def mt_quantize_cmd(template, delta, output):
               help="Quantize first with this δ (0: only unanimous entries stay 0 or 1).")
 @user_errors(2)
 def mt_plot_cmd(template, output, delta):
-    """Draw a motion template as a heat map (MR06 Fig. 4): one row per feature, one
+    """Draw a motion template as a heat map ([MR06] Fig. 4): one row per feature, one
     column per template column, black 0, white 1, grey in between (wildcards 0.5).
     Needs matplotlib (pip install 'mtanno[plot]')."""
-    from mtanno.output import check_outputs
     from mtanno.plot import plot_template, require_matplotlib, save_figure
     from mtanno.templates.model import load_template, quantize
+    from mtanno.util.output import check_outputs
 
     require_matplotlib()
     check_outputs([output], [template])

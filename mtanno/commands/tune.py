@@ -75,11 +75,11 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     --features-dir feats/ --split train -o tuned.toml --jobs 2
     """
     from mtanno.keyframes import keyframe_files
-    from mtanno.output import check_outputs
-    from mtanno.tables import command_line
     from mtanno.templates.model import template_files
     from mtanno.templates.training import collect_sources
     from mtanno.tuning import template_folder_of, tune, write_tuned
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import command_line
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth,
@@ -110,7 +110,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
                    "thresholds are learned only from the motions they must not label",
                    err=True)
     if ablation_dir is not None:
-        from mtanno.output import make_folder
+        from mtanno.util.output import make_folder
 
         make_folder(Path(ablation_dir))
         for name, variant in result.ablation.items():

@@ -15,18 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
-from mtanno.features import (
-    ANALYSIS_FPS,
-    FEATURE_SET,
-    FeatureSet,
-    compute_features,
-    get_feature_set,
-)
+from mtanno.features.compute import FeatureSet, compute_features, get_feature_set
+from mtanno.features.hysteresis import ANALYSIS_FPS
+from mtanno.features.table import FEATURE_SET
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
-from mtanno.store import sha256_file, write_features
+from mtanno.util.store import sha256_file, write_features
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,
@@ -227,7 +223,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
     Raises :class:`MtannoError` for a missing input, one that is neither a motion file nor
     a folder, two inputs with the same output, or an output that is one of the inputs
-    (:func:`mtanno.output.check_outputs`). ``listed`` are more inputs, read from a list
+    (:func:`mtanno.util.output.check_outputs`). ``listed`` are more inputs, read from a list
     (``features -``): one of them that is missing or not a motion file is a failed job
     (reported, the batch goes on) instead of an error, as is an entry of a folder with a
     motion suffix that is not a regular file (a FIFO is never opened).
@@ -258,7 +254,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     # one job per output (a file given twice, or as a file and in its folder); failed
     # jobs write nothing, so one per input
     unique = list({(j.dst, j.error and str(j.src)): j for j in jobs}.values())
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     good = [j for j in unique if not j.error]
     check_outputs([j.dst for j in good],
@@ -272,7 +268,7 @@ def _stored_meta(path: Path) -> dict | None:
     import pyarrow.parquet as pq
 
     from mtanno.errors import parse_json
-    from mtanno.store import META_KEY
+    from mtanno.util.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
@@ -378,9 +374,9 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
 
     ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`).
 
-    ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.workers.WorkerPool`:
+    ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.util.workers.WorkerPool`:
     they stop with this process); ``scheduler`` sends them to a dask.distributed cluster
-    instead (:class:`mtanno.workers.DaskPool`; same results). Outputs that are up to date
+    instead (:class:`mtanno.util.workers.DaskPool`; same results). Outputs that are up to date
     (:func:`up_to_date`) are skipped unless ``force``. ``progress`` is called once per
     finished job, in the order of ``jobs``.
 
@@ -388,7 +384,7 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     the workers are forked from this process and inherit what it loaded (the compiled
     kernels, the skeleton and its map) instead of each loading it again.
     """
-    from mtanno.workers import SerialPool, WorkerPool, make_pool
+    from mtanno.util.workers import SerialPool, WorkerPool, make_pool
 
     feature_set = get_feature_set(feature_set).name
     to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work

@@ -11,8 +11,7 @@ from functools import lru_cache
 import numba
 import numpy as np
 
-#: Analysis frame rate of every later stage (frames per second).
-ANALYSIS_FPS = 30.0
+from mtanno.util.units import ANALYSIS_FPS  # (re-exported: the features' rate)
 
 
 @numba.njit(cache=True)

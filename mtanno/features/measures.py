@@ -1,7 +1,7 @@
 """Body units and velocity windows shared by the feature kernel (features.md §2–3).
 
 The measures themselves are evaluated by the numba kernel in
-:mod:`mtanno.features._kernel`; ``tests/naive_features.py`` holds readable numpy versions of
+:mod:`mtanno.features._kernels`; ``tests/naive_features.py`` holds readable numpy versions of
 every measure that the tests hold the kernel to.
 """
 

@@ -9,7 +9,7 @@ milliseconds. Thresholds are ``(op, k)`` meaning ``measure op k·unit``, or
 unit. Velocity thresholds are in units per second.
 
 Everything here is what the reference implementation computes (features.md §7 lists where
-it differs from the MR06 paper's Table 6).
+it differs from the [MR06] paper's Table 6).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ FEATURE_SET_VERSION = 1
 class Feature(NamedTuple):
     """One relational feature (see module docstring for the fields' meaning; ``params``
     are extra measure parameters and ``paper`` the feature's name in its paper's table,
-    both used by the MRC05 set of :mod:`mtanno.features.table31`)."""
+    both used by the [MRC05] set of :mod:`mtanno.features.table31`)."""
 
     id: str
     name: str
@@ -149,7 +149,7 @@ MIRROR_PAIRS: tuple[tuple[int, int], ...] = tuple(
 
 
 def mirror_permutation() -> list[int]:
-    """Row order that swaps every left/right pair (MR06 §5.4)."""
+    """Row order that swaps every left/right pair ([MR06] §5.4)."""
     perm = list(range(len(FEATURES)))
     for a, b in MIRROR_PAIRS:
         perm[a], perm[b] = b, a

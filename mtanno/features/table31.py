@@ -1,4 +1,4 @@
-"""The 31 relational features of MRC05 (seed 001, §3 and Table 1) as data tables.
+"""The 31 relational features of [MRC05] (seed 001, §3 and Table 1) as data tables.
 
 Two tables, in the reference implementation's order (``features_spec.mat`` entries 1–31 =
 lower Fℓ 1–11, upper Fu 12–23, mix Fm 24–31; ``features31.md`` §1):
@@ -163,7 +163,7 @@ def _fixed() -> tuple[Feature31, ...]:
 
 FEATURES31: tuple[Feature31, ...] = _fixed()
 
-#: Index groups of MRC05 §5.3: Fℓ (11), Fu (12), Fm (8), as 0-based rows.
+#: Index groups of [MRC05] §5.3: Fℓ (11), Fu (12), Fm (8), as 0-based rows.
 GROUPS31: dict[str, tuple[int, ...]] = {
     g: tuple(i for i, f in enumerate(FEATURES31_REFERENCE) if f.group == g)
     for g in ("lower", "upper", "mix")

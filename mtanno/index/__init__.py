@@ -1,4 +1,4 @@
-"""Relational index and queries (MRC05 §4–6, algorithms.md §4): the Python API behind
+"""Relational index and queries ([MRC05] §4–6, algorithms.md §4): the Python API behind
 ``mtanno index`` and ``mtanno query``.
 
 * :func:`build_index`, :func:`open_index`, :func:`add_documents`, :func:`remove_documents`
@@ -7,10 +7,16 @@
   F-segments (start frame, length, vector code) and inverted lists, in memory; also what
   keyframe search uses (:meth:`GroupIndex.intervals`).
 * :func:`search` with a :class:`Query` (:mod:`~mtanno.index.query`): exact, fuzzy, adaptive
-  fuzzy and m-mismatch hits over one or several groups; :func:`example_query` (query by
-  example; :func:`example_matrix` reads its source), :func:`load_query` (JSON),
-  :func:`rank_by_template` (:func:`rank_by_template_file` with a template file),
-  :func:`write_query_hits` (the hit table); :func:`group_sizes` (``index info``).
+  fuzzy and m-mismatch hits over one or several groups.
+* :mod:`~mtanno.index.example`: :func:`example_query` (query by example;
+  :func:`example_matrix` reads its source), :func:`load_query` and :func:`parse_query`
+  (JSON query files).
+* :mod:`~mtanno.index.ranking`: :func:`rank_by_template` (:func:`rank_by_template_file` with
+  a template file), :func:`write_query_hits` (the hit table).
+* :func:`group_sizes` (``index info``).
+* :mod:`~mtanno.index.storage` — the index folder on disk: generations, segment files and
+  ``manifest.json``, read and written atomically.
+* ``_kernels`` — numba kernels of segmentation and the inverted lists (private).
 """
 
 from mtanno.index.build import (
@@ -28,6 +34,13 @@ from mtanno.index.core import (
     index_from_matrices,
     segment,
 )
+from mtanno.index.example import (
+    example_matrix,
+    example_query,
+    load_query,
+    parse_query,
+    resolve_features,
+)
 from mtanno.index.query import (
     QUERY_MODES,
     FuzzySet,
@@ -35,17 +48,10 @@ from mtanno.index.query import (
     GroupQuery,
     Hits,
     Query,
-    example_matrix,
-    example_query,
-    load_query,
-    parse_query,
-    rank_by_template,
-    rank_by_template_file,
-    resolve_features,
     run_group,
     search,
-    write_query_hits,
 )
+from mtanno.index.ranking import rank_by_template, rank_by_template_file, write_query_hits
 from mtanno.index.storage import INDEX_FORMAT, CorruptIndex, group_sizes
 
 __all__ = [

@@ -1,9 +1,9 @@
-"""Numba kernels of the relational index (MRC05 §5): candidate scans over inverted lists.
+"""Numba kernels of the relational index ([MRC05] §5): candidate scans over inverted lists.
 
 Private and small; :mod:`mtanno.index.query` validates everything and calls them. Common
 arguments: ``member`` is the (query positions × lists) 0/1 matrix saying which inverted lists
 make up the fuzzy set V_i of each query position (so a segment row r lies in L(V_i) iff
-``member[i, seg_list[r]]``: every segment is in exactly one list, MRC05 §5.3); ``offsets`` /
+``member[i, seg_list[r]]``: every segment is in exactly one list, [MRC05] §5.3); ``offsets`` /
 ``postings`` are the inverted lists in CSR form (list v = rows ``postings[offsets[v]:
 offsets[v+1]]``, ascending); ``seg_list`` and ``seg_doc`` give each segment row's list and
 0-based document; ``doc_offsets`` the first row of each document (plus the total).
@@ -19,7 +19,7 @@ import numba
 @numba.njit(cache=True)
 def fixed_hits(src, src_lists, src_lists_off, offsets, postings, member, seg_list, seg_doc,
                mismatches, allowed, out):
-    """Fixed-length hits (exact, fuzzy and m-mismatch; MRC05 §5.1–5.2, eq. 7 and 11).
+    """Fixed-length hits (exact, fuzzy and m-mismatch; [MRC05] §5.1–5.2, eq. 7 and 11).
 
     A hit is a first row k such that rows k … k+L−1 lie in one document and at most
     ``mismatches`` positions i have row k+i outside L(V_i), each of them with
@@ -32,6 +32,9 @@ def fixed_hits(src, src_lists, src_lists_off, offsets, postings, member, seg_lis
     n_pos = member.shape[0]
     n_rows = seg_list.shape[0]
     cnt = 0
+    # numba twin of the candidate loop of adaptive_hits: both walk the postings of some
+    # lists, but a shared walk would have to collect the candidates into an array first
+    # (numba has no cheap callbacks), an extra pass and allocation per query
     for p in range(src.shape[0]):
         j = src[p]
         for li in range(src_lists_off[p], src_lists_off[p + 1]):
@@ -64,12 +67,12 @@ def fixed_hits(src, src_lists, src_lists_off, offsets, postings, member, seg_lis
 @numba.njit(cache=True)
 def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, seg_len, doc_offsets,
                   max_gap, out):
-    """Adaptive fuzzy hits (MRC05 §5.2): first rows k1 of maximal runs of V_1-segments
+    """Adaptive fuzzy hits ([MRC05] §5.2): first rows k1 of maximal runs of V_1-segments
     followed by a maximal run of V_2-segments, …, V_L-segments, in one document.
 
     Between the run of V_i and the run of V_{i+1} the document may pass through segments in
     neither set for at most ``max_gap`` frames in all (a transition; ``seg_len`` gives each
-    row's length in frames); ``max_gap = 0`` is MRC05's rule, runs directly adjacent.
+    row's length in frames); ``max_gap = 0`` is [MRC05]'s rule, runs directly adjacent.
     Candidates are the rows of L(V_j) (``lists`` = list ids of position j) that start a
     maximal V_j run; from each the chain is walked backwards to V_1 and forwards to V_L.
     Adjacent sets are disjoint (the caller merges intersecting neighbours) and a transition
@@ -79,6 +82,7 @@ def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, seg_le
     """
     n_pos = member.shape[0]
     cnt = 0
+    # numba twin of the candidate loop of fixed_hits (see there): written out for speed
     for li in range(lists.shape[0]):
         v = lists[li]
         for idx in range(offsets[v], offsets[v + 1]):
@@ -152,6 +156,9 @@ def overlap_pairs(doc_a, start_a, end_a, doc_b, start_b, end_b, out_a, out_b):
     cnt = 0
     j0 = 0
     nb = doc_b.shape[0]
+    # numba twin of keyframes/_kernels.py pair_spans (the same two-pointer walk): it writes
+    # spans, this the pairs' indices, and a kernel calls kernels of its own file only
+    # (numba's cache does not see changes to another file; util/_bits.py)
     for i in range(doc_a.shape[0]):
         while j0 < nb and doc_b[j0] < doc_a[i]:
             j0 += 1

@@ -1,4 +1,4 @@
-"""Building and updating an index directory from feature files (MRC05 §5.3, §6.1).
+"""Building and updating an index directory from feature files ([MRC05] §5.3, §6.1).
 
 :func:`build_index` segments every feature file per group and writes a new index;
 :func:`add_documents` and :func:`remove_documents` update one in place: they reuse the stored
@@ -11,7 +11,7 @@ the index depends only on the set of documents (ordered by name). Every write is
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -70,7 +70,8 @@ def _existing_entries(index: Index) -> dict:
 
 def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.PathLike | None,
                 *, groups: GroupsArg = None, failures: list[str] | None = None,
-                wait: bool = False, on_wait=None) -> Index:
+                wait: bool = False, on_wait=None,
+                progress: Callable[[int, int], None] | None = None) -> Index:
     """Index feature files (files or directories searched for ``*.parquet``).
 
     ``groups``: None for the feature set's groups (lower/upper/mix), a list of some of their
@@ -79,6 +80,7 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
     empty directory, or an existing index, which is replaced atomically) unless it is None.
     With ``failures``, a file that cannot be read or does not fit the others is left out
     and its message appended there (a batch goes on past it); without, it is raised.
+    ``progress(done, total)`` is called after each file read.
     """
     feature_files = list(feature_files)
     paths = collect_feature_files(feature_files, failures=failures)
@@ -87,7 +89,8 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
     root = None if out_dir is None else Path(out_dir)
     if root is not None:
         _check_target(root, paths, [f for f in feature_files if Path(f).is_dir()])
-    docs = check_compatible(read_feature_docs(paths, failures=failures), failures=failures)
+    docs = check_compatible(read_feature_docs(paths, failures=failures, progress=progress),
+                            failures=failures)
     if not docs:
         raise MtannoError("no feature file could be indexed")
     first = docs[0]
@@ -107,7 +110,7 @@ def _check_target(root: Path, paths: Sequence[Path], folders: Sequence[str | os.
     folder holding anything else, nor where an input file is, nor inside a folder of
     feature files it reads (``folders``: the next build would read the index's Parquet
     files as feature files); and only where it can be written."""
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     if root.exists() and not root.is_dir():
         raise MtannoError("index path exists and is not a directory", path=str(root))
@@ -138,14 +141,15 @@ class UpdateReport:
 
 def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os.PathLike],
                   *, failures: list[str] | None = None, wait: bool = False,
-                  on_wait=None) -> tuple[Index, UpdateReport]:
+                  on_wait=None, progress: Callable[[int, int], None] | None = None,
+                  ) -> tuple[Index, UpdateReport]:
     """Add feature files to the index in ``index_dir``, in place and atomically. A document
     whose name is already indexed is replaced if its feature file changed (by SHA-256) and
     left alone otherwise. Only the new files are read. With ``failures``, a file that
     cannot be read or does not have the index's features is left out and its message
-    appended there; without, it is raised."""
-    from mtanno.output import check_outputs
-    from mtanno.store import FeatureLayout
+    appended there; without, it is raised. ``progress(done, total)``: after each file read."""
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import FeatureLayout
 
     root = Path(index_dir)
     feature_files = list(feature_files)
@@ -158,8 +162,8 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
         index = read_index(root)
         layout = FeatureLayout(index.feature_set, tuple(index.features), float(index.fps),
                                f"the index {root}")
-        docs = check_compatible(read_feature_docs(paths, failures=failures), layout=layout,
-                                failures=failures)
+        docs = check_compatible(read_feature_docs(paths, failures=failures, progress=progress),
+                                layout=layout, failures=failures)
         gs = {g: gi.features for g, gi in index.groups.items()}
         entries = _existing_entries(index)
         report = UpdateReport()

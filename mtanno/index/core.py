@@ -1,6 +1,6 @@
 """The relational index in memory: adaptive segmentation, inverted lists, documents, groups.
 
-MRC05 §4 and §5.3 (algorithms.md §4): for a feature group F (a named subset of the feature
+[MRC05] §4 and §5.3 (algorithms.md §4): for a feature group F (a named subset of the feature
 set's features, e.g. lower/upper/mix), the F-segments of a document are the maximal runs of
 frames with equal F-feature vectors. A segment's vector is stored as an integer *code*,
 ``Σ_k bit_k · 2^k`` over the group's features in group order (the reference
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.store import (
+from mtanno.util.store import (
     FeatureLayout,
     check_layout,
     common_layout,
@@ -52,7 +52,7 @@ class Document:
 
 
 class GroupIndex:
-    """Segments and inverted lists of one feature group (MRC05 §5.3).
+    """Segments and inverted lists of one feature group ([MRC05] §5.3).
 
     Attributes (arrays over segment rows unless said otherwise)
     ----------------------------------------------------------
@@ -163,7 +163,7 @@ class GroupIndex:
 
 def inverted_lists(code: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(list codes, CSR offsets, postings) of the inverted lists over segment codes: list v
-    holds the rows with code ``list_codes[v]``, ascending (MRC05 §5.1, eq. 6)."""
+    holds the rows with code ``list_codes[v]``, ascending ([MRC05] §5.1, eq. 6)."""
     order = np.argsort(code, kind="stable")
     sorted_codes = code[order]
     if len(code):
@@ -184,7 +184,7 @@ def frame_codes(X: np.ndarray, rows: Sequence[int]) -> np.ndarray:
 
 
 def segment(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Adaptive segmentation (MRC05 §4): (start frames, lengths, codes) of the maximal runs
+    """Adaptive segmentation ([MRC05] §4): (start frames, lengths, codes) of the maximal runs
     of equal per-frame codes, frames 0-based."""
     n = len(codes)
     if n == 0:
@@ -214,10 +214,11 @@ def read_feature_doc(path: str | os.PathLike) -> FeatureDoc:
 
 
 def read_feature_docs(paths: Sequence[str | os.PathLike], *,
-                      failures: list[str] | None = None) -> list[FeatureDoc]:
+                      failures: list[str] | None = None,
+                      progress: Callable[[int, int], None] | None = None) -> list[FeatureDoc]:
     """Read many feature files, in threads (Parquet decoding releases the GIL). With
     ``failures``, a file that cannot be read is left out and its message appended there;
-    without, it is raised."""
+    without, it is raised. ``progress(done, total)`` is called after each file."""
     def one(p):
         try:
             return read_feature_doc(p)
@@ -226,11 +227,19 @@ def read_feature_docs(paths: Sequence[str | os.PathLike], *,
                 raise
             return str(exc)
 
+    def collect(results) -> list:
+        out = []
+        for result in results:  # in the order of paths, as they are read
+            out.append(result)
+            if progress is not None:
+                progress(len(out), len(paths))
+        return out
+
     if len(paths) < 8:
-        got = [one(p) for p in paths]
+        got = collect(map(one, paths))
     else:
         with ThreadPoolExecutor(max_workers=min(8, os.cpu_count() or 1)) as pool:
-            got = list(pool.map(one, paths))
+            got = collect(pool.map(one, paths))
     if failures is not None:
         failures.extend(g for g in got if isinstance(g, str))
     return [g for g in got if not isinstance(g, str)]
@@ -238,7 +247,7 @@ def read_feature_docs(paths: Sequence[str | os.PathLike], *,
 
 def collect_feature_files(inputs: Iterable[str | os.PathLike], *,
                           failures: list[str] | None = None) -> list[Path]:
-    """Feature files named by ``inputs`` (see :func:`mtanno.store.feature_files`; with
+    """Feature files named by ``inputs`` (see :func:`mtanno.util.store.feature_files`; with
     ``failures``, an input naming no feature file is reported there and the rest go on)."""
     return feature_files(inputs, failures=failures)
 
@@ -361,7 +370,7 @@ def check_compatible(docs: Sequence[FeatureDoc], *, layout: FeatureLayout | None
                      failures: list[str] | None = None) -> list[FeatureDoc]:
     """The documents that can go into one index: all with the same feature layout (that of
     ``layout``, e.g. an existing index's, or else the layout most of them share, see
-    :func:`mtanno.store.common_layout`, so an odd file is the one named) and unique names.
+    :func:`mtanno.util.store.common_layout`, so an odd file is the one named) and unique names.
     With ``failures``, a document that does not fit is left out and its message appended;
     without, the first one is raised. Returns the documents kept."""
     if not docs:
@@ -387,7 +396,7 @@ def check_compatible(docs: Sequence[FeatureDoc], *, layout: FeatureLayout | None
 
 def doc_segments(X: np.ndarray, names: Sequence[str], groups: Mapping[str, Sequence[str]],
                  ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Group → (starts, lengths, codes) of one document's F-segments (MRC05 §4)."""
+    """Group → (starts, lengths, codes) of one document's F-segments ([MRC05] §4)."""
     pos = {n: i for i, n in enumerate(names)}
     return {g: segment(frame_codes(X, [pos[f] for f in feats])) for g, feats in groups.items()}
 

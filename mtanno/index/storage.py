@@ -33,10 +33,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import JSONError, MtannoError, read_json
 from mtanno.index.core import Document, GroupIndex, Index
-from mtanno.output import current_umask
+from mtanno.util.output import current_umask
 
 INDEX_FORMAT = "mtanno.index/1"
 MANIFEST = "manifest.json"
@@ -49,10 +49,10 @@ class CorruptIndex(MtannoError):
 
 
 def write_lock(root: Path, *, wait: bool = False, on_wait=None):
-    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.output.folder_lock`: a dead
-    process releases it; a busy index raises :class:`mtanno.output.LockBusy`, exit code 3,
+    """Exclusive writer lock on ``root/.lock`` (:func:`mtanno.util.locks.folder_lock`: a dead
+    process releases it; a busy index raises :class:`mtanno.util.locks.LockBusy`, exit code 3,
     naming the run that holds it, or waits with ``wait``)."""
-    from mtanno.output import folder_lock
+    from mtanno.util.locks import folder_lock
 
     return folder_lock(root, wait=wait, what="index", name=".lock", on_wait=on_wait)
 
@@ -129,7 +129,7 @@ def manifest_of(index: Index, generation: int, files: dict) -> dict:
     }
 
 
-def read_manifest(root: Path) -> dict:
+def read_index_manifest(root: Path) -> dict:
     """The manifest of the index in ``root`` (validated shape), or an error saying what is
     wrong with the directory."""
     path = root / MANIFEST
@@ -208,12 +208,12 @@ def read_index(root: str | os.PathLike) -> Index:
     """Read and verify the index in ``root`` (see module docstring)."""
     root = Path(root)
     for attempt in range(2):  # a writer may replace the generation between our reads
-        manifest = read_manifest(root)
+        manifest = read_index_manifest(root)
         gen_dir = root / manifest["directory"]
         try:
             return _read_generation(root, gen_dir, manifest)
         except CorruptIndex:
-            if attempt == 0 and read_manifest(root)["directory"] != manifest["directory"]:
+            if attempt == 0 and read_index_manifest(root)["directory"] != manifest["directory"]:
                 continue
             raise
     raise AssertionError("unreachable")  # pragma: no cover
@@ -282,7 +282,7 @@ def _write_index(index: Index, root: Path) -> Index:
     old_gen = 0
     if (root / MANIFEST).is_file():
         with contextlib.suppress(MtannoError):
-            old_gen = int(read_manifest(root).get("generation", 0))
+            old_gen = int(read_index_manifest(root).get("generation", 0))
     existing = [int(p.name[len(_GEN_PREFIX):]) for p in root.glob(f"{_GEN_PREFIX}*")
                 if p.name[len(_GEN_PREFIX):].isdigit()]
     gen = max([old_gen, *existing]) + 1
@@ -329,10 +329,10 @@ def _write_index(index: Index, root: Path) -> Index:
 
 def index_files(root: str | os.PathLike) -> list[Path]:
     """The files of the index in ``root`` as it is now (manifest and current generation),
-    for :func:`mtanno.output.check_outputs`; empty when there is no readable manifest."""
+    for :func:`mtanno.util.output.check_outputs`; empty when there is no readable manifest."""
     root = Path(root)
     try:
-        manifest = read_manifest(root)
+        manifest = read_index_manifest(root)
     except MtannoError:
         return []
     gen = root / manifest["directory"]
@@ -352,7 +352,7 @@ def group_sizes(index: Index) -> list[dict]:
     """Per group of an index (``index info``): features, frames, segments, inverted lists
     (and how many 2^f are possible), bytes on disk (segments and lists tables, from the
     manifest; 0 for an index in memory), bytes per segment and segments per frame."""
-    files = read_manifest(index.root)["files"] if index.root is not None else {}
+    files = read_index_manifest(index.root)["files"] if index.root is not None else {}
     rows = []
     for g in index.groups.values():
         size = sum(files.get(f"{k}-{g.name}.parquet", {}).get("bytes", 0)

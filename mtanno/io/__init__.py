@@ -2,6 +2,14 @@
 
 :func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
 forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.
+
+Modules: :mod:`~mtanno.io.asf`, :mod:`~mtanno.io.amc` and :mod:`~mtanno.io.bvh` (the
+parsers, text → channel arrays, with file:line errors), ``_numparse`` (their numba number
+parser, private), ``_limits`` (the bounds on every number a header declares, private),
+:mod:`~mtanno.io.skeleton` (rig graph and forward kinematics, vectorised over frames),
+:mod:`~mtanno.io.rigs` (skeleton map files: rig nodes → the 22 canonical joints) and
+:mod:`~mtanno.io.guess` (skeleton maps made from joint names and the tree, for BVH rigs no
+map file fits).
 """
 
 from __future__ import annotations
@@ -12,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap, find_map
+from mtanno.io.guess import choose_map
+from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap
 from mtanno.io.skeleton import Channels, Motion, Rig, forward_kinematics
 
 __all__ = ["MOCAP_SUFFIXES", "read_channels", "read_motion", "canonical_positions",
@@ -63,10 +72,10 @@ def find_asf(amc_path: str | os.PathLike) -> Path:
         if len(asfs) == 1:
             return asfs[0]
         raise MtannoError(f"several ASF files in {folder} and none is named like the AMC "
-                          f"({', '.join(p.name for p in asfs[:5])}); pass --asf FILE",
-                          path=str(amc_path))
-    raise MtannoError("no ASF skeleton found in the AMC's folder or above it; pass --asf FILE",
-                      path=str(amc_path))
+                          f"({', '.join(p.name for p in asfs[:5])}); pass {{asf}} FILE",
+                          path=str(amc_path), options=("asf",))
+    raise MtannoError("no ASF skeleton found in the AMC's folder or above it; pass {asf} FILE",
+                      path=str(amc_path), options=("asf",))
 
 
 def _asf_folders(amc: Path):
@@ -130,13 +139,15 @@ def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None
     asf:
         The ASF skeleton of an AMC file; by default found with :func:`find_asf`.
     skeleton:
-        A skeleton map (file or name) to use instead of the automatically detected one.
+        A skeleton map (file or name) to use instead of the automatically detected one
+        (the first map file that fits, else for a BVH rig one made from its joint names
+        and tree: :func:`mtanno.io.guess.choose_map`).
     sha256:
         Also give the SHA-256 of the file's bytes as parsed (``Motion.source_sha256``):
         the file is read once for both.
     """
     rig, ch = read_channels(path, asf=asf, sha256=sha256)
-    smap = find_map(rig, skeleton)
+    smap = choose_map(rig, skeleton, ch)
     _check_needed_bones(rig, ch, smap, str(path))
     positions, heading = forward_kinematics(
         rig, ch.angles, ch.trans, ch.has_trans,
@@ -173,7 +184,7 @@ def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
     """(frames × len(joints) × 3) positions of the canonical joints, in ``joints`` order."""
     smap = smap if smap is not None else motion.smap
     if smap is None:
-        smap = find_map(motion.rig)
+        smap = choose_map(motion.rig)
     # np.take copies whole (x, y, z) rows into a C-contiguous array (fancy indexing of
     # the middle axis gives a strided copy, several times slower, that the kernels copy
     # again)

@@ -46,6 +46,8 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
     status, byte position of the problem)``; reading stops with BAD when a frame would
     exceed ``angles.shape[0]``.
     """
+    # one kernel: the token loop and its dispatch stay in one function, so that the
+    # parser's state stays in registers instead of passing through a call per token
     n = buf.shape[0]
     plen = prog_kind.shape[0]
     pos = 0
@@ -85,6 +87,8 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
                 pos += a1 - a0
             elif kind == FRAME_NO:
                 no = 0
+                # numba twin of the mantissa's digit loop below: written out in the token
+                # loop for speed (see there)
                 while pos < n:
                     d = np.int64(buf[pos]) - 48
                     if d < 0 or d > 9:
@@ -104,6 +108,9 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
                 exp10 = 0
                 nd = 0
                 d0 = pos
+                # numba twin of the fraction's and the exponent's digit loops below (and of
+                # the frame number's above): each digit loop stays written out in the token
+                # loop, since a shared number parser, even inlined, made the kernel 2× slower
                 while pos < n:
                     d = np.int64(buf[pos]) - 48
                     if d < 0 or d > 9:
@@ -119,6 +126,8 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
                 if pos < n and buf[pos] == 46:
                     pos += 1
                     d1 = pos
+                    # numba twin of the mantissa's digit loop above: written out in the
+                    # token loop for speed (see there)
                     while pos < n:
                         d = np.int64(buf[pos]) - 48
                         if d < 0 or d > 9:
@@ -140,6 +149,8 @@ def parse_frames(buf, prog_kind, prog_arg, first_no, names, name_off, dst_kind, 
                         pos += 1
                     e = 0
                     e0 = pos
+                    # numba twin of the mantissa's digit loop above: written out in the
+                    # token loop for speed (see there)
                     while pos < n:
                         d = np.int64(buf[pos]) - 48
                         if d < 0 or d > 9:

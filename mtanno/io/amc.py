@@ -93,7 +93,7 @@ def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
                     ) -> tuple[list[str], list[tuple[str, int]], np.ndarray, float]:
     """The raw AMC content: (header lines, layout [(bone, value count)], values as written
     in the file (frames × values, file units and degrees), frame rate). For tools that
-    rewrite AMC files (:mod:`mtanno.compose`); checks the file like :func:`read_amc`."""
+    rewrite AMC files (:mod:`mtanno.evaluation.compose`); checks the file like :func:`read_amc`."""
     spath = str(path)
     read_amc(path, skel)  # validates, with path:line errors
     raw = Path(path).read_bytes()
@@ -110,7 +110,7 @@ def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
 def write_amc(path: str | os.PathLike, header: list[str], layout: list[tuple[str, int]],
               values: np.ndarray) -> None:
     """Write AMC frames (numbered from 1) with the given header lines, atomically."""
-    from mtanno.store import atomic_path
+    from mtanno.util.store import atomic_path
 
     names = [name for name, _ in layout]
     counts = [n for _, n in layout]

@@ -439,31 +439,36 @@ def _motion_header(data: bytes, m: re.Match, spath: str) -> _MotionHeader:
         if raw.strip():
             fields.append((raw, line_no))
     (frames_raw, frames_line), (ft_raw, ft_line) = fields
-    fm = _FRAMES.match(frames_raw)
-    if fm is None:
-        raise MtannoError(f"expected 'Frames: <count>' after MOTION, found "
-                          f"'{_clip(frames_raw)}'", path=spath, line=frames_line)
+    count = _header_field(_FRAMES, frames_raw, "'Frames: <count>' after MOTION", spath,
+                          frames_line)
     try:
-        n_frames = int(fm.group(1))
+        n_frames = int(count)
         if n_frames < 0:
             raise ValueError
     except ValueError:
-        raise MtannoError(f"frame count '{fm.group(1)}' is not a whole number ≥ 0", path=spath,
+        raise MtannoError(f"frame count '{count}' is not a whole number ≥ 0", path=spath,
                           line=frames_line) from None
-    tm = _FRAME_TIME.match(ft_raw)
-    if tm is None:
-        raise MtannoError(f"expected 'Frame Time: <seconds>' after Frames, found "
-                          f"'{_clip(ft_raw)}'", path=spath, line=ft_line)
+    frame_time = _header_field(_FRAME_TIME, ft_raw, "'Frame Time: <seconds>' after Frames",
+                               spath, ft_line)
     try:
-        fps = frame_rate_from_frame_time(tm.group(1))
+        fps = frame_rate_from_frame_time(frame_time)
     except ValueError:
-        raise MtannoError(f"Frame Time '{tm.group(1)}' is not a positive number of seconds",
+        raise MtannoError(f"Frame Time '{frame_time}' is not a positive number of seconds",
                           path=spath, line=ft_line) from None
-    if not 1 / _limits.MAX_FPS <= float(tm.group(1)) <= 1 / _limits.MIN_FPS:
-        raise MtannoError(f"Frame Time '{_clip(tm.group(1))}' is outside "
+    if not 1 / _limits.MAX_FPS <= float(frame_time) <= 1 / _limits.MIN_FPS:
+        raise MtannoError(f"Frame Time '{_clip(frame_time)}' is outside "
                           f"{1 / _limits.MAX_FPS:g} … {1 / _limits.MIN_FPS:g} seconds",
                           path=spath, line=ft_line)
-    return _MotionHeader(pos, n_frames, frames_line, fps, tm.group(1), ft_line)
+    return _MotionHeader(pos, n_frames, frames_line, fps, frame_time, ft_line)
+
+
+def _header_field(pattern: re.Pattern, raw: str, expected: str, spath: str, line: int) -> str:
+    """The value (group 1) of a MOTION header line ``raw``, refused unless ``pattern``
+    matches it (``expected`` says what should stand there)."""
+    m = pattern.match(raw)
+    if m is None:
+        raise MtannoError(f"expected {expected}, found '{_clip(raw)}'", path=spath, line=line)
+    return m.group(1)
 
 
 def _check_frame_count(head: _MotionHeader, n_channels: int, n_bytes: int, spath: str) -> None:

@@ -75,6 +75,8 @@ class SkeletonMap:
     heading_axis: tuple[float, float, float]
     path: str
     description: str = ""
+    #: How the map was chosen or made, for ``mtanno info`` (not part of :attr:`digest`).
+    how: str = ""
 
     def fits(self, rig: Rig) -> bool:
         """True if the map is for this file format and the rig has every detect node."""
@@ -260,4 +262,4 @@ def select_map(kind: str, names, override: str | os.PathLike | None = None, *,
             return m
     raise MtannoError(f"no skeleton map fits this {kind.upper()} rig (nodes: "
                       f"{', '.join(list(names)[:8])}, ...); add one to {user_dir()} or "
-                      f"pass --skeleton MAP.toml", path=source)
+                      "pass {skeleton} MAP.toml", path=source, options=("skeleton",))

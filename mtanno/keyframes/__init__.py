@@ -1,4 +1,4 @@
-"""Keyframe queries: search and learning (MBS09 §5–6, thesis ch. 4 and 6, algorithms.md
+"""Keyframe queries: search and learning ([MBS09] §5–6, thesis ch. 4 and 6, algorithms.md
 §5–6) — the preselection stage in front of template matching.
 
 * :mod:`~mtanno.keyframes.model` — :class:`KeyframeQuery` (keyframes over one feature group
@@ -11,8 +11,10 @@
   :func:`class_windows`, :func:`class_spans` as arrays; :class:`KeyframeSet` prepares several
   classes' queries once).
 * :mod:`~mtanno.keyframes.learn` — learning a query per class from positive and negative
-  training clips: the genetic algorithm of MBS09 §6 (``ga``), hard-template columns
-  (``hard``, thesis) and MR06's column heuristic (``heuristic``).
+  training clips: the genetic algorithm of [MBS09] §6 (``ga``), hard-template columns
+  (``hard``, thesis) and [MR06]'s column heuristic (``heuristic``).
+* :mod:`~mtanno.keyframes.ga` and :mod:`~mtanno.keyframes.fitness` — the genetic algorithm
+  and its fitness (hits and misses of a candidate query on the training clips).
 * ``_kernels`` — numba kernels on interval lists (private).
 """
 

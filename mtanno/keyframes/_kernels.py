@@ -15,6 +15,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mtanno.util._bits import popcount64 as _popcount
+
 
 @numba.njit(cache=True)
 def dilate(doc, start, end, lo, hi, out_doc, out_start, out_end):
@@ -78,6 +80,9 @@ def pair_spans(a_doc, a_start, a_end, b_doc, b_start, b_end, dmin, dmax,
     room = out_doc.shape[0]
     nb = b_doc.shape[0]
     k0 = 0
+    # numba twin of index/_kernels.py overlap_pairs (the same two-pointer walk over pairs
+    # of one document, writing while room is left): it writes the pairs' indices, this
+    # their spans, and a kernel calls kernels of its own file only (util/_bits.py)
     for i in range(a_doc.shape[0]):
         d = a_doc[i]
         p = a_start[i]
@@ -104,6 +109,9 @@ def pair_spans(a_doc, a_start, a_end, b_doc, b_start, b_end, dmin, dmax,
 def merge_sorted(doc, start, end, out_doc, out_start, out_end):
     """Union of intervals sorted by (doc, start) (they may overlap or touch): the maximal
     runs of covered frames. Returns the number written."""
+    # numba twin of the run merge in annotate/_kernels.py _label_runs, which merges per
+    # label and only where runs overlap: each kernel file calls its own kernels only
+    # (numba's cache does not see changes to another file; util/_bits.py)
     cnt = 0
     for i in range(doc.shape[0]):
         if cnt > 0 and out_doc[cnt - 1] == doc[i] and start[i] <= out_end[cnt - 1] + 1:
@@ -128,15 +136,6 @@ def mark_clips(start, end, clip_of_frame, clip_end, out):
             c = clip_of_frame[t]
             out[c] = 1
             t = clip_end[c]
-
-
-@numba.njit(cache=True)
-def _popcount(x):
-    """Set bits of a uint64 (SWAR)."""
-    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
-    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
-    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
-    return np.int64((x * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
 @numba.njit(cache=True)

@@ -1,6 +1,6 @@
-"""Fitness of keyframe queries on training clips (MBS09 §6, algorithms.md §6).
+"""Fitness of keyframe queries on training clips ([MBS09] §6, algorithms.md §6).
 
-MBS09 scores a query on the training clips: it *retrieves* a clip if it has a hit there;
+[MBS09] scores a query on the training clips: it *retrieves* a clip if it has a hit there;
 with the positives T⁺ (the class's clips) and negatives T⁻ (every other class's clips),
 P = |H ∩ T⁺|/|H|, R = |H ∩ T⁺|/|T⁺| and
 
@@ -12,7 +12,7 @@ whose hits stay inside its class's clips while the clips are isolated can still 
 transitions between motions. So mtanno scores queries where they will be used
 (``docs/keyframes.md``): the training clips are joined, in a seeded random order, into
 training *sequences* of :data:`CLIPS_PER_SEQUENCE` clips, and a query is searched there.
-A positive clip is *found* if a hit overlaps it (R = found / positives, MBS09's recall);
+A positive clip is *found* if a hit overlaps it (R = found / positives, [MBS09]'s recall);
 each hit is attributed to the clip holding its middle frame, and P = the positive clips
 among the clips hits are attributed to (a hit on a transition between two other motions
 counts against the query). Every clip also appears in :data:`JITTER` copies whose feature
@@ -101,7 +101,7 @@ class Score:
 
 
 def f_beta(P: float, R: float, beta: float) -> float:
-    """Weighted F-measure (MBS09 §6); 0 when P and R are 0."""
+    """Weighted F-measure ([MBS09] §6); 0 when P and R are 0."""
     b2 = beta * beta
     den = b2 * P + R
     return 0.0 if den == 0 else (1 + b2) * P * R / den

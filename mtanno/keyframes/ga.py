@@ -1,12 +1,12 @@
-"""The genetic algorithm that learns a keyframe query (MBS09 §6, algorithms.md §6).
+"""The genetic algorithm that learns a keyframe query ([MBS09] §6, algorithms.md §6).
 
 Individuals are keyframe queries: genes ``(position, group, mask, value)`` in template order
 and gap bounds between consecutive genes. One run:
 
-* **Initial population** of M individuals: N ~ round(Normal(3, 1)) (1 ≤ N ≤ 5, MR06's
+* **Initial population** of M individuals: N ~ round(Normal(3, 1)) (1 ≤ N ≤ 5, [MR06]'s
   "two to five" keyframes) distinct template columns q, each giving one keyframe: the
   column of the *strict* (δ = 0) quantized template over one group, chosen at random among
-  the groups where that column fixes some feature (MBS09: "randomly pick N columns of
+  the groups where that column fixes some feature ([MBS09]: "randomly pick N columns of
   X"); gap bounds from the column distance d with a random tolerance, dmin = ⌈s·d⌉,
   dmax = ⌊d/s⌋, s ~ U(0.5, 0.9).
 * **Each generation**: r parents by stochastic universal sampling (fitness-proportional,
@@ -27,8 +27,8 @@ and gap bounds between consecutive genes. One run:
 
 Everything random comes from one :class:`numpy.random.Generator`, so a run is a pure
 function of its seed; fitness (:mod:`mtanno.keyframes.fitness`) is deterministic. Defaults
-are MBS09's: M = 50, r = 5, G = 100, β = 2. ``docs/keyframes.md`` gives the evidence for
-the choices that go beyond MBS09.
+are [MBS09]'s: M = 50, r = 5, G = 100, β = 2. ``docs/keyframes.md`` gives the evidence for
+the choices that go beyond [MBS09].
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ __all__ = ["GAParams", "GARun", "Problem", "run_ga"]
 
 @dataclass(frozen=True)
 class GAParams:
-    """Parameters of one GA run (defaults: MBS09 §6–7)."""
+    """Parameters of one GA run (defaults: [MBS09] §6–7)."""
 
     population: int = 50
     parents: int = 5

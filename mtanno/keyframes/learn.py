@@ -1,6 +1,6 @@
-"""Learning a keyframe query per class (algorithms.md §6): the genetic algorithm of MBS09
-§6 (``ga``), columns of the hard template (``hard``, thesis ch. 6) and MR06's column
-heuristic (``heuristic``, MR06 §5.4).
+"""Learning a keyframe query per class (algorithms.md §6): the genetic algorithm of [MBS09]
+§6 (``ga``), columns of the hard template (``hard``, thesis ch. 6) and [MR06]'s column
+heuristic (``heuristic``, [MR06] §5.4).
 
 :func:`learn_keyframes` works on a :class:`~mtanno.keyframes.fitness.TrainingSet` (the
 training clips of all classes) and the class's motion template;
@@ -10,7 +10,7 @@ how it was made and its precision, recall and F_β on the training clips.
 
 GA runs are independent: run k of class C uses the seed sequence (seed, crc32(C), k), so
 the result does not depend on how runs are spread over processes (``jobs``). The winner is
-the run result whose keyframes occur most often among all winners (MBS09 §6): each
+the run result whose keyframes occur most often among all winners ([MBS09] §6): each
 winner scores the mean, over its keyframes, of the number of winners that contain that
 keyframe (same position, group and vector); ties go to the higher fitness, then fewer
 keyframes, then the lower run number.
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.keyframes.fitness import JITTER, Gene, Score, TrainingSet, keyframe_tolerance
 from mtanno.keyframes.ga import GAParams, GARun, Problem, run_ga
@@ -42,7 +42,7 @@ __all__ = ["DEFAULT_RUNS", "METHODS", "GAParams", "keyframe_training_set", "lear
            "query_score", "run_seeds"]
 
 METHODS = ("ga", "hard", "heuristic")
-#: Independent GA runs per class (MBS09: 100–500).
+#: Independent GA runs per class ([MBS09]: 100–500).
 DEFAULT_RUNS = 100
 #: Keyframe columns chosen by the hard and heuristic methods.
 DEFAULT_COLUMNS = 3
@@ -50,7 +50,7 @@ DEFAULT_COLUMNS = 3
 BORDER = 0.125
 #: Gap stiffness of the heuristic method.
 HEURISTIC_STIFFNESS = 0.5
-#: Quantization δ of the heuristic method (MR06 retrieval).
+#: Quantization δ of the heuristic method ([MR06] retrieval).
 HEURISTIC_DELTA = 0.1
 
 
@@ -181,9 +181,9 @@ def validation_folds(training: TrainingSet, positives: np.ndarray, *, folds: int
 
 def _ga_run(k: int, seed_seq) -> tuple[int, GARun, Score | None]:
     """GA run k in a worker (the problem, parameters and folds are the pool's shared data,
-    :func:`mtanno.workers.shared`); with usable folds, it learns without fold
+    :func:`mtanno.util.workers.shared`); with usable folds, it learns without fold
     ``usable[k % len]`` and is scored on that fold."""
-    from mtanno.workers import shared
+    from mtanno.util.workers import shared
 
     pb, params, fold, usable = shared()
     held = None
@@ -225,7 +225,7 @@ def _learn_ga(ctx: _Context, template, *, runs: int, seed: int, jobs: int, param
               validate: bool, scheduler: str | None,
               progress: Callable[[int], None] | None) -> KeyframeQuery:
     from mtanno.templates.model import quantize
-    from mtanno.workers import make_pool
+    from mtanno.util.workers import make_pool
 
     strict = quantize(template, 0.0).values
     problem = Problem(strict, ctx.soft, ctx.group_rows, ctx.training, ctx.positives)
@@ -273,7 +273,7 @@ EXTENSION_MARGIN = 1.5
 def _extension(ctx: _Context, genes, gaps, K: int, mismatches: int) -> Extension:
     """Window widths for a learned query: the farthest a positive training clip reaches
     before its first and after its last hit frame, times EXTENSION_MARGIN, never wider
-    than MBS09's 2·(q1 − 1) and 2·(K − qn)."""
+    than [MBS09]'s 2·(q1 − 1) and 2·(K − qn)."""
     lo, hi = ctx.training.margins(genes, gaps, ctx.positives, mismatches=mismatches)
     left = 2 * (genes[0][0] - 1)
     right = 2 * max(0, K - genes[-1][0])
@@ -377,7 +377,7 @@ def _learn_hard(ctx: _Context, template, examples, *, columns: int, beta: float,
 
 
 def _learn_heuristic(ctx: _Context, template, *, columns: int, beta: float) -> KeyframeQuery:
-    """MR06 §5.4: columns of the quantized template (δ = 0.1) with many ones ("white",
+    """[MR06] §5.4: columns of the quantized template (δ = 0.1) with many ones ("white",
     consistent action) and few wildcards ("gray"), away from the borders; gap bounds from
     the column distances with stiffness 0.5."""
     from mtanno.templates.model import quantize
@@ -417,7 +417,7 @@ def learn_keyframes(training: TrainingSet, class_name: str, template, *, method:
         The class's soft motion template (:class:`mtanno.templates.MotionTemplate`);
         positions refer to its columns (``hard``: to the hard template's).
     method:
-        ``"ga"`` (MBS09 §6), ``"hard"`` (thesis ch. 6) or ``"heuristic"`` (MR06).
+        ``"ga"`` ([MBS09] §6), ``"hard"`` (thesis ch. 6) or ``"heuristic"`` ([MR06]).
     examples:
         The class's training examples (``hard`` learns its template from them).
     runs, seed, jobs, params, scheduler:

@@ -1,6 +1,6 @@
 """Keyframe queries: what they are, their JSON files, and how they read as a table.
 
-A keyframe query (MBS09 §5; thesis ch. 4; algorithms.md §5) is a sequence of keyframes
+A keyframe query ([MBS09] §5; thesis ch. 4; algorithms.md §5) is a sequence of keyframes
 V_1 … V_n, each a fuzzy feature vector in {0, 1, *} over the features of ONE feature group
 (upper, lower, mix …), taken from template column q_j, and gap bounds
 (dmin_j, dmax_j) in frames at 30 Hz between V_j and V_{j+1}. A document segment is
@@ -14,7 +14,7 @@ distance d = q_{j+1} − q_j: dmin = ⌈s·d⌉, dmax = ⌊d/s⌋, in exact rati
 
 The candidate windows a query gives for annotation are its hits widened by
 ``factor·(q_1 − 1) + offset`` frames on the left and ``factor·(K − q_n) + offset`` on the
-right (K = template length): MBS09's annotation uses factor 2, offset 0; the reference
+right (K = template length): [MBS09]'s annotation uses factor 2, offset 0; the reference
 implementation's classification driver factor 3, offset 3. Explicit widths can be given
 instead.
 
@@ -137,7 +137,7 @@ class Keyframe:
     """One keyframe: ``vector`` has one of ``0``, ``1``, ``*`` per feature of ``group``
     (in the group's feature order); ``position`` is the 1-based template column.
     ``mismatches`` is how many of the fixed entries may differ at a matching frame (0:
-    all must agree, as in MBS09; 1 or 2: MRC05's mismatch tolerance, for keyframes that
+    all must agree, as in [MBS09]; 1 or 2: [MRC05]'s mismatch tolerance, for keyframes that
     must carry over to performers who differ in a feature or two)."""
 
     group: str
@@ -218,7 +218,7 @@ class Extension:
         return {"factor": self.factor, "offset": self.offset}
 
 
-#: MBS09's annotation widening (the reference annotation script): 2·(q1−1), 2·(K−qn).
+#: [MBS09]'s annotation widening (the reference annotation script): 2·(q1−1), 2·(K−qn).
 ANNOTATION_EXTENSION = Extension(2, 0)
 
 
@@ -546,7 +546,7 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
     without a query; queries of classes not among ``classes``). Queries must be for
     ``feature_set`` and, when ``fps`` is given (the templates' frame rate), at that rate:
     their gaps and extensions count frames at it."""
-    from mtanno.store import sha256_file
+    from mtanno.util.store import sha256_file
 
     queries, files = {}, []
     for f, q in _load_folder(folder):
@@ -567,47 +567,32 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
 
 def dumps(q: KeyframeQuery) -> str:
     """JSON text meant to be read and edited: one line per keyframe and per group."""
-    d = q.to_dict()
+    from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
-    def one(x) -> str:
-        return json.dumps(x, ensure_ascii=False)
-
-    lines = []
-    for key, value in d.items():
-        if key == "keyframes":
-            text = "[\n" + ",\n".join("    " + one(k) for k in value) + "\n  ]"
-        elif key == "groups":
-            text = "{\n" + ",\n".join(f"    {one(g)}: {one(f)}" for g, f in value.items()) \
-                + "\n  }"
-        elif key == "provenance":
-            text = _dumps_provenance(value)
-        else:
-            text = one(value)
-        lines.append(f"  {one(key)}: {text}")
-    return "{\n" + ",\n".join(lines) + "\n}\n"
+    layouts = {"keyframes": lambda v: json_list_lines(json_compact(k) for k in v),
+               "groups": lambda v: json_object_lines(v, level=1),
+               "provenance": _dumps_provenance}
+    return json_object_lines(q.to_dict(), layouts) + "\n"
 
 
 def _dumps_provenance(prov: dict) -> str:
     """One line per provenance entry; a list of objects (the training clips) one line per
     object."""
-    def one(x) -> str:
-        return json.dumps(x, ensure_ascii=False)
+    from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
     if not prov:
         return "{}"
-    items = []
-    for k, v in prov.items():
-        if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
-            text = "[\n" + ",\n".join("      " + one(x) for x in v) + "\n    ]"
-        else:
-            text = one(v)
-        items.append(f"    {one(k)}: {text}")
-    return "{\n" + ",\n".join(items) + "\n  }"
+
+    def objects(v: list) -> str:
+        return json_list_lines((json_compact(x) for x in v), level=2)
+
+    return json_object_lines(prov, {k: objects for k, v in prov.items() if isinstance(v, list)
+                                    and v and all(isinstance(x, dict) for x in v)}, level=1)
 
 
 def save_keyframes(path: str | os.PathLike, q: KeyframeQuery) -> None:
     """Write ``q`` as JSON to ``path`` atomically."""
-    from mtanno.store import atomic_path
+    from mtanno.util.store import atomic_path
 
     _validate(q)
     text = dumps(q)

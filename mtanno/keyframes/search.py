@@ -1,5 +1,5 @@
 """Keyframe search: the frames of documents where a keyframe query has a chain, and the
-candidate windows annotation matches templates in (MBS09 §5; algorithms.md §5).
+candidate windows annotation matches templates in ([MBS09] §5; algorithms.md §5).
 
 For each keyframe V_j, the frames whose group vector matches V_j form an interval list
 I_j: from an index, the union of the inverted lists of every vector V_j matches with
@@ -321,7 +321,7 @@ def _index_pattern(index, query: KeyframeQuery, j: int) -> tuple[str, int, int]:
 
 def search_index(index, query: KeyframeQuery) -> KeyframeHits:
     """All keyframe hits of ``query`` in an index (:class:`mtanno.index.Index`), through
-    its inverted lists (MBS09 §5, algorithms.md §5). Each keyframe's features must lie in
+    its inverted lists ([MBS09] §5, algorithms.md §5). Each keyframe's features must lie in
     one of the index's groups (a keyframe over fewer features than the group, e.g. the
     reference's 13-feature AK-mix against the 14-feature mix group, leaves the others
     free)."""
@@ -454,7 +454,7 @@ def search_documents(documents: Iterable[tuple[str, np.ndarray]], names: Sequenc
 def document_windows(X: np.ndarray, names: Sequence[str], query: KeyframeQuery,
                      ) -> list[tuple[int, int]]:
     """Candidate windows [(first, last)] (0-based inclusive) of one class in one document:
-    its keyframe hits widened by the query's extension, clipped and merged (MBS09 §5, the
+    its keyframe hits widened by the query's extension, clipped and merged ([MBS09] §5, the
     input of :func:`mtanno.annotate.class_deltas`)."""
     hits = search_documents([("doc", X)], names, query)
     d, s, e = hits.windows()
@@ -482,7 +482,7 @@ class KeyframeSet:
     def windows(self, packed: np.ndarray) -> dict[str, list[tuple[int, int]]]:
         """Candidate windows [(first, last)] (0-based inclusive) of every class in one
         bit-packed document (:func:`mtanno.templates.match.pack_document`, frames × words):
-        its keyframe hits widened by the query's extension, clipped and merged (MBS09 §5)."""
+        its keyframe hits widened by the query's extension, clipped and merged ([MBS09] §5)."""
         return {cls: list(zip(s.tolist(), e.tolist()))
                 for cls, (s, e) in self.spans(packed).items()}
 

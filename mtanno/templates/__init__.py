@@ -2,8 +2,8 @@
 
 * :mod:`~mtanno.templates.model` — :class:`MotionTemplate`, its JSON file
   (:func:`save_template`, :func:`load_template`), :func:`quantize` (§3.3) and
-  :func:`mirror` (MR06 §5.4).
-* :mod:`~mtanno.templates.learn` — soft MT learning (MR06 §4.1, exactly as the reference
+  :func:`mirror` ([MR06] §5.4).
+* :mod:`~mtanno.templates.learn` — soft MT learning ([MR06] §4.1, exactly as the reference
   implementation, features.md App. A) and hard MTs (thesis §3.3):
   :func:`mtanno.templates.learn.learn` on matrices, :func:`learn_template` on training
   examples (the function ``learn`` is not re-exported here, so that
@@ -11,6 +11,12 @@
 * :mod:`~mtanno.templates.dtw` — the DTW alignment and warping used by learning.
 * :mod:`~mtanno.templates.training` — gathering training examples from a folder tree, a
   manifest CSV or annotated documents.
+* :mod:`~mtanno.templates.match` — matching a template over documents: the streaming
+  masked subsequence DTW of algorithms.md §3.4 (:func:`match_template`,
+  :class:`PreparedTemplate`).
+* :mod:`~mtanno.templates.describe` — a template as text for a person (``mtanno mt show``).
+* :mod:`~mtanno.templates.tempo` — time-scaled copies of a template (faster or slower
+  performers; ``mtanno mt scale``, and several templates per class in ``tune``).
 
 Typical use by a later stage::
 

@@ -1,11 +1,11 @@
 """Classical DTW between weighted templates, and the warping of one template onto another.
 
-This is the alignment step of motion-template learning (MR06 §4.1; the exact variant of the
+This is the alignment step of motion-template learning ([MR06] §4.1; the exact variant of the
 reference implementation is ``features.md`` Appendix A, ``warp``). A *template* here is a
 (features × columns) float64 matrix with one positive weight per column; a training clip
 is a 0/1 matrix at 30 Hz with all weights 1, so "columns" are frames at 30 Hz.
 
-* Soft local cost (MR06 §4.1): ``c(i,j) = (Σ_k |V(k,i) − W(k,j)|) / f · (Vw(i) + Ww(j)) / 2``,
+* Soft local cost ([MR06] §4.1): ``c(i,j) = (Σ_k |V(k,i) − W(k,j)|) / f · (Vw(i) + Ww(j)) / 2``,
   summed term by term in feature order — the rounding of this sum decides DTW ties, and
   the golden templates depend on it.
 * Hard local cost (thesis §3.3.1, eq. 3.2–3.3): ``Σ_k d(V(k,i), W(k,j))`` with ``d = 0`` when

@@ -1,4 +1,4 @@
-"""Learning motion templates from example clips: soft MTs (MR06 §4.1) and hard MTs (thesis §3.3).
+"""Learning motion templates from example clips: soft MTs ([MR06] §4.1) and hard MTs (thesis §3.3).
 
 Soft MT learning follows the reference implementation ("strategy 5") operation for
 operation, as written down in ``features.md`` Appendix A, so that it reproduces the golden
@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.templates.dtw import _all_references, _one_reference
 from mtanno.templates.model import MotionTemplate
@@ -331,7 +331,7 @@ def learn(examples: Sequence[np.ndarray], *, hard: bool = False, iter_max: int =
         Their order matters: the template learned with example 1 as reference is
         returned, and ties are broken by order.
     hard:
-        Learn a hard MT (thesis §3.3.1) instead of a soft one (MR06 §4.1).
+        Learn a hard MT (thesis §3.3.1) instead of a soft one ([MR06] §4.1).
     iter_max, thresh:
         Stop after ``iter_max`` iterations, or once the maximum normalised alignment cost
         is ≤ ``thresh`` or no longer changes.
@@ -416,3 +416,41 @@ def learn_template(examples: Sequence[TrainingExample], *, class_name: str | Non
         training=[ex.record() for ex in examples], params=params,
         iterations=res.iterations, final_cost=res.final_cost,
         history={"max": res.cost_max, "mean": res.cost_mean})
+
+
+@dataclass(frozen=True)
+class ClassLearned:
+    """One class of :func:`learn_classes`: its template (None when it failed, ``error``
+    saying why), how many examples it was learned from, and a warning for few examples."""
+
+    class_name: str
+    template: MotionTemplate | None
+    n_examples: int = 0
+    error: str | None = None
+    warning: str | None = None
+
+
+def learn_classes(groups: dict, *, hard: bool = False, iter_max: int = ITER_MAX,
+                  thresh: float = ITER_THRESH):
+    """Learn every class of ``groups`` (class name → its example sources,
+    :func:`mtanno.templates.training.group_by_class`), in order, yielding a
+    :class:`ClassLearned` per class as it is done. A class that cannot be learned (an
+    example that cannot be read, features unlike the first class's) is yielded with its
+    error and the others go on: the batch of ``mtanno learn-mt`` and
+    :func:`mtanno.api.learn_templates`. The examples of every class must have the layout of
+    the first class learned."""
+    from mtanno.templates.training import few_examples_warning, load_examples
+
+    reference = None
+    for name, sources in groups.items():
+        try:
+            examples = load_examples(sources)
+            check_consistent(examples, like=reference)
+            reference = reference or examples[0]
+            mt = learn_template(examples, class_name=name, hard=hard, iter_max=iter_max,
+                                thresh=thresh)
+        except MtannoError as exc:
+            yield ClassLearned(name, None, error=str(exc))
+            continue
+        yield ClassLearned(name, mt, len(examples),
+                           warning=few_examples_warning(name, len(examples)))

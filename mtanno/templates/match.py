@@ -1,6 +1,6 @@
 """Matching a quantized motion template against documents: the distance function Δ.
 
-Subsequence DTW with a masked local cost (MR06 §5.2, MBS09 §4; algorithms.md §3.4). For a
+Subsequence DTW with a masked local cost ([MR06] §5.2, [MBS09] §4; algorithms.md §3.4). For a
 quantized template X (f × K, entries 0, 1 and the wildcard 0.5) and a document Y (f × L,
 0/1, one column per 30 Hz frame), Δ(ℓ) is the cost of the cheapest warping path that ends at
 document frame ℓ and covers the whole template, starting at any frame a_ℓ ≤ ℓ. Small values
@@ -23,7 +23,7 @@ Two variants:
     steps of D(predecessor) + weight(step) · c(k, ℓ) (ties: the first step); Δ(ℓ) = D(K, ℓ)/K.
 
 Steps are (template, document) increments; the default is (1,1), (1,2), (2,1) with weights
-1, 1, 2 (MR06 §5.2). A cell no path reaches is +∞ (the reference writes NaN); ``start`` is then
+1, 1, 2 ([MR06] §5.2). A cell no path reaches is +∞ (the reference writes NaN); ``start`` is then
 −1. Paths never cross a document boundary.
 
 The kernels stream over the document: they keep only a few columns of D and of the start
@@ -51,6 +51,7 @@ import numba
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.util._bits import popcount64 as _popcount64
 
 __all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplate",
            "check_spans", "column_repeats", "match_documents", "match_lengths", "match_template"]
@@ -58,27 +59,6 @@ __all__ = ["DEFAULT_STEPS", "DEFAULT_STEP_WEIGHTS", "VARIANTS", "PreparedTemplat
 DEFAULT_STEPS: tuple[tuple[int, int], ...] = ((1, 1), (1, 2), (2, 1))
 DEFAULT_STEP_WEIGHTS: tuple[float, ...] = (1.0, 1.0, 2.0)
 VARIANTS = ("reference", "paper")
-
-_M1 = np.uint64(0x5555555555555555)
-_M2 = np.uint64(0x3333333333333333)
-_M4 = np.uint64(0x0F0F0F0F0F0F0F0F)
-_H01 = np.uint64(0x0101010101010101)
-_S1 = np.uint64(1)
-_S2 = np.uint64(2)
-_S4 = np.uint64(4)
-_S56 = np.uint64(56)
-
-
-@numba.njit(cache=True, inline="always")
-def _popcount64(x):
-    """Number of set bits of a uint64 (SWAR bit trick; LLVM compiles it to one popcnt).
-
-    The final multiply wraps around modulo 2**64 by design (numpy warns about it when the
-    kernels run as plain Python with NUMBA_DISABLE_JIT=1; the result is still right)."""
-    x = x - ((x >> _S1) & _M1)
-    x = (x & _M2) + ((x >> _S2) & _M2)
-    x = (x + (x >> _S4)) & _M4
-    return np.int64((x * _H01) >> _S56)
 
 
 @numba.njit(cache=True)
@@ -141,6 +121,8 @@ def _dtw_default_steps(doc, starts, ends, absolute, masks, vals, table, sel, add
     register type. An unreachable cell has D = inf and start -1 (its first candidate is
     unreachable too, so the -1 propagates).
     """
+    # one kernel: the DTW recurrence with the three default steps unrolled; a generic step
+    # loop (the other kernel) is what this specialisation avoids
     K = masks.shape[0]
     inf = np.inf
     u1, u2 = np.uint64(1), np.uint64(2)
@@ -376,7 +358,7 @@ def match_lengths(weights: np.ndarray, *, variant: str = "reference",
     a template with these column ``weights`` can cover: its warping path runs from the
     first to the last template column (the reference variant's expanded columns,
     :func:`column_repeats`; the paper variant's K columns) by ``steps`` (template, document)
-    increments (MR06 §5.2). With the default steps (1,1), (1,2), (2,1) a match over n
+    increments ([MR06] §5.2). With the default steps (1,1), (1,2), (2,1) a match over n
     columns covers n // 2 + 1 to 2n − 1 frames: a performance much faster or slower than
     the template cannot match at all (``mtanno mt scale`` makes a time-scaled copy). None
     for the longest: a step that advances the document only makes it unbounded."""
@@ -482,7 +464,7 @@ class PreparedTemplate:
         """(delta, start) over a whole packed document (:func:`pack_document`) of which only
         the disjoint spans [starts[i], ends[i]] (0-based inclusive) are matched, each as a
         document of its own; starts are frames of the whole document; Δ = ∞ and start = −1
-        elsewhere. One kernel call for all spans, nothing copied (MBS09 §5: templates
+        elsewhere. One kernel call for all spans, nothing copied ([MBS09] §5: templates
         matched only inside keyframe windows). ``out``: (delta, start) arrays of length L
         to write into instead of new ones; with ``clear=False`` their frames outside the
         spans are left as they are (for a reader that looks inside the spans only)."""
@@ -567,7 +549,7 @@ def match_template(values: np.ndarray, weights: np.ndarray, X: np.ndarray, *,
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Distance function Δ and match start frames of a quantized template on one document.
 
-    MR06 §5.2, MBS09 §4, algorithms.md §3.4 (the module docstring describes both variants).
+    [MR06] §5.2, [MBS09] §4, algorithms.md §3.4 (the module docstring describes both variants).
 
     Parameters
     ----------

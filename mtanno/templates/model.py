@@ -1,6 +1,6 @@
 """The motion template (MT) object, its JSON file, quantization and mirroring.
 
-An MT of a motion class (MR06 §4) is a (features × K) matrix with entries in [0, 1] and one
+An MT of a motion class ([MR06] §4) is a (features × K) matrix with entries in [0, 1] and one
 weight per column; columns are time steps at the 30 Hz analysis rate, and the weights sum
 to about the mean length of the training examples in frames. A *quantized* MT
 (algorithms.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
@@ -22,12 +22,16 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mtanno.errors import MtannoError, read_json
-from mtanno.store import atomic_path
+from mtanno.util.store import atomic_path
+from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
+
+if TYPE_CHECKING:
+    from mtanno.util.store import FeatureLayout
 
 __all__ = [
     "SCHEMA", "KINDS", "MIRROR_SUFFIX", "FeatureRank", "MotionTemplate", "load_template",
@@ -36,7 +40,7 @@ __all__ = [
 
 #: Schema identifier written into (and required from) every template file.
 SCHEMA = "mtanno.template/1"
-#: Template kinds: soft (MR06 §4.1) and hard (thesis §3.3.1).
+#: Template kinds: soft ([MR06] §4.1) and hard (thesis §3.3.1).
 KINDS = ("soft", "hard")
 #: Appended to (or removed from) the class name by :func:`mirror`.
 MIRROR_SUFFIX = "_mirrored"
@@ -117,6 +121,15 @@ class MotionTemplate:
     @property
     def n_features(self) -> int:
         return int(self.values.shape[0])
+
+    def layout(self, source: str | None = None) -> FeatureLayout:
+        """The template's :class:`~mtanno.util.store.FeatureLayout` (feature set, feature
+        names, frame rate), what :func:`~mtanno.util.store.check_layout` compares;
+        ``source`` names it in messages (default: ``template CLASS``)."""
+        from mtanno.util.store import FeatureLayout
+
+        return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
+                             source if source is not None else f"template {self.class_name}")
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, MotionTemplate):
@@ -265,29 +278,15 @@ def check_feature_names(mt: MotionTemplate, path: str | None = None,
 def _dumps(mt: MotionTemplate) -> str:
     """JSON text meant to be read: one line per scalar field, per training file, per
     feature name, per 10 weights and per feature row of ``values``."""
-    d = mt.to_dict()
-
-    def one(x) -> str:
-        return json.dumps(x, ensure_ascii=False)
-
-    def block(items: list[str]) -> str:
-        return "[\n" + ",\n".join("    " + it for it in items) + "\n  ]"
-
-    lines = []
-    for key, value in d.items():
-        if key == "training":
-            text = block([one(t) for t in value]) if value else "[]"
-        elif key == "feature_names":
-            text = block([one(n) for n in value])
-        elif key == "weights":
-            text = block([", ".join(repr(x) for x in value[i:i + 10])
-                          for i in range(0, len(value), 10)])
-        elif key == "values":
-            text = block(["[" + ", ".join(repr(x) for x in row) + "]" for row in value])
-        else:
-            text = one(value)
-        lines.append(f"  {one(key)}: {text}")
-    return "{\n" + ",\n".join(lines) + "\n}\n"
+    layouts = {
+        "training": lambda v: json_list_lines(json_compact(t) for t in v) if v else "[]",
+        "feature_names": lambda v: json_list_lines(json_compact(n) for n in v),
+        "weights": lambda v: json_list_lines(", ".join(repr(x) for x in v[i:i + 10])
+                                             for i in range(0, len(v), 10)),
+        "values": lambda v: json_list_lines("[" + ", ".join(repr(x) for x in row) + "]"
+                                            for row in v),
+    }
+    return json_object_lines(mt.to_dict(), layouts) + "\n"
 
 
 def save_template(path: str | os.PathLike, mt: MotionTemplate) -> None:
@@ -392,12 +391,12 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
 
 
 def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
-    """Quantized copy of ``mt`` (algorithms.md §3.3; MR06 §5.2): entries ≤ δ become 0,
+    """Quantized copy of ``mt`` (algorithms.md §3.3; [MR06] §5.2): entries ≤ δ become 0,
     entries ≥ 1 − δ become 1, the rest the wildcard 0.5.
 
     Both comparisons are inclusive and tested in that order, so δ = 0 keeps exactly the
     unanimous entries (0 and 1) and δ = 0.5 leaves no wildcard (0.5 itself becomes 0).
-    δ = 0.1 is MR06's retrieval setting, 0.05 MBS09's annotation setting.
+    δ = 0.1 is [MR06]'s retrieval setting, 0.05 [MBS09]'s annotation setting.
     """
     if not _is_number(delta) or not 0.0 <= float(delta) <= 0.5:
         raise MtannoError(f"quantization delta must be a number in [0, 0.5], got {delta!r}")
@@ -435,7 +434,7 @@ def rank_features(q: MotionTemplate) -> list[FeatureRank]:
 
 def mirror_names(feature_set: str) -> dict[str, str]:
     """Feature name → name of its left/right partner (itself when unpaired) for a known
-    feature set (MR06 Table 6 / MRC05 Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`)."""
+    feature set ([MR06] Table 6 / [MRC05] Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`)."""
     from mtanno.features import FEATURE_SETS, get_feature_set
 
     try:
@@ -452,7 +451,7 @@ def mirror_names(feature_set: str) -> dict[str, str]:
 
 
 def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
-    """Left/right mirrored copy of ``mt`` (MR06 §5.4): the rows of every left/right feature
+    """Left/right mirrored copy of ``mt`` ([MR06] §5.4): the rows of every left/right feature
     pair are swapped (by feature name, using the feature set's mirror table), so a
     template of 'CartwheelLeft' finds right cartwheels.
 
@@ -506,7 +505,7 @@ def load_template_folder(path: str | os.PathLike, *,
     sorted by class name; with ``classes`` only those (each must have a template). All
     templates must share feature set, names and frame rate (a difference is an error
     naming the file); two files of one class are an error."""
-    from mtanno.store import FeatureLayout, check_layout
+    from mtanno.util.store import check_layout
 
     files = template_files(path)
     if not files or not files[0].exists():
@@ -517,8 +516,7 @@ def load_template_folder(path: str | os.PathLike, *,
         mt = load_template(f)
         if classes and mt.class_name not in classes:
             continue
-        lay = FeatureLayout(mt.feature_set, tuple(mt.feature_names), float(mt.fps),
-                            f"template {f}")
+        lay = mt.layout(f"template {f}")
         if layout is None:
             layout = lay
         elif lay.key() != layout.key():

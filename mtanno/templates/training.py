@@ -8,7 +8,7 @@ Three ways to say which frames are an example of which class (issue 3, ``learn-m
   as ``hdm05_cut/clips.csv`` whose ``file`` is ``class/HDM_..._120.amc``; the feature file
   of an entry is ``FEATURES_DIR/<file with suffix .parquet>``, the path ``mtanno features``
   writes for that motion file (:func:`sources_from_manifest`);
-* annotated documents: a truth table (``mtanno.truth.read_truth``: doc, start, end,
+* annotated documents: a truth table (``mtanno.evaluation.truth.read_truth``: doc, start, end,
   label at 30 Hz, 1-based inclusive) and the documents' feature files; every labelled
   segment is cut out as one example of its label (:func:`sources_from_truth`).
 
@@ -16,7 +16,7 @@ Collecting gives :class:`ExampleSource` records (cheap, nothing read yet);
 :func:`load_examples` reads the feature files, cuts the segments, checks that every
 example has the same feature names, feature set and frame rate, and orders them by file
 name, then start frame — the order the golden templates were learned in (the first
-example is the reference whose template MT learning returns, MR06 §4.1).
+example is the reference whose template MT learning returns, [MR06] §4.1).
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.store import feature_files, read_features, sha256_file
-from mtanno.truth import read_truth
+from mtanno.evaluation.truth import read_truth
+from mtanno.util.store import FeatureLayout, feature_files, read_features, sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
@@ -82,6 +82,11 @@ class TrainingExample:
     fps: float
     performer: str | None = None
 
+    def layout(self) -> FeatureLayout:
+        """The example's :class:`~mtanno.util.store.FeatureLayout` (named after its file)."""
+        return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
+                             f"feature file {self.file}")
+
     def record(self) -> dict:
         """The template's ``training`` entry for this example."""
         return {"file": self.file, "document": self.document, "sha256": self.sha256,
@@ -119,13 +124,13 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     The feature file of a row is ``features_dir / file`` with the suffix replaced by
     ``.parquet``. With ``split``, only rows whose ``split`` column equals it are used.
     """
-    from mtanno.tables import read_manifest
+    from mtanno.util.tables import read_clip_manifest
 
-    table, rows = read_manifest(manifest)
+    table, rows = read_clip_manifest(manifest)
     spath = table.path
     if split is not None and "split" not in table.columns:
-        raise MtannoError("manifest has no split column to filter by --split", path=spath,
-                          line=table.header_line)
+        raise MtannoError("manifest has no split column to filter by {split}", path=spath,
+                          line=table.header_line, options=("split",))
     fdir = Path(features_dir)
     if not fdir.is_dir():
         raise MtannoError("features folder not found", path=str(fdir))
@@ -147,7 +152,7 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     return out
 
 
-#: Fewer examples than this make a template that has seen too little variation (MR06 §4
+#: Fewer examples than this make a template that has seen too little variation ([MR06] §4
 #: learns from 7–26); learn-mt warns for such classes.
 MIN_EXAMPLES = 3
 
@@ -159,7 +164,7 @@ def few_examples_warning(class_name: str, n: int) -> str | None:
         return None
     return (f"warning: class {class_name} is learned from {n} example{'s' if n != 1 else ''} "
             f"only; a template needs at least {MIN_EXAMPLES} to average over the variation "
-            "of a motion (MR06 §4.1)")
+            "of a motion ([MR06] §4.1)")
 
 
 def ignored_documents_note(ignored: Sequence[str]) -> str | None:
@@ -213,17 +218,22 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
     :func:`ignored_documents_note`), or class folders. Contradictory combinations are
     errors saying which options go together."""
     if manifest is not None and truth is not None:
-        raise MtannoError("--manifest and --truth exclude each other")
+        raise MtannoError("{manifest} and {truth} exclude each other",
+                          options=("manifest", "truth"))
     if manifest is not None:
         if training:
-            raise MtannoError("no TRAINING arguments with --manifest (it lists the files)")
+            raise MtannoError("no {training} arguments with {manifest} (it lists the files)",
+                              options=("training", "manifest"))
         if features_dir is None:
-            raise MtannoError("--manifest needs --features-dir DIR")
+            raise MtannoError("{manifest} needs {features_dir} (the folder of its feature files)",
+                              options=("manifest", "features_dir"))
         return sources_from_manifest(manifest, features_dir=features_dir, split=split)
     if features_dir is not None or split is not None:
-        raise MtannoError("--features-dir and --split go with --manifest")
+        raise MtannoError("{features_dir} and {split} go with {manifest}",
+                          options=("features_dir", "split", "manifest"))
     if not training:
-        raise MtannoError("give TRAINING folders or files (or --manifest)")
+        raise MtannoError("give {training} folders or files (or {manifest})",
+                          options=("training", "manifest"))
     if truth is None:
         return sources_from_tree(training)
     missing: list[str] = []
@@ -297,12 +307,8 @@ def check_consistent(examples: Sequence[TrainingExample], *,
     frame rate; otherwise an error names the first file that differs."""
     if not examples:
         return
-    from mtanno.store import FeatureLayout, check_layout, common_layout
+    from mtanno.util.store import check_layout, common_layout
 
-    def layout(ex: TrainingExample) -> FeatureLayout:
-        return FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),
-                             f"feature file {ex.file}")
-
-    ref = layout(like) if like is not None else common_layout([layout(e) for e in examples])
+    ref = like.layout() if like is not None else common_layout([e.layout() for e in examples])
     for ex in examples:
-        check_layout(layout(ex), ref, path=ex.file)
+        check_layout(ex.layout(), ref, path=ex.file)

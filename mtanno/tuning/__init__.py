@@ -4,16 +4,14 @@
 * :mod:`~mtanno.tuning.cv` — folds (one performer held out), held-out documents built
   from the held-out examples only.
 * :mod:`~mtanno.tuning.cluster` — several templates per class: groups of similar examples.
-* :mod:`~mtanno.tuning.tempo` — several templates per class: time-scaled copies of a
-  class's template (faster or slower performances).
-* :mod:`~mtanno.tuning.score` — the evaluation counts of MBS09 §7 on frame arrays.
+* :mod:`~mtanno.tuning.score` — the evaluation counts of [MBS09] §7 on frame arrays.
 * :mod:`~mtanno.tuning.search` — learning and matching per fold, the objective and the
   coordinate search.
 * :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run) and :func:`write_tuned` (the
   configuration and its extra templates).
 
 The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
-:mod:`mtanno.decode`.
+:mod:`mtanno.annotate.decode`.
 """
 
 from mtanno.tuning.run import TuneResult, template_folder_of, tune, write_tuned

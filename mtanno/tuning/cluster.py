@@ -1,7 +1,7 @@
 """Several templates per class: the examples of a class split into groups of similar
 motions (mirrored or stylistic variants), one template learned per group (issue 10).
 
-The distance of two examples is their classical DTW cost (the alignment of MR06 §4.1
+The distance of two examples is their classical DTW cost (the alignment of [MR06] §4.1
 learning, :func:`mtanno.templates.dtw.dtw`) divided by the length of the warping path — a
 mean disagreement per aligned frame pair, in [0, 1]. Groups are k-medoids of these
 distances, deterministic: the first medoid is the example with the smallest distance sum,

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno import __version__
+from mtanno._version import __version__
 from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
-from mtanno.decode import EVIDENCE_MARGIN
+from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
+from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
 from mtanno.tuning.search import (
@@ -34,7 +35,6 @@ from mtanno.tuning.search import (
     check_methods,
     prepare_fold_class,
 )
-from mtanno.tuning.tempo import TEMPO_SCALES, matched_columns, time_scaled
 
 __all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
 
@@ -130,72 +130,32 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     also run once with each method of ``methods`` left out and once with none of them
     (one τ for all classes), on the same folds: ``TuneResult.ablation`` maps
     ``"without-METHOD"`` and ``"none"`` to those results. ``scheduler``: run the per fold
-    and class tasks on a dask.distributed cluster (:func:`mtanno.workers.make_pool`; the
+    and class tasks on a dask.distributed cluster (:func:`mtanno.util.workers.make_pool`; the
     examples and held-out documents are sent once, the tasks carry indices) instead of
     ``n_jobs`` local processes — with the same result.
     """
-    from mtanno.store import FeatureLayout, check_layout, read_features, sha256_file
-    from mtanno.templates.model import load_template_folder, template_files
-    from mtanno.templates.training import group_by_class, load_examples
-
     t0 = time.perf_counter()
     methods = check_methods(methods)
     if documents not in DOCUMENT_MODES:
-        raise MtannoError(f"unknown --documents {documents!r} (choose from "
-                          f"{', '.join(DOCUMENT_MODES)})")
+        raise MtannoError(f"unknown {{documents}} {documents!r} (choose from "
+                          f"{', '.join(DOCUMENT_MODES)})", options=("documents",))
     if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
         raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
-    templates = load_template_folder(mt_dir)
+    templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir)
     classes = list(templates)
-    first = next(iter(templates.values()))
-    layout = FeatureLayout(first.feature_set, tuple(first.feature_names), float(first.fps),
-                           f"the templates in {mt_dir}")
-    groups = group_by_class(sources)
-    examples = [e for c in groups for e in load_examples(groups[c])]
-    for ex in examples:
-        check_layout(FeatureLayout(ex.feature_set, tuple(ex.feature_names), float(ex.fps),
-                                   f"feature file {ex.file}"), layout, path=ex.file)
-    no_examples = [c for c in classes if c not in groups]
-    if no_examples:
-        raise MtannoError(f"no training examples of class(es) {', '.join(no_examples)} "
-                          f"(templates in {mt_dir}); tune needs examples of every class")
-    queries = {}
-    if keyframes_dir is not None:
-        from mtanno.keyframes import load_class_keyframes
-
-        queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
-                                                feature_set=layout.feature_set, fps=layout.fps)
     whole = any(s.start is not None for s in sources)
-    read_document = (lambda path: read_features(path).X) if whole else None
+    if whole:
+        from mtanno.util.store import read_features
+
+        def read_document(path):
+            return read_features(path).X
+    else:
+        read_document = None
     folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
     learn = {c: _learn_params(templates[c]) for c in classes}
-    index = {id(e): i for i, e in enumerate(examples)}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
-    tasks = []
-    for f in folds:
-        windows = None
-        if queries:
-            from mtanno.keyframes import class_windows
-
-            windows = [class_windows(X, list(layout.names), queries,
-                                     feature_set=layout.feature_set)
-                       for _, X in f.held_out.documents()]
-        for c in classes:
-            train = [e for e in f.train if e.class_name == c]
-            if not train:
-                continue
-            spans = ev_spans = None
-            if windows is not None and c in queries:
-                wins = [w.get(c, []) for w in windows]
-                spans = _spans(wins, f.held_out.offsets)
-                ev_spans = _spans(wins, f.held_out.offsets, EVIDENCE_MARGIN)
-            tasks.append(((f.name, c), (c, [index[id(e)] for e in train], f.name), {
-                "deltas": _deltas(methods, templates), "groups": GROUPS
-                if "templates" in methods else (), "learn": learn[c], "spans": spans,
-                "evidence": "frames" in methods and "resolve" in methods,
-                "evidence_spans": ev_spans,
-                "scales": TEMPO_SCALES if "templates" in methods else ()}))
+    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn)
     prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
                                                           scheduler=scheduler, shared=shared)))
     columns = {c: matched_columns(templates[c].weights) for c in classes}
@@ -213,38 +173,10 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             if log:
                 log(f"ablation {name}:")
             variants[name] = tuner.search(delta=delta0, methods=subset)
-    by_class = {c: [i for i, e in enumerate(examples) if e.class_name == c] for c in classes}
-    wanted = sorted({(c, p.groups[c]) for p in [params, *(v[0] for v in variants.values())]
-                     for c in classes if p.groups.get(c, 1) > 1})
-    got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
-                      for key in wanted], n_jobs, _final_groups_task, scheduler=scheduler,
-                     shared=shared) if wanted else []
-    learned = {key: g for key, g in zip(wanted, got) if g}
-
-    def extra_of(p: Params) -> dict:
-        """Per class its further templates: the groups', then the time-scaled copies of
-        its template."""
-        out = {}
-        for c in classes:
-            mts = [*learned.get((c, p.groups.get(c, 1)), []),
-                   *(time_scaled(templates[c], f) for f in p.scales.get(c, ()))]
-            if mts:
-                out[c] = mts
-        return out
-
-    inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
-    shas = {i["path"]: i["sha256"] for i in inputs}
-    shas = {c: shas[templates[c].path] for c in classes}  # [tuned_with] of the config
-    if keyframes_dir is not None:
-        from mtanno.keyframes import keyframe_files
-
-        inputs += [{"path": str(p), "sha256": sha256_file(p)}
-                   for p in keyframe_files(keyframes_dir)]
-    seen = set()
-    for ex in examples:
-        if ex.file not in seen:
-            seen.add(ex.file)
-            inputs.append({"path": ex.file, "sha256": ex.sha256})
+    extra_of = _further_templates([params, *(v[0] for v in variants.values())], examples,
+                                  templates, learn, n_jobs=n_jobs, scheduler=scheduler,
+                                  shared=shared)
+    inputs, shas = _input_records(mt_dir, templates, keyframes_dir, examples)
     folds_held = {f.name: len(f.held_examples) for f in folds}
     seconds = time.perf_counter() - t0
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
@@ -258,6 +190,117 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     return result
 
 
+def _tune_inputs(sources, mt_dir, keyframes_dir):
+    """The templates of ``mt_dir``, their feature layout, the training examples (each of
+    that layout; every class must have some) and the keyframe queries of
+    ``keyframes_dir`` (empty without)."""
+    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.training import group_by_class, load_examples
+    from mtanno.util.store import check_layout
+
+    templates = load_template_folder(mt_dir)
+    classes = list(templates)
+    first = next(iter(templates.values()))
+    layout = first.layout(f"the templates in {mt_dir}")
+    groups = group_by_class(sources)
+    examples = [e for c in groups for e in load_examples(groups[c])]
+    for ex in examples:
+        check_layout(ex.layout(), layout, path=ex.file)
+    no_examples = [c for c in classes if c not in groups]
+    if no_examples:
+        raise MtannoError(f"no training examples of class(es) {', '.join(no_examples)} "
+                          f"(templates in {mt_dir}); tune needs examples of every class")
+    queries = {}
+    if keyframes_dir is not None:
+        from mtanno.keyframes import load_class_keyframes
+
+        queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
+                                                feature_set=layout.feature_set, fps=layout.fps)
+    return templates, layout, examples, queries
+
+
+def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> list:
+    """One task per fold and class with training examples in it (:func:`_fold_class_task`):
+    the class's templates learned on the fold's training examples, matched over its
+    held-out documents (inside the keyframe windows where the class has a query)."""
+    index = {id(e): i for i, e in enumerate(examples)}
+    tasks = []
+    for f in folds:
+        windows = None
+        if queries:
+            from mtanno.keyframes import class_windows
+
+            windows = [class_windows(X, list(layout.names), queries,
+                                     feature_set=layout.feature_set)
+                       for _, X in f.held_out.documents()]
+        for c in templates:
+            train = [e for e in f.train if e.class_name == c]
+            if not train:
+                continue
+            spans = ev_spans = None
+            if windows is not None and c in queries:
+                wins = [w.get(c, []) for w in windows]
+                spans = _spans(wins, f.held_out.offsets)
+                ev_spans = _spans(wins, f.held_out.offsets, EVIDENCE_MARGIN)
+            tasks.append(((f.name, c), (c, [index[id(e)] for e in train], f.name), {
+                "deltas": _deltas(methods, templates), "groups": GROUPS
+                if "templates" in methods else (), "learn": learn[c], "spans": spans,
+                "evidence": "frames" in methods and "resolve" in methods,
+                "evidence_spans": ev_spans,
+                "scales": TEMPO_SCALES if "templates" in methods else ()}))
+    return tasks
+
+
+def _further_templates(chosen: Sequence[Params], examples, templates, learn, *, n_jobs,
+                       scheduler, shared) -> Callable[[Params], dict]:
+    """``extra_of(params)``: per class its further templates under ``params`` (one of
+    ``chosen``): the groups' templates, learned here from all the class's training
+    examples for every group count that ``chosen`` uses, then the time-scaled copies of
+    its template."""
+    classes = list(templates)
+    by_class = {c: [i for i, e in enumerate(examples) if e.class_name == c] for c in classes}
+    wanted = sorted({(c, p.groups[c]) for p in chosen for c in classes
+                     if p.groups.get(c, 1) > 1})
+    got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
+                      for key in wanted], n_jobs, _final_groups_task, scheduler=scheduler,
+                     shared=shared) if wanted else []
+    learned = {key: g for key, g in zip(wanted, got) if g}
+
+    def extra_of(p: Params) -> dict:
+        out = {}
+        for c in classes:
+            mts = [*learned.get((c, p.groups.get(c, 1)), []),
+                   *(time_scaled(templates[c], f) for f in p.scales.get(c, ()))]
+            if mts:
+                out[c] = mts
+        return out
+
+    return extra_of
+
+
+def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dict], dict]:
+    """The inputs of a tune run (template files, keyframe files, training feature files,
+    each with SHA-256) for the provenance, and the SHA-256 of each class's template (the
+    configuration's ``[tuned_with]``)."""
+    from mtanno.templates.model import template_files
+    from mtanno.util.store import sha256_file
+
+    inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
+    shas = {i["path"]: i["sha256"] for i in inputs}
+    shas = {c: shas[mt.path] for c, mt in templates.items()}
+    if keyframes_dir is not None:
+        from mtanno.keyframes import keyframe_files
+
+        inputs += [{"path": str(p), "sha256": sha256_file(p)}
+                   for p in keyframe_files(keyframes_dir)]
+    seen = set()
+    for ex in examples:
+        if ex.file not in seen:
+            seen.add(ex.file)
+            inputs.append({"path": ex.file, "sha256": ex.sha256})
+    return inputs, shas
+
+
 def _deltas(methods: Sequence[str], templates) -> list[float]:
     from mtanno.annotate import DEFAULT_DELTA
     from mtanno.tuning.search import DELTA_GRID
@@ -268,9 +311,9 @@ def _deltas(methods: Sequence[str], templates) -> list[float]:
 def _run_tasks(tasks: list, n_jobs: int, fn, *, scheduler: str | None = None,
                shared=None) -> list:
     """``fn(*args, **kwargs)`` of every (key, args, kwargs) task, in order, in the executor
-    of :func:`mtanno.workers.make_pool` (``n_jobs`` processes, or a dask cluster), with
-    ``shared`` readable through :func:`mtanno.workers.shared`."""
-    from mtanno.workers import make_pool
+    of :func:`mtanno.util.workers.make_pool` (``n_jobs`` processes, or a dask cluster), with
+    ``shared`` readable through :func:`mtanno.util.workers.shared`."""
+    from mtanno.util.workers import make_pool
 
     with make_pool(jobs=n_jobs, scheduler=scheduler, shared=shared,
                    n_tasks=len(tasks)) as pool:
@@ -284,7 +327,7 @@ def _call(fn, args, kwargs):
 def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
     """:func:`prepare_fold_class` of one fold and class, from the shared examples (by
     index) and the fold's held-out documents."""
-    from mtanno.workers import shared
+    from mtanno.util.workers import shared
 
     data = shared()
     held_X, offsets = data["held"][fold]
@@ -293,7 +336,7 @@ def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
 
 
 def _final_groups_task(cls: str, idx: list[int], k: int, learn: dict) -> list:
-    from mtanno.workers import shared
+    from mtanno.util.workers import shared
 
     return _final_groups(cls, [shared()["examples"][i] for i in idx], k, learn)
 
@@ -317,8 +360,8 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
     """Write the tuned class configuration to ``path`` (TOML, cross-validated scores as
     comments) and its extra templates into :func:`template_folder_of` ``(path)``; returns
     the configuration as written."""
-    from mtanno.output import atomic_path, make_folder
     from mtanno.templates.model import save_template
+    from mtanno.util.output import atomic_path, make_folder
 
     path = Path(path)
     cfg = result.params.config()

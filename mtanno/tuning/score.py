@@ -1,10 +1,10 @@
 """Fast scores of annotations on the held-out documents of cross-validation: the counts of
-MBS09 §7 (algorithms.md §8) that ``mtanno evaluate`` reports, computed on frame arrays.
+[MBS09] §7 (algorithms.md §8) that ``mtanno evaluate`` reports, computed on frame arrays.
 
 Segments are (label index, first, last) with 0-based inclusive frames of one array of
 ``n_frames`` frames (the held-out documents concatenated); labels are indices into one list
 of class names shared by truth and output. The counts equal
-:func:`mtanno.evaluate.evaluate_annotations` on the same segments (a test checks it).
+:func:`mtanno.evaluation.metrics.evaluate_annotations` on the same segments (a test checks it).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.evaluation.metrics import f_measure, ratio
 
 __all__ = ["Counts", "count", "covered_fraction"]
 
@@ -38,21 +39,17 @@ class Counts:
             setattr(self, k, getattr(self, k) + v)
         return self
 
-    @staticmethod
-    def _f(p: float, r: float) -> float:
-        return 2 * p * r / (p + r) if p + r else 0.0
-
     def frame(self) -> tuple[float, float, float]:
         """(P1, R1, F1)."""
-        p = self.frame_correct / self.frame_predicted if self.frame_predicted else 0.0
-        r = self.frame_correct / self.frame_support if self.frame_support else 0.0
-        return p, r, self._f(p, r)
+        p = ratio(self.frame_correct, self.frame_predicted)
+        r = ratio(self.frame_correct, self.frame_support)
+        return p, r, f_measure(p, r)
 
     def segment(self) -> tuple[float, float, float]:
         """(P2, R2, F2)."""
-        p = self.seg_correct / self.seg_predicted if self.seg_predicted else 0.0
-        r = self.seg_found / self.seg_support if self.seg_support else 0.0
-        return p, r, self._f(p, r)
+        p = ratio(self.seg_correct, self.seg_predicted)
+        r = ratio(self.seg_found, self.seg_support)
+        return p, r, f_measure(p, r)
 
 
 def _check(segs: Sequence[tuple[int, ...]], n_labels: int | None, n_frames: int, what: str,

@@ -5,12 +5,12 @@ For every fold (:mod:`mtanno.tuning.cv`) the templates are learned from the othe
 examples, quantized with each δ of :data:`DELTA_GRID`, and matched against the fold's
 held-out documents once; then the parameters are chosen by coordinate search, each
 candidate scored by annotating all held-out documents from those cached distance
-functions (:func:`mtanno.annotate.label_document` / :func:`mtanno.decode.decode_segments`,
+functions (:func:`mtanno.annotate.label_document` / :func:`mtanno.annotate.decode.decode_segments`,
 exactly what ``annotate --classes`` does). The objective is
 
     J = (F1 + F2) / 2 − w · U
 
-with F1, F2 the frame and segment F-measures over all folds (MBS09 §7) and U the
+with F1, F2 the frame and segment F-measures over all folds ([MBS09] §7) and U the
 unknown-class rate — for each class in turn left out of the templates, the fraction of
 its held-out frames that another class labels — weighted by ``unknown_weight`` (w). A
 class without a template in a fold (its examples all held out) is unknown there: its
@@ -27,10 +27,10 @@ The search, in this order, each step only over the methods switched on
    :data:`SEGMENT_COSTS` together with the one τ again (λ shifts the threshold);
 3. several templates per class (``templates``): each class split into 2 or 3 groups of
    examples (:mod:`mtanno.tuning.cluster`), kept where J rises by more than :data:`EPS`;
-   then time-scaled copies of the classes' templates (:mod:`mtanno.tuning.tempo`: a
-   faster, a slower or both of :data:`~mtanno.tuning.tempo.TEMPO_SCALES`), greedily: the
+   then time-scaled copies of the classes' templates (:mod:`mtanno.templates.tempo`: a
+   faster, a slower or both of :data:`~mtanno.templates.tempo.TEMPO_SCALES`), greedily: the
    class and copies that raise J most (by more than :data:`EPS`) first, as long as all
-   copies together match at most :data:`~mtanno.tuning.tempo.COPY_BUDGET` times the
+   copies together match at most :data:`~mtanno.templates.tempo.COPY_BUDGET` times the
    templates' columns (they cost annotation time in proportion);
 4. per-class τ (``tau``): τ_p scaled by :data:`TAU_STEPS`, two sweeps, a change kept
    where J rises by more than :data:`EPS`;
@@ -53,11 +53,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
-from mtanno.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
+from mtanno.annotate.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
+from mtanno.templates.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
-from mtanno.tuning.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 
 __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
            "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
@@ -65,7 +65,7 @@ __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCA
 
 #: The methods ``tune`` can switch on (all by default); ``--disable`` names them.
 METHODS = ("tau", "reject", "refine", "resolve", "segments", "templates", "frames", "delta")
-#: Quantization δ tried (MBS09 uses 0.05; examples of varied styles want a larger one).
+#: Quantization δ tried ([MBS09] uses 0.05; examples of varied styles want a larger one).
 DELTA_GRID = (0.05, 0.15, 0.25, 0.35)
 #: One τ for all classes, tried first.
 TAU_GRID = (0.03, 0.04, 0.05, 0.065, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.4, 0.5)
@@ -164,9 +164,9 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
     "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
     for k asked (fewer when a group would be too small); template (1, 0) is the one learned
     from all examples, (k', i) group i of a split into k', and (0, f) for each f of
-    ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.tuning.tempo.time_scaled`;
+    ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.templates.tempo.time_scaled`;
     evidence None: it equals the template's)."""
-    from mtanno.decode import distinct_frames, frame_evidence
+    from mtanno.annotate.decode import distinct_frames, frame_evidence
     from mtanno.templates.learn import learn_template
     from mtanno.templates.match import PreparedTemplate, pack_document
     from mtanno.templates.model import quantize
@@ -256,6 +256,22 @@ def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
                      fd.groups)
 
 
+
+def _groups_text(split: dict[str, int]) -> str:
+    """The classes with several templates, for the search log: ``squat 2, kick 3 (others
+    one)``, or ``one per class``."""
+    if not split:
+        return "one per class"
+    return ", ".join(f"{c} {k}" for c, k in split.items()) + " (others one)"
+
+
+def _scales_text(scaled: dict[str, Sequence[float]]) -> str:
+    """The tempo factors of the classes' time-scaled templates, for the search log:
+    ``lieDownFloor ×0.6, squat ×0.6 ×1.6``, or ``none``."""
+    if not scaled:
+        return "none"
+    return ", ".join(f"{c} " + " ".join(f"×{f:g}" for f in fs) for c, fs in scaled.items())
+
 class Tuner:
     """Scores parameter points on cached fold data and searches them (module docstring)."""
 
@@ -263,7 +279,7 @@ class Tuner:
                  classes: Sequence[str], methods: Sequence[str] = METHODS,
                  unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None,
                  columns: dict | None = None):
-        """``columns``: the matching columns (:func:`mtanno.tuning.tempo.matched_columns`)
+        """``columns``: the matching columns (:func:`mtanno.templates.tempo.matched_columns`)
         of each class's template (key: class) and of its time-scaled copies (key: (class,
         factor)), for the copies' budget; None: no budget."""
         self.classes = list(classes)
@@ -494,12 +510,12 @@ class Tuner:
                 if got is not None:
                     cur, cur_ev = got, ev
             split = {c: k for c, k in cur.groups.items() if k > 1}
-            note(f"templates {split or 'one per class'}", cur_ev)
+            note(f"templates {_groups_text(split)}", cur_ev)
             cur, cur_ev, used = self._copies(cur, cur_ev)
             scaled = {c: fs for c, fs in cur.scales.items() if fs}
             budget = "" if self.columns is None else \
                 f" ({used} of {self._budget()} columns)"
-            note(f"time-scaled templates {scaled or 'none'}{budget}", cur_ev)
+            note(f"time-scaled templates {_scales_text(scaled)}{budget}", cur_ev)
         # 4. per-class τ
         if "tau" in on:
             for _ in range(2):

@@ -112,12 +112,12 @@ def test_option_values_that_make_no_sense_are_a_usage_error(world, tmp_path, arg
 
 def test_a_scheduler_address_is_checked_for_the_api_too():
     from mtanno.errors import MtannoError
-    from mtanno.workers import scheduler_address
+    from mtanno.util.workers import scheduler_address
 
     assert scheduler_address("tcp://10.0.0.1:8786") == "tcp://10.0.0.1:8786"
     assert scheduler_address("local:2") == "local:2"
     for bad in ("not an address", "local:0", "tcp://", "h:0", ":8786", ""):
-        with pytest.raises(MtannoError, match="--scheduler"):
+        with pytest.raises(MtannoError, match="scheduler="):  # the API names its parameter
             scheduler_address(bad)
 
 
@@ -194,7 +194,7 @@ def test_sigint_while_python_imports_numpy_is_one_line(world):
 #: worker is stopped while numba loads its cached kernels through llvmlite's callbacks.
 CALLBACK = """if True:
     import ctypes, os, signal, sys, time
-    import mtanno.workers as w
+    import mtanno.util.workers as w
     CMP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)
     def compare(a, b):
         os.kill(os.getpid(), signal.SIGTERM)
@@ -239,7 +239,7 @@ def test_a_worker_forked_before_its_initializer_ignores_sigint_and_hangs_up_quie
     initializer runs: SIGINT (Ctrl-C reaches the whole group) raised Interrupted in the
     pool's bootstrap code, whose traceback came after the command's one line (tune)."""
     code = """if True:
-        import os, signal, sys, mtanno.workers as w
+        import os, signal, sys, mtanno.util.workers as w
         with w.interruptible():
             results = []
             for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):

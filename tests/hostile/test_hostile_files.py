@@ -22,8 +22,8 @@ from mtanno.errors import MtannoError
 from mtanno.index import open_index
 from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, load_keyframes, save_keyframes
 from mtanno.keyframes.model import feature_groups_of
-from mtanno.store import read_features
-from mtanno.tables import read_table
+from mtanno.util.store import read_features
+from mtanno.util.tables import read_table
 
 #: JSON text nested far deeper than any parser's recursion allows.
 DEEP = '{"schema": ' + "[" * 20000 + "]" * 20000 + "}"

@@ -24,7 +24,7 @@ from hostile_kinds import (
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.index import open_index
-from mtanno.tables import read_table
+from mtanno.util.tables import read_table
 
 
 class Case:

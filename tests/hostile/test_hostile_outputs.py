@@ -101,9 +101,9 @@ def test_no_output_replaces_an_inputs_sidecar(world, tmp_path, case):
 
 
 def test_check_outputs_counts_input_sidecars_and_folder_names(tmp_path):
-    """The one place (mtanno.output.check_outputs): inputs' sidecars, names and patterns
+    """The one place (mtanno.util.output.check_outputs): inputs' sidecars, names and patterns
     written inside output folders, and folders the command owns."""
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     (tmp_path / "rep").mkdir()
     ann = tmp_path / "rep" / "timeline_d1.png"
@@ -247,7 +247,7 @@ def test_a_command_that_fails_on_an_output_writes_nothing(world, tmp_path, case)
 def test_preflight_leaves_nothing_and_creates_no_folder(tmp_path):
     """The preflight tries the nearest existing folder with a temporary file it removes;
     it creates no folder."""
-    from mtanno.output import check_outputs
+    from mtanno.util.output import check_outputs
 
     check_outputs([tmp_path / "a" / "b" / "x.csv"], [], folders={tmp_path / "c": None})
     assert list(tmp_path.iterdir()) == []
@@ -284,7 +284,7 @@ def test_tables_of_documents_named_by_non_utf8_file_names(world, tmp_path, case)
     the table its name's undecodable bytes are \\xNN (valid UTF-8 text, as every table
     reader wants it), and the provenance records the path exactly (its \\uDCxx escape
     reads back as the file's name)."""
-    from mtanno.tables import read_table, table_provenance
+    from mtanno.util.tables import read_table, table_provenance
 
     raw = _non_utf8_folder(world, tmp_path / "in")
     fmt = case.split()[-1] if case.split()[-1] in ("csv", "parquet", "jsonl") else "csv"
@@ -318,7 +318,7 @@ def test_json_of_non_utf8_names_is_valid_utf8(tmp_path):
     JSON escape, so the file is UTF-8 and reads back as the same string."""
     import json
 
-    from mtanno.tables import dumps, text, write_json
+    from mtanno.util.tables import dumps, text, write_json
 
     name = os.fsdecode(b"caf\xe9.parquet")
     write_json(tmp_path / "x.json", {"path": name, name: 1, "ok": "café"})
@@ -375,15 +375,15 @@ def test_standard_output_on_a_full_device_says_so(world, tmp_path):
 
 
 def test_a_write_that_fails_in_place_or_to_stdout_names_it(tmp_path, monkeypatch):
-    """The writers' own paths (mtanno.output): a device written in place and standard
+    """The writers' own paths (mtanno.util.output): a device written in place and standard
     output raise one MtannoError that names where, for any OSError (simulated here)."""
     import io
     import sys
 
     import pyarrow as pa
 
-    from mtanno import output
-    from mtanno.tables import write_table
+    from mtanno.util import output
+    from mtanno.util.tables import write_table
 
     class Full(io.StringIO):
         def write(self, text):

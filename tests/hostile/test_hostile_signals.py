@@ -22,7 +22,7 @@ import pytest
 from world import build_world, temporaries
 
 from mtanno import synthetic
-from mtanno.store import read_features, write_features
+from mtanno.util.store import read_features, write_features
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
@@ -187,7 +187,7 @@ def test_workers_stop_when_the_parent_dies_without_the_kernels_help(tmp_path):
     busy = tmp_path / "busy"
     script.write_text(
         "import os, sys, time\n"
-        "import mtanno.workers as w\n"
+        "import mtanno.util.workers as w\n"
         "def task(path):\n"
         "    open(path, 'w').close()  # the worker is in its task\n"
         "    time.sleep(60)\n"

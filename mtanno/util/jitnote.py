@@ -7,7 +7,8 @@ installs :class:`CompileNote` so that this pause is explained: numba reports eve
 compilation as a ``numba:compile`` event (a kernel found in the cache is not compiled and
 sends none), and the note is printed at the first such event of an mtanno kernel — once per
 command, also when the compiling happens in worker processes (they are forked from the
-command and share its flag).
+command and share its flag). A command run with ``-q``/``--quiet`` never prints it
+(:func:`silence`: cron logs stay empty).
 """
 
 from __future__ import annotations
@@ -39,6 +40,12 @@ class CompileNote(_listener_base()):
         self.prefix = prefix
         self.stream = stream
         self._done = multiprocessing.get_context("fork").Value("b", 0)
+        self._quiet = multiprocessing.get_context("fork").Value("b", 0)
+
+    def set_quiet(self, quiet: bool) -> None:
+        """Print nothing (``quiet``) or the note (the default) from now on, in this process
+        and the workers it forks."""
+        self._quiet.value = int(bool(quiet))
 
     def on_start(self, event) -> None:
         dispatcher = (event.data or {}).get("dispatcher")
@@ -46,7 +53,7 @@ class CompileNote(_listener_base()):
         if not module.startswith(self.prefix):
             return
         with self._done.get_lock():
-            if self._done.value:
+            if self._done.value or self._quiet.value:
                 return
             self._done.value = 1
         stream = self.stream if self.stream is not None else sys.stderr
@@ -66,3 +73,10 @@ def install_compile_note() -> CompileNote:
         _installed = CompileNote()
         event.register("numba:compile", _installed)
     return _installed
+
+
+def silence() -> None:
+    """No note for the rest of the command (it runs with ``-q``/``--quiet``; the command
+    line calls this while it parses the options, before any kernel is compiled)."""
+    if _installed is not None:
+        _installed.set_quiet(True)

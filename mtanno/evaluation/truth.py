@@ -1,6 +1,6 @@
 """Ground-truth and annotation segment tables (CSV), and converters into them.
 
-A segment table (CSV, Parquet or JSON Lines: :mod:`mtanno.tables`) has one row per
+A segment table (CSV, Parquet or JSON Lines: :mod:`mtanno.util.tables`) has one row per
 labelled segment: ``doc`` (document name = feature file
 stem), ``start`` and ``end`` (1-based inclusive frames), ``label`` and optionally ``fps``
 (the rate the frames are given at; 30 when absent). Inside mtanno every table is at the
@@ -17,8 +17,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from mtanno.errors import MtannoError, read_json
-
-ANALYSIS_FPS = 30.0
+from mtanno.util.units import ANALYSIS_FPS
 
 
 @dataclass(frozen=True, order=True)
@@ -50,7 +49,7 @@ def read_truth(path: str | os.PathLike) -> list[Segment]:
     Lines by suffix, ``-`` for standard input) into 30 Hz segments. Each bad row is an
     error naming its line: a non-integer or non-positive frame, start after end, an fps
     that is not a positive number, an empty doc or label."""
-    from mtanno.tables import parse_float, parse_int, parse_text, read_table
+    from mtanno.util.tables import parse_float, parse_int, parse_text, read_table
 
     table = read_table(path, what="truth file")
     table.require(["doc", "start", "end", "label"])
@@ -83,8 +82,8 @@ def truth_table(segments: Iterable[Segment]):
 def write_truth(path: str | os.PathLike, segments: Iterable[Segment], *,
                 provenance: dict | None = None) -> None:
     """Write a segment table at 30 Hz (columns doc, start, end, label, fps), atomically, in
-    the format of its suffix (:func:`mtanno.tables.write_table`)."""
-    from mtanno.tables import write_table
+    the format of its suffix (:func:`mtanno.util.tables.write_table`)."""
+    from mtanno.util.tables import write_table
 
     write_table(path, truth_table(segments), provenance=provenance)
 

@@ -18,19 +18,19 @@ import math
 import os
 import random
 import shutil
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.evaluation.truth import Segment, write_truth
 from mtanno.features.hysteresis import analysis_frames
 from mtanno.io.amc import read_amc_values, write_amc
 from mtanno.io.asf import AsfSkeleton, read_asf
 from mtanno.io.skeleton import euler_matrix
-from mtanno.store import atomic_path
-from mtanno.truth import Segment, write_truth
+from mtanno.util.store import atomic_path
 
 
 @dataclass(frozen=True)
@@ -42,12 +42,12 @@ class Clip:
     actor: str
 
 
-def read_manifest(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
+def read_clips(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
                   actor: str | None = None, split: str | None = None) -> list[Clip]:
-    """Clips of a manifest (:func:`mtanno.tables.read_manifest`: columns
+    """Clips of a manifest (:func:`mtanno.util.tables.read_clip_manifest`: columns
     ``file,class[,actor,split]``, file relative to ``root``, by default the manifest's
     folder), filtered by actor and split. Every clip file must exist."""
-    from mtanno.tables import read_manifest as read_rows
+    from mtanno.util.tables import read_clip_manifest as read_rows
 
     table, rows = read_rows(path)
     root = Path(root) if root is not None else Path(path).parent
@@ -117,10 +117,51 @@ def reanchor(values: np.ndarray, cols: dict[str, int], *, angle_scale: float,
     return out
 
 
+def _chain(order: Sequence[Clip], loaded: dict, skel: AsfSkeleton, layout0, pause: int,
+           ) -> tuple[list[np.ndarray], list[tuple[int, int, str]], int]:
+    """The clips of one document one after the other, each turned and moved to start where
+    and facing how the previous one ended, ``pause`` still frames between them: the parts
+    to concatenate, each clip's span (first, last native frame 0-based, label) and the
+    document's native frame count."""
+    cols = _root_columns(skel, layout0)
+    anchor_xz = anchor_yaw = None
+    offset = 0
+    parts, spans = [], []
+    for clip in order:
+        header, layout, values, fps = loaded[clip.path]
+        v = reanchor(values, cols, angle_scale=skel.angle_scale, anchor_xz=anchor_xz,
+                     anchor_yaw=anchor_yaw)
+        parts.append(v)
+        spans.append((offset, offset + len(v) - 1, clip.label))
+        offset += len(v)
+        last = v[-1]
+        anchor_xz = (last[cols["TX"]], last[cols["TZ"]])
+        anchor_yaw = _yaw(_root_matrix(*(last[cols[k]] * skel.angle_scale
+                                         for k in ("RX", "RY", "RZ"))))
+        if pause > 0:
+            parts.append(np.repeat(last[None, :], pause, axis=0))
+            offset += pause
+    return parts, spans, offset
+
+
+def _steps(progress: Callable[[int, int], None] | None, total: int) -> Callable[[], None]:
+    """A function to call after each of ``total`` steps: ``progress(done, total)``."""
+    done = 0
+
+    def step() -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    return step
+
+
 def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: int = 10,
                       clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
                       asf: str | os.PathLike | None = None, prefix: str | None = None,
                       shuffle: bool = True, inputs: Sequence[str | os.PathLike] = (),
+                      progress: Callable[[int, int], None] | None = None,
                       ) -> tuple[list[Path], list[Segment]]:
     """Write ``n_docs`` composed AMC documents, their ASF and ``truth.csv`` into ``out_dir``.
 
@@ -129,12 +170,13 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     frames of stillness separate the clips. ``shuffle=False`` keeps the clips in the given
     order (the first ``clips_per_doc`` of them). Returns the document paths and the truth.
     Every clip is read and checked before anything is written; no output may be one of the
-    clips, the ASF or the further ``inputs`` (the manifest, say).
+    clips, the ASF or the further ``inputs`` (the manifest, say). ``progress(done, total)``
+    is called after each clip read and each document written.
     """
     if not clips:
         raise MtannoError("no clips to compose")
     from mtanno.io import find_asf
-    from mtanno.output import check_outputs, make_folder
+    from mtanno.util.output import check_outputs, make_folder
 
     # everything is read and checked before the first byte is written: a bad clip leaves
     # no partial output folder
@@ -154,9 +196,10 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     check_outputs(planned, [asf_path, *(c.path for c in clips), *inputs])
     rng = random.Random(seed)
     loaded = {}
+    step = _steps(progress, len(clips) + n_docs)
     for c in clips:
-        header, layout, values, fps = read_amc_values(c.path, skel)
-        loaded[c.path] = (header, layout, values, fps)
+        loaded[c.path] = read_amc_values(c.path, skel)
+        step()
     first = loaded[clips[0].path]
     for c in clips:
         if loaded[c.path][1] != first[1] or loaded[c.path][3] != first[3]:
@@ -170,27 +213,9 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     for d in range(1, n_docs + 1):
         order = rng.sample(range(len(clips)), k) if shuffle else list(range(k))
         name = f"{prefix}_doc{d:02d}"
-        parts = []
         layout0 = loaded[clips[order[0]].path][1]
-        cols = _root_columns(skel, layout0)
         fps0 = loaded[clips[order[0]].path][3]
-        anchor_xz = anchor_yaw = None
-        offset = 0
-        spans = []  # (first, last native frame 0-based, label)
-        for i in order:
-            header, layout, values, fps = loaded[clips[i].path]
-            v = reanchor(values, cols, angle_scale=skel.angle_scale, anchor_xz=anchor_xz,
-                         anchor_yaw=anchor_yaw)
-            parts.append(v)
-            spans.append((offset, offset + len(v) - 1, clips[i].label))
-            offset += len(v)
-            last = v[-1]
-            anchor_xz = (last[cols["TX"]], last[cols["TZ"]])
-            anchor_yaw = _yaw(_root_matrix(*(last[cols[k]] * skel.angle_scale
-                                             for k in ("RX", "RY", "RZ"))))
-            if pause > 0:
-                parts.append(np.repeat(last[None, :], pause, axis=0))
-                offset += pause
+        parts, spans, offset = _chain([clips[i] for i in order], loaded, skel, layout0, pause)
         # exact 30 Hz truth: the analysis frames whose native frame lies in the clip
         kept = analysis_frames(offset, fps0)
         for first, last, label in spans:
@@ -207,7 +232,8 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
         write_amc(path, header, layout0, np.concatenate(parts))
         docs.append(path)
         plan.append({"document": name, "clips": [str(clips[i].path) for i in order]})
-    from mtanno.tables import provenance
+        step()
+    from mtanno.util.tables import provenance
 
     write_truth(out_dir / "truth.csv", truth, provenance=provenance(
         inputs=[asf_path, *inputs], seed=seed, pause=pause, documents=plan))

@@ -15,7 +15,7 @@ templates, class configuration, keyframe queries), and its recorded provenance s
 made from this feature file (SHA-256) with the same templates, keyframe queries and
 configuration (SHA-256, wherever the files are now), the same options and the same mtanno
 version (:func:`recipe`). The caller holds the folder's lock
-(:func:`mtanno.output.folder_lock`) so that two runs never work on one folder at once.
+(:func:`mtanno.util.locks.folder_lock`) so that two runs never work on one folder at once.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mtanno.annotate import AnnotationSetup
+from mtanno.annotate.batch import AnnotationSetup
 from mtanno.errors import MtannoError
 
 __all__ = ["FORMATS", "DocJob", "DocOutcome", "FolderSummary", "annotate_folder",
@@ -94,13 +94,13 @@ class FolderSummary:
 def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
                 fmt: str = "csv", failures: list[str] | None = None) -> list[DocJob]:
     """One job per feature file named by ``inputs`` (files, folders searched recursively;
-    :func:`mtanno.store.document_files_below`): a file ``F.parquet`` gives
+    :func:`mtanno.util.store.document_files_below`): a file ``F.parquet`` gives
     ``outdir/F.<fmt>``, a file found in folder ``D`` gives ``outdir/<its path below
-    D>`` with the format's suffix (``failures``: as :func:`mtanno.store.feature_files`).
+    D>`` with the format's suffix (``failures``: as :func:`mtanno.util.store.feature_files`).
     Jobs are sorted by document name. Parquet tables in a
     folder inside an input folder would be read as feature files by the next run: refused.
     """
-    from mtanno.store import document_files_below
+    from mtanno.util.store import document_files_below
 
     if fmt not in FORMATS:
         raise MtannoError(f"unknown table format {fmt!r} (known: {', '.join(FORMATS)})")
@@ -151,8 +151,8 @@ def up_to_date(job: DocJob, expected: dict, *, not_before: int = 0) -> DocOutcom
     names this one document, made from the feature file as it is now (SHA-256), and its
     :func:`recipe` is ``expected``. Returns the ``"skipped"`` outcome (with the feature
     file's SHA-256 and the frame count recorded) when it is up to date, else None."""
-    from mtanno.store import sha256_file
-    from mtanno.tables import table_provenance
+    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import table_provenance
 
     try:
         made = os.stat(job.dst).st_mtime_ns
@@ -187,9 +187,9 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
     suffix) as soon as its document is done, with its provenance. A document that fails
     (unreadable, other features than the templates, unwritable output) is recorded and
     the batch goes on. ``progress`` is called once per job. Hold the output folder's lock
-    (:func:`mtanno.output.folder_lock`) around this call."""
+    (:func:`mtanno.util.locks.folder_lock`) around this call."""
     from mtanno.annotate import write_annotations
-    from mtanno.tables import provenance_as_read
+    from mtanno.util.tables import provenance_as_read
 
     summary = FolderSummary()
     expected = recipe(provenance_as_read(setup.provenance()))

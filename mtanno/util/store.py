@@ -21,9 +21,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno import _parquet
 from mtanno.errors import JSONError, MtannoError, parse_json, read_input
-from mtanno.output import atomic_path, write_bytes
+from mtanno.util import _parquet
+from mtanno.util.output import atomic_path, write_bytes
 
 __all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
            "common_layout", "document_files", "document_files_below", "feature_files",
@@ -415,6 +415,41 @@ def _rows(mask: np.ndarray) -> str:
     return ", ".join(str(r) for r in rows) + more
 
 
+_COLUMN_KINDS = {"boolean": pa.types.is_boolean, "integer": pa.types.is_integer}
+
+
+def _column(table: pa.Table, name: str, kind: str, spath: str, note: str = "",
+            ) -> pa.ChunkedArray:
+    """Column ``name`` of a feature file's table, refused unless of the ``kind`` (a key
+    of :data:`_COLUMN_KINDS`) and without nulls (``note`` ends that message)."""
+    col = table.column(name)
+    if not _COLUMN_KINDS[kind](col.type):
+        raise MtannoError(f"column '{name}' is {col.type}, not {kind}", path=spath)
+    if col.null_count:
+        nulls = col.is_null().to_numpy(zero_copy_only=False)
+        raise MtannoError(f"column '{name}' has {col.null_count} null value(s) (rows "
+                          f"{_rows(nulls)}){note}", path=spath)
+    return col
+
+
+#: Suffixes of the motion files ``mtanno features`` reads (:data:`mtanno.io.MOCAP_SUFFIXES`).
+_MOTION_SUFFIXES = (".amc", ".bvh")
+#: How the first line of a BVH or an AMC file (after ``#`` comments) begins.
+_MOTION_HEADS = (b"HIERARCHY", b":FULLY-SPECIFIED", b":DEGREES", b":RADIANS")
+
+
+def _is_motion_file(path: str, data) -> bool:
+    """True if a file that is no Parquet file is a motion file (by its suffix, or by its
+    first line: BVH's ``HIERARCHY``, AMC's ``:FULLY-SPECIFIED``/``:DEGREES``)."""
+    if Path(path).suffix.lower() in _MOTION_SUFFIXES:
+        return True
+    for line in bytes(memoryview(data)[:4096]).splitlines():
+        line = line.strip()
+        if line and not line.startswith(b"#"):
+            return line.upper().startswith(_MOTION_HEADS)
+    return False
+
+
 def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFile:
     """Read and validate a feature file written by :func:`write_features` (or ``mtanno
     features``): the one reader every command uses.
@@ -435,6 +470,9 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     try:
         table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
     except (pa.ArrowException, OSError, ValueError, IndexError) as exc:
+        if _is_motion_file(spath, data):
+            raise MtannoError("this is a motion file: run `mtanno features` first (later "
+                              "stages read its Parquet feature file)", path=spath) from None
         raise MtannoError(f"not a readable Parquet feature file ({exc})", path=spath) from None
     raw = (table.schema.metadata or {}).get(META_KEY)
     if raw is None:
@@ -455,22 +493,9 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
         raise MtannoError(f"column(s) {', '.join(dup)} appear twice", path=spath)
     X = np.empty((len(names), table.num_rows), dtype=np.uint8)
     for i, name in enumerate(names):
-        col = table.column(name)
-        if not pa.types.is_boolean(col.type):
-            raise MtannoError(f"column '{name}' is {col.type}, not boolean", path=spath)
-        if col.null_count:
-            nulls = col.is_null().to_numpy(zero_copy_only=False)
-            raise MtannoError(f"column '{name}' has {col.null_count} null value(s) (rows "
-                              f"{_rows(nulls)}); features must be true or false", path=spath)
+        col = _column(table, name, "boolean", spath, "; features must be true or false")
         X[i] = col.to_numpy(zero_copy_only=False)
-    nf = table.column("native_frame")
-    if not pa.types.is_integer(nf.type):
-        raise MtannoError(f"column 'native_frame' is {nf.type}, not integer", path=spath)
-    if nf.null_count:
-        nulls = nf.is_null().to_numpy(zero_copy_only=False)
-        raise MtannoError(f"column 'native_frame' has {nf.null_count} null value(s) (rows "
-                          f"{_rows(nulls)})", path=spath)
-    native = nf.to_numpy().astype(np.int64)
+    native = _column(table, "native_frame", "integer", spath).to_numpy().astype(np.int64)
     if native.size and native.min() < 1:
         raise MtannoError(f"native_frame must be ≥ 1 (1-based frames of the motion file); "
                           f"rows {_rows(native < 1)} are not", path=spath)

@@ -3,7 +3,7 @@
 This is the API behind ``mtanno info FILE.parquet --features`` and ``mtanno show``: read
 a document's features as a compact text timeline (one row per feature, one character per
 frame or per block of frames) to pick the frames and features of a query by example
-(MRC05 §6.2, ``mtanno query --example``). Frames are 1-based and inclusive at 30 Hz, as in
+([MRC05] §6.2, ``mtanno query --example``). Frames are 1-based and inclusive at 30 Hz, as in
 every file.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.io.skeleton import Motion
-from mtanno.store import FeatureFile
+from mtanno.util.store import FeatureFile
 
 #: Characters of a timeline cell: the feature is off in every frame of the cell, on in
 #: every frame, or on in some.
@@ -46,8 +46,9 @@ def describe_feature_file(ff: FeatureFile) -> list[str]:
 def describe_motion(motion: Motion) -> list[str]:
     """The lines ``mtanno info MOTION`` prints for a motion read by
     :func:`mtanno.io.read_motion`: rig, frame rate, length in frames and seconds, skeleton
-    map, and which rig joint each canonical joint of the map comes from (MISSING where the
-    map finds none)."""
+    map and how it was chosen or made (a map file that fits, ``--skeleton``, or generated
+    from the joint names and the tree: :mod:`mtanno.io.guess`), and which rig joint each
+    canonical joint of the map comes from (MISSING where the map finds none)."""
     from mtanno.io.rigs import CANONICAL_JOINTS
 
     rig = motion.rig
@@ -60,6 +61,7 @@ def describe_motion(motion: Motion) -> list[str]:
         f"frames         {motion.n_frames}",
         f"duration       {motion.n_frames / motion.fps:.2f} s",
         f"skeleton map   {motion.smap.name} ({motion.smap.path})",
+        *([f"map made by    {motion.smap.how}"] if getattr(motion.smap, "how", "") else []),
         f"map coverage   {len(CANONICAL_JOINTS) - len(missing)}/{len(CANONICAL_JOINTS)}"
         + (f" (missing: {', '.join(missing)})" if missing else ""),
     ]

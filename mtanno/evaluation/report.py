@@ -6,11 +6,12 @@ documents' feature files) :func:`write_report` writes into one folder:
 * ``index.html`` — a self-contained page (every image inline as a data URI, no other file
   needed) with the tables and figures below;
 * ``per_class.csv`` / ``.md`` / ``.tex`` — per-class P/R/F at frame and segment level with
-  their support (MBS09 §7; the rows of ``mtanno evaluate``), CSV with provenance;
+  their support ([MBS09] §7), frame accuracy, Edit and F1@{10,25,50} (the rows of ``mtanno
+  evaluate``, "–" where undefined), CSV with provenance;
 * ``confusion.csv`` and ``confusion.png``/``.svg`` — the frame-level confusion matrix,
   truth × annotation, with a "none" row and column (frames without a label);
 * ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
-* with templates and features: ``template_<class>.png``/``.svg`` (heat maps, MR06 Fig. 4)
+* with templates and features: ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4)
   and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4).
 
 A confusion matrix needs one label per frame. Annotations from ``annotate
@@ -25,21 +26,26 @@ import base64
 import html
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mtanno.annotate import Annotation
 from mtanno.errors import MtannoError
-from mtanno.evaluate import Report, evaluate_annotations
-from mtanno.truth import Segment
+from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
+from mtanno.evaluation.truth import Segment
+
+if TYPE_CHECKING:
+    from mtanno.annotate.tables import Annotation
 
 NONE = "none"
+#: Title of a report page.
+REPORT_TITLE = "mtanno annotation report"
 FORMATS = ("png", "svg")
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
-#: after documents and classes), for :func:`mtanno.output.check_outputs`.
+#: after documents and classes), for :func:`mtanno.util.output.check_outputs`.
 REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
                 "per_class.tex", "confusion.csv", "confusion.csv.meta.json",
                 *(f"{stem}.{fmt}" for stem in ("confusion", "timeline_*", "template_*",
@@ -99,18 +105,24 @@ def confusion_matrix(truth: Sequence[Segment], annotation: Sequence[Annotation],
     return M, labels, overlapped
 
 
-def _number(x: float) -> str:
-    return f"{x:.3f}" if math.isfinite(x) else "–"
+def _number(x: float | None) -> str:
+    return "–" if x is None or not math.isfinite(x) else f"{x:.3f}"
+
+
+def _cells(r: dict) -> list[str]:
+    """The cells of a :meth:`Report.rows` row after its class, "–" where undefined."""
+    return [_number(r["P1"]), _number(r["R1"]), _number(r["F1"]), str(r["frames"]),
+            _number(r["P2"]), _number(r["R2"]), _number(r["F2"]), str(r["segments"]),
+            *(_number(r.get(c)) for c in SEGMENTATION_COLUMNS)]
 
 
 def markdown_table(rows: Sequence[dict]) -> str:
     """Per-class rows of :meth:`Report.rows` as a Markdown (GitHub) table."""
-    head = "| class | P1 | R1 | F1 | frames | P2 | R2 | F2 | segments |"
-    lines = [head, "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    head = ("| class | P1 | R1 | F1 | frames | P2 | R2 | F2 | segments | "
+            + " | ".join(SEGMENTATION_COLUMNS) + " |")
+    lines = [head, "|---|" + "---:|" * (8 + len(SEGMENTATION_COLUMNS))]
     for r in rows:
-        lines.append(f"| {r['class']} | " + " | ".join(
-            [_number(r["P1"]), _number(r["R1"]), _number(r["F1"]), str(r["frames"]),
-             _number(r["P2"]), _number(r["R2"]), _number(r["F2"]), str(r["segments"])]) + " |")
+        lines.append(f"| {r['class']} | " + " | ".join(_cells(r)) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -125,16 +137,14 @@ def _tex(text: str) -> str:
 
 def latex_table(rows: Sequence[dict]) -> str:
     """Per-class rows as a LaTeX ``tabular`` (booktabs rules), the overall row last."""
-    lines = [r"\begin{tabular}{lrrrrrrrr}", r"\toprule",
-             r"class & $P_1$ & $R_1$ & $F_1$ & frames & $P_2$ & $R_2$ & $F_2$ & segments \\",
+    lines = [r"\begin{tabular}{l" + "r" * (8 + len(SEGMENTATION_COLUMNS)) + "}", r"\toprule",
+             r"class & $P_1$ & $R_1$ & $F_1$ & frames & $P_2$ & $R_2$ & $F_2$ & segments & "
+             r"Acc & Edit & F1@10 & F1@25 & F1@50 \\",
              r"\midrule"]
     for r in rows:
         if r["class"] == "overall":
             lines.append(r"\midrule")
-        lines.append(" & ".join([_tex(str(r["class"])), _number(r["P1"]), _number(r["R1"]),
-                                 _number(r["F1"]), str(r["frames"]), _number(r["P2"]),
-                                 _number(r["R2"]), _number(r["F2"]), str(r["segments"])])
-                     + r" \\")
+        lines.append(" & ".join([_tex(str(r["class"])), *_cells(r)]) + r" \\")
     lines += [r"\bottomrule", r"\end{tabular}"]
     return "\n".join(lines) + "\n"
 
@@ -146,10 +156,12 @@ def _safe(name: str) -> str:
 class _Writer:
     """Writes the figures (PNG and SVG), remembers them for the page."""
 
-    def __init__(self, folder: Path, result: ReportResult):
+    def __init__(self, folder: Path, result: ReportResult, figures: int = 0,
+                 progress: Callable[[int, int], None] | None = None):
         self.folder = folder
         self.result = result
         self.images: list[tuple[str, str, Path]] = []  # section, caption, png
+        self.figures, self.progress = figures, progress  # progress(done, of figures)
 
     def figure(self, ax, stem: str, section: str, caption: str) -> None:
         from mtanno.plot import save_figure
@@ -159,9 +171,11 @@ class _Writer:
             save_figure(ax, path)
             self.result.files.append(path)
         self.images.append((section, caption, self.folder / f"{stem}.png"))
+        if self.progress is not None:
+            self.progress(len(self.images), max(self.figures, len(self.images)))
 
     def text(self, name: str, text: str) -> None:
-        from mtanno.output import write_text
+        from mtanno.util.output import write_text
 
         write_text(self.folder / name, text)
         self.result.files.append(self.folder / name)
@@ -174,7 +188,8 @@ def _html_table(rows: Sequence[dict]) -> str:
         cells = []
         for c in cols:
             v = r[c]
-            cells.append(f"<td>{_number(v) if isinstance(v, float) else html.escape(str(v))}</td>")
+            text = _number(v) if v is None or isinstance(v, float) else html.escape(str(v))
+            cells.append(f"<td>{text}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     return "\n".join(out) + "</table>"
 
@@ -231,8 +246,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
                  tau: float | None = None, tau_per_class: dict[str, float] | None = None,
                  delta: float | None = None, extra_templates: Sequence[str] = (),
-                 title: str = "mtanno annotation report",
-                 provenance: dict | None = None) -> ReportResult:
+                 title: str = REPORT_TITLE, provenance: dict | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
     document's length (default: the last labelled frame of truth or annotation);
@@ -243,8 +258,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     it. ``extra_templates`` names the classes the annotation also matched further
     templates for (a tuned configuration's ``[templates]``): their curves, of the class's
     own template only, are not the annotation's Δ, and the page says so. Documents are
-    those annotated."""
-    from mtanno.output import make_folder
+    those annotated. ``progress(done, total)`` is called after each figure."""
     from mtanno.plot import (
         label_colours,
         plot_confusion,
@@ -252,7 +266,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         plot_timeline,
         require_matplotlib,
     )
-    from mtanno.tables import write_table
+    from mtanno.util.output import make_folder
+    from mtanno.util.tables import write_table
 
     require_matplotlib()
     if not annotation:
@@ -267,16 +282,20 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                    + [s.end for s in truth if s.doc == d] + [0])
         frames[d] = max(frames.get(d, 0), last)
     frames = {d: frames[d] for d in docs}
-    out = [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in annotation]
-    ev = evaluate_annotations(truth, out, documents=docs)
+    from mtanno.annotate.tables import to_segments
+
+    out = to_segments(annotation)
+    ev = evaluate_annotations(truth, out, documents=docs, frames=frames)
     result.evaluation = ev
+    result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
     rows = ev.rows()
     prov = dict(provenance or {})
     import pyarrow as pa
 
     write_table(folder / "per_class.csv", pa.Table.from_pylist(rows), provenance=prov)
     result.files += [folder / "per_class.csv", folder / "per_class.csv.meta.json"]
-    w = _Writer(folder, result)
+    w = _Writer(folder, result, progress=progress, figures=1 + len(docs) + len(templates or {})
+                + (sum(d in features for d in docs) if templates and features else 0))
     w.text("per_class.md", markdown_table(rows))
     w.text("per_class.tex", latex_table(rows))
     M, labels, overlapped = confusion_matrix(truth, annotation, frames)
@@ -285,7 +304,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
         result.notes.append("the annotation's segments overlap; in the confusion matrix and "
                             "timelines each frame counts for the covering segment with the "
                             "smallest cost (use `mtanno annotate --single-label` for an exact "
-                            "partition by Δ̄)")
+                            "partition by Δ̄); the Acc column, like `mtanno evaluate`, gives "
+                            "each frame to the covering segment that starts last")
     table = {"truth": labels, **{lab: M[:, j].tolist() for j, lab in enumerate(labels)}}
     write_table(folder / "confusion.csv", pa.table(table), provenance=prov)
     result.files += [folder / "confusion.csv", folder / "confusion.csv.meta.json"]
@@ -314,7 +334,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
                 "the annotation also matched further templates of "
                 f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
                 "their Δ curves here are those of the class's own template only")
-    from mtanno.output import write_text
+    from mtanno.util.output import write_text
 
     write_text(result.page, _page(result, w.images, rows, title, prov))
     result.files.append(result.page)

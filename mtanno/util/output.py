@@ -6,7 +6,7 @@ interrupted or is killed never leaves half a file under the output's name:
 * the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``,
   and renamed over the target (``os.replace``, atomic on POSIX) only when complete;
 * the temporary file is removed when writing fails or is interrupted (Ctrl-C, SIGTERM: see
-  :mod:`mtanno.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
+  :mod:`mtanno.util.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
   the next write into the same folder removes the temporary files of writers that are no
   longer alive (same host, process gone);
 * the file gets the permissions an ordinary ``open`` would give it (0666 less the umask),
@@ -30,11 +30,13 @@ import re
 import socket
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
+from typing import NoReturn
 
 from mtanno.errors import MtannoError
 
-__all__ = ["atomic_path", "check_outputs", "current_umask", "remove_stale_temporaries",
-           "write_bytes", "write_stdout", "write_text"]
+__all__ = ["EXIT_CLOSED_OUTPUT", "atomic_path", "check_outputs", "current_umask", "end_closed_output",
+           "make_folder", "output_closed", "remove_stale_temporaries", "write_bytes",
+           "write_error", "write_stdout", "write_text"]
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
@@ -111,7 +113,7 @@ def remove_stale_temporaries(folder: str | os.PathLike, *, force: bool = False) 
     return removed
 
 
-def _write_error(target: Path, exc: OSError) -> MtannoError:
+def write_error(target: Path, exc: OSError) -> MtannoError:
     what = exc.strerror or str(exc)
     if isinstance(exc, (NotADirectoryError, FileExistsError)) and exc.filename \
             and Path(exc.filename) != target:
@@ -128,7 +130,7 @@ def make_folder(folder: str | os.PathLike) -> Path:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise _write_error(folder, exc) from None
+        raise write_error(folder, exc) from None
     return folder
 
 
@@ -143,7 +145,7 @@ def _check_target(target: Path) -> bool:
     except (FileNotFoundError, NotADirectoryError):
         return True
     except OSError as exc:
-        raise _write_error(target, exc) from None
+        raise write_error(target, exc) from None
     if stat.S_ISDIR(st.st_mode):
         raise MtannoError("output is a folder, not a file", path=str(target))
     return stat.S_ISREG(st.st_mode)
@@ -173,13 +175,13 @@ def _temporary(target: Path, mode: int, made: list[str]) -> int:
         except FileNotFoundError as exc:  # the folder does not exist yet
             made.pop()
             if made_folder:
-                raise _write_error(target, exc) from None
+                raise write_error(target, exc) from None
             make_folder(target.parent)
             made_folder = True
         except OSError as exc:
             made.pop()
-            raise _write_error(target, exc) from None
-    raise _write_error(target, FileExistsError(f"no free temporary name beside {target}"))
+            raise write_error(target, exc) from None
+    raise write_error(target, FileExistsError(f"no free temporary name beside {target}"))
 
 
 def _remove(made: list[str]) -> None:
@@ -199,7 +201,7 @@ def _replace(tmp: str, target: Path, fd: int | None = None) -> None:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         if isinstance(exc, OSError):
-            raise _write_error(target, exc) from None
+            raise write_error(target, exc) from None
         raise
 
 
@@ -219,7 +221,7 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
         try:
             yield target
         except OSError as exc:  # a device written in place (/dev/full: disk full)
-            raise _write_error(target, exc) from None
+            raise write_error(target, exc) from None
         return
     made: list[str] = []
     try:
@@ -227,7 +229,7 @@ def atomic_path(target: str | os.PathLike, *, mode: int = 0o666) -> Iterator[Pat
         yield Path(made[0])
     except OSError as exc:
         _remove(made)
-        raise _write_error(target, exc) from None
+        raise write_error(target, exc) from None
     except BaseException:
         _remove(made)
         raise
@@ -245,7 +247,7 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
             with open(target, "wb") as fh:
                 fh.write(data)
         except OSError as exc:
-            raise _write_error(target, exc) from None
+            raise write_error(target, exc) from None
         return
     made: list[str] = []
     fd = -1
@@ -260,19 +262,62 @@ def write_bytes(target: str | os.PathLike, data, *, mode: int = 0o666) -> None:
                 os.close(fd)
         _remove(made)
         if isinstance(exc, OSError):
-            raise _write_error(target, exc) from None
+            raise write_error(target, exc) from None
         raise
     _replace(made[0], target, fd)
 
 
+#: Exit code of a command whose standard output was closed by its reader
+#: (``mtanno info X | head -2``): 128 + SIGPIPE, what a shell reports for a program that
+#: SIGPIPE ended (docs/reliability.md, exit codes).
+EXIT_CLOSED_OUTPUT = 141
+
+
+def output_closed() -> bool:
+    """True if the reader of standard output or standard error is gone (a pipe whose
+    reading end was closed: ``mtanno show X | head -1``). Only the process's real streams
+    count; a stream that is no file (a test runner's buffer) is never closed."""
+    import select
+    import sys
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            poll = select.poll()
+            poll.register(stream.fileno(), select.POLLOUT)
+            if any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0)):
+                return True
+        except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation: no file
+            continue
+    return False
+
+
+def end_closed_output() -> NoReturn:
+    """End the command quietly because its reader closed standard output (the SIGPIPE
+    convention: no message, exit code :data:`EXIT_CLOSED_OUTPUT`). Standard output and
+    error are pointed at the null device first, so the final flushes write nowhere instead
+    of failing again."""
+    import sys
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            os.dup2(devnull, stream.fileno())
+    os.close(devnull)
+    sys.exit(EXIT_CLOSED_OUTPUT)
+
+
 def write_stdout(text: str) -> None:
-    """Write ``text`` to standard output and flush it; a failure (a full device, a closed
-    pipe) is one :class:`MtannoError` that says it was standard output."""
+    """Write ``text`` to standard output and flush it; a failure (a full device) is one
+    :class:`MtannoError` that says it was standard output. A reader that closed the pipe
+    early is no error: :class:`BrokenPipeError` goes up to the command's edge, which ends
+    quietly (:func:`end_closed_output`)."""
     import sys
 
     try:
         sys.stdout.write(text)
         sys.stdout.flush()
+    except BrokenPipeError:
+        raise
     except OSError as exc:
         raise MtannoError(f"cannot write to standard output: {exc.strerror or exc}") from None
 
@@ -295,7 +340,7 @@ def _identity(path: Path) -> tuple[int, int] | None:
 
 
 #: Appended to a CSV or JSON Lines table's name to name its provenance sidecar
-#: (:mod:`mtanno.tables`); an input's sidecar is an input too (:func:`check_outputs`).
+#: (:mod:`mtanno.util.tables`); an input's sidecar is an input too (:func:`check_outputs`).
 SIDECAR_SUFFIX = ".meta.json"
 #: Table suffixes that have a sidecar.
 SIDECAR_TABLES = (".csv", ".jsonl")
@@ -339,34 +384,8 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
     ``None`` and ``-`` (standard input/output) are skipped. Every refusal is one
     :class:`~mtanno.errors.MtannoError` naming the output.
     """
-    import stat
-    from fnmatch import fnmatchcase
-
-    resolved_folders: dict[str, str] = {}
-
-    def in_folder(parent: str, name: str) -> str:
-        # the folder resolved once per folder (batches name thousands of files in a few
-        # folders); a file that is itself a link is caught by its inode below
-        if parent not in resolved_folders:
-            resolved_folders[parent] = os.path.realpath(parent)
-        return os.path.join(resolved_folders[parent], name)
-
-    def resolved(p: Path) -> str:
-        return in_folder(str(p.parent), p.name)
-
-    def link_target(p: Path) -> str:
-        # where a symbolic link leads (os.path.realpath), its folder resolved once per
-        # folder as above; a link to a link is left to realpath
-        target = os.path.join(str(p.parent), os.readlink(p))
-        folder, name = os.path.split(target)
-        if name in ("", ".", "..") or os.path.islink(target):
-            return os.path.realpath(p)
-        return in_folder(folder or ".", name)
-
-    def given(items) -> list[str]:
-        return [str(i) for i in items if i is not None and str(i) != "-"]
-
-    outputs = given(outputs)
+    outputs = _given(outputs)
+    paths = _Paths()
     out_folders: list[tuple[str, str, list[str] | None]] = []  # (as given, resolved, names)
     patterns: list[tuple[str, str, str]] = []  # (folder as given, resolved folder, pattern)
     for folder, names in (folders or {}).items():
@@ -379,42 +398,91 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
                 patterns.append((str(folder), os.path.realpath(folder), name))
             else:
                 outputs.append(os.path.join(str(folder), name))
+    by_path, by_inode = _input_index(_given(inputs), paths)
+    out_paths = _check_files(outputs, by_path, by_inode, paths)
+    _check_folders(out_folders, patterns, by_path, paths)
+    _check_scanned(scanned or {}, out_paths, out_folders)
+    if writable:
+        probed: dict[str, OSError | None] = {}
+        for item, _ in out_paths:
+            _preflight(Path(item), probed, folder=False)
+        for given_name, _, _ in out_folders:
+            _preflight(Path(given_name), probed, folder=True)
 
-    # the inputs, by resolved path (and where a link leads) and by inode
-    # (the input as given, and whether this is its sidecar rather than the input itself)
+
+def _given(items) -> list[str]:
+    """The paths of ``items``, without None and ``-`` (standard input or output)."""
+    return [str(i) for i in items if i is not None and str(i) != "-"]
+
+
+class _Paths:
+    """Resolved paths, each folder resolved once (batches name thousands of files in a few
+    folders; a file that is itself a link is caught by its inode)."""
+
+    def __init__(self) -> None:
+        self._folders: dict[str, str] = {}
+
+    def in_folder(self, parent: str, name: str) -> str:
+        if parent not in self._folders:
+            self._folders[parent] = os.path.realpath(parent)
+        return os.path.join(self._folders[parent], name)
+
+    def resolved(self, p: Path) -> str:
+        return self.in_folder(str(p.parent), p.name)
+
+    def link_target(self, p: Path) -> str:
+        """Where a symbolic link leads (as :func:`os.path.realpath`; a link to a link is
+        left to realpath)."""
+        target = os.path.join(str(p.parent), os.readlink(p))
+        folder, name = os.path.split(target)
+        if name in ("", ".", "..") or os.path.islink(target):
+            return os.path.realpath(p)
+        return self.in_folder(folder or ".", name)
+
+
+def _input_index(inputs: list[str], paths: _Paths):
+    """The inputs by resolved path (and where a link leads) and by device and inode, each
+    mapped to (the input as given, whether this is its provenance sidecar)."""
+    import stat
+
     by_path: dict[str, tuple[str, bool]] = {}
     by_inode: dict[tuple[int, int], tuple[str, bool]] = {}
-    for item in given(inputs):
+    for item in inputs:
         items = [(item, (item, False))]
         if item.lower().endswith(SIDECAR_TABLES):  # its provenance: an input too
             items.append((item + SIDECAR_SUFFIX, (item, True)))
         for each, what in items:
             p = Path(each)
-            by_path.setdefault(resolved(p), what)
+            by_path.setdefault(paths.resolved(p), what)
             try:
                 st = os.lstat(p)
                 if stat.S_ISLNK(st.st_mode):  # also where it leads
-                    by_path.setdefault(link_target(p), what)
+                    by_path.setdefault(paths.link_target(p), what)
                     st = os.stat(p)
             except OSError:
                 continue
             if stat.S_ISREG(st.st_mode):
                 by_inode.setdefault((st.st_dev, st.st_ino), what)
+    return by_path, by_inode
 
-    def clash(item: str, hit: tuple[str, bool]) -> MtannoError:
-        name, sidecar = hit
-        if sidecar:
-            what = f"the provenance sidecar of the input {name}"
-        else:
-            what = "an input of this command" + ("" if name == item else f" ({name})")
-        return MtannoError(f"output would overwrite {what}; choose another output name",
-                           path=item)
 
+def _clash(item: str, hit: tuple[str, bool]) -> MtannoError:
+    name, sidecar = hit
+    if sidecar:
+        what = f"the provenance sidecar of the input {name}"
+    else:
+        what = "an input of this command" + ("" if name == item else f" ({name})")
+    return MtannoError(f"output would overwrite {what}; choose another output name", path=item)
+
+
+def _check_files(outputs: list[str], by_path, by_inode, paths: _Paths) -> list[tuple[str, str]]:
+    """Refuse an output named twice or that is an input (by path or inode); returns the
+    outputs (as given, resolved)."""
     seen: dict[str, str] = {}
-    out_paths: list[tuple[str, str]] = []  # (as given, resolved)
+    out_paths: list[tuple[str, str]] = []
     for item in outputs:
         p = Path(item)
-        rp = resolved(p)
+        rp = paths.resolved(p)
         if rp in seen:
             raise MtannoError(f"the same output is named twice ({seen[rp]} and {item})",
                               path=item)
@@ -425,11 +493,20 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
             ident = _identity(p)
             hit = by_inode.get(ident) if ident is not None else None
         if hit is not None:
-            raise clash(item, hit)
+            raise _clash(item, hit)
+    return out_paths
+
+
+def _check_folders(out_folders, patterns, by_path, paths: _Paths) -> None:
+    """Refuse an output folder that is an input, a folder of the command's own (names
+    None) with an input below it, and an input a name pattern of an output folder
+    matches."""
+    from fnmatch import fnmatchcase
+
     for given_name, rfolder, names in out_folders:
-        hit = by_path.get(rfolder) or by_path.get(resolved(Path(given_name)))
+        hit = by_path.get(rfolder) or by_path.get(paths.resolved(Path(given_name)))
         if hit is not None:
-            raise clash(given_name, hit)
+            raise _clash(given_name, hit)
         if names is None:  # the folder is the command's: nothing of the inputs below it
             inside = next((i for rp, (i, _) in by_path.items() if _inside(rp, rfolder)),
                           None)
@@ -441,10 +518,13 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
         for rp, item in by_path.items():
             folder, name = os.path.split(rp)
             if folder == rfolder and fnmatchcase(name, pattern):
-                raise clash(os.path.join(given_name, name), item)
+                raise _clash(os.path.join(given_name, name), item)
 
-    # outputs inside a folder the command reads as input
-    for folder, suffixes in (scanned or {}).items():
+
+def _check_scanned(scanned, out_paths, out_folders) -> None:
+    """Refuse an output inside a folder the command reads as input (with a suffix it reads
+    there): the next run over that folder would read it too."""
+    for folder, suffixes in scanned.items():
         if folder is None or str(folder) == "-":
             continue
         rfolder = os.path.realpath(folder)
@@ -459,19 +539,11 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
             if _inside(rf, rfolder):
                 hits += [given_name] if names is None else \
                     [os.path.join(given_name, n) for n in names if read(n)]
-        hit = hits[0] if hits else None
-        if hit is not None:
+        if hits:
             what = "files" if takes is None else ", ".join(takes) + " files"
             raise MtannoError(f"output lies inside {folder}, whose {what} are read as "
                               "inputs: the next run over that folder would read this output "
-                              "too; choose an output outside it", path=hit)
-
-    if writable:
-        probed: dict[str, OSError | None] = {}
-        for item, _ in out_paths:
-            _preflight(Path(item), probed, folder=False)
-        for given_name, _, _ in out_folders:
-            _preflight(Path(given_name), probed, folder=True)
+                              "too; choose an output outside it", path=hits[0])
 
 
 def _preflight(target: Path, probed: dict, *, folder: bool) -> None:
@@ -486,7 +558,7 @@ def _preflight(target: Path, probed: dict, *, folder: bool) -> None:
     except (FileNotFoundError, NotADirectoryError):
         st = None
     except OSError as exc:
-        raise _write_error(target, exc) from None
+        raise write_error(target, exc) from None
     if st is not None:
         if folder and not stat.S_ISDIR(st.st_mode):
             raise MtannoError("output folder exists and is not a folder", path=str(target))
@@ -506,7 +578,7 @@ def _preflight(target: Path, probed: dict, *, folder: bool) -> None:
                     from None
             where = where.parent
         except OSError as exc:
-            raise _write_error(target, exc) from None
+            raise write_error(target, exc) from None
     if not stat.S_ISDIR(wst.st_mode):
         raise MtannoError(f"cannot write here: {where} is not a folder", path=str(target))
     key = str(where)
@@ -514,7 +586,7 @@ def _preflight(target: Path, probed: dict, *, folder: bool) -> None:
         probed[key] = _probe(where)
     if probed[key] is not None:
         exc = probed[key]
-        raise _write_error(target, exc) from None
+        raise write_error(target, exc) from None
 
 
 def _probe(folder: Path) -> OSError | None:
@@ -535,103 +607,3 @@ def _probe(folder: Path) -> OSError | None:
             with contextlib.suppress(OSError):
                 os.unlink(name)
     return None
-
-
-# ----------------------------------------------------------------------------- folder locks
-
-#: Exit code of a command that finds its output folder locked by another run (cron safety).
-EXIT_BUSY = 3
-
-
-class LockBusy(MtannoError):
-    """The output folder is locked by another running mtanno process; commands exit with
-    :data:`EXIT_BUSY`."""
-
-    exit_code = EXIT_BUSY
-
-
-def _holder(fh) -> dict:
-    from mtanno.errors import parse_json
-
-    try:
-        fh.seek(0)
-        data = parse_json(fh.read() or "{}")
-        return data if isinstance(data, dict) else {}
-    except (OSError, ValueError, MtannoError):
-        return {}
-
-
-def _holder_text(h: dict) -> str:
-    if not h:
-        return "another process"
-    return (f"pid {h.get('pid', '?')} on {h.get('host', '?')} since {h.get('started', '?')}"
-            + (f" ({h['command']})" if h.get("command") else ""))
-
-
-@contextlib.contextmanager
-def folder_lock(folder: str | os.PathLike, *, wait: bool = False, what: str = "output folder",
-                name: str = ".mtanno.lock", on_wait=None) -> Iterator[None]:
-    """Hold the exclusive writer lock of an output folder while the block runs.
-
-    Two runs that write into the same folder (two cron jobs, say) must not interleave: the
-    lock is an ``fcntl.flock`` on ``FOLDER/.mtanno.lock`` (``name``), which the kernel
-    releases when the holder ends in any way — a lock left by a dead process is simply taken
-    over. The holder writes who it is (pid, host, start time, command line) into the file,
-    so a second run that finds the lock held says which run holds it and raises
-    :class:`LockBusy` (the commands exit with code 3), or, with ``wait``, waits for it
-    (``on_wait(holder_text)`` is called once before waiting). The folder is created; the
-    lock file is removed when the block ends (a killed holder leaves it, unlocked, and the
-    next run takes it over).
-    """
-    import json
-    import time
-
-    folder = Path(folder)
-    path = folder / name
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX: no locking
-        fcntl = None
-    waited = False
-    while True:
-        try:
-            make_folder(folder)
-            fh = open(path, "a+", encoding="utf-8")
-        except OSError as exc:
-            raise _write_error(folder, exc) from None
-        if fcntl is None:  # pragma: no cover
-            break
-        try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = _holder_text(_holder(fh))
-            if not wait:
-                fh.close()
-                raise LockBusy(f"{what} is locked by {holder}; try again later or pass "
-                               "--wait", path=str(folder)) from None
-            if on_wait is not None and not waited:
-                on_wait(holder)
-            waited = True
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        # the holder removes the file when it is done: a lock taken on a file that is no
-        # longer at the path (removed, or replaced by a newer one) is no lock; take it again
-        try:
-            if os.fstat(fh.fileno()).st_ino == os.stat(path).st_ino:
-                break
-        except FileNotFoundError:
-            pass
-        fh.close()
-    try:
-        from mtanno.tables import command_line
-
-        fh.seek(0)
-        fh.truncate()
-        fh.write(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
-                             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-                             "command": " ".join(command_line() or [])}))
-        fh.flush()
-        yield
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(path)  # while still holding it: a waiter then takes it again
-        fh.close()

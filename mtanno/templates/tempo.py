@@ -6,7 +6,7 @@ as long as the template, so a performance much faster or slower than the trainin
 cannot match at all. A copy of the template with ``round(K·f)`` columns — column j is the
 template's column ``floor((j + ½)·K / (K·f))``, i.e. the nearest one in time, with its
 weight — covers performances about ``f`` times as long. Every column of the copy is a
-column of the template, so its frame-wise evidence (:func:`mtanno.decode.frame_evidence`,
+column of the template, so its frame-wise evidence (:func:`mtanno.annotate.decode.frame_evidence`,
 the best column anywhere in the template) is never lower than the template's own: taking
 the minimum over the class's templates, the copy leaves the evidence unchanged.
 """

@@ -17,7 +17,7 @@ index tables (``index info``) are all written by :func:`write_table` and read by
   ``FILE.meta.json`` beside ``FILE`` (``hits.csv`` → ``hits.csv.meta.json``), so the table
   itself stays a plain table any tool reads. Standard output carries none.
 
-Files are written atomically (:func:`mtanno.output.atomic_path`).
+Files are written atomically (:func:`mtanno.util.output.atomic_path`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import math
 import os
 import re
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,11 +38,12 @@ from typing import Any
 import pyarrow as pa
 
 from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_json
-from mtanno.output import SIDECAR_SUFFIX, atomic_path, write_stdout
+from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
-           "command_line", "dumps", "file_record", "output_files", "provenance",
-           "provenance_as_read", "read_manifest", "read_provenance", "read_table",
+           "command_line", "dumps", "file_record", "json_compact", "json_list_lines",
+           "json_object_lines", "output_files", "parse_frame_range", "provenance",
+           "provenance_as_read", "read_clip_manifest", "read_provenance", "read_table",
            "set_command_line", "sidecar_path", "string_array", "table_format",
            "table_provenance", "text", "write_json", "write_table"]
 
@@ -92,7 +93,7 @@ def sidecar_path(path: str | os.PathLike) -> Path | None:
 
 def output_files(path: str | os.PathLike | None) -> list[str]:
     """Every file that writing the table ``path`` creates (the table and its sidecar), for
-    :func:`mtanno.output.check_outputs`."""
+    :func:`mtanno.util.output.check_outputs`."""
     if path is None or str(path) == "-":
         return []
     side = sidecar_path(path)
@@ -102,7 +103,7 @@ def output_files(path: str | os.PathLike | None) -> list[str]:
 def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
     """``{"path": ..., "sha256": ...}`` of an input file (hashed unless given)."""
     if sha256 is None:
-        from mtanno.store import sha256_file
+        from mtanno.util.store import sha256_file
 
         try:
             sha256 = sha256_file(path)
@@ -117,7 +118,7 @@ def provenance(*, inputs: Iterable[dict | str | os.PathLike] = (),
     time, ``inputs`` (file records, see :func:`file_record`; paths are hashed),
     ``templates`` (class, path, SHA-256) and the parameters that shaped the table (τ, δ,
     feature set, …, given as keywords; None values are left out)."""
-    from mtanno import __version__
+    from mtanno._version import __version__
 
     recs = [i if isinstance(i, dict) else file_record(i) for i in inputs]
     out = {"schema": PROVENANCE_SCHEMA, "mtanno_version": __version__,
@@ -219,9 +220,35 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
     """Write a JSON document atomically (``-``: standard output); non-finite numbers are
     written as null, so every JSON reader accepts the file; file names that are not UTF-8
     are escaped (:func:`dumps`)."""
-    from mtanno.output import write_text
+    from mtanno.util.output import write_text
 
     write_text(path, dumps(obj, indent=1) + "\n")
+
+
+def json_compact(x: Any) -> str:
+    """One value as compact JSON with non-ASCII characters kept (no other change: the
+    value of one line of :func:`json_object_lines`)."""
+    return json.dumps(x, ensure_ascii=False)
+
+
+def json_list_lines(items: Iterable[str], level: int = 1) -> str:
+    """A JSON array of items already written as JSON text, one a line, for a file meant
+    to be read and edited; ``level`` is how deep it stands (two spaces a level)."""
+    pad = "  " * level
+    return "[\n" + ",\n".join(pad + "  " + it for it in items) + "\n" + pad + "]"
+
+
+def json_object_lines(d: Mapping[str, Any], layouts: Mapping[str, Callable[[Any], str]] | None
+                      = None, level: int = 0) -> str:
+    """A JSON object meant to be read and edited: one line per key, its value as
+    :func:`json_compact`, or as the function ``layouts`` gives for its key writes it
+    (such as :func:`json_list_lines`); ``level`` as there. The one layout of template,
+    keyframe and provenance files."""
+    layouts = layouts or {}
+    pad = "  " * level
+    lines = [f"{pad}  {json_compact(k)}: {layouts[k](v) if k in layouts else json_compact(v)}"
+             for k, v in d.items()]
+    return "{\n" + ",\n".join(lines) + "\n" + pad + "}"
 
 
 def _clean(x: Any) -> Any:
@@ -507,7 +534,7 @@ class ManifestRow:
     line: int | None
 
 
-def read_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
+def read_clip_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
     """Read a clip manifest (columns ``file,class[,actor,split,...]``, e.g. HDM05's
     ``clips.csv``): the one manifest reader of ``learn-mt`` and ``compose``. Every row
     needs a file (a relative path inside the data folder) and a class."""
@@ -525,3 +552,21 @@ def read_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
     if not out:
         raise MtannoError("manifest lists no files", path=table.path)
     return table, out
+
+
+def parse_frame_range(text: str | None, n: int) -> tuple[int, int] | None:
+    """``'A:B'`` (1-based, inclusive, as every file gives frames; either side may be empty)
+    → 0-based (a, b) inside a document of ``n`` frames; None for None (``--frames``)."""
+    if text is None:
+        return None
+    a, sep, b = text.partition(":")
+    try:
+        lo = int(a) if a.strip() else 1
+        hi = int(b) if b.strip() else n
+    except ValueError:
+        raise MtannoError(f"{{frames}} must be A:B with 1-based frame numbers, got '{text}'",
+                          options=("frames",)) from None
+    if not sep or lo < 1 or hi < lo or hi > n:
+        raise MtannoError(f"{{frames}} {text} is not a range inside 1:{n}", options=("frames",))
+    return lo - 1, hi - 1
+

@@ -9,7 +9,7 @@ file is assembled from its parts (Parquet's thrift compact protocol), with what 
 the feature names alone built once.
 
 The result must be byte for byte what :func:`pyarrow.parquet.write_table` writes with the
-options of :func:`mtanno.store.write_features`. :func:`available` checks that once per
+options of :func:`mtanno.util.store.write_features`. :func:`available` checks that once per
 process, on reference tables encoded both ways with the pyarrow in use; when they differ (a
 pyarrow that writes another footer), every file is written by pyarrow.
 ``tests/test_store.py`` compares the two for every row count.

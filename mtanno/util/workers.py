@@ -3,7 +3,7 @@
 * **SIGTERM and SIGHUP are handled like SIGINT.** Inside :func:`interruptible` (the command
   line wraps every command in it) they raise :class:`Interrupted`, a
   :class:`KeyboardInterrupt`, so the same code runs for all three: temporary files are
-  removed (:func:`mtanno.output.atomic_path`), workers are stopped, and the command line
+  removed (:func:`mtanno.util.output.atomic_path`), workers are stopped, and the command line
   prints one line and exits 130 (129 for SIGHUP). Before and after the command (imports,
   interpreter shutdown) :mod:`mtanno.__main__` holds the same policy.
 * **An interruption inside a ctypes callback is delivered again.** numba loads its cached
@@ -361,13 +361,14 @@ def scheduler_address(scheduler: str) -> str:
     if text.startswith("local:"):
         n = text.split(":", 1)[1]
         if not (n.isascii() and n.isdigit() and int(n) >= 1):
-            raise MtannoError(f"--scheduler local:N needs a positive number of workers, "
-                              f"got {scheduler!r}")
+            raise MtannoError(f"{{scheduler}} local:N needs a positive number of workers, "
+                              f"got {scheduler!r}", options=("scheduler",))
         return f"local:{int(n)}"
     m = _ADDRESS.fullmatch(text)
     if m is None or (m.group(1) is not None and not 1 <= int(m.group(1)) <= 65535):
-        raise MtannoError(f"--scheduler must be a dask scheduler address such as "
-                          f"tcp://HOST:8786, or local:N, got {scheduler!r}")
+        raise MtannoError(f"{{scheduler}} must be a dask scheduler address such as "
+                          f"tcp://HOST:8786, or local:N, got {scheduler!r}",
+                          options=("scheduler",))
     return text
 
 
@@ -388,8 +389,8 @@ class DaskPool:
         except ImportError:
             from mtanno.errors import MtannoError
 
-            raise MtannoError("--scheduler needs dask.distributed, an optional extra: "
-                              "pip install 'mtanno[dask]'") from None
+            raise MtannoError("{scheduler} needs dask.distributed, an optional extra: "
+                              "pip install 'mtanno[dask]'", options=("scheduler",)) from None
         self._cluster = None
         scheduler = scheduler_address(scheduler)
         if scheduler.startswith("local:"):

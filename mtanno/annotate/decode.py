@@ -1,7 +1,7 @@
 """The segment decoder of tuned annotation: overlap resolution, boundary refinement,
 rejection and frame-wise tie-breaking (issue 10; ``docs/annotation.md``).
 
-MBS09's annotation (§4, algorithms.md §7) labels every frame with the class of smallest
+[MBS09]'s annotation (§4, algorithms.md §7) labels every frame with the class of smallest
 modified distance Δ̄ and then extends the runs outward, so segments of different classes
 overlap and extended segments run past the true boundaries. The segment decoder instead
 chooses, per document, the cheapest *partition* into matches and unlabelled frames, by
@@ -28,15 +28,26 @@ frames and P labels, with O(L) memory besides the P × L distance and start arra
 Frames are 0-based inside this module.
 """
 
+
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
+from mtanno.annotate._kernels import (
+    _best_column,
+    _decode,
+    _distinct_words,
+    _fold,
+    _prefix,
+    _relative,
+    _relative_sums,
+    _segments,
+    _take_spans,
+)
 from mtanno.errors import MtannoError
 from mtanno.templates.match import check_spans
 
@@ -44,8 +55,11 @@ __all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "Ev
            "RowEvidence", "decode_segments", "distinct_frames", "evidence_columns",
            "evidence_sums", "fold_label", "frame_evidence", "relative_evidence", "row_evidence"]
 
+
 #: Frames a segment start may move from its match's start (boundary refinement).
 DEFAULT_SLACK = 3
+
+
 #: Frames around a class's candidate windows (keyframes) where its evidence is computed:
 #: at least the largest slack a segment start may move out of a window.
 EVIDENCE_MARGIN = 8
@@ -59,56 +73,6 @@ class Decoded(NamedTuple):
     start: int
     end: int
     cost: float
-
-
-@numba.njit(cache=True)
-def _decode(delta, start, scale, ceiling, cum_ev, weight, seg_cost, slack, first, best,
-            back_k, back_p):
-    """Least-cost partition of frames 0…L−1 into matches and unlabelled frames.
-
-    ``best[j]`` is the least cost of frames 0…j−1; a match of label p ending at ℓ starts
-    at k ∈ [a − slack, a + slack] ∩ [first[ℓ], ℓ] (a = start[p, ℓ]; ``first`` holds the
-    first frame of ℓ's document when several are decoded at once) and costs
-    (ℓ − k + 1)·delta[p, ℓ]·scale[p] + weight·(cum_ev[p, ℓ + 1] − cum_ev[p, k]) + seg_cost;
-    an unlabelled frame costs 1. Only strictly cheaper choices replace earlier ones.
-    Matches too short to pay their segment cost are skipped without trying their starts
-    (exact: best[ℓ] ≤ best[k] + ℓ − k, as the unlabelled frames show)."""
-    P, L = delta.shape
-    best[0] = 0.0
-    for ell in range(L):
-        b = best[ell] + 1.0
-        bk = ell
-        bp = -1
-        for p in range(P):
-            d = delta[p, ell]
-            if not d <= ceiling[p]:  # ∞ (no match ends here), NaN, or rejected
-                continue
-            per = d * scale[p]
-            if per >= 1.0:  # never cheaper than unlabelled frames (weights are ≥ 0)
-                continue
-            a = start[p, ell]  # read only now: most matches cost more than τ
-            if a < 0:
-                continue
-            lo = max(first[ell], a - slack)
-            hi = min(ell, a + slack)
-            # a match of n ≤ ell − lo + 1 frames costs at least n·per + seg_cost more than
-            # best[k], and leaving its frames unlabelled costs n: it cannot win where
-            # n·(1 − per) < seg_cost (less a bound on the rounding of both sums)
-            n = ell - lo + 1
-            if n * (1.0 - per) < seg_cost - 2.3e-16 * (1.01 * (ell + 1) + n + seg_cost + 1.0) \
-                    * (n + 6):
-                continue
-            for k in range(lo, hi + 1):
-                c = best[k] + (ell - k + 1) * per + seg_cost
-                if weight != 0.0:
-                    c += weight * (cum_ev[p, ell + 1] - cum_ev[p, k])
-                if c < b:
-                    b = c
-                    bk = k
-                    bp = p
-        best[ell + 1] = b
-        back_k[ell + 1] = bk
-        back_p[ell + 1] = bp
 
 
 def _check_labels(deltas, starts, tau, reject):
@@ -128,45 +92,13 @@ def _check_labels(deltas, starts, tau, reject):
     return deltas, starts, tau, reject
 
 
-@numba.njit(cache=True)
-def _segments(back_k, back_p, deltas, first, lab, seg_start, seg_end, cost):
-    """The decoded segments from the back pointers, in frame order, touching segments of
-    one label in one document merged (cost: the smallest Δ at their ends); returns their
-    number."""
-    n = 0
-    j = back_k.shape[0] - 1
-    while j > 0:
-        k, p = back_k[j], back_p[j]
-        if p >= 0:
-            lab[n], seg_start[n], seg_end[n], cost[n] = p, k, j - 1, deltas[p, j - 1]
-            n += 1
-        j = k
-    for i in range(n // 2):  # the walk went backwards
-        r = n - 1 - i
-        lab[i], lab[r] = lab[r], lab[i]
-        seg_start[i], seg_start[r] = seg_start[r], seg_start[i]
-        seg_end[i], seg_end[r] = seg_end[r], seg_end[i]
-        cost[i], cost[r] = cost[r], cost[i]
-    m = 0
-    for i in range(n):  # in place: m ≤ i
-        p, a, b, c = lab[i], seg_start[i], seg_end[i], cost[i]
-        if m > 0 and lab[m - 1] == p and seg_end[m - 1] + 1 == a \
-                and first[a] == first[seg_end[m - 1]]:
-            seg_end[m - 1] = b
-            cost[m - 1] = min(cost[m - 1], c)
-        else:
-            lab[m], seg_start[m], seg_end[m], cost[m] = p, a, b, c
-            m += 1
-    return m
-
-
 def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[float] | np.ndarray,
                     reject: Sequence[float] | np.ndarray | None = None,
                     slack: int = DEFAULT_SLACK, evidence: np.ndarray | None = None,
                     weight: float = 0.0, segment_cost: float = 0.0,
                     boundaries: Sequence[int] = ()) -> list[Decoded]:
     """The least-cost partition of a document into label segments and unlabelled frames
-    (module docstring; issue 10, built on MBS09 §4's distance functions).
+    (module docstring; issue 10, built on [MBS09] §4's distance functions).
 
     Parameters
     ----------
@@ -241,58 +173,6 @@ def decode_segments(deltas: np.ndarray, starts: np.ndarray, *, tau: Sequence[flo
                                          seg_end[:m].tolist(), cost[:m].tolist())]
 
 
-# --------------------------------------------------------------------------- evidence
-
-
-@numba.njit(cache=True)
-def _popcount(x):
-    """Set bits of a uint64 (SWAR). Kept in this file, as in the other kernel files: numba's
-    cache does not see a change of a kernel defined in another file."""
-    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
-    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
-    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
-    return np.int64((x * np.uint64(0x0101010101010101)) >> np.uint64(56))
-
-
-@numba.njit(cache=True)
-def _best_column(packed, masks, vals, inv_nnz, starts, ends, out):
-    """out[t] = min over columns k of (disagreements of frame t on k's fixed rows) / nnz_k,
-    for the frames t of the spans [starts[i], ends[i]]; the template's words only (a
-    document may have more)."""
-    words = masks.shape[1]
-    K = masks.shape[0]
-    for i in range(starts.shape[0]):
-        for t in range(starts[i], ends[i] + 1):
-            b = np.inf
-            for k in range(K):
-                m = 0
-                for w in range(words):
-                    m += _popcount((packed[t, w] ^ vals[k, w]) & masks[k, w])
-                c = m * inv_nnz[k]
-                if c < b:
-                    b = c
-            out[t] = b
-
-
-@numba.njit(cache=True)
-def _fold(delta, start, ceiling, inv_tau, row, row_start, first, span_first, span_last):
-    """row = min(row, Δ·(1/τ) where Δ ≤ ceiling), with the start frames of the minima,
-    over the frames of the spans [span_first[i], span_last[i]] (Δ is ∞ elsewhere and not
-    read); ``first``: as if row were ∞ and row_start −1 before (they are written
-    everywhere)."""
-    if first:
-        row[:] = np.inf
-        row_start[:] = -1
-    for i in range(span_first.shape[0]):
-        for t in range(span_first[i], span_last[i] + 1):
-            d = delta[t]
-            if d <= ceiling:
-                v = d * inv_tau
-                if v < row[t]:
-                    row[t] = v
-                    row_start[t] = start[t]
-
-
 def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start: np.ndarray, *,
                tau: float, reject: float = np.inf, first: bool = False,
                spans: tuple[np.ndarray, np.ndarray] | None = None) -> None:
@@ -313,35 +193,6 @@ def fold_label(row: np.ndarray, row_start: np.ndarray, delta: np.ndarray, start:
         raise MtannoError("row, row_start, delta and start must have one entry per frame")
     _fold(np.ascontiguousarray(delta, dtype=np.float64), np.ascontiguousarray(start, np.int64),
           float(reject), 1.0 / float(tau), row, row_start, bool(first), first_, last)
-
-
-@numba.njit(cache=True)
-def _distinct_words(x, inverse):
-    """Distinct values of ``x`` (uint64) in order of first appearance; ``inverse[i]`` the
-    index of x[i] among them. Open addressing with linear probing on a table of at least
-    twice as many slots as values (the key folded by shifts, so no multiply wraps)."""
-    n = x.shape[0]
-    size = 2
-    while size < 2 * n:
-        size *= 2
-    mask = np.uint64(size - 1)
-    keys = np.empty(size, np.uint64)
-    ids = np.full(size, -1, np.int64)
-    uniq = np.empty(n, np.uint64)
-    m = 0
-    for i in range(n):
-        v = x[i]
-        h = (v ^ (v >> np.uint64(17)) ^ (v >> np.uint64(31)) ^ (v >> np.uint64(47))) & mask
-        j = np.int64(h)
-        while ids[j] >= 0 and keys[j] != v:
-            j = (j + 1) & (size - 1)
-        if ids[j] < 0:
-            keys[j] = v
-            ids[j] = m
-            uniq[m] = v
-            m += 1
-        inverse[i] = ids[j]
-    return uniq[:m]
 
 
 def distinct_frames(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -447,27 +298,6 @@ class RowEvidence:
         return out
 
 
-@numba.njit(cache=True)
-def _take_spans(per_row, inverse, firsts, lasts, out):
-    """out = ∞, and out[t] = per_row[inverse[t]] for the frames t of the spans. Returns 0,
-    or (out partly written) 1 where a non-empty span leaves the frames of ``out``, 2 where a
-    frame's row is not one of ``per_row`` (checked here, in the pass that reads them)."""
-    L = out.shape[0]
-    n = per_row.shape[0]
-    out[:] = np.inf
-    for i in range(firsts.shape[0]):
-        a = firsts[i]
-        b = lasts[i]
-        if b >= a and (a < 0 or b >= L):
-            return 1
-        for t in range(a, b + 1):
-            r = inverse[t]
-            if r < 0 or r >= n:
-                return 2
-            out[t] = per_row[r]
-    return 0
-
-
 def _span_arrays(spans) -> tuple[np.ndarray, np.ndarray]:
     """(firsts, lasts) as int64 arrays of one length."""
     if len(spans) != 2:
@@ -523,24 +353,6 @@ def frame_evidence(packed: np.ndarray, values: np.ndarray | EvidenceColumns, *,
     return row_evidence(packed, values, spans=spans, distinct=distinct).frames()
 
 
-@numba.njit(cache=True)
-def _prefix(E, cum):
-    """cum[p, t] = E[p, 0] + … + E[p, t − 1], added in frame order; False if an entry is
-    negative or NaN (the decoder's pruning needs evidence ≥ 0)."""
-    P, L = E.shape
-    ok = True
-    for p in range(P):
-        acc = 0.0
-        cum[p, 0] = 0.0
-        for t in range(L):
-            e = E[p, t]
-            if not e >= 0.0:
-                ok = False
-            acc += e
-            cum[p, t + 1] = acc
-    return ok
-
-
 @dataclass(frozen=True)
 class EvidenceSums:
     """Running sums of the relative evidence per label, ``cum[p, t]`` = the sum over frames
@@ -565,23 +377,6 @@ def evidence_sums(buffer: np.ndarray) -> EvidenceSums:
     return EvidenceSums(buffer)
 
 
-@numba.njit(cache=True)
-def _relative_sums(buf):
-    """buf[:, 1:] evidence → buf[p, t] = Σ_{s < t} (buf[p, s + 1] − least finite entry of
-    frame s; 0 where not finite), added in frame order (every term is ≥ 0)."""
-    P, L1 = buf.shape
-    for p in range(P):
-        buf[p, 0] = 0.0
-    for t in range(1, L1):
-        low = np.inf
-        for p in range(P):
-            if buf[p, t] < low:  # False for ∞ and NaN
-                low = buf[p, t]
-        for p in range(P):
-            e = buf[p, t]
-            buf[p, t] = buf[p, t - 1] + (e - low if np.isfinite(e) else 0.0)
-
-
 def relative_evidence(evidence: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Per-label evidence (labels × frames) minus the smallest of each frame: 0 for the
     label whose template fits the frame best, the margin behind it for the others. ∞
@@ -598,19 +393,3 @@ def relative_evidence(evidence: np.ndarray, *, out: np.ndarray | None = None) ->
     if E.shape[0]:
         _relative(E, out)
     return out
-
-
-@numba.njit(cache=True)
-def _relative(E, out):
-    """out = E − (per column, the least finite entry); non-finite entries give 0."""
-    P, L = E.shape
-    low = np.full(L, np.inf)
-    for p in range(P):
-        for t in range(L):
-            e = E[p, t]
-            if e < low[t]:  # False for ∞ and NaN
-                low[t] = e
-    for p in range(P):
-        for t in range(L):
-            e = E[p, t]
-            out[p, t] = e - low[t] if np.isfinite(e) else 0.0

@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-# measure codes (see mtanno.features.MEASURE_CODES)
+# measure codes (see mtanno.features.compute.MEASURE_CODES)
 PLANE, PLANE_DIFF, NPLANE, NPLANE_ABS, MOVE_PLANE, MOVE_DIR, MOVE_DIFF, CROSSOVER = range(8)
 ANGLE, ANGLE_UP, FAST, RAISED, EXTENT_Y, EXTENT_XZ, HEADING_RATE = range(8, 15)
 HEIGHT, ANGLE_MAX, TOUCH = range(15, 18)
@@ -123,6 +123,8 @@ def _measure_row(J, heading, fps, kind, jx, L, val, v1, v2, u, c):
 
     ``error_model="numpy"``: a zero-length direction or normal gives NaN (whose tests are
     false, features.md §5) instead of raising ZeroDivisionError; other values are the same."""
+    # one kernel: every measure kind in one pass over the frames; split by kind, each
+    # frame's joints would be loaded once per kind in the stage's hottest loop
     n = J.shape[0]
     if kind == MOVE_PLANE:
         _velocity(J, jx[3], jx[2], fps, L, v1, u, c)

@@ -1,0 +1,77 @@
+"""The annotate stage: per-frame class labels of documents from motion templates ([MBS09]
+§4–5, algorithms.md §7) and the tuned methods of issue 10 (``docs/annotation.md``).
+
+Modules, in the order the data flows through them:
+
+* :mod:`~mtanno.annotate.config` — class configurations (per-class τ, superclasses, the
+  decoder's options; TOML), :data:`DEFAULT_TAU`, :data:`DEFAULT_DELTA`, :func:`check_tau`;
+* :mod:`~mtanno.annotate.dbar` — the modified distance Δ̄ of a class (§7 step 2);
+* :mod:`~mtanno.annotate.label` — one document's labels and segments (§7 steps 3–4;
+  :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
+* :mod:`~mtanno.annotate.decode` — the segment decoder of tuned annotation (issue 10);
+* :mod:`~mtanno.annotate.tables` — annotation tables (0-based rows, 1-based files);
+* :mod:`~mtanno.annotate.batch` — batches of feature files (:class:`AnnotationSetup`,
+  :func:`annotate_files`);
+* :mod:`~mtanno.annotate.folder` — resumable annotation into a folder (``--output-dir``);
+* :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private).
+
+The public names of these modules are importable from ``mtanno.annotate`` itself.
+"""
+
+from mtanno.annotate.batch import (
+    AnnotationBatch,
+    AnnotationSetup,
+    annotate_files,
+    annotation_setup,
+    class_models,
+    load_annotation_setup,
+    load_class_models,
+    load_config_templates,
+)
+from mtanno.annotate.config import (
+    DECODER_KEYS,
+    DEFAULT_DELTA,
+    DEFAULT_TAU,
+    ClassConfig,
+    check_tau,
+    class_config_text,
+    load_class_config,
+    write_class_config,
+)
+from mtanno.annotate.dbar import modified_delta
+from mtanno.annotate.label import (
+    ClassModel,
+    Windows,
+    annotate_document,
+    class_deltas,
+    evidence_covered,
+    label_document,
+    label_frames,
+    merged_spans,
+    segments_from_labels,
+    single_label_segments,
+)
+from mtanno.annotate.tables import (
+    ANNOTATION_COLUMNS,
+    ANNOTATION_SUFFIXES,
+    Annotation,
+    annotation_files,
+    annotation_table,
+    merge_annotation_tables,
+    read_annotation_table,
+    read_annotation_tables,
+    read_annotations,
+    to_segments,
+    write_annotations,
+)
+
+__all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "DECODER_KEYS", "DEFAULT_DELTA",
+           "DEFAULT_TAU", "Annotation", "AnnotationBatch", "AnnotationSetup", "ClassConfig",
+           "ClassModel", "Windows", "annotate_document", "annotate_files", "annotation_files",
+           "annotation_setup", "annotation_table", "check_tau", "class_config_text",
+           "class_deltas", "class_models", "evidence_covered", "label_document",
+           "label_frames", "load_annotation_setup", "load_class_config", "load_class_models",
+           "load_config_templates", "merge_annotation_tables", "merged_spans",
+           "modified_delta", "read_annotation_table", "read_annotation_tables",
+           "read_annotations", "segments_from_labels", "single_label_segments",
+           "to_segments", "write_annotations", "write_class_config"]

@@ -1,0 +1,359 @@
+"""Annotating batches of feature files: the class models of a template folder and a class
+configuration, loaded once (:class:`AnnotationSetup`), and the documents annotated in
+worker processes or on a dask cluster (:func:`annotate_files`), a failing file reported
+and the batch going on.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mtanno.annotate.config import DEFAULT_DELTA, ClassConfig, check_tau, load_class_config
+from mtanno.annotate.label import ClassModel, annotate_document
+from mtanno.annotate.tables import Annotation
+from mtanno.errors import MtannoError
+
+if TYPE_CHECKING:
+    from mtanno.util.store import FeatureLayout
+
+__all__ = ["AnnotationBatch", "AnnotationSetup", "annotate_files", "annotation_setup",
+           "class_models", "load_annotation_setup", "load_class_models",
+           "load_config_templates"]
+
+
+def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA,
+                      classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
+    """The templates of a folder (``*.json``; or one template file;
+    :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
+    :class:`ClassModel` records (with their file and SHA-256), and the feature layout
+    (set, names, rate) they all share. ``classes`` keeps only those."""
+    from mtanno.templates.model import load_template_folder
+
+    return class_models(load_template_folder(mt_dir, classes=classes), delta=delta,
+                        where=f"the templates in {mt_dir}")
+
+
+def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
+                 where: str = "the templates") -> tuple[list[ClassModel], FeatureLayout]:
+    """:class:`ClassModel` records of loaded templates (class name →
+    :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
+    learned in memory), quantized with ``delta``, and the feature layout they share
+    (``where`` names them in messages)."""
+    from mtanno.templates.model import quantize
+    from mtanno.util.store import check_layout, sha256_file
+
+    if not templates:
+        raise MtannoError("no class templates to annotate with")
+    models: list[ClassModel] = []
+    for mt in templates.values():
+        q = quantize(mt, delta)
+        model = ClassModel(mt.class_name, q.values, q.weights, path=mt.path,
+                           sha256=sha256_file(mt.path) if mt.path else None)
+        try:
+            model.matcher("reference")  # refuse a template the kernel cannot use, naming it
+        except MtannoError as exc:
+            raise MtannoError(exc.message, path=mt.path) from None
+        models.append(model)
+    first = next(iter(templates.values()))
+    layout = first.layout(where)
+    for mt in templates.values():  # templates made in memory were not checked by a reader
+        check_layout(mt.layout(), layout, path=mt.path)
+    return models, layout
+
+
+def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
+                          delta: float = DEFAULT_DELTA) -> list[ClassModel]:
+    """The further templates of ``config.templates`` (several templates per class) as
+    :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
+    of the class it is listed under, with the ``layout`` of the other templates."""
+    from mtanno.templates.model import load_template, quantize
+    from mtanno.util.store import check_layout, sha256_file
+
+    out = []
+    for cls, paths in config.template_paths().items():
+        line = config.line_of("templates", cls)
+        for path in paths:
+            if not path.is_file():
+                raise MtannoError(f"[templates] {cls}: template file {path} not found",
+                                  path=config.path, line=line)
+            mt = load_template(path)
+            if mt.class_name != cls:
+                raise MtannoError(f"[templates] {cls}: {path} holds a template of class "
+                                  f"{mt.class_name!r}", path=config.path, line=line)
+            check_layout(mt.layout(f"template {path}"), layout, path=str(path))
+            q = quantize(mt, delta)
+            model = ClassModel(cls, q.values, q.weights, path=str(path),
+                               sha256=sha256_file(path))
+            try:
+                model.matcher("reference")
+            except MtannoError as exc:
+                raise MtannoError(exc.message, path=str(path)) from None
+            out.append(model)
+    return out
+
+
+@dataclass
+class AnnotationBatch:
+    """What :func:`annotate_files` did: the segments of every document annotated, each
+    document's native frames and frame count, the files read (path, SHA-256) and the
+    failures (one message per file that could not be annotated); ``seconds`` is the time
+    spent annotating (keyframe search, matching, labels; not reading), summed over the
+    documents."""
+
+    rows: list[Annotation] = field(default_factory=list)
+    native: dict[str, np.ndarray] = field(default_factory=dict)
+    frames: dict[str, int] = field(default_factory=dict)
+    files: list[dict] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def to_arrow(self):
+        """The annotation table of the batch as a :class:`pyarrow.Table`, the table
+        ``mtanno annotate -o`` writes (:func:`mtanno.annotate.tables.annotation_table`):
+        doc, start, end (1-based inclusive 30 Hz frames, as in every file; ``rows`` are
+        0-based), label, cost, and start_native, end_native (1-based native frames) when
+        the batch knows every document's native frames."""
+        from mtanno.annotate.tables import annotation_table
+
+        known = all(r.doc in self.native for r in self.rows)
+        return annotation_table(self.rows, self.native if known else None)
+
+    def to_pandas(self):
+        """:meth:`to_arrow` as a :class:`pandas.DataFrame` (1-based frames); pandas is not
+        a dependency of mtanno, so without it this is an :class:`MtannoError` saying so."""
+        try:
+            import pandas  # noqa: F401
+        except ImportError:
+            raise MtannoError("AnnotationBatch.to_pandas needs pandas (pip install pandas); "
+                              "to_arrow() gives the same table without it") from None
+        return self.to_arrow().to_pandas()
+
+
+def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes,
+                   single_label=False):
+    """One document of a batch: (document, rows, native frames, sha256) or the message of
+    its failure (a worker sends it back as text)."""
+    import time
+
+    from mtanno.templates.match import pack_document
+    from mtanno.util.store import check_layout, read_features
+
+    try:
+        ff = read_features(path, sha256=True)
+        check_layout(ff, layout)
+        t0 = time.perf_counter()
+        windows = None
+        packed = pack_document(ff.X, ff.X.shape[0])  # once, for keyframes and templates
+        if keyframes:
+            from mtanno.keyframes import class_spans
+
+            try:
+                windows = class_spans(ff.X, ff.names, keyframes,
+                                      feature_set=layout.feature_set, packed=packed)
+            except MtannoError as exc:
+                raise MtannoError(exc.message, path=ff.path) from None
+        rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
+                                       windows=windows, dbar_variant=dbar_variant,
+                                       match_variant=match_variant, single_label=single_label,
+                                       packed=packed, matrix=False)
+    except MtannoError as exc:
+        return str(exc)
+    return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0
+
+
+def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
+                   layout: FeatureLayout, config: ClassConfig, dbar_variant: str,
+                   match_variant: str, keyframes, n_jobs: int,
+                   single_label: bool, scheduler: str | None):
+    """(path, result) for every document of a batch in input order, as the pool delivers
+    them: result is ``(document, rows, native frames, sha256, seconds)`` or the message
+    of the document's failure."""
+    from mtanno.keyframes import KeyframeSet
+    from mtanno.util.workers import make_pool
+
+    if keyframes and not isinstance(keyframes, KeyframeSet):
+        # prepared once for the batch; if that fails, each document says why
+        try:
+            keyframes = KeyframeSet(keyframes, layout.names, feature_set=layout.feature_set)
+        except MtannoError:
+            pass
+    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
+             single_label) for p in paths]
+    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:
+        for a, result in zip(args, pool.map(_annotate_file, args)):
+            yield a[0], result
+
+
+def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
+                   layout: FeatureLayout, config: ClassConfig | None = None,
+                   dbar_variant: str = "reference", match_variant: str = "reference",
+                   keyframes=None, n_jobs: int = 1,
+                   progress=None, single_label: bool = False,
+                   scheduler: str | None = None) -> AnnotationBatch:
+    """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
+    (:class:`mtanno.util.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
+    queries (:mod:`mtanno.keyframes`), or is a :class:`mtanno.keyframes.KeyframeSet` of
+    them: those classes are matched only inside their
+    candidate windows in each document ([MBS09] §5), the others everywhere. A file that
+    cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
+    and the batch goes on. ``progress`` is called once per file with its path and its
+    failure message (None on success). ``single_label`` resolves overlapping segments
+    (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
+    documents instead of local processes (:class:`mtanno.util.workers.DaskPool`, same results).
+    Rows are sorted by document, start, end and label."""
+    batch = AnnotationBatch()
+    for path, result in _iter_annotate(paths, models, layout=layout,
+                                       config=config or ClassConfig(),
+                                       dbar_variant=dbar_variant, match_variant=match_variant,
+                                       keyframes=keyframes, n_jobs=n_jobs,
+                                       single_label=single_label, scheduler=scheduler):
+        if isinstance(result, str):
+            batch.failed.append(result)
+            if progress:
+                progress(path, result)
+            continue
+        doc, rows, native, digest, seconds = result
+        batch.seconds += seconds
+        batch.rows.extend(rows)
+        batch.native[doc] = native
+        batch.frames[doc] = int(native.shape[0])
+        batch.files.append({"path": str(path), "sha256": digest})
+        if progress:
+            progress(path, None)
+    batch.rows.sort(key=lambda r: (r.doc, r.start, r.end, r.label))
+    return batch
+
+
+@dataclass
+class AnnotationSetup:
+    """Everything that shapes an annotation besides its documents, loaded once for a batch
+    (:func:`load_annotation_setup`): the class models (the templates of the template folder
+    and of the configuration's ``[templates]``, quantized with ``delta``), their feature
+    layout, the class configuration, the keyframe queries with their files, and the
+    options. :meth:`provenance` is what every annotation table of the batch records, and
+    :meth:`annotate` runs :func:`annotate_files` with it."""
+
+    models: list[ClassModel]
+    layout: FeatureLayout
+    config: ClassConfig = field(default_factory=ClassConfig)
+    delta: float = DEFAULT_DELTA
+    dbar_variant: str = "reference"
+    match_variant: str = "reference"
+    keyframes: dict = field(default_factory=dict)
+    keyframe_files: list[dict] = field(default_factory=list)
+    single_label: bool = False
+    config_sha256: str | None = None
+    #: classes without a keyframe query (matched everywhere), and queries without a template
+    keyframes_missing: list[str] = field(default_factory=list)
+    keyframes_extra: list[str] = field(default_factory=list)
+    #: the configuration was tuned with other templates (:meth:`ClassConfig.template_warnings`)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def classes(self) -> list[str]:
+        return list(dict.fromkeys(m.name for m in self.models))
+
+    def files(self) -> list[str]:
+        """Every file the setup was read from: templates, class configuration, keyframe
+        queries."""
+        return [*(m.path for m in self.models if m.path), *([self.config.path]
+                if self.config.path else []), *(f["path"] for f in self.keyframe_files)]
+
+    def provenance(self, *, inputs=(), documents: dict[str, int] | None = None) -> dict:
+        """The provenance of an annotation table of ``inputs`` (feature file records) with
+        ``documents`` (frames per document): templates with SHA-256, τ (default and per
+        class), superclasses, δ, the configuration's methods, the configuration file and its
+        SHA-256, variants, feature set, keyframe files, single label."""
+        from mtanno.util.tables import provenance
+
+        cfg = self.config
+        return provenance(inputs=inputs, templates=[m.record() for m in self.models],
+                          tau=cfg.default_tau, tau_per_class=cfg.tau or None,
+                          superclasses=cfg.superclasses or None, delta=self.delta,
+                          methods=cfg.methods() or None,
+                          classes=({"path": cfg.path, "sha256": self.config_sha256}
+                                   if cfg.path else None),
+                          variant=self.dbar_variant, match=self.match_variant,
+                          feature_set=self.layout.feature_set,
+                          keyframes=self.keyframe_files or None,
+                          single_label=self.single_label or None, documents=documents)
+
+    def annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1, progress=None,
+                 scheduler: str | None = None) -> AnnotationBatch:
+        """:func:`annotate_files` of ``paths`` with this setup."""
+        return annotate_files(paths, self.models, layout=self.layout, config=self.config,
+                              dbar_variant=self.dbar_variant, match_variant=self.match_variant,
+                              keyframes=self.keyframes or None, n_jobs=n_jobs,
+                              progress=progress, single_label=self.single_label,
+                              scheduler=scheduler)
+
+    def iter_annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1,
+                      scheduler: str | None = None):
+        """(path, result) per document in input order as they are done (result: document,
+        rows, native frames, SHA-256, seconds; or the failure's message)."""
+        return _iter_annotate(paths, self.models, layout=self.layout, config=self.config,
+                              dbar_variant=self.dbar_variant, match_variant=self.match_variant,
+                              keyframes=self.keyframes or None, n_jobs=n_jobs,
+                              single_label=self.single_label, scheduler=scheduler)
+
+
+def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
+                     config_sha256: str | None = None, tau: float | None = None,
+                     delta: float | None = None, dbar_variant: str = "reference",
+                     match_variant: str = "reference", single_label: bool = False,
+                     where: str = "the templates") -> AnnotationSetup:
+    """The :class:`AnnotationSetup` of loaded templates (class name →
+    :class:`mtanno.templates.model.MotionTemplate`) and a class configuration, applied as
+    ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
+    δ unless ``delta`` is given (else :data:`DEFAULT_DELTA`), its further templates, and
+    :meth:`ClassConfig.template_warnings` in ``warnings``. ``tau`` replaces its default τ
+    (on a copy: the object passed is not changed)."""
+    from dataclasses import replace
+
+    config = replace(config) if config is not None else ClassConfig()
+    if tau is not None:
+        config.default_tau = check_tau(tau)
+    if delta is None:
+        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+    models, layout = class_models(templates, delta=delta, where=where)
+    config.check([m.name for m in models])
+    warnings = config.template_warnings(models)
+    models += load_config_templates(config, layout, delta=delta)
+    return AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
+                           single_label=single_label, config_sha256=config_sha256,
+                           warnings=warnings)
+
+
+def load_annotation_setup(mt_dir: str | os.PathLike, *,
+                          config_path: str | os.PathLike | None = None,
+                          keyframes_dir: str | os.PathLike | None = None,
+                          tau: float | None = None, delta: float | None = None,
+                          dbar_variant: str = "reference", match_variant: str = "reference",
+                          single_label: bool = False) -> AnnotationSetup:
+    """Read what ``mtanno annotate`` annotates with: the templates of ``mt_dir``, the
+    class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
+    of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
+    τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
+    :data:`DEFAULT_DELTA`."""
+    from mtanno.templates.model import load_template_folder
+    from mtanno.util.store import sha256_file
+
+    setup = annotation_setup(
+        load_template_folder(mt_dir),
+        config=load_class_config(config_path) if config_path else None,
+        config_sha256=sha256_file(config_path) if config_path else None, tau=tau,
+        delta=delta, dbar_variant=dbar_variant, match_variant=match_variant,
+        single_label=single_label, where=f"the templates in {mt_dir}")
+    if keyframes_dir:
+        from mtanno.keyframes import load_class_keyframes
+
+        (setup.keyframes, setup.keyframe_files, setup.keyframes_missing,
+         setup.keyframes_extra) = load_class_keyframes(keyframes_dir, setup.classes,
+                                                       feature_set=setup.layout.feature_set,
+                                                       fps=setup.layout.fps)
+    return setup

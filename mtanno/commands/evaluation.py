@@ -1,0 +1,318 @@
+"""Commands of the evaluation stage: evaluate, evaluate-retrieval, compose, truth and report
+(algorithms.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from mtanno.annotate import DEFAULT_TAU, load_class_models
+from mtanno.commands._common import (
+    DELTA,
+    TAU,
+    ProgressBar,
+    user_errors,
+)
+from mtanno.errors import MtannoError
+from mtanno.evaluation.report import REPORT_TITLE
+from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
+from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
+from mtanno.templates.model import template_files
+from mtanno.util.store import document_files
+
+
+def json_and_table_options(*, json_what: str, schema: str, table_what: str):
+    """``--json FILE`` and ``-o TABLE``: the two further outputs of evaluate and
+    evaluate-retrieval (``-`` for standard output)."""
+    def deco(fn):
+        fn = click.option("-o", "--output", "table_path", default=None,
+                          type=click.Path(dir_okay=False, allow_dash=True),
+                          help=f"Also write {table_what} (.csv, .parquet, .jsonl, or - for "
+                               "CSV on standard output).")(fn)
+        return click.option("--json", "json_path", default=None,
+                            type=click.Path(dir_okay=False, allow_dash=True),
+                            help=f"Also write {json_what} as JSON (schema {schema}; - for "
+                                 "standard output).")(fn)
+    return deco
+
+
+@click.command("evaluate")
+@click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
+                type=click.Path(allow_dash=True))
+@click.option("--truth", "truth_path", required=True,
+              type=click.Path(dir_okay=False, allow_dash=True),
+              help="Ground truth table (doc,start,end,label[,fps]).")
+@json_and_table_options(json_what="the report", schema="mtanno.evaluation/1",
+                        table_what="the per-class table")
+@click.option("--all-docs", is_flag=True,
+              help="Count every truth document, also those not annotated at all (default: "
+                   "the documents of ANNOTATIONS — with rows, or recorded in their "
+                   "provenance as annotated without any — or those listed with --doc).")
+@click.option("--doc", "docs", multiple=True, help="Evaluate only these documents.")
+@user_errors(2)
+def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs):
+    """Frame- and segment-level precision, recall and F-measure of annotation tables
+    against ground truth, overall and per class, with support counts ([MBS09] §7), and the
+    action-segmentation measures: frame accuracy, Edit score, F1@{10,25,50} (Lea et al.
+    2017, as MS-TCN computes them; 0-1, "–" where undefined).
+
+    ANNOTATIONS are annotation tables (from `mtanno annotate`; - reads CSV from standard
+    input), e.g. the outputs of a run split over several machines, or folders: every table
+    (.csv, .parquet, .jsonl) below a folder, such as the per-document tables of `mtanno
+    annotate --output-dir`. A document may appear in only one table. When the annotations
+    record their documents' lengths, a truth segment past the end of its document is an
+    error.
+    """
+    from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
+    from mtanno.evaluation.metrics import evaluate_files
+    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+
+    if table_path is not None:
+        table_format(table_path)
+    scanned = {a: ANNOTATION_SUFFIXES for a in annotations if a != "-" and Path(a).is_dir()}
+    annotations = annotation_files(annotations)
+    inputs = [*annotations, truth_path]
+    if sum(str(i) == "-" for i in inputs) > 1:
+        raise MtannoError("standard input (-) can be read only once")
+    check_outputs([json_path, *output_files(table_path)], inputs, scanned=scanned)
+    if json_path == "-" and table_path == "-":
+        raise MtannoError("--json - and -o - would both write to standard output")
+    report = evaluate_files(annotations, truth_path, docs=docs, all_docs=all_docs)
+    for warning in report.warnings:
+        click.echo(f"mtanno: warning: {warning}", err=True)
+    if json_path != "-" and table_path != "-":
+        write_stdout(report.table() + "\n")  # a full device: one line saying so
+    prov = provenance(inputs=inputs, truth=str(truth_path))
+    if json_path:
+        write_json(json_path, {**report.as_dict(), "provenance": prov})
+    if table_path:
+        import pyarrow as pa
+
+        write_table(table_path, pa.Table.from_pylist(report.rows()), provenance=prov)
+
+
+@click.command("evaluate-retrieval")
+@click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
+@click.option("--mt", "mt_dir", required=True, type=click.Path(exists=True),
+              help="Directory of class templates (CLASS.json) or one template.")
+@click.option("--truth", "truth_path", required=True,
+              type=click.Path(dir_okay=False, allow_dash=True),
+              help="Ground truth of the documents (doc,start,end,label[,fps]).")
+@click.option("--delta", type=DELTA, default=RETRIEVAL_DELTA, show_default=True,
+              help=f"Quantization delta of the templates ([MR06] retrieval: {RETRIEVAL_DELTA:g}).")
+@click.option("--max-hits", default=RETRIEVAL_MAX_HITS, show_default=True, type=click.IntRange(min=1),
+              help="Hit cap per class and document.")
+@click.option("--class", "classes", multiple=True, help="Only these classes.")
+@json_and_table_options(json_what="the results", schema="mtanno.retrieval-evaluation/1",
+                        table_what="the table, one row per class and tau")
+@user_errors(2)
+def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path,
+                           table_path):
+    """Retrieval quality per class ([MR06] Tables 2 and 4): hits |H|, relevant hits |H+|,
+    precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
+    quotient, each template retrieved in all FEATURES documents. A feature file that
+    cannot be used is reported and left out (exit code 1)."""
+    from mtanno.evaluation.retrieval import (
+        evaluate_retrieval_files,
+        retrieval_report,
+        retrieval_table,
+    )
+    from mtanno.evaluation.truth import read_truth
+    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+
+    if table_path is not None:
+        table_format(table_path)
+    if json_path == "-" and table_path == "-":
+        raise MtannoError("--json - and -o - would both write to standard output")
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
+    paths = document_files(features, failures=missing)
+    check_outputs([json_path, *output_files(table_path)],
+                  [mt_dir, *template_files(mt_dir), truth_path, *paths],
+                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
+    models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
+    truth = read_truth(truth_path)
+    for message in missing:
+        click.echo(f"mtanno: {message}", err=True)
+    run = evaluate_retrieval_files(models, key, paths, truth, max_hits=max_hits,
+                                   truth_path=truth_path,
+                                   progress=lambda m: click.echo(f"mtanno: {m}", err=True))
+    results, files = run.results, run.files
+    if json_path != "-" and table_path != "-":
+        write_stdout(retrieval_report(results) + "\n")
+    prov = provenance(inputs=[*files, truth_path], templates=[m.record() for m in models],
+                      delta=delta, max_hits=max_hits, feature_set=key.feature_set)
+    if json_path:
+        write_json(json_path, {"schema": "mtanno.retrieval-evaluation/1",
+                               "classes": [r.as_dict() for r in results], "provenance": prov})
+    if table_path:
+        write_table(table_path, retrieval_table(results), provenance=prov)
+    sys.exit(1 if run.failed or missing else 0)
+
+
+@click.command("compose")
+@click.argument("manifest", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Output directory for the documents, their ASF and truth.csv.")
+@click.option("--actor", default=None, help="Use the clips of this actor only.")
+@click.option("--split", default=None, help="Use the clips of this split only.")
+@click.option("--root", type=click.Path(file_okay=False), default=None,
+              help="Folder the manifest's file column is relative to [default: its folder].")
+@click.option("--docs", "n_docs", default=10, show_default=True, type=click.IntRange(min=1),
+              help="Number of documents.")
+@click.option("--clips-per-doc", type=click.IntRange(min=1), default=None,
+              help="Clips per document [default: all clips, each once].")
+@click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
+@click.option("--pause", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Native frames of stillness between clips (unlabelled).")
+@click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="ASF skeleton of the clips [default: found beside them].")
+@click.option("--in-order", is_flag=True,
+              help="Keep the manifest order instead of shuffling (e.g. one document of all "
+                   "clips, for retrieval tables).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@user_errors(2)
+def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, seed, pause, asf,
+                in_order, quiet):
+    """Build long evaluation documents from labelled clips, with their exact ground truth.
+
+    MANIFEST is a CSV with columns file,class[,actor,split] (e.g. the HDM05 clips.csv).
+    Clips are drawn in a seeded random order; at every seam the root is turned and moved
+    so the next clip starts where and facing how the previous one ended. Writes
+    OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json.
+    """
+    from mtanno.evaluation.compose import compose_documents, read_clips
+
+    clips = read_clips(manifest, root=root, actor=actor, split=split)
+    with ProgressBar("compose", "file", quiet=quiet) as bar:
+        docs, truth = compose_documents(clips, out_dir, n_docs=n_docs,
+                                        clips_per_doc=clips_per_doc, seed=seed, pause=pause,
+                                        asf=asf, shuffle=not in_order, inputs=[manifest],
+                                        progress=bar)
+    if not quiet:
+        click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> "
+                   f"{out_dir}", err=True)
+
+
+@click.group("truth")
+def truth_group():
+    """Convert ground-truth labels into mtanno's truth table (doc,start,end,label,fps)."""
+
+
+@truth_group.command("mocap6")
+@click.argument("labels", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="Truth table: .csv, .parquet or .jsonl, or - for CSV on standard output.")
+@user_errors(2)
+def truth_mocap6(labels, output):
+    """CMU mocap6 labels.json → truth table at 30 Hz."""
+    from mtanno.evaluation.truth import truth_from_mocap6, write_truth
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format
+
+    table_format(output)
+    check_outputs(output_files(output), [labels])
+    segs = truth_from_mocap6(labels)
+    write_truth(output, segs, provenance=provenance(inputs=[labels]))
+    click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
+
+
+@click.command("report", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
+                type=click.Path())
+@click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
+              help="Ground truth table (doc,start,end,label[,fps]).")
+@click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Report folder (created): index.html, tables, PNG and SVG figures.")
+@click.option("--mt", "mt_dir", type=click.Path(exists=True), default=None,
+              help="Template folder: adds each template as a heat map, and with --features "
+                   "each class's Δ curve over every document.")
+@click.option("--features", "features", multiple=True, type=click.Path(exists=True),
+              help="Feature files or folders of the annotated documents (with --mt). "
+                   "Repeatable.")
+@click.option("--tau", type=TAU, default=None,
+              help="Threshold drawn in the Δ plots [default: the annotation's tau, and "
+                   "its per-class taus in the classes' colours].")
+@click.option("--delta", type=DELTA, default=None,
+              help="Quantization delta of the templates for the Δ plots [default: the "
+                   "annotation's, else 0.05].")
+@click.option("--title", default=REPORT_TITLE, show_default=True,
+              help="Title of the page.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@user_errors(2)
+def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, title,
+               quiet):
+    """Write a report of annotation tables against ground truth ([MBS09] §7) into a folder.
+
+    \b
+    index.html                 self-contained page (images inline): open it in a browser
+    per_class.csv|.md|.tex     P/R/F per class, frames and segments, with support
+    confusion.csv|.png|.svg    frame-level confusion matrix, truth x annotation, with "none"
+    timeline_DOC.png|.svg      per document: truth against annotation
+    template_CLASS.png|.svg    with --mt: the templates as heat maps
+    delta_DOC.png|.svg         with --mt and --features: each class's Δ over the document
+
+    ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
+    table below a folder, such as the per-document tables of `mtanno annotate
+    --output-dir`).
+
+    Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
+    with --single-label; overlapping rows are resolved by segment cost (the page says so).
+    """
+    from pathlib import Path
+
+    from mtanno.annotate import (
+        ANNOTATION_SUFFIXES,
+        annotation_files,
+        read_annotation_tables,
+    )
+    from mtanno.evaluation.report import REPORT_FILES, annotation_parameters, write_report
+    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.plot import require_matplotlib
+    from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import document_files, read_features
+    from mtanno.util.tables import provenance
+
+    require_matplotlib()
+    if features and not mt_dir:
+        raise MtannoError("--features goes with --mt (the Δ curves need the templates)")
+    paths = document_files(features) if features else []
+    # folders read whole: an output there would be read by the next run
+    scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
+               **{f: (".parquet",) for f in features if Path(f).is_dir()}}
+    annotations = annotation_files(annotations)
+    check_outputs([], [*annotations, truth_path, *paths,
+                       *(template_files(mt_dir) if mt_dir else [])],
+                  folders={out_dir: REPORT_FILES}, scanned=scanned)
+    rows, frames, provs = read_annotation_tables(annotations)
+    recorded = annotation_parameters(provs)
+    truth = read_truth(truth_path)
+    check_within(truth, frames, path=truth_path)
+    templates = load_template_folder(mt_dir) if mt_dir else None
+    feats = {}
+    for p in paths:
+        ff = read_features(p)
+        feats[ff.document] = ff.X
+    if tau is None:  # the annotation's thresholds
+        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
+        per_class = recorded["tau_per_class"]
+    else:
+        per_class = {}
+    with ProgressBar("report", "figure", quiet=quiet) as bar:
+        result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
+                              features=feats or None, tau=tau, tau_per_class=per_class,
+                              delta=delta if delta is not None else recorded["delta"],
+                              extra_templates=recorded["extra_templates"],
+                              title=title, progress=bar, provenance=provenance(
+                                  inputs=[*annotations, truth_path], truth=str(truth_path)))
+    if not quiet:
+        ov = result.evaluation.frame
+        click.echo(f"report: {len(result.evaluation.documents)} documents, F1 {ov.F:.3f}, "
+                   f"{len(result.files)} files -> {result.page}", err=True)
+
+
+COMMANDS = [evaluate_cmd, evaluate_retrieval_cmd, compose_cmd, truth_group, report_cmd]

@@ -1,0 +1,64 @@
+"""``mtanno skeleton guess``: write the skeleton map mtanno makes for a BVH rig from its
+joint names and tree (:mod:`mtanno.io.guess`), so a user can check it, edit it and keep it
+(``--skeleton MAP.toml``, or a file in ``~/.config/mtanno/skeletons/``).
+
+Exit codes: 0 success, 2 usage error or bad input (a rig that cannot be mapped).
+"""
+
+from __future__ import annotations
+
+import click
+
+from mtanno.commands._common import user_errors
+
+
+@click.group("skeleton")
+def skeleton_group() -> None:
+    """Skeleton maps: which rig joint is which canonical joint."""
+
+
+@skeleton_group.command("guess", epilog="Exit codes: 0 success, 2 bad input.")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", default="-", show_default=True, metavar="MAP.toml",
+              help="Where to write the map ('-': standard output).")
+@click.option("--name", default=None, metavar="NAME",
+              help="The map's name (default guessed-<convention>); --skeleton NAME finds "
+                   "it once it is on the map search path.")
+@click.option("--swap-sides", is_flag=True,
+              help="Map the joints named left to the right canonical joints and vice "
+                   "versa, for a rig whose left/right names are mirrored.")
+@user_errors(2)
+def guess_cmd(file: str, output: str, name: str | None, swap_sides: bool) -> None:
+    """Write the skeleton map generated for the rig of a BVH FILE (the one `mtanno
+    features` uses when no map file fits): each canonical joint placed from the joint
+    names (Mixamo, MotionBuilder/HumanIK, Unreal, SMPL/SMPL-X, CMU, Xsens, Rokoko and
+    similar conventions) and the tree, the sides checked against the pose, the heading
+    axis from the hips. `--skeleton MAP.toml` reads it back to the same map, so the
+    features are the same."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from mtanno._version import __version__
+    from mtanno.errors import MtannoError
+    from mtanno.io.bvh import read_bvh
+    from mtanno.io.guess import guess_map, map_toml
+    from mtanno.io.rigs import available_maps
+    from mtanno.util.output import check_outputs, write_text
+
+    if Path(file).suffix.lower() != ".bvh":
+        raise MtannoError("skeleton guess reads a BVH file (.bvh)", path=file)
+    check_outputs([output], [file])
+    rig, channels = read_bvh(file)
+    smap = guess_map(rig, channels, swap_sides=swap_sides)
+    fitting = next((m.name for m in available_maps() if m.fits(rig)), None)
+    if fitting is not None:
+        click.echo(f"skeleton guess: note: the map '{fitting}' fits this rig and is used "
+                   "instead of a generated one unless --skeleton says otherwise", err=True)
+    if name:
+        smap = replace(smap, name=name)
+    write_text(output, map_toml(smap, source=file, version=__version__))
+    if output != "-":
+        click.echo(f"skeleton guess: {smap.name} ({smap.description}) -> {output}", err=True)
+
+
+COMMANDS = [skeleton_group]
