@@ -16,8 +16,6 @@ from mtanno.commands._common import (
     user_errors,
 )
 from mtanno.errors import MtannoError
-from mtanno.evaluation.report import REPORT_TITLE
-from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.model import template_files
 from mtanno.util.store import document_files
@@ -103,7 +101,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
               help="Ground truth of the documents (doc,start,end,label[,fps]).")
 @click.option("--delta", type=DELTA, default=RETRIEVAL_DELTA, show_default=True,
               help=f"Quantization delta of the templates ([MR06] retrieval: {RETRIEVAL_DELTA:g}).")
-@click.option("--max-hits", default=RETRIEVAL_MAX_HITS, show_default=True, type=click.IntRange(min=1),
+@click.option("--max-hits", default=2000, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")
 @click.option("--class", "classes", multiple=True, help="Only these classes.")
 @json_and_table_options(json_what="the results", schema="mtanno.retrieval-evaluation/1",
@@ -239,7 +237,7 @@ def truth_mocap6(labels, output):
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization delta of the templates for the Δ plots [default: the "
                    "annotation's, else 0.05].")
-@click.option("--title", default=REPORT_TITLE, show_default=True,
+@click.option("--title", default="mtanno annotation report", show_default=True,
               help="Title of the page.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)

@@ -19,8 +19,6 @@ from mtanno.commands._common import (
     wait_option,
 )
 from mtanno.errors import MtannoError
-from mtanno.keyframes.ga import GAParams
-from mtanno.keyframes.learn import DEFAULT_COLUMNS, DEFAULT_RUNS
 
 _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
@@ -40,7 +38,7 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
               show_default=True,
               help="ga: genetic algorithm ([MBS09] §6); hard: hard-template columns (thesis); "
                    "heuristic: quantized-template columns ([MR06]).")
-@click.option("--runs", default=DEFAULT_RUNS, show_default=True, type=click.IntRange(min=1),
+@click.option("--runs", default=100, show_default=True, type=click.IntRange(min=1),
               help="ga: independent runs per class; the query whose keyframes occur most "
                    "often among the winners is kept.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
@@ -48,11 +46,11 @@ _EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or b
                    "--jobs is).")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="ga: worker processes the runs are spread over.")
-@click.option("--generations", default=GAParams.generations, show_default=True, type=click.IntRange(min=1),
+@click.option("--generations", default=100, show_default=True, type=click.IntRange(min=1),
               help="ga: generations per run (G).")
-@click.option("--population", default=GAParams.population, show_default=True, type=click.IntRange(min=2),
+@click.option("--population", default=50, show_default=True, type=click.IntRange(min=2),
               help="ga: population size (M).")
-@click.option("--columns", default=DEFAULT_COLUMNS, show_default=True, type=click.IntRange(min=1),
+@click.option("--columns", default=3, show_default=True, type=click.IntRange(min=1),
               help="hard, heuristic: template columns to take as keyframes.")
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class with a template.")

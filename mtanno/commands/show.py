@@ -6,7 +6,6 @@ from __future__ import annotations
 import click
 
 from mtanno.commands._common import NAMES, user_errors
-from mtanno.info import DEFAULT_WIDTH
 
 
 @click.command("show", epilog="Exit codes: 0 success, 2 bad input.")
@@ -16,7 +15,7 @@ from mtanno.info import DEFAULT_WIDTH
 @click.option("--features", "feature_list", default=None, metavar="NAME,...", type=NAMES,
               help="Features to show, by name or id (F20); default: all. `mtanno info "
                    "FILE --features` lists them.")
-@click.option("--width", default=DEFAULT_WIDTH, show_default=True, type=click.IntRange(min=10),
+@click.option("--width", default=100, show_default=True, type=click.IntRange(min=10),
               help="Columns of the timeline; longer ranges show blocks of frames per column.")
 @click.option("--plot", "plot_path", default=None, type=click.Path(dir_okay=False),
               metavar="FILE.png", help="Draw the same as a picture (.png, .svg; needs the "

@@ -15,40 +15,42 @@ Modules:
   clips (``mtanno compose``);
 * :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``).
 
-Every module's public names are importable from the package, except those of ``compose``
-(it reads motion files: import :mod:`mtanno.evaluation.compose` for them), so that reading a
-truth table does not load the feature extractor.
+Every module's public names are importable from the package, attached on first use
+(PEP 562), except those of ``compose`` (import :mod:`mtanno.evaluation.compose`): reading a
+truth table loads neither the report nor the feature extractor.
 """
 
-from mtanno.evaluation.metrics import (
-    EVALUATION_SCHEMA,
-    PRF,
-    Report,
-    evaluate_annotations,
-    frame_level,
-    segment_level,
-)
-from mtanno.evaluation.report import ReportResult, confusion_matrix, write_report
-from mtanno.evaluation.retrieval import (
-    TAU_GRID,
-    ClassRetrieval,
-    RetrievalRow,
-    retrieval_evaluation,
-    retrieval_report,
-    retrieval_rows,
-    retrieval_table,
-    separation_quotient,
-    top_k_recall,
-)
-from mtanno.evaluation.segmentation import (
-    OVERLAPS,
-    OverlapCounts,
-    SegmentationScores,
-    edit_score,
-    levenshtein,
-    segmentation_scores,
-)
-from mtanno.evaluation.truth import Segment, check_within, read_truth, truth_table, write_truth
+_MODULE_OF = {
+    "ClassRetrieval": "retrieval",
+    "EVALUATION_SCHEMA": "metrics",
+    "OVERLAPS": "segmentation",
+    "OverlapCounts": "segmentation",
+    "PRF": "metrics",
+    "Report": "metrics",
+    "ReportResult": "report",
+    "RetrievalRow": "retrieval",
+    "Segment": "truth",
+    "SegmentationScores": "segmentation",
+    "TAU_GRID": "retrieval",
+    "check_within": "truth",
+    "confusion_matrix": "report",
+    "edit_score": "segmentation",
+    "evaluate_annotations": "metrics",
+    "frame_level": "metrics",
+    "levenshtein": "segmentation",
+    "read_truth": "truth",
+    "retrieval_evaluation": "retrieval",
+    "retrieval_report": "retrieval",
+    "retrieval_rows": "retrieval",
+    "retrieval_table": "retrieval",
+    "segment_level": "metrics",
+    "segmentation_scores": "segmentation",
+    "separation_quotient": "retrieval",
+    "top_k_recall": "retrieval",
+    "truth_table": "truth",
+    "write_report": "report",
+    "write_truth": "truth",
+}
 
 __all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval", "OverlapCounts",
            "Report", "ReportResult", "RetrievalRow", "Segment", "SegmentationScores",
@@ -57,3 +59,19 @@ __all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval",
            "retrieval_evaluation", "retrieval_report", "retrieval_rows", "retrieval_table",
            "segment_level", "separation_quotient", "top_k_recall", "truth_table",
            "write_report", "write_truth"]
+
+
+def __getattr__(name: str):
+    # the names are attached on first use (PEP 562), so that a module that needs one
+    # of them (a truth table, the P/R/F formulas) does not load the report and the rest
+    if name in _MODULE_OF:
+        import importlib
+
+        value = getattr(importlib.import_module(f"mtanno.evaluation.{_MODULE_OF[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'mtanno.evaluation' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
