@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from world import cli, temporaries
+from world import cli, temporaries, wait_for
 
 from mtanno.annotate import annotation_files, load_annotation_setup
 from mtanno.annotate.folder import DocJob, annotate_folder, plan_folder, recipe, up_to_date
@@ -93,17 +93,6 @@ def start_slow(args, delay: float) -> subprocess.Popen:
     env = {**os.environ, "MTANNO_TEST_DELAY": str(delay)}
     return subprocess.Popen([*SLOW_MTANNO, *map(str, args)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
-
-
-def wait_for(condition, proc, what: str) -> None:
-    deadline = time.monotonic() + HANG
-    while not condition():
-        if proc.poll() is not None:
-            pytest.fail(f"the run ended (exit {proc.returncode}) before {what}: "
-                        f"{proc.communicate()[1]}")
-        if time.monotonic() > deadline:
-            pytest.fail(f"the run did not get to {what} in {HANG:.0f} s")
-        time.sleep(0.02)
 
 
 # --------------------------------------------------------------------------- plan and API

@@ -129,3 +129,37 @@ def assert_one_line(r, path: Path | str, *, codes=(1, 2)) -> str:
     return lines[0]
 
 
+
+
+#: Longest wait for another process to reach a point (a loaded machine is slow, not stuck).
+HANG = 120.0
+
+
+def wait_for(condition, proc, what: str, *, hang: float = HANG, poll: float = 0.01) -> None:
+    """Wait until ``condition()`` holds — an event of process ``proc`` (a file written, a
+    line printed), never a fixed time; fail if the process ends first or after ``hang``
+    seconds."""
+    import time
+
+    deadline = time.monotonic() + hang
+    while not condition():
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended (exit {proc.returncode}) before {what}: "
+                        f"{proc.communicate()[1]}")
+        if time.monotonic() > deadline:
+            pytest.fail(f"the run did not get to {what} in {hang:.0f} s")
+        time.sleep(poll)
+
+
+def children(pid: int) -> list[int]:
+    """The process ids whose parent is ``pid`` (read from /proc)."""
+    kids = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                kids.append(int(d.name))
+    return kids

@@ -19,11 +19,10 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
-from world import checksums, cli, temporaries
+from world import checksums, children, cli, temporaries, wait_for
 
 from mtanno import synthetic
 
@@ -128,17 +127,6 @@ PROGRAM = [sys.executable, "-c", "import sys; from mtanno.__main__ import main; 
 LINE = "mtanno: interrupted ({}); finished outputs are complete, unfinished ones were not written"
 
 
-def _wait_for(condition, proc, what: str) -> None:
-    deadline = time.monotonic() + HANG
-    while not condition():
-        if proc.poll() is not None:
-            pytest.fail(f"the run ended (exit {proc.returncode}) before {what}: "
-                        f"{proc.communicate()[1]}")
-        if time.monotonic() > deadline:
-            pytest.fail(f"the run did not get to {what} in {HANG:.0f} s")
-        time.sleep(0.01)
-
-
 def _signalled(proc: subprocess.Popen, sig: int) -> tuple[int, str]:
     proc.send_signal(sig)
     try:
@@ -163,7 +151,7 @@ def test_a_signal_before_the_command_or_after_it_is_one_line(world, tmp_path, mo
     env = {**os.environ, "MTANNO_TEST_PAUSE": f"{moment}:{mark}"}
     proc = subprocess.Popen([*PROGRAM, "index", "info", str(world.index)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for(mark.exists, proc, f"the {moment} mark")
+    wait_for(mark.exists, proc, f"the {moment} mark")
     rc, err = _signalled(proc, getattr(signal, name))
     assert (rc, err.splitlines()) == (code, [LINE.format(name)]), err
 
@@ -185,7 +173,7 @@ def test_sigint_while_python_imports_numpy_is_one_line(world):
         pytest.skip("no installed mtanno console script beside the interpreter")
     proc = subprocess.Popen([sys.executable, str(script), "index", "info", str(world.index)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for(lambda: _loaded(proc.pid, "_multiarray_umath"), proc, "numpy's import")
+    wait_for(lambda: _loaded(proc.pid, "_multiarray_umath"), proc, "numpy's import")
     rc, err = _signalled(proc, signal.SIGINT)
     assert (rc, err.splitlines()) == (130, [LINE.format("SIGINT")]), err
 
@@ -269,7 +257,7 @@ def test_sighup_stops_a_command_like_sigint_with_exit_129(world, tmp_path):
         os.symlink("base.amc", d / f"m{i:03d}.amc")
     proc = subprocess.Popen([*PROGRAM, "features", str(d), "-o", str(out), "--jobs", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_for(lambda: len(list(out.glob("*.parquet"))) >= 2, proc, "the first outputs")
+    wait_for(lambda: len(list(out.glob("*.parquet"))) >= 2, proc, "the first outputs")
     rc, err = _signalled(proc, signal.SIGHUP)
     assert rc == 129 and err.splitlines()[-1] == LINE.format("SIGHUP"), err
     assert "Traceback" not in err and temporaries(out) == []
@@ -284,7 +272,7 @@ def test_an_interrupted_tune_prints_one_line(world, tmp_path):
                              "--split", "train", "-o", str(out), "--jobs", "2", "-q"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
-    _wait_for(lambda: _children(proc.pid), proc, "its workers started")
+    wait_for(lambda: children(proc.pid), proc, "its workers started")
     os.killpg(proc.pid, signal.SIGINT)
     try:
         _, err = proc.communicate(timeout=HANG)
@@ -294,16 +282,3 @@ def test_an_interrupted_tune_prints_one_line(world, tmp_path):
     lines = [x for x in err.splitlines() if not x.startswith("note: compiling")]
     assert (proc.returncode, lines) == (130, [LINE.format("SIGINT")]), err
     assert list(tmp_path.iterdir()) == []
-
-
-def _children(pid: int) -> list[int]:
-    kids = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                stat = (d / "stat").read_text()
-            except OSError:
-                continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
-                kids.append(int(d.name))
-    return kids

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from world import build_world, temporaries
+from world import build_world, children, temporaries
 
 from mtanno import synthetic
 from mtanno.util.store import read_features, write_features
@@ -28,19 +28,6 @@ MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
 #: How long a worker may outlive its parent (issue 8).
 GRACE = 1.0
-
-
-def _children(pid: int) -> list[int]:
-    kids = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                stat = (d / "stat").read_text()
-            except OSError:
-                continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
-                kids.append(int(d.name))
-    return kids
 
 
 def _alive(pid: int) -> bool:
@@ -76,9 +63,9 @@ def _interrupt(args, sig, ready, *, group=False):
     proc = subprocess.Popen([*MTANNO, *map(str, args)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        _wait_until(lambda: len(_children(proc.pid)) >= 2, proc, "its workers started")
+        _wait_until(lambda: len(children(proc.pid)) >= 2, proc, "its workers started")
         _wait_until(ready, proc, "it was busy")
-        workers = _children(proc.pid)
+        workers = children(proc.pid)
         if group:
             os.killpg(proc.pid, sig)
         else:
