@@ -177,18 +177,20 @@ def _is_motion(p: Path) -> bool:
     return p.suffix.lower() in MOCAP_SUFFIXES
 
 
-def _not_regular(p: Path) -> str | None:
+def _not_regular(p: Path, mode: int | None = None) -> str | None:
     """Why ``p`` cannot be read as a motion file without opening it (a FIFO would block
-    the batch), or None for a regular file or a folder."""
+    the batch), or None for a regular file or a folder; ``mode``: its ``st_mode``, when the
+    caller has it."""
     import stat
 
-    try:
-        mode = os.stat(p).st_mode
-    except FileNotFoundError:
-        return ("motion file not found (a broken symbolic link)" if p.is_symlink() else
-                "motion file not found")
-    except OSError as exc:
-        return f"cannot read motion file: {exc.strerror or exc}"
+    if mode is None:
+        try:
+            mode = os.stat(p).st_mode
+        except FileNotFoundError:
+            return ("motion file not found (a broken symbolic link)" if p.is_symlink() else
+                    "motion file not found")
+        except OSError as exc:
+            return f"cannot read motion file: {exc.strerror or exc}"
     if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
         return None
     kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else
@@ -205,12 +207,20 @@ def _folder_jobs(folder: Path, outdir: Path) -> list[Job]:
     motion suffix that is not a regular file or a folder (a FIFO, a socket, a broken link)
     is a failed job, so it is reported instead of silently skipped. A folder named like a
     motion file (``x.amc/``) is searched like any other."""
+    import stat
+
     jobs = []
     for q in sorted(folder.rglob("*")):
-        if not _is_motion(q) or q.is_dir():
+        if not _is_motion(q):
+            continue
+        try:  # one stat per entry: is it a folder, and can it be read
+            mode = os.stat(q).st_mode
+        except OSError:
+            mode = None
+        if mode is not None and stat.S_ISDIR(mode):
             continue
         rel = q.relative_to(folder).with_suffix(".parquet")
-        jobs.append(Job(q, outdir / rel, error=_not_regular(q) or ""))
+        jobs.append(Job(q, outdir / rel, error=_not_regular(q, mode) or ""))
     return jobs
 
 
