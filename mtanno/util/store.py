@@ -174,8 +174,7 @@ def _check_meta(meta, spath: str) -> dict:
         raise MtannoError("mtanno metadata lacks analysis_fps (the frame rate of the rows)",
                           path=spath)
     fps = meta["analysis_fps"]
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not np.isfinite(fps) \
-            or fps <= 0:
+    if not _positive_number(fps):
         raise MtannoError(f"analysis_fps in the mtanno metadata must be a positive number, "
                           f"got {fps!r}", path=spath)
     fs = meta.get("feature_set")
@@ -346,6 +345,12 @@ def _is_int(x) -> bool:
     return isinstance(x, int) and not isinstance(x, bool)
 
 
+def _positive_number(x) -> bool:
+    """A JSON number (not a boolean) that is finite and > 0: a frame rate."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x)) \
+        and x > 0
+
+
 def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath: str) -> None:
     """What the metadata says about the rows must be true of them (a file whose metadata
     contradicts its rows is refused, not used with one or the other): ``analysis_frames``
@@ -375,8 +380,7 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
             raise bad(f"native_frame {int(native.max())} (row {int(native.argmax()) + 1}) is "
                       f"beyond native_frames {n}, the frame count of the motion file")
     nfps = meta.get("native_fps")
-    if "native_fps" in meta and (not isinstance(nfps, (int, float)) or isinstance(nfps, bool)
-                                 or not np.isfinite(nfps) or nfps <= 0):
+    if "native_fps" in meta and not _positive_number(nfps):
         raise bad(f"native_fps in the mtanno metadata must be a positive number, got {nfps!r}")
     ids = meta.get("feature_ids")
     if "feature_ids" in meta and not (
