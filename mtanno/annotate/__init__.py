@@ -10,10 +10,16 @@ Modules, in the order the data flows through them:
   :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
 * :mod:`~mtanno.annotate.decode` — the segment decoder of tuned annotation (issue 10);
 * :mod:`~mtanno.annotate.tables` — annotation tables (0-based rows, 1-based files);
+* :mod:`~mtanno.annotate.verify` — verification of segments against training examples and
+  background motions by subsequence DTW (issue 26);
+* :mod:`~mtanno.annotate.confidence` — the evidence and confidence of every segment
+  (issue 26);
 * :mod:`~mtanno.annotate.batch` — batches of feature files (:class:`AnnotationSetup`,
   :func:`annotate_files`);
 * :mod:`~mtanno.annotate.folder` — resumable annotation into a folder (``--output-dir``);
-* :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private).
+* :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private);
+* :mod:`~mtanno.annotate._verify_kernels` — the subsequence DTW kernel of verification
+  (private).
 
 The public names of these modules are importable from ``mtanno.annotate`` itself.
 """

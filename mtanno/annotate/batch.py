@@ -135,17 +135,26 @@ class AnnotationBatch:
 
 
 def _annotate_file(path, models, layout, config, dbar_variant, match_variant, keyframes,
-                   single_label=False):
-    """One document of a batch: (document, rows, native frames, sha256) or the message of
-    its failure (a worker sends it back as text)."""
+                   single_label=False, confidence=None, min_confidence=None):
+    """One document of a batch: (document, rows, native frames, sha256, seconds) or the
+    message of its failure (a worker sends it back as text). Every row gets its
+    confidence (:func:`mtanno.annotate.confidence.score_document`); rows below the
+    minimum confidence (``min_confidence``, else the tuned one) are dropped."""
     import time
 
+    from mtanno.annotate.confidence import score_document, single_label_by_confidence
     from mtanno.templates.match import pack_document
     from mtanno.util.store import check_layout, read_features
 
+    bank = confidence.bank if confidence is not None else None
+    need_poses = bank is not None and bank.representation == "poses"
     try:
-        ff = read_features(path, sha256=True)
+        ff = read_features(path, sha256=True, **({"poses": True} if need_poses else {}))
         check_layout(ff, layout)
+        if need_poses and getattr(ff, "poses", None) is None:
+            raise MtannoError("the class configuration verifies segments by their poses, "
+                              "but this feature file has none (run mtanno features --poses)",
+                              path=ff.path)
         t0 = time.perf_counter()
         windows = None
         packed = pack_document(ff.X, ff.X.shape[0])  # once, for keyframes and templates
@@ -157,10 +166,24 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                       feature_set=layout.feature_set, packed=packed)
             except MtannoError as exc:
                 raise MtannoError(exc.message, path=ff.path) from None
+        # a tuned confidence decides overlaps itself (the reference path's single label)
+        by_confidence = single_label and confidence is not None and not config.resolve
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
                                        windows=windows, dbar_variant=dbar_variant,
-                                       match_variant=match_variant, single_label=single_label,
+                                       match_variant=match_variant,
+                                       single_label=single_label and not by_confidence,
                                        packed=packed, matrix=False)
+        try:
+            rows = score_document(rows, X=ff.X, poses=getattr(ff, "poses", None),
+                                  models=models, config=config, confidence=confidence)
+        except MtannoError as exc:
+            raise MtannoError(exc.message, path=exc.path or ff.path) from None
+        if by_confidence:
+            rows = single_label_by_confidence(rows)
+        least = min_confidence if min_confidence is not None else (
+            confidence.min_confidence if confidence is not None else 0.0)
+        if least > 0:
+            rows = [r for r in rows if r.confidence >= least]
     except MtannoError as exc:
         return str(exc)
     return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0
@@ -169,7 +192,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
 def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
                    layout: FeatureLayout, config: ClassConfig, dbar_variant: str,
                    match_variant: str, keyframes, n_jobs: int,
-                   single_label: bool, scheduler: str | None):
+                   single_label: bool, scheduler: str | None, confidence=None,
+                   min_confidence: float | None = None):
     """(path, result) for every document of a batch in input order, as the pool delivers
     them: result is ``(document, rows, native frames, sha256, seconds)`` or the message
     of the document's failure."""
@@ -183,7 +207,7 @@ def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
         except MtannoError:
             pass
     args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
-             single_label) for p in paths]
+             single_label, confidence, min_confidence) for p in paths]
     with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:
         for a, result in zip(args, pool.map(_annotate_file, args)):
             yield a[0], result
@@ -194,7 +218,8 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
                    dbar_variant: str = "reference", match_variant: str = "reference",
                    keyframes=None, n_jobs: int = 1,
                    progress=None, single_label: bool = False,
-                   scheduler: str | None = None) -> AnnotationBatch:
+                   scheduler: str | None = None, confidence=None,
+                   min_confidence: float | None = None) -> AnnotationBatch:
     """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
     (:class:`mtanno.util.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
     queries (:mod:`mtanno.keyframes`), or is a :class:`mtanno.keyframes.KeyframeSet` of
@@ -205,13 +230,17 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     failure message (None on success). ``single_label`` resolves overlapping segments
     (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
     documents instead of local processes (:class:`mtanno.util.workers.DaskPool`, same results).
-    Rows are sorted by document, start, end and label."""
+    ``confidence``: the tuned :class:`mtanno.annotate.confidence.ConfidenceModel` (None: the
+    uncalibrated confidence); ``min_confidence`` drops rows below it (None: the tuned
+    minimum, 0 without one). Rows are sorted by document, start, end and label."""
     batch = AnnotationBatch()
     for path, result in _iter_annotate(paths, models, layout=layout,
                                        config=config or ClassConfig(),
                                        dbar_variant=dbar_variant, match_variant=match_variant,
                                        keyframes=keyframes, n_jobs=n_jobs,
-                                       single_label=single_label, scheduler=scheduler):
+                                       single_label=single_label, scheduler=scheduler,
+                                       confidence=confidence,
+                                       min_confidence=min_confidence):
         if isinstance(result, str):
             batch.failed.append(result)
             if progress:
@@ -253,6 +282,10 @@ class AnnotationSetup:
     keyframes_extra: list[str] = field(default_factory=list)
     #: the configuration was tuned with other templates (:meth:`ClassConfig.template_warnings`)
     warnings: list[str] = field(default_factory=list)
+    #: the tuned confidence of the configuration (None: uncalibrated), and the minimum
+    #: confidence asked for (None: the tuned one)
+    confidence: object = None
+    min_confidence: float | None = None
 
     @property
     def classes(self) -> list[str]:
@@ -260,15 +293,19 @@ class AnnotationSetup:
 
     def files(self) -> list[str]:
         """Every file the setup was read from: templates, class configuration, keyframe
-        queries."""
+        queries, verification bank."""
+        bank = getattr(self.confidence, "bank_path", None)
         return [*(m.path for m in self.models if m.path), *([self.config.path]
-                if self.config.path else []), *(f["path"] for f in self.keyframe_files)]
+                if self.config.path else []), *(f["path"] for f in self.keyframe_files),
+                *([bank] if bank else [])]
 
     def provenance(self, *, inputs=(), documents: dict[str, int] | None = None) -> dict:
         """The provenance of an annotation table of ``inputs`` (feature file records) with
         ``documents`` (frames per document): templates with SHA-256, τ (default and per
         class), superclasses, δ, the configuration's methods, the configuration file and its
-        SHA-256, variants, feature set, keyframe files, single label."""
+        SHA-256, variants, feature set, keyframe files, single label, the confidence
+        (calibrated or not, evidence, minimum, bank) and the background tune saw."""
+        from mtanno.annotate.confidence import confidence_record
         from mtanno.util.tables import provenance
 
         cfg = self.config
@@ -281,7 +318,10 @@ class AnnotationSetup:
                           variant=self.dbar_variant, match=self.match_variant,
                           feature_set=self.layout.feature_set,
                           keyframes=self.keyframe_files or None,
-                          single_label=self.single_label or None, documents=documents)
+                          single_label=self.single_label or None, documents=documents,
+                          confidence=confidence_record(self.confidence, self.min_confidence),
+                          background=[{"path": p, "sha256": h} for p, h in
+                                      sorted(cfg.background.items())] or None)
 
     def annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1, progress=None,
                  scheduler: str | None = None) -> AnnotationBatch:
@@ -290,7 +330,8 @@ class AnnotationSetup:
                               dbar_variant=self.dbar_variant, match_variant=self.match_variant,
                               keyframes=self.keyframes or None, n_jobs=n_jobs,
                               progress=progress, single_label=self.single_label,
-                              scheduler=scheduler)
+                              scheduler=scheduler, confidence=self.confidence,
+                              min_confidence=self.min_confidence)
 
     def iter_annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1,
                       scheduler: str | None = None):
@@ -299,21 +340,27 @@ class AnnotationSetup:
         return _iter_annotate(paths, self.models, layout=self.layout, config=self.config,
                               dbar_variant=self.dbar_variant, match_variant=self.match_variant,
                               keyframes=self.keyframes or None, n_jobs=n_jobs,
-                              single_label=self.single_label, scheduler=scheduler)
+                              single_label=self.single_label, scheduler=scheduler,
+                              confidence=self.confidence, min_confidence=self.min_confidence)
 
 
 def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
                      config_sha256: str | None = None, tau: float | None = None,
                      delta: float | None = None, dbar_variant: str = "reference",
                      match_variant: str = "reference", single_label: bool = False,
-                     where: str = "the templates") -> AnnotationSetup:
+                     where: str = "the templates",
+                     min_confidence: float | None = None) -> AnnotationSetup:
     """The :class:`AnnotationSetup` of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`) and a class configuration, applied as
     ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
     δ unless ``delta`` is given (else :data:`DEFAULT_DELTA`), its further templates, and
-    :meth:`ClassConfig.template_warnings` in ``warnings``. ``tau`` replaces its default τ
-    (on a copy: the object passed is not changed)."""
+    :meth:`ClassConfig.template_warnings` in ``warnings``, its tuned confidence
+    (:func:`mtanno.annotate.confidence.load_confidence`). ``tau`` replaces its default τ
+    (on a copy: the object passed is not changed); ``min_confidence`` its minimum
+    confidence of an output row (a number in [0, 1])."""
     from dataclasses import replace
+
+    from mtanno.annotate.confidence import check_min_confidence, load_confidence
 
     config = replace(config) if config is not None else ClassConfig()
     if tau is not None:
@@ -324,9 +371,12 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     config.check([m.name for m in models])
     warnings = config.template_warnings(models)
     models += load_config_templates(config, layout, delta=delta)
+    if min_confidence is not None:
+        min_confidence = check_min_confidence(min_confidence, what="min_confidence")
     return AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
                            single_label=single_label, config_sha256=config_sha256,
-                           warnings=warnings)
+                           warnings=warnings, confidence=load_confidence(config),
+                           min_confidence=min_confidence)
 
 
 def load_annotation_setup(mt_dir: str | os.PathLike, *,
@@ -334,12 +384,13 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
                           keyframes_dir: str | os.PathLike | None = None,
                           tau: float | None = None, delta: float | None = None,
                           dbar_variant: str = "reference", match_variant: str = "reference",
-                          single_label: bool = False) -> AnnotationSetup:
+                          single_label: bool = False,
+                          min_confidence: float | None = None) -> AnnotationSetup:
     """Read what ``mtanno annotate`` annotates with: the templates of ``mt_dir``, the
     class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
     of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
     τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
-    :data:`DEFAULT_DELTA`."""
+    :data:`DEFAULT_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
     from mtanno.templates.model import load_template_folder
     from mtanno.util.store import sha256_file
 
@@ -348,7 +399,8 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
         config=load_class_config(config_path) if config_path else None,
         config_sha256=sha256_file(config_path) if config_path else None, tau=tau,
         delta=delta, dbar_variant=dbar_variant, match_variant=match_variant,
-        single_label=single_label, where=f"the templates in {mt_dir}")
+        single_label=single_label, where=f"the templates in {mt_dir}",
+        min_confidence=min_confidence)
     if keyframes_dir:
         from mtanno.keyframes import load_class_keyframes
 

@@ -132,6 +132,9 @@ def recipe(prov: dict) -> dict | None:
                               key=json.dumps)
         classes = prov.get("classes")
         out["classes"] = classes.get("sha256") if classes else None
+        conf = prov.get("confidence")
+        if isinstance(conf, dict) and isinstance(conf.get("bank"), dict):
+            out["confidence"] = {**conf, "bank": conf["bank"].get("sha256")}
     except (AttributeError, TypeError):
         return None
     return out

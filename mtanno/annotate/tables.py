@@ -1,5 +1,5 @@
 """Annotation tables: the segments of an annotation as a table (``doc, start, end, label,
-cost``, native frames), written and read in the I/O convention of :mod:`mtanno.util.tables`
+cost, confidence``, native frames), written and read in the I/O convention of :mod:`mtanno.util.tables`
 (CSV, Parquet or JSON Lines by suffix, provenance beside).
 
 Frames are 0-based in :class:`Annotation` and 1-based inclusive in every table; the
@@ -26,13 +26,16 @@ __all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "Annotation", "annotatio
 
 class Annotation(NamedTuple):
     """One output segment: 0-based inclusive frames at 30 Hz (a named tuple: documents of
-    hours give thousands, made in a few microseconds each)."""
+    hours give thousands, made in a few microseconds each). ``confidence``: the
+    probability that the label is right (:mod:`mtanno.annotate.confidence`); NaN until
+    the annotation gives it."""
 
     doc: str
     start: int
     end: int
     label: str
     cost: float
+    confidence: float = math.nan
 
 
 def to_segments(rows: Sequence[Annotation]) -> list:
@@ -43,12 +46,14 @@ def to_segments(rows: Sequence[Annotation]) -> list:
     return [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
 
 
-ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "start_native", "end_native")
+ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "confidence", "start_native",
+                      "end_native")
 
 
 def annotation_table(rows: Sequence[Annotation], native: dict[str, np.ndarray] | None = None):
     """The annotation table of ``rows`` as a :class:`pyarrow.Table`: doc, start, end
-    (1-based inclusive 30 Hz frames), label, cost (null where infinite), and start_native,
+    (1-based inclusive 30 Hz frames), label, cost (null where infinite), confidence (null
+    where not given), and start_native,
     end_native (1-based native frames) when ``native`` maps each document to its feature
     file's native_frame column."""
     pairs = None
@@ -65,11 +70,14 @@ def _annotation_arrow(rows: Sequence[Annotation], pairs: Sequence[tuple[int, int
 
     cols: dict[str, list] = {"doc": [r.doc for r in rows], "start": [r.start + 1 for r in rows],
                              "end": [r.end + 1 for r in rows], "label": [r.label for r in rows],
-                             "cost": [r.cost if math.isfinite(r.cost) else None for r in rows]}
+                             "cost": [r.cost if math.isfinite(r.cost) else None for r in rows],
+                             "confidence": [None if math.isnan(r.confidence) else r.confidence
+                                            for r in rows]}
     if pairs is not None:
         cols["start_native"] = [a for a, _ in pairs]
         cols["end_native"] = [b for _, b in pairs]
-    types = {"doc": pa.string(), "label": pa.string(), "cost": pa.float64()}
+    types = {"doc": pa.string(), "label": pa.string(), "cost": pa.float64(),
+             "confidence": pa.float64()}
     return arrow_table(cols, types)  # (names of non-UTF-8 files written as text)
 
 
@@ -88,7 +96,8 @@ def read_annotations(path: str | os.PathLike) -> list[Annotation]:
     """Read an annotation table written by :func:`write_annotations` (frames → 0-based).
 
     Every row is checked: a doc and a label, integer frames 1 ≤ start ≤ end, a cost that is
-    a number or empty; a bad row is an error naming its line."""
+    a number or empty, a confidence in [0, 1] or empty (or no such column); a bad row is
+    an error naming its line."""
     return read_annotation_table(path)[0]
 
 
@@ -127,7 +136,17 @@ def _annotation_rows(table, *, native: bool = True
                 raise table.error(i, f"cost must be a number, got {cost!r}") from None
             if math.isnan(cost):
                 raise table.error(i, "cost is NaN")
-        out.append(Annotation(doc, start - 1, end - 1, label, cost))
+        conf = row.get("confidence")
+        if conf is None:
+            conf = math.nan
+        else:
+            try:
+                conf = float(conf)
+            except (TypeError, ValueError):
+                raise table.error(i, f"confidence must be a number, got {conf!r}") from None
+            if not 0.0 <= conf <= 1.0:
+                raise table.error(i, f"confidence must be in [0, 1], got {conf!r}")
+        out.append(Annotation(doc, start - 1, end - 1, label, cost, conf))
         if native:
             pairs.append((parse_int(table, i, "start_native", minimum=1),
                           parse_int(table, i, "end_native", minimum=1)))

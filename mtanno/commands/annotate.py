@@ -11,6 +11,7 @@ from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU
 from mtanno.commands._common import (
     DELTA,
     TAU,
+    Number,
     lock_output,
     scheduler_option,
     show_progress,
@@ -57,8 +58,12 @@ from mtanno.util.store import document_files
               default="reference", show_default=True, help="Matching cost variant (§3.4).")
 @click.option("--single-label", is_flag=True,
               help="One label per frame: where segments overlap, each frame keeps the class "
-                   "with the smallest modified distance, so the rows form a partition (for "
-                   "confusion matrices). Default: the overlapping reference output.")
+                   "with the smallest modified distance (with a tuned confidence: the more "
+                   "confident segment), so the rows form a partition (for confusion "
+                   "matrices). Default: the overlapping reference output.")
+@click.option("--min-confidence", type=Number(min=0, max=1), default=None, metavar="P",
+              help="Drop rows whose confidence is below P (0 to 1) [default: the minimum "
+                   "`mtanno tune` chose, else 0].")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (documents in parallel).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
@@ -66,15 +71,17 @@ from mtanno.util.store import document_files
 @scheduler_option
 @user_errors(2)
 def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
-                 delta, variant, former_variant, match_variant, single_label, jobs, quiet,
-                 wait, scheduler):
+                 delta, variant, former_variant, match_variant, single_label, min_confidence,
+                 jobs, quiet, wait, scheduler):
     """Label every frame of documents with motion classes ([MBS09] §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
     every document; frames get the class whose modified distance is smallest (below tau),
     and the labelled runs are extended. Output rows: doc, start, end (1-based inclusive
-    frames at 30 Hz), label, cost, start_native, end_native; rows may overlap, unless
-    --single-label.
+    frames at 30 Hz), label, cost, confidence, start_native, end_native; rows may overlap,
+    unless --single-label. The confidence (0 to 1) is the probability that the row's label
+    is right when --classes holds a tuned confidence (`mtanno tune`), else the uncalibrated
+    score 1 - cost/tau (docs/annotation.md).
 
     With --keyframes, each class that has a keyframe query is first searched for its key
     poses (a fast scan of the features), and its template is matched only inside the
@@ -115,7 +122,8 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
                              config_path, kf_dir)
     setup = load_annotation_setup(mt_dir, config_path=config_path, keyframes_dir=kf_dir,
                                   tau=tau, delta=delta, dbar_variant=variant,
-                                  match_variant=match_variant, single_label=single_label)
+                                  match_variant=match_variant, single_label=single_label,
+                                  min_confidence=min_confidence)
     check_outputs(written, setup.files(), writable=False)  # the configuration's templates
     _notes(setup, missing, quiet)
     bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")

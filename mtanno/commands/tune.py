@@ -10,6 +10,7 @@ import click
 
 from mtanno.commands._common import Number, scheduler_option, training_options, user_errors
 from mtanno.tuning.cv import DOCUMENT_MODES
+from mtanno.tuning.run import VERIFY_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
 
@@ -43,6 +44,18 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("--ablation", "ablation_dir", type=click.Path(file_okay=False), default=None,
               help="Also tune with each method left out, and with none, on the same folds; "
                    "write DIR/without-METHOD.toml and DIR/none.toml (an ablation study).")
+@click.option("--background", "background", multiple=True, type=click.Path(),
+              metavar="PATH",
+              help="Feature files (or folders of them) of motions that hold none of the "
+                   "classes (repeatable): held out with the training performers, every label "
+                   "on them counts as wrong; recorded with SHA-256 in [background].")
+@click.option("--verify", type=click.Choice(VERIFY_MODES), default="auto", show_default=True,
+              help="How each segment is verified for its confidence: against the training "
+                   "examples (and background) by poses (mtanno features --poses), by the "
+                   "boolean features, or not at all; auto: poses when every file has them.")
+@click.option("--confidence/--no-confidence", default=True, show_default=True,
+              help="Learn the confidence of each segment and the minimum confidence of an "
+                   "output row ([confidence], bank CONFIG.verify.parquet beside CONFIG).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the held-out document composition (same seed, same file).")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
@@ -51,7 +64,8 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @scheduler_option
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
-             disabled, unknown_weight, ablation_dir, seed, jobs, quiet, scheduler):
+             disabled, unknown_weight, ablation_dir, background, verify, confidence, seed, jobs,
+             quiet, scheduler):
     """Learn the annotation parameters from the training data alone (issue 10).
 
     Cross-validation inside the training examples: each performer (manifest actor, or
@@ -78,16 +92,18 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     from mtanno.templates.model import template_files
     from mtanno.templates.training import collect_sources
     from mtanno.tuning import template_folder_of, tune, write_tuned
+    from mtanno.tuning.run import bank_path_of
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import command_line
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth,
                               note=None if quiet else lambda m: click.echo(f"tune: {m}", err=True))
-    planned = [output] + ([Path(ablation_dir) / f"{n}.toml" for n in
-                           [*(f"without-{m}" for m in METHODS), "none"]] if ablation_dir else [])
+    planned = [output, *([bank_path_of(output)] if confidence else [])] + (
+        [Path(ablation_dir) / f"{n}.toml" for n in
+         [*(f"without-{m}" for m in METHODS), "none"]] if ablation_dir else [])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
-                             *(s.path for s in sources),
+                             *(s.path for s in sources), *background,
                              *(keyframe_files(kf_dir) if kf_dir else [])])
 
     def log(line: str) -> None:
@@ -102,7 +118,8 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     result = tune(sources, mt_dir, keyframes_dir=kf_dir, seed=seed, n_jobs=jobs,
                   methods=[m for m in METHODS if m not in disabled], documents=documents,
                   unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log,
-                  scheduler=scheduler)
+                  scheduler=scheduler, background=background, verify=verify,
+                  confidence=confidence)
     write_tuned(output, result, command=command_line())
     if result.not_validated:
         click.echo(f"tune: warning: class(es) {', '.join(result.not_validated)} could not be "

@@ -7,8 +7,10 @@
 * :mod:`~mtanno.tuning.score` — the evaluation counts of [MBS09] §7 on frame arrays.
 * :mod:`~mtanno.tuning.search` — learning and matching per fold, the objective and the
   coordinate search.
+* :mod:`~mtanno.tuning.confidence` — the confidence of the segments (issue 26): evidence
+  of the held-out segments, calibration, the minimum confidence of an output row.
 * :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run) and :func:`write_tuned` (the
-  configuration and its extra templates).
+  configuration, its extra templates and its verification bank).
 
 The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
 :mod:`mtanno.annotate.decode`.

@@ -17,7 +17,10 @@ documents are built from the held-out examples only:
   themselves, with every truth segment they hold.
 
 Nothing outside the training examples is read: the documents are made of their feature
-matrices, and a document's truth is the training truth.
+matrices, and a document's truth is the training truth. Background documents (``tune
+--background``, issue 26) are spread over the folds in turn (the k-th to fold k mod the
+number of folds) and appended to the fold's held-out documents without truth: every label
+there is wrong.
 """
 
 from __future__ import annotations
@@ -48,12 +51,14 @@ FALLBACK_FOLDS = 3
 class HeldOut:
     """The held-out documents of a fold, concatenated: features (f × L), document
     boundaries ``offsets`` (n + 1 frame indices), document names, and the truth as
-    (class, first, last) 0-based inclusive frames of the concatenation."""
+    (class, first, last) 0-based inclusive frames of the concatenation; ``poses`` (L × 22
+    × 3, leg lengths) when every part has them, else None."""
 
     X: np.ndarray
     offsets: np.ndarray
     names: list[str]
     truth: list[tuple[str, int, int]]
+    poses: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -68,12 +73,14 @@ class HeldOut:
 @dataclass
 class Fold:
     """One cross-validation fold: its name (the held-out performer, or ``fold-k``), the
-    training examples of the other folds and the held-out documents."""
+    training examples of the other folds, the held-out documents, and the indices of the
+    background documents held out in it (the others may serve as its background)."""
 
     name: str
     train: list[TrainingExample]
     held_out: HeldOut
     held_examples: list[TrainingExample] = field(default_factory=list)
+    background: list[int] = field(default_factory=list)
 
 
 def _fold_keys(examples: Sequence[TrainingExample], seed: int) -> list[str]:
@@ -94,9 +101,17 @@ def _fold_keys(examples: Sequence[TrainingExample], seed: int) -> list[str]:
     return keys
 
 
+def _poses_of(examples: Sequence[TrainingExample], order: Sequence[int]):
+    """The examples' poses concatenated in ``order`` (None unless every one has them)."""
+    got = [getattr(examples[i], "poses", None) for i in order]
+    if not got or any(p is None for p in got):
+        return None
+    return np.ascontiguousarray(np.concatenate(got), dtype=np.float32)
+
+
 def _composed(examples: Sequence[TrainingExample], *, name: str, seed: int) -> HeldOut:
     rng = random.Random(f"{seed}:{name}")
-    parts, offsets, names, truth = [], [0], [], []
+    parts, offsets, names, truth, used = [], [0], [], [], []
     order_no = 0
     for _ in range(REPEATS):
         order = list(range(len(examples)))
@@ -108,11 +123,12 @@ def _composed(examples: Sequence[TrainingExample], *, name: str, seed: int) -> H
                 X = examples[i].X
                 truth.append((examples[i].class_name, start, start + X.shape[1] - 1))
                 parts.append(X)
+                used.append(i)
                 start += X.shape[1]
             offsets.append(start)
             names.append(f"{name}-doc{order_no:02d}")
     return HeldOut(np.ascontiguousarray(np.concatenate(parts, axis=1)),
-                   np.array(offsets, np.int64), names, truth)
+                   np.array(offsets, np.int64), names, truth, _poses_of(examples, used))
 
 
 def _separate(examples: Sequence[TrainingExample], *, name: str) -> HeldOut:
@@ -124,7 +140,8 @@ def _separate(examples: Sequence[TrainingExample], *, name: str) -> HeldOut:
         offsets.append(start + ex.X.shape[1])
         names.append(f"{name}-clip{i + 1:03d}")
     return HeldOut(np.ascontiguousarray(np.concatenate(parts, axis=1)),
-                   np.array(offsets, np.int64), names, truth)
+                   np.array(offsets, np.int64), names, truth,
+                   _poses_of(examples, range(len(examples))))
 
 
 def _documents(examples: Sequence[TrainingExample], read_document) -> HeldOut:
@@ -145,14 +162,34 @@ def _documents(examples: Sequence[TrainingExample], read_document) -> HeldOut:
                    np.array(offsets, np.int64), names, truth)
 
 
+def _with_background(ho: HeldOut, background: Sequence, idx: Sequence[int]) -> HeldOut:
+    """``ho`` with the background documents ``idx`` of ``background`` ((name, X, poses or
+    None) each) appended, without truth."""
+    if not idx:
+        return ho
+    parts, poses = [ho.X], [ho.poses]
+    offsets, names = list(ho.offsets), list(ho.names)
+    for k in idx:
+        bname, X, P = background[k]
+        parts.append(X)
+        poses.append(P)
+        offsets.append(offsets[-1] + X.shape[1])
+        names.append(f"background:{bname}")
+    P = None if any(p is None for p in poses) else np.ascontiguousarray(
+        np.concatenate(poses), dtype=np.float32)
+    return HeldOut(np.ascontiguousarray(np.concatenate(parts, axis=1)),
+                   np.array(offsets, np.int64), names, list(ho.truth), P)
+
+
 def make_folds(examples: Sequence[TrainingExample], *, documents: str = "composed",
-               seed: int = 0, read_document=None) -> list[Fold]:
+               seed: int = 0, read_document=None, background: Sequence = ()) -> list[Fold]:
     """The cross-validation folds of ``examples`` (module docstring).
 
     ``documents`` says how held-out clips become documents (:data:`DOCUMENT_MODES`).
     Examples cut from annotated documents (``--truth``) give the documents themselves
     instead: pass ``read_document(path) -> features`` to read the examples' own feature
-    files whole. Folds come in
+    files whole. ``background``: (name, features, poses or None) of documents that hold
+    no class, spread over the folds (module docstring). Folds come in
     the order of their names; a fold without training examples of a class leaves that
     class out of the fold's templates.
     """
@@ -167,7 +204,7 @@ def make_folds(examples: Sequence[TrainingExample], *, documents: str = "compose
         raise MtannoError("cross-validation needs examples of at least two performers "
                           "(or of several examples per class)")
     folds = []
-    for name in names:
+    for j, name in enumerate(names):
         held = [ex for ex, k in zip(examples, keys) if k == name]
         train = [ex for ex, k in zip(examples, keys) if k != name]
         if read_document is not None:
@@ -176,6 +213,7 @@ def make_folds(examples: Sequence[TrainingExample], *, documents: str = "compose
             ho = _separate(held, name=name)
         else:
             ho = _composed(held, name=name, seed=seed)
-        folds.append(Fold(name, train, ho, held))
+        bg = [k for k in range(len(background)) if k % len(names) == j]
+        folds.append(Fold(name, train, _with_background(ho, background, bg), held, bg))
     return folds
 

@@ -36,7 +36,8 @@ from mtanno.tuning.search import (
     prepare_fold_class,
 )
 
-__all__ = ["TuneResult", "template_folder_of", "tune", "write_tuned"]
+__all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "template_folder_of", "tune",
+           "write_tuned"]
 
 
 @dataclass
@@ -63,6 +64,13 @@ class TuneResult:
     ablation: dict[str, TuneResult] = field(default_factory=dict)
     #: class → SHA-256 of the template file tuned with (``[tuned_with]`` of the config)
     template_sha256: dict[str, str] = field(default_factory=dict)
+    #: the background documents tuned with (path, SHA-256 each; ``[background]``)
+    background: list[dict] = field(default_factory=list)
+    #: the learned confidence (:class:`mtanno.tuning.confidence.ConfidenceFit`; None: none)
+    confidence: object = None
+    #: the verification bank of all training examples and background documents (None:
+    #: no verification)
+    bank: object = None
 
     @property
     def not_validated(self) -> list[str]:
@@ -114,7 +122,9 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          keyframes_dir: str | os.PathLike | None = None, seed: int = 0, n_jobs: int = 1,
          methods: Sequence[str] = METHODS, documents: str = "composed",
          unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
-         log: Callable[[str], None] | None = None, scheduler: str | None = None) -> TuneResult:
+         log: Callable[[str], None] | None = None, scheduler: str | None = None,
+         background: Sequence[str | os.PathLike] = (), verify: str = "auto",
+         confidence: bool = True) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
     collect_sources`): see :mod:`mtanno.tuning.search` for the search and
@@ -133,6 +143,15 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     and class tasks on a dask.distributed cluster (:func:`mtanno.util.workers.make_pool`; the
     examples and held-out documents are sent once, the tasks carry indices) instead of
     ``n_jobs`` local processes — with the same result.
+
+    Issue 26: ``background`` — feature files (or folders of them) of motions of none of
+    the classes; they join the held-out documents of the folds (:func:`mtanno.tuning.cv.
+    make_folds`), so every label on them counts as wrong. ``confidence``: learn each
+    segment's confidence and the minimum confidence of an output row
+    (:mod:`mtanno.tuning.confidence`), verifying segments against the examples by
+    ``verify``: ``"poses"``, ``"features"``, ``"none"`` (no verification: the evidence of
+    cost and length only) or ``"auto"`` (poses when every training and background file has
+    them, else features).
     """
     t0 = time.perf_counter()
     methods = check_methods(methods)
@@ -141,7 +160,14 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                           f"{', '.join(DOCUMENT_MODES)})", options=("documents",))
     if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
         raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
-    templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir)
+    if verify not in VERIFY_MODES:
+        raise MtannoError(f"unknown {{verify}} {verify!r} (choose from "
+                          f"{', '.join(VERIFY_MODES)})", options=("verify",))
+    templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir,
+                                                        poses=verify in ("auto", "poses"))
+    bg_docs, bg_records = _background_inputs(background, layout, examples,
+                                             poses=verify in ("auto", "poses"))
+    representation = _representation(verify, examples, bg_docs) if confidence else None
     classes = list(templates)
     whole = any(s.start is not None for s in sources)
     if whole:
@@ -151,7 +177,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             return read_features(path).X
     else:
         read_document = None
-    folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document)
+    folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document,
+                       background=bg_docs)
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
@@ -176,12 +203,17 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     extra_of = _further_templates([params, *(v[0] for v in variants.values())], examples,
                                   templates, learn, n_jobs=n_jobs, scheduler=scheduler,
                                   shared=shared)
+    fit = bank = None
+    if confidence:
+        fit, bank = _learn_confidence(tuner, params, folds, templates, examples, bg_docs,
+                                      representation, unknown_weight, seed, log)
     inputs, shas = _input_records(mt_dir, templates, keyframes_dir, examples)
     folds_held = {f.name: len(f.held_examples) for f in folds}
     seconds = time.perf_counter() - t0
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
                         folds_held, seed, methods, documents, unknown_weight, seconds,
-                        template_sha256=shas)
+                        template_sha256=shas, background=bg_records, confidence=fit,
+                        bank=bank)
     for name, (p, ev, st) in variants.items():
         subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
@@ -190,7 +222,73 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     return result
 
 
-def _tune_inputs(sources, mt_dir, keyframes_dir):
+#: How ``tune`` verifies segments for their confidence (:func:`tune`'s ``verify``).
+VERIFY_MODES = ("auto", "poses", "features", "none")
+
+
+def _representation(verify: str, examples, bg_docs) -> str | None:
+    """The bank's representation for ``verify`` (None: no bank)."""
+    if verify == "none":
+        return None
+    posed = all(getattr(e, "poses", None) is not None for e in examples) and all(
+        p is not None for _, _, p in bg_docs)
+    if verify == "poses" and not posed:
+        raise MtannoError("{verify} poses needs poses in every training and background "
+                          "feature file (run mtanno features --poses)", options=("verify",))
+    return "poses" if verify == "poses" or (verify == "auto" and posed) else "features"
+
+
+def _background_inputs(background, layout, examples, *, poses: bool):
+    """The background documents ((name, features, poses or None) each) of the feature
+    files named by ``background`` (files, or folders searched for them) and their records
+    (path, SHA-256). Each must have the templates' ``layout`` and must not be a training
+    file."""
+    if not background:
+        return [], []
+    from mtanno.util.store import check_layout, feature_files, read_features
+
+    training = {e.sha256: e.file for e in examples}
+    docs, records = [], []
+    for path in feature_files(background):
+        ff = read_features(path, sha256=True, **({"poses": True} if poses else {}))
+        check_layout(ff, layout, path=str(path))
+        if ff.sha256 in training:
+            raise MtannoError(f"background file is also a training file ({training[ff.sha256]}"
+                              "): background motions must hold none of the classes",
+                              path=str(path))
+        if ff.X.shape[1] == 0:
+            raise MtannoError("background feature file has no frames", path=str(path))
+        docs.append((ff.document, ff.X, getattr(ff, "poses", None)))
+        records.append({"path": str(path), "sha256": ff.sha256})
+    return docs, records
+
+
+def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
+                      unknown_weight, seed, log):
+    """The confidence fitted on the folds and the verification bank of everything."""
+    from mtanno.annotate.verify import build_bank, sequence
+    from mtanno.tuning.confidence import learn_confidence
+
+    seqs = None
+    if representation is not None:
+        seqs = [sequence(X=X, poses=P, representation=representation) for _, X, P in bg_docs]
+    if log:
+        log(f"confidence: verifying by {representation or 'nothing'}; "
+            f"{len(bg_docs)} background documents")
+    fit = learn_confidence(tuner, params, folds, templates=templates, background_seqs=seqs,
+                           representation=representation, unknown_weight=unknown_weight,
+                           seed=seed, log=log)
+    bank = None
+    if representation is not None:
+        bank = build_bank([(e.class_name, str(e.performer if e.performer is not None
+                                               else e.document),
+                            sequence(X=e.X, poses=getattr(e, "poses", None),
+                                     representation=representation)) for e in examples],
+                          seqs, representation=representation)
+    return fit, bank
+
+
+def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     """The templates of ``mt_dir``, their feature layout, the training examples (each of
     that layout; every class must have some) and the keyframe queries of
     ``keyframes_dir`` (empty without)."""
@@ -203,7 +301,8 @@ def _tune_inputs(sources, mt_dir, keyframes_dir):
     first = next(iter(templates.values()))
     layout = first.layout(f"the templates in {mt_dir}")
     groups = group_by_class(sources)
-    examples = [e for c in groups for e in load_examples(groups[c])]
+    examples = [e for c in groups for e in (load_examples(groups[c], poses=True) if poses
+                                            else load_examples(groups[c]))]
     for ex in examples:
         check_layout(ex.layout(), layout, path=ex.file)
     no_examples = [c for c in classes if c not in groups]
@@ -348,6 +447,45 @@ def template_folder_of(config_path: str | os.PathLike) -> Path:
     return p.with_name(p.stem + ".templates")
 
 
+def bank_path_of(config_path: str | os.PathLike) -> Path:
+    """Where :func:`write_tuned` puts a configuration's verification bank:
+    ``CONFIG.verify.parquet`` beside ``CONFIG.toml``."""
+    p = Path(config_path)
+    return p.with_name(p.stem + ".verify.parquet")
+
+
+def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> list[str]:
+    """``[confidence]`` and ``[background]`` of the configuration (the bank written beside
+    it) and header lines on how well the confidence did out of fold."""
+    from mtanno.annotate.verify import write_bank
+    from mtanno.evaluation.calibration import auroc, expected_calibration_error
+    from mtanno.util.store import sha256_file
+
+    fit = result.confidence
+    cfg.background = {r["path"]: r["sha256"] for r in result.background}
+    if fit is None:
+        return []
+    conf: dict = {"evidence": list(fit.evidence), "min_confidence": fit.min_confidence}
+    if result.bank is not None:
+        bpath = bank_path_of(path)
+        write_bank(bpath, result.bank)
+        conf["bank"] = bpath.name
+        conf["bank_sha256"] = sha256_file(bpath)
+    conf["calibrator"] = fit.calibrator.to_dict()
+    cfg.confidence = conf
+    kinds = np.array(fit.kinds)
+    lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
+             f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "
+             f"segments ({int((kinds == 'known').sum())} of known classes, "
+             f"{int((kinds == 'unknown').sum())} over a class left out, "
+             f"{int((kinds == 'background').sum())} on background): AUROC "
+             f"{auroc(fit.oof, fit.right):.3f}, ECE {expected_calibration_error(fit.oof, fit.right):.3f}"]
+    lines += [f"  min confidence {t['min_confidence']:g}: F1 {t['F1']:.3f} F2 {t['F2']:.3f} "
+              f"unknown-class rate {t['U']:.3f} background labelled {t['background']:.3f}"
+              for t in fit.table]
+    return lines
+
+
 def _fmt(ev: Evaluation) -> str:
     p1, r1, f1 = ev.counts.frame()
     p2, r2, f2 = ev.counts.segment()
@@ -389,6 +527,7 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         f"cross-validated, reference (tau {DEFAULT_TAU}, no methods): {_fmt(result.reference)}",
         "search:",
         *(f"  {s}" for s in result.steps),
+        *_confidence_section(cfg, result, path),
         "the training inputs this file was tuned on are listed at its end",
     ]
     comments = {}

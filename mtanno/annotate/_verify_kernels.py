@@ -1,0 +1,72 @@
+"""The numba kernel of segment verification (issue 26; :mod:`mtanno.annotate.verify`): the
+subsequence DTW cost of a query sequence inside each item of a bank (private; wrapped by
+:func:`mtanno.annotate.verify.subsequence_costs`, tested against a slow reference in
+``tests/naive_verify.py``).
+
+Sequences are (frames × dims) float32 rows. The local cost of two rows is the mean over
+groups of ``group`` consecutive dims of the Euclidean distance within the group (group 3:
+the mean joint distance of two normalised poses, in leg lengths; group 1: the mean absolute
+difference, the Hamming distance over the number of features for 0/1 features). The DTW
+of query Q (n rows) inside item B (m rows), with a free start and end in B::
+
+    D(0, j) = c(0, j)
+    D(i, j) = c(i, j) + min(D(i-1, j-1), D(i-1, j), D(i, j-1))
+
+and the item's cost is min_j D(n − 1, j) / n (per query frame). Only one column of D is
+kept (streaming over B): memory independent of the bank's length.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: "no item row yet" (fastmath assumes finite numbers: no ∞ inside the kernel)
+_BIG = 1e300
+
+
+@numba.njit(cache=True, fastmath=True, inline="always")
+def _local(Q, B, i, j, group, ngroups):
+    s = 0.0
+    if group == 1:  # no square root per dim
+        for d in range(ngroups):
+            s += abs(Q[i, d] - B[j, d])
+        return s / ngroups
+    for g in range(ngroups):
+        acc = 0.0
+        base = g * group
+        for d in range(group):
+            x = Q[i, base + d] - B[j, base + d]
+            acc += x * x
+        s += np.sqrt(acc)
+    return s / ngroups
+
+
+@numba.njit(cache=True, fastmath=True)
+def _subsequence_costs(Q, B, offsets, group, out):
+    """Cost of ``Q`` inside each item k of ``B`` (rows ``offsets[k]:offsets[k+1]``) into
+    ``out[k]`` (module docstring); an empty item gets :data:`_BIG` / n (the caller makes
+    it ∞)."""
+    n = Q.shape[0]
+    ngroups = Q.shape[1] // group
+    col = np.empty(n)
+    for k in range(offsets.shape[0] - 1):
+        best = _BIG
+        for j in range(offsets[k], offsets[k + 1]):
+            first = j == offsets[k]
+            above_old = 0.0  # D(i-1, j-1): col[i-1] before this column overwrote it
+            for i in range(n):
+                c = _local(Q, B, i, j, group, ngroups)
+                old = col[i]  # D(i, j-1)
+                if i == 0:
+                    v = c  # free start in every column
+                elif first:
+                    v = c + col[i - 1]
+                else:
+                    m = above_old if above_old < col[i - 1] else col[i - 1]
+                    v = c + (m if m < old else old)
+                above_old = old
+                col[i] = v
+            if col[n - 1] < best:
+                best = col[n - 1]
+        out[k] = best / n

@@ -1,0 +1,281 @@
+"""Verification of candidate segments against examples (issue 26, part 3): how closely a
+segment's motion resembles the training examples of its class, the examples of the other
+classes, and background motions that belong to no class.
+
+The motion templates of [MR06] keep, per frame, only what the class's examples share, so
+a long document of unknown motions offers every template a window that fits. The examples
+themselves say more: a segment is compared with each example by subsequence DTW
+(:mod:`mtanno.annotate._verify_kernels`; free start and end inside the example, cost per
+segment frame) on one of two representations —
+
+* ``poses``: the normalised poses that ``mtanno features --poses`` stores (root at the
+  origin of the floor plane, heading along +x, leg lengths; [MRC05] §7's pose distance),
+  joints :data:`POSE_JOINTS`, local cost the mean joint distance (leg lengths);
+* ``features``: the 40 boolean relational features, local cost the Hamming distance over
+  the number of features —
+
+at :data:`VERIFY_FPS` (every :data:`VERIFY_STEP`-th analysis frame), a long segment
+sampled evenly to at most :data:`MAX_QUERY` rows. A :class:`Bank` holds the sequences of
+every training example (class, performer) and of the background documents, and per class
+the typical distance of one of its examples to those of the other performers
+(:attr:`Bank.scale`: leave one performer out), so that distances compare across classes.
+
+Frames are 0-based analysis frames (30 Hz) in every argument.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mtanno.errors import MtannoError
+
+__all__ = ["BANK_FORMAT", "MAX_QUERY", "POSE_JOINTS", "REPRESENTATIONS", "VERIFY_FPS",
+           "VERIFY_STEP", "Bank", "build_bank", "read_bank", "sequence", "subsequence_costs",
+           "write_bank"]
+
+#: Analysis frames per verification frame (30 Hz → 10 Hz).
+VERIFY_STEP = 3
+#: Rate of the verification sequences (frames per second).
+VERIFY_FPS = 30.0 / VERIFY_STEP
+#: Longest query, in verification frames (a longer segment is sampled evenly).
+MAX_QUERY = 40
+#: The joints compared in the pose representation (a subset of the 22 canonical joints:
+#: the body's extremities and middle, enough to tell motions apart at half the cost).
+POSE_JOINTS = ("root", "lknee", "rknee", "lankle", "rankle", "chest", "head", "lelbow",
+               "relbow", "lwrist", "rwrist")
+#: Representations a bank can hold.
+REPRESENTATIONS = ("poses", "features")
+#: The ``format`` of a bank file's metadata.
+BANK_FORMAT = "mtanno-verification-bank"
+
+
+def _pose_index() -> np.ndarray:
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    return np.array([CANONICAL_JOINTS.index(j) for j in POSE_JOINTS], dtype=np.int64)
+
+
+def sequence(*, X: np.ndarray | None = None, poses: np.ndarray | None = None,
+             representation: str) -> np.ndarray:
+    """The verification sequence of a stretch of motion: (rows × dims) float32 at
+    :data:`VERIFY_FPS`. ``X``: (features × frames) 0/1 features; ``poses``: (frames × 22 ×
+    3) normalised poses (leg lengths); the one ``representation`` names is used."""
+    if representation == "poses":
+        if poses is None:
+            raise MtannoError("the pose representation needs poses (mtanno features --poses)")
+        P = np.asarray(poses)
+        if P.ndim != 3 or P.shape[2] != 3:
+            raise MtannoError(f"poses must be (frames × joints × 3), got {P.shape}")
+        rows = P[::VERIFY_STEP][:, _pose_index()].reshape(-1, 3 * len(POSE_JOINTS))
+    elif representation == "features":
+        if X is None:
+            raise MtannoError("the feature representation needs the feature matrix")
+        rows = np.asarray(X)[:, ::VERIFY_STEP].T
+    else:
+        raise MtannoError(f"unknown representation {representation!r} (choose from "
+                          f"{', '.join(REPRESENTATIONS)})")
+    return np.ascontiguousarray(rows, dtype=np.float32)
+
+
+def _query(seq: np.ndarray) -> np.ndarray:
+    """``seq`` sampled evenly to at most :data:`MAX_QUERY` rows (and at least one)."""
+    n = seq.shape[0]
+    if n <= MAX_QUERY:
+        return seq
+    idx = np.round(np.linspace(0, n - 1, MAX_QUERY)).astype(np.int64)
+    return np.ascontiguousarray(seq[idx])
+
+
+def _group(representation: str) -> int:
+    return 3 if representation == "poses" else 1
+
+
+def subsequence_costs(query: np.ndarray, items: np.ndarray, offsets: np.ndarray, *,
+                      group: int) -> np.ndarray:
+    """Subsequence DTW cost of ``query`` (rows × dims) inside each item of ``items``
+    (rows ``offsets[k]:offsets[k+1]``): (items,) costs per query row (∞ for an empty item;
+    :mod:`mtanno.annotate._verify_kernels`). ``group``: 3 for poses (mean joint distance),
+    1 for features (mean absolute difference)."""
+    from mtanno.annotate._verify_kernels import _subsequence_costs
+
+    Q = np.ascontiguousarray(query, dtype=np.float32)
+    B = np.ascontiguousarray(items, dtype=np.float32)
+    off = np.ascontiguousarray(offsets, dtype=np.int64)
+    if Q.ndim != 2 or B.ndim != 2 or Q.shape[1] != B.shape[1]:
+        raise MtannoError(f"query and items must be (rows × dims) with the same dims, got "
+                          f"{Q.shape} and {B.shape}")
+    if Q.shape[0] == 0:
+        raise MtannoError("the query has no rows")
+    if group < 1 or Q.shape[1] % group:
+        raise MtannoError(f"dims {Q.shape[1]} are not a multiple of the group {group}")
+    if off.ndim != 1 or off.size < 1 or off[0] != 0 or off[-1] != B.shape[0] \
+            or np.any(np.diff(off) < 0):
+        raise MtannoError("offsets must rise from 0 to the number of item rows")
+    if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(B))):
+        raise MtannoError("query and items must be finite")
+    out = np.empty(off.size - 1)
+    _subsequence_costs(Q, B, off, int(group), out)
+    out[np.diff(off) == 0] = np.inf
+    return out
+
+
+@dataclass
+class Bank:
+    """Verification sequences (module docstring): items (rows × dims float32, one after
+    another, ``offsets``), each item's class (``""`` for background) and performer, and
+    per class the leave-one-performer-out scale (the median, over its examples, of the
+    cost of an example inside the class's examples of other performers)."""
+
+    representation: str
+    items: np.ndarray
+    offsets: np.ndarray
+    labels: list[str]
+    performers: list[str]
+    scale: dict[str, float] = field(default_factory=dict)
+    path: str | None = None
+
+    @property
+    def group(self) -> int:
+        return _group(self.representation)
+
+    @property
+    def classes(self) -> list[str]:
+        return sorted({c for c in self.labels if c})
+
+    @property
+    def has_background(self) -> bool:
+        return "" in self.labels
+
+    def costs(self, query: np.ndarray) -> np.ndarray:
+        """Cost of a query sequence inside every item (:func:`subsequence_costs`)."""
+        return subsequence_costs(_query(query), self.items, self.offsets, group=self.group)
+
+    def nearest(self, query: np.ndarray) -> dict[str, float]:
+        """Per class (and ``""`` for background) the smallest cost of ``query`` inside its
+        items."""
+        c = self.costs(query)
+        out: dict[str, float] = {}
+        for lab, v in zip(self.labels, c.tolist()):
+            if v < out.get(lab, np.inf):
+                out[lab] = v
+        return out
+
+    def metadata(self) -> dict:
+        return {"format": BANK_FORMAT, "version": 1, "representation": self.representation,
+                "step": VERIFY_STEP, "fps": VERIFY_FPS,
+                "joints": list(POSE_JOINTS) if self.representation == "poses" else None,
+                "labels": self.labels, "performers": self.performers,
+                "offsets": [int(x) for x in self.offsets], "scale": self.scale}
+
+
+def build_bank(examples: Sequence[tuple[str, str, np.ndarray]],
+               background: Sequence[np.ndarray] = (), *, representation: str) -> Bank:
+    """A :class:`Bank` of ``examples`` ((class, performer, sequence) each; sequences of
+    :func:`sequence`) and ``background`` sequences; computes each class's scale."""
+    if representation not in REPRESENTATIONS:
+        raise MtannoError(f"unknown representation {representation!r}")
+    seqs = [s for _, _, s in examples] + list(background)
+    seqs = [s for s in seqs if s.shape[0] > 0]
+    labels = [c for c, _, s in examples if s.shape[0] > 0] + [""] * sum(
+        1 for s in background if s.shape[0] > 0)
+    performers = [str(p) for _, p, s in examples if s.shape[0] > 0] + [""] * (
+        len(labels) - sum(1 for _, _, s in examples if s.shape[0] > 0))
+    if not seqs:
+        raise MtannoError("no example to verify against")
+    dims = {s.shape[1] for s in seqs}
+    if len(dims) != 1:
+        raise MtannoError(f"the sequences have different dims: {sorted(dims)}")
+    offsets = np.concatenate([[0], np.cumsum([s.shape[0] for s in seqs])]).astype(np.int64)
+    bank = Bank(representation, np.ascontiguousarray(np.concatenate(seqs), dtype=np.float32),
+                offsets, labels, performers)
+    bank.scale = _scales(bank)
+    return bank
+
+
+def _scales(bank: Bank) -> dict[str, float]:
+    """Per class: the median over its examples of the cost of the example inside the
+    class's examples of other performers (of the other examples when it has one
+    performer); 1.0 for a class with a single example."""
+    out = {}
+    for c in bank.classes:
+        idx = [k for k, lab in enumerate(bank.labels) if lab == c]
+        vals = []
+        for k in idx:
+            others = [j for j in idx if bank.performers[j] != bank.performers[k]] or \
+                     [j for j in idx if j != k]
+            if not others:
+                continue
+            q = bank.items[bank.offsets[k]:bank.offsets[k + 1]]
+            items, offs = _gather(bank, others)
+            vals.append(float(subsequence_costs(_query(q), items, offs,
+                                                group=bank.group).min()))
+        v = float(np.median(vals)) if vals else 1.0
+        out[c] = v if v > 0 else 1.0
+    return out
+
+
+def _gather(bank: Bank, idx: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    parts = [bank.items[bank.offsets[k]:bank.offsets[k + 1]] for k in idx]
+    offs = np.concatenate([[0], np.cumsum([p.shape[0] for p in parts])]).astype(np.int64)
+    return np.ascontiguousarray(np.concatenate(parts)), offs
+
+
+def write_bank(path: str | os.PathLike, bank: Bank) -> None:
+    """Write a bank as Parquet (columns ``v0 …`` float32, one row per item row; the
+    metadata key ``mtanno`` holds :meth:`Bank.metadata`), atomically."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from mtanno.util.output import atomic_path
+
+    cols = {f"v{d}": pa.array(bank.items[:, d]) for d in range(bank.items.shape[1])}
+    table = pa.table(cols).replace_schema_metadata(
+        {"mtanno": json.dumps(bank.metadata(), ensure_ascii=False)})
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+
+
+def read_bank(path: str | os.PathLike) -> Bank:
+    """Read a bank written by :func:`write_bank`; anything else is an
+    :class:`MtannoError` naming the file."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    spath = str(path)
+    if not Path(path).is_file():
+        raise MtannoError("verification bank not found", path=spath)
+    try:
+        table = pq.read_table(path)
+        meta = json.loads((table.schema.metadata or {}).get(b"mtanno", b"null"))
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise MtannoError(f"not a readable verification bank: {exc}", path=spath) from None
+    if not isinstance(meta, dict) or meta.get("format") != BANK_FORMAT:
+        raise MtannoError("not a verification bank (no mtanno bank metadata)", path=spath)
+    try:
+        rep = meta["representation"]
+        labels = [str(x) for x in meta["labels"]]
+        performers = [str(x) for x in meta["performers"]]
+        offsets = np.array(meta["offsets"], dtype=np.int64)
+        scale = {str(k): float(v) for k, v in meta["scale"].items()}
+        items = np.column_stack([table.column(f"v{d}").to_numpy().astype(np.float32)
+                                 for d in range(table.num_columns)]) if table.num_columns \
+            else np.zeros((0, 0), np.float32)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise MtannoError(f"verification bank metadata is malformed ({exc})",
+                          path=spath) from None
+    if rep not in REPRESENTATIONS or len(labels) != len(performers) \
+            or offsets.size != len(labels) + 1 or offsets[0] != 0 \
+            or offsets[-1] != items.shape[0] or np.any(np.diff(offsets) <= 0) \
+            or (rep == "poses" and items.shape[1] != 3 * len(POSE_JOINTS)) \
+            or not np.all(np.isfinite(items)) \
+            or not all(v > 0 and np.isfinite(v) for v in scale.values()):
+        raise MtannoError("verification bank is inconsistent (items, offsets, labels or "
+                          "scales do not agree)", path=spath)
+    return Bank(rep, np.ascontiguousarray(items), offsets, labels, performers, scale,
+                path=spath)

@@ -1,0 +1,256 @@
+"""The confidence that ``mtanno tune`` learns (issue 26): the evidence of every segment the
+tuned annotation outputs on the held-out documents of the cross-validation — segments of
+known classes, segments over a class left out of the templates (each class in turn: its
+motions are unknown there), segments on the background documents — with whether its label
+is right (a truth segment of its label overlaps it with IoU ≥ :data:`RIGHT_IOU`), a
+calibrator fitted on them (:func:`mtanno.annotate.calibration.fit_calibrated`, grouped by
+held-out document), and the minimum confidence of an output row chosen on the calibrator's
+out-of-fold probabilities by the tuning objective J = (F1 + F2)/2 − w·U.
+
+The verification bank of a fold (:mod:`mtanno.annotate.verify`) holds the fold's training
+examples and the background documents that are not held out in it, so that no segment is
+verified against its own motion.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mtanno.annotate.confidence import BANK_EVIDENCE, EVIDENCE, segment_evidence
+from mtanno.annotate.tables import Annotation
+from mtanno.errors import MtannoError
+from mtanno.tuning.score import Counts, _count, _covered_fraction
+
+__all__ = ["MIN_CONFIDENCE_GRID", "RIGHT_IOU", "ConfidenceFit", "learn_confidence",
+           "segment_right"]
+
+#: IoU above which a segment's label counts as right.
+RIGHT_IOU = 0.5
+#: Minimum confidences tried for the output rows.
+MIN_CONFIDENCE_GRID = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+
+
+@dataclass
+class ConfidenceFit:
+    """What :func:`learn_confidence` found: the evidence names, the calibrator, the chosen
+    minimum confidence, the out-of-fold probabilities and rightness of the segments (and
+    where they came from: ``kinds`` "known", "unknown" or "background"), the score of each
+    minimum tried (J, F1, F2, U, fraction of background frames labelled), and the
+    representation verified on."""
+
+    evidence: tuple[str, ...]
+    calibrator: object
+    min_confidence: float
+    oof: np.ndarray
+    right: np.ndarray
+    kinds: list[str]
+    table: list[dict] = field(default_factory=list)
+    representation: str | None = None
+
+
+def segment_right(seg: tuple[int, int, int], truth: Sequence[tuple[int, int, int]]) -> bool:
+    """Whether segment (label, first, last) overlaps a truth segment of its label with
+    IoU ≥ :data:`RIGHT_IOU` (0-based inclusive frames)."""
+    p, a, b = seg
+    for q, s, e in truth:
+        if q != p or e < a or s > b:
+            continue
+        inter = min(b, e) - max(a, s) + 1
+        union = max(b, e) - min(a, s) + 1
+        if inter / union >= RIGHT_IOU:
+            return True
+    return False
+
+
+@dataclass
+class _Run:
+    """The segments of one fold (or one class-left-out run of it) with what scoring and
+    the evidence need."""
+
+    fold: int
+    segs: list[tuple[int, int, int]]
+    costs: list[float]              # Δ/τ at the segment's end (∞: unknown)
+    frame_of: np.ndarray | None     # run frame → frame of the fold's held-out documents
+    hidden: str | None = None       # the class left out (None: all classes)
+
+
+def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=None,
+                     representation: str | None, unknown_weight: float, seed: int = 0,
+                     log: Callable[[str], None] | None = None) -> ConfidenceFit:
+    """Fit the confidence of ``params`` on ``tuner``'s folds (module docstring).
+
+    ``folds``: the :class:`mtanno.tuning.cv.Fold` records the tuner was built from (same
+    order); ``templates``: class → template (their lengths); ``background_seqs``: the
+    verification sequence of every background document (indexed as
+    :attr:`mtanno.tuning.cv.Fold.background`); ``representation``: what the bank holds
+    (None: no bank, evidence ``cost`` and ``length`` only)."""
+    from mtanno.annotate.calibration import fit_calibrated
+
+    names = tuple(n for n in EVIDENCE if (representation is not None or n not in BANK_EVIDENCE)
+                  and (n != "background" or background_seqs))
+    if not params.resolve:
+        names = tuple(n for n in names if n != "cost")
+    lengths = {c: float(mt.values.shape[1]) for c, mt in templates.items()}
+    taus = dict(params.tau)
+    rows_E, right, kinds, groups, runs, owners = [], [], [], [], [], []
+    for j, (f, fd) in enumerate(zip(folds, tuner.folds)):
+        bank = _fold_bank(f, background_seqs, representation) if representation else None
+        for run in _runs(tuner, fd, params, j):
+            runs.append(run)
+            E, ok, kind, doc = _run_evidence(run, f, fd, tuner, bank, names, taus, lengths,
+                                             representation)
+            rows_E.append(E)
+            right.extend(ok)
+            kinds.extend(kind)
+            groups.extend(f"{j}:{d}" for d in doc)
+            owners.extend([len(runs) - 1] * len(ok))
+    E = np.concatenate(rows_E) if rows_E else np.zeros((0, len(names)))
+    y = np.array(right, dtype=np.float64)
+    if len(y) < 4 or y.min() == y.max():
+        raise MtannoError("too few held-out segments (or all right, or all wrong) to learn "
+                          "a confidence from")
+    fit = fit_calibrated(E, y, names=names, rng=seed, groups=np.array(groups))
+    table = _thresholds(tuner, folds, runs, np.array(owners), fit.oof, unknown_weight)
+    best = max(table, key=lambda t: (round(t["J"], 9), -t["min_confidence"]))
+    if log:
+        for t in table:
+            log(f"confidence >= {t['min_confidence']:g}: F1 {t['F1']:.3f} F2 {t['F2']:.3f} "
+                f"unknown {t['U']:.3f} background labelled {t['background']:.3f} "
+                f"J {t['J']:.4f}")
+    return ConfidenceFit(names, fit.calibrator, float(best["min_confidence"]), fit.oof, y,
+                         kinds, table, representation)
+
+
+def _fold_bank(fold, background_seqs, representation):
+    """The verification bank of one fold: its training examples and the background
+    documents not held out in it."""
+    from mtanno.annotate.verify import build_bank, sequence
+
+    examples = [(e.class_name, str(e.performer if e.performer is not None else e.document),
+                 sequence(X=e.X, poses=getattr(e, "poses", None),
+                          representation=representation)) for e in fold.train]
+    bg = [s for k, s in enumerate(background_seqs or []) if k not in set(fold.background)]
+    return build_bank(examples, bg, representation=representation)
+
+
+def _runs(tuner, fd, params, j: int):
+    """The fold's output segments with all its classes, and per class left out those over
+    the documents holding it."""
+    arrays = tuner._arrays(fd, params) if params.resolve else None
+    segs = tuner._segments(fd, params, fd.classes, arrays)
+    yield _Run(j, segs, _costs(tuner, fd, segs, arrays), None)
+    for c, sub in fd.hidden.items():
+        rest = [x for x in fd.classes if x != c]
+        if not rest:
+            continue
+        sub_arrays = arrays if sub is fd else (tuner._arrays(sub, params) if params.resolve
+                                               else None)
+        s2 = tuner._segments(sub, params, rest, sub_arrays)
+        frame_of = None if sub is fd else _frames_of(fd, sub, c)
+        yield _Run(j, s2, _costs(tuner, sub, s2, sub_arrays), frame_of, c)
+
+
+def _frames_of(fd, sub, c: str) -> np.ndarray:
+    """Frame of ``fd`` of every frame of its subset ``sub`` (the documents holding c)."""
+    docs = sorted({int(np.searchsorted(fd.offsets, a, side="right")) - 1
+                   for a, _ in fd.truth_by_class.get(c, [])})
+    return np.concatenate([np.arange(fd.offsets[d], fd.offsets[d + 1]) for d in docs])
+
+
+def _costs(tuner, fd, segs, arrays) -> list[float]:
+    if arrays is None:
+        return [math.nan] * len(segs)
+    mat = arrays[0]
+    rows = {tuner.ids[c]: k for k, c in enumerate(fd.classes)}
+    return [float(mat[rows[p], b]) for p, _, b in segs]
+
+
+def _run_evidence(run: _Run, fold, fd, tuner, bank, names, taus, lengths, representation):
+    """Evidence rows, rightness, kind and document of every segment of a run."""
+    from mtanno.annotate.verify import sequence
+
+    sub = fd if run.hidden is None else fd.hidden[run.hidden]
+    truth = sub.truth if run.hidden is None else []  # over a left-out class: all wrong
+    ho = fold.held_out
+    n_known = len(ho.offsets) - 1 - len(fold.background)
+    rows, ok, kind, doc = [], [], [], []
+    for (p, a, b), cost in zip(run.segs, run.costs):
+        if run.hidden is not None and not _over(run, sub, a, b):
+            continue  # a known class's segment: scored in the fold's own run
+        A, B = (a, b) if run.frame_of is None else (int(run.frame_of[a]), int(run.frame_of[b]))
+        d = int(np.searchsorted(ho.offsets, A, side="right")) - 1
+        label = tuner.names[p]
+        rows.append(Annotation(str(d), A, B, label, cost * taus.get(label, 1.0)))
+        is_bg = d >= n_known
+        ok.append((not is_bg) and run.hidden is None and segment_right((p, a, b), truth))
+        kind.append("background" if is_bg else "unknown" if run.hidden else "known")
+        doc.append(d)
+
+    def query(r: Annotation) -> np.ndarray:
+        return sequence(X=ho.X[:, r.start:r.end + 1] if representation == "features" else None,
+                        poses=ho.poses[r.start:r.end + 1] if representation == "poses"
+                        else None, representation=representation)
+
+    E = segment_evidence(rows, taus=taus, lengths=lengths, bank=bank,
+                         query=query if bank is not None else None, names=names)
+    return E, ok, kind, doc
+
+
+def _over(run: _Run, sub, a: int, b: int) -> bool:
+    """Whether a segment of a class-left-out run lies mostly over the left-out class."""
+    n = b - a + 1
+    hit = sum(max(0, min(b, e) - max(a, s) + 1) for s, e in sub.truth_by_class[run.hidden])
+    return hit * 2 >= n
+
+
+def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list[dict]:
+    """J, F1, F2, U and the fraction of background frames labelled for each minimum of
+    :data:`MIN_CONFIDENCE_GRID`, the segments below it dropped."""
+    out = []
+    for m in MIN_CONFIDENCE_GRID:
+        total, unk, bg = Counts(), [0, 0], [0, 0]
+        for r_i, run in enumerate(runs):
+            idx = np.flatnonzero(owners == r_i)
+            # segments of a left-out run not over the class were never scored (kept)
+            keep = iter(prob[idx] >= m)
+            fd = tuner.folds[run.fold]
+            sub = fd if run.hidden is None else fd.hidden[run.hidden]
+            kept = []
+            for s in run.segs:
+                if run.hidden is not None and not _over(run, sub, s[1], s[2]):
+                    kept.append(s)
+                elif next(keep):
+                    kept.append(s)
+            if run.hidden is None:
+                total += _count(fd.truth, kept, len(tuner.names), fd.n_frames, fd.ignore)
+                for spans in fd.absent.values():
+                    h, n = _covered_fraction(spans, kept, fd.n_frames)
+                    unk[0] += h
+                    unk[1] += n
+                spans = _background_spans(folds[run.fold], fd)
+                h, n = _covered_fraction(spans, kept, fd.n_frames)
+                bg[0] += h
+                bg[1] += n
+            else:
+                h, n = _covered_fraction(sub.truth_by_class[run.hidden], kept, sub.n_frames)
+                unk[0] += h
+                unk[1] += n
+        U = unk[0] / unk[1] if unk[1] else 0.0
+        f1, f2 = total.frame()[2], total.segment()[2]
+        out.append({"min_confidence": m, "J": (f1 + f2) / 2 - unknown_weight * U, "F1": f1,
+                    "F2": f2, "U": U, "background": bg[0] / bg[1] if bg[1] else 0.0})
+    return out
+
+
+def _background_spans(fold, fd) -> list[tuple[int, int]]:
+    """The frames of the fold's background documents (the last of its held-out
+    documents), as (first, last) spans."""
+    n_bg = len(fold.background)
+    if not n_bg:
+        return []
+    off = fd.offsets
+    return [(int(off[k]), int(off[k + 1]) - 1) for k in range(len(off) - 1 - n_bg, len(off) - 1)]
