@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from naive_verify import subsequence_costs as naive_costs
+from nojit import run_without_jit
 
 from mtanno.annotate.verify import (
     MAX_QUERY,
@@ -17,8 +19,6 @@ from mtanno.annotate.verify import (
     write_bank,
 )
 from mtanno.errors import MtannoError
-from naive_verify import subsequence_costs as naive_costs
-from nojit import run_without_jit
 
 
 def check_against_naive(seed: int, group: int) -> None:
