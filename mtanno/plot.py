@@ -5,8 +5,9 @@ Every function draws one kind of data into a matplotlib ``Axes`` and returns it:
 ``plot_x(data, *, ax=None) -> Axes``. Without ``ax`` a new figure is made with
 :class:`matplotlib.figure.Figure` (no pyplot, no window, any backend), so the functions
 work the same in scripts, on servers and in notebooks; nothing calls ``plt.show``.
-:func:`save_figure` writes a figure atomically (PNG or SVG by the suffix). Frames on the
-axes are 1-based at 30 Hz, as in every file mtanno writes.
+:func:`reliability_figure` is the one whole figure (a reliability diagram above its bin
+counts). :func:`save_figure` writes a figure atomically (PNG or SVG by the suffix). Frames
+on the axes are 1-based at 30 Hz, as in every file mtanno writes.
 """
 
 from __future__ import annotations
@@ -21,7 +22,9 @@ from mtanno.errors import MtannoError
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
+    from mtanno.evaluation.calibration import ReliabilityTable
     from mtanno.templates.model import MotionTemplate
 
 INSTALL_HINT = "plots need matplotlib: pip install 'mtanno[plot]' (or pip install matplotlib)"
@@ -145,6 +148,47 @@ def plot_timeline(rows: dict[str, Sequence[tuple[int, int, str]]], *, n_frames: 
     ax.set_xlim(0.5, n_frames + 0.5)
     ax.set_xlabel("frame (30 Hz)")
     return ax
+
+
+def plot_reliability(table: ReliabilityTable, *, ax: Axes | None = None,
+                     counts_ax: Axes | None = None) -> Axes:
+    """A reliability diagram of a confidence (issue 26; Niculescu-Mizil & Caruana 2005):
+    per non-empty bin of :func:`mtanno.evaluation.reliability_table`, x = the mean
+    confidence of its segments, y = the fraction of them whose label is right, with the
+    diagonal of perfect calibration and the ECE in the legend; with ``counts_ax``, the
+    segments per bin as bars there (x = confidence, the bins' widths)."""
+    ax = _axes(ax, (4.5, 4.5))
+    ax.plot([0, 1], [0, 1], color="k", linestyle=":", linewidth=1, label="calibrated")
+    full = table.count > 0
+    ax.plot(table.mean_prob[full], table.fraction_right[full], marker="o", linewidth=1.5,
+            label=f"ECE = {table.ece:.3f} ({table.n} segments)")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("confidence")
+    ax.set_ylabel("fraction right")
+    ax.legend(loc="upper left", fontsize=8)
+    if counts_ax is not None:
+        counts_ax.bar(table.lo, table.count, width=table.hi - table.lo, align="edge",
+                      color="#7a9cc6", edgecolor="white")
+        counts_ax.set_xlim(0, 1)
+        counts_ax.set_xlabel("confidence")
+        counts_ax.set_ylabel("segments")
+    return ax
+
+
+def reliability_figure(table: ReliabilityTable, *, title: str | None = None) -> Figure:
+    """A figure of :func:`plot_reliability`: the diagram above, the counts per bin as bars
+    below on the same confidence axis; ``title`` above both."""
+    require_matplotlib()
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(4.5, 6), layout="constrained")
+    top, bottom = figure.subplots(2, 1, sharex=True, height_ratios=[3, 1])
+    plot_reliability(table, ax=top, counts_ax=bottom)
+    top.set_xlabel("")
+    if title:
+        figure.suptitle(title)
+    return figure
 
 
 def save_figure(ax_or_figure, path: str | os.PathLike, *, dpi: int = 110) -> None:

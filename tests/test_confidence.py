@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from mtanno.annotate import Annotation, read_annotations, write_annotations
+from mtanno.annotate.calibration import uncalibrated_confidence
 from mtanno.annotate.confidence import (
     check_min_confidence,
     segment_evidence,
     single_label_by_confidence,
-    uncalibrated_confidence,
 )
 from mtanno.annotate.config import ClassConfig, class_config_text, load_class_config
 from mtanno.errors import MtannoError

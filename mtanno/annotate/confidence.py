@@ -18,8 +18,8 @@ Evidence of a segment of label ℓ (natural logarithms; d are verification costs
   0 without them.
 
 Without a tuned confidence (no ``[confidence]`` in the class configuration) the
-confidence is :func:`uncalibrated_confidence`, a monotone score marked ``uncalibrated``
-in the provenance.
+confidence is :func:`mtanno.annotate.calibration.uncalibrated_confidence` of the cost
+ratio, a monotone score marked uncalibrated in the provenance.
 """
 
 from __future__ import annotations
@@ -30,13 +30,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mtanno.annotate.calibration import uncalibrated_confidence
 from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
 
 __all__ = ["BANK_EVIDENCE", "EVIDENCE", "ConfidenceModel", "check_min_confidence",
            "confidence_record", "load_confidence", "score_document", "segment_evidence",
            "single_label_by_confidence",
-           "uncalibrated_confidence", "with_confidence"]
+           "with_confidence"]
 
 #: The evidence of a segment, in the order of the columns of :func:`segment_evidence`.
 EVIDENCE = ("cost", "length", "verify", "margin", "background")
@@ -45,15 +46,6 @@ BANK_EVIDENCE = ("verify", "margin", "background")
 #: Cost ratio given to a segment whose cost is infinite (no match inside it).
 _FAR = 10.0
 _EPS = 1e-6
-
-
-def uncalibrated_confidence(cost_ratio: float) -> float:
-    """The confidence without a tuned calibration: 1 − Δ/τ clipped to [0, 1] (a match at
-    distance 0 gets 1, one at the threshold 0). Monotone in the template's fit only: it
-    sorts segments, it is not a probability."""
-    if not cost_ratio == cost_ratio:  # NaN
-        return 0.0
-    return float(min(1.0, max(0.0, 1.0 - cost_ratio)))
 
 
 def check_min_confidence(value, *, what: str = "min confidence") -> float:
@@ -162,8 +154,8 @@ def score_document(rows: Sequence[Annotation], *, X: np.ndarray, poses: np.ndarr
     without one."""
     taus, lengths, members = _label_facts(models, config)
     if confidence is None:
-        return with_confidence(rows, [uncalibrated_confidence(
-            r.cost / taus[r.label] if taus.get(r.label, 0) > 0 else math.inf) for r in rows])
+        return with_confidence(rows, uncalibrated_confidence(np.array(
+            [r.cost / taus[r.label] if taus.get(r.label, 0) > 0 else math.inf for r in rows])))
     if not rows:
         return []
     bank = confidence.bank

@@ -11,6 +11,9 @@ Modules:
   accuracy, Edit score, F1@{10, 25, 50} (Lea et al. 2017; MS-TCN);
 * :mod:`~mtanno.evaluation.retrieval` — retrieval P/R per τ, top-k recall, separation
   ([MR06] §5.4–5.5);
+* :mod:`~mtanno.evaluation.calibration` — how well a segment confidence separates right
+  from wrong labels and is calibrated: AUROC, expected calibration error, reliability
+  table (issue 26);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
   clips (``mtanno compose``);
 * :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``).
@@ -26,19 +29,23 @@ _MODULE_OF = {
     "OVERLAPS": "segmentation",
     "OverlapCounts": "segmentation",
     "PRF": "metrics",
+    "ReliabilityTable": "calibration",
     "Report": "metrics",
     "ReportResult": "report",
     "RetrievalRow": "retrieval",
     "Segment": "truth",
     "SegmentationScores": "segmentation",
     "TAU_GRID": "retrieval",
+    "auroc": "calibration",
     "check_within": "truth",
     "confusion_matrix": "report",
     "edit_score": "segmentation",
     "evaluate_annotations": "metrics",
+    "expected_calibration_error": "calibration",
     "frame_level": "metrics",
     "levenshtein": "segmentation",
     "read_truth": "truth",
+    "reliability_table": "calibration",
     "retrieval_evaluation": "retrieval",
     "retrieval_report": "retrieval",
     "retrieval_rows": "retrieval",
@@ -53,9 +60,10 @@ _MODULE_OF = {
 }
 
 __all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval", "OverlapCounts",
-           "Report", "ReportResult", "RetrievalRow", "Segment", "SegmentationScores",
-           "check_within", "confusion_matrix", "edit_score", "evaluate_annotations",
-           "frame_level", "levenshtein", "read_truth", "segmentation_scores",
+           "ReliabilityTable", "Report", "ReportResult", "RetrievalRow", "Segment",
+           "SegmentationScores", "auroc", "check_within", "confusion_matrix", "edit_score",
+           "evaluate_annotations", "expected_calibration_error", "frame_level", "levenshtein",
+           "read_truth", "reliability_table", "segmentation_scores",
            "retrieval_evaluation", "retrieval_report", "retrieval_rows", "retrieval_table",
            "segment_level", "separation_quotient", "top_k_recall", "truth_table",
            "write_report", "write_truth"]
