@@ -104,7 +104,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     variant = former_variant or variant  # --variant: the former name of --dbar
     from tqdm import tqdm
 
-    from mtanno.annotate import check_tau, load_annotation_setup, write_annotations
+    from mtanno.annotate import check_tau, load_annotation_setup
     from mtanno.util.output import check_outputs
 
     _check_options(outputs, out_dir, fmt, force, wait)
@@ -134,36 +134,14 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
         failures.add(path, error)
 
     if out_dir is None:
-        batch = setup.annotate(paths, n_jobs=jobs, scheduler=scheduler, progress=note_failure)
-        bar.close()
-        failures.finish()
-        prov = setup.provenance(inputs=batch.files, documents=batch.frames)
-        if paths and len(batch.failed) == len(paths):  # nothing annotated: no empty table
-            outputs = ["nothing written"]
-        else:
-            for out in outputs:
-                write_annotations(out, batch.rows, batch.native, provenance=prov)
-        failed, what = len(batch.failed), f"{len(paths) - len(batch.failed)} documents, " \
-                                              f"{len(batch.rows)} segments"
-        seconds = batch.seconds
+        failed, what, seconds = _to_tables(setup, paths, outputs, jobs, scheduler,
+                                           note_failure, bar, failures)
+        if failed < 0:  # nothing annotated: no empty table
+            failed, outputs = -failed, ["nothing written"]
     else:
-        from mtanno.annotate.folder import annotate_folder, folder_table
-        from mtanno.util.tables import write_table
-
-        with lock_output(out_dir, wait=wait):
-            summary = annotate_folder(
-                folder_jobs, setup, force=force, n_jobs=jobs, scheduler=scheduler,
-                progress=lambda o: note_failure(o.job.src,
-                                                o.message if o.status == "failed" else None))
-            bar.close()
-            failures.finish()
-            if outputs:
-                table, prov = folder_table(summary, setup)
-                for out in outputs:
-                    write_table(out, table, provenance=prov)
-        failed, seconds = len(summary.failed), summary.seconds
-        what = f"{len(folder_jobs)} documents: {summary.line()}" + (
-            f", {len(missing)} input(s) without feature files" if missing else "")
+        failed, what, seconds = _to_folder(setup, folder_jobs, out_dir, outputs, force, jobs,
+                                           scheduler, wait, missing, note_failure, bar,
+                                           failures)
         outputs = (out_dir, *outputs)
     if out_dir is None:
         failed += len(missing)
@@ -173,6 +151,46 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
         click.echo(f"annotate: {what}, {len(setup.classes)} classes{kf}{tail}, "
                    f"{seconds:.2f} s of annotation -> {', '.join(map(str, outputs))}", err=True)
     sys.exit(1 if failed or missing else 0)
+
+
+def _to_tables(setup, paths, outputs, jobs, scheduler, note_failure, bar, failures):
+    """Annotate ``paths`` into the -o tables: (failed documents — negative when all
+    failed and nothing was written —, what was done, seconds of annotation)."""
+    from mtanno.annotate import write_annotations
+
+    batch = setup.annotate(paths, n_jobs=jobs, scheduler=scheduler, progress=note_failure)
+    bar.close()
+    failures.finish()
+    prov = setup.provenance(inputs=batch.files, documents=batch.frames)
+    failed = len(batch.failed)
+    if paths and failed == len(paths):
+        return -failed, "0 documents, 0 segments", batch.seconds
+    for out in outputs:
+        write_annotations(out, batch.rows, batch.native, provenance=prov)
+    return failed, f"{len(paths) - failed} documents, {len(batch.rows)} segments", batch.seconds
+
+
+def _to_folder(setup, folder_jobs, out_dir, outputs, force, jobs, scheduler, wait, missing,
+               note_failure, bar, failures):
+    """Annotate into ``out_dir`` (and the -o tables assembled from it), holding its lock:
+    (failed documents, what was done, seconds of annotation)."""
+    from mtanno.annotate.folder import annotate_folder, folder_table
+    from mtanno.util.tables import write_table
+
+    with lock_output(out_dir, wait=wait):
+        summary = annotate_folder(
+            folder_jobs, setup, force=force, n_jobs=jobs, scheduler=scheduler,
+            progress=lambda o: note_failure(o.job.src,
+                                            o.message if o.status == "failed" else None))
+        bar.close()
+        failures.finish()
+        if outputs:
+            table, prov = folder_table(summary, setup)
+            for out in outputs:
+                write_table(out, table, provenance=prov)
+    what = f"{len(folder_jobs)} documents: {summary.line()}" + (
+        f", {len(missing)} input(s) without feature files" if missing else "")
+    return len(summary.failed), what, summary.seconds
 
 
 class _FailureLines:

@@ -154,30 +154,16 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     them, else features).
     """
     t0 = time.perf_counter()
-    methods = check_methods(methods)
-    if documents not in DOCUMENT_MODES:
-        raise MtannoError(f"unknown {{documents}} {documents!r} (choose from "
-                          f"{', '.join(DOCUMENT_MODES)})", options=("documents",))
-    if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
-        raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
-    if verify not in VERIFY_MODES:
-        raise MtannoError(f"unknown {{verify}} {verify!r} (choose from "
-                          f"{', '.join(VERIFY_MODES)})", options=("verify",))
+    methods = _check_options(methods, documents, unknown_weight, verify)
     templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir,
                                                         poses=verify in ("auto", "poses"))
     bg_docs, bg_records = _background_inputs(background, layout, examples,
                                              poses=verify in ("auto", "poses"))
     representation = _representation(verify, examples, bg_docs) if confidence else None
     classes = list(templates)
-    whole = any(s.start is not None for s in sources)
-    if whole:
-        from mtanno.util.store import read_features
-
-        def read_document(path):
-            return read_features(path).X
-    else:
-        read_document = None
-    folds = make_folds(examples, documents=documents, seed=seed, read_document=read_document,
+    folds = make_folds(examples, documents=documents, seed=seed,
+                       read_document=_read_document if any(
+                           s.start is not None for s in sources) else None,
                        background=bg_docs)
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
@@ -224,6 +210,27 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
 
 #: How ``tune`` verifies segments for their confidence (:func:`tune`'s ``verify``).
 VERIFY_MODES = ("auto", "poses", "features", "none")
+
+
+def _check_options(methods, documents, unknown_weight, verify) -> list[str]:
+    """:func:`tune`'s options checked; returns the methods in :data:`METHODS` order."""
+    methods = check_methods(methods)
+    if documents not in DOCUMENT_MODES:
+        raise MtannoError(f"unknown {{documents}} {documents!r} (choose from "
+                          f"{', '.join(DOCUMENT_MODES)})", options=("documents",))
+    if not (unknown_weight >= 0 and math.isfinite(unknown_weight)):
+        raise MtannoError(f"unknown weight must be a finite number ≥ 0, got {unknown_weight!r}")
+    if verify not in VERIFY_MODES:
+        raise MtannoError(f"unknown {{verify}} {verify!r} (choose from "
+                          f"{', '.join(VERIFY_MODES)})", options=("verify",))
+    return methods
+
+
+def _read_document(path):
+    """The features of a whole training document (examples cut from annotated ones)."""
+    from mtanno.util.store import read_features
+
+    return read_features(path).X
 
 
 def _representation(verify: str, examples, bg_docs) -> str | None:
