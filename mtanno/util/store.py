@@ -299,7 +299,8 @@ def _write_with_poses(path: str | os.PathLike, X: np.ndarray, names: tuple[str, 
     if P.shape != (n, len(joints), 3):
         raise MtannoError(f"poses must be (frames × {len(joints)} × 3) = ({n} × "
                           f"{len(joints)} × 3), got {P.shape}", path=spath)
-    P = P.astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):  # beyond float32: refused below
+        P = P.astype(np.float32)
     if not np.isfinite(P).all():
         raise MtannoError("poses contain NaN or infinite values (or values beyond float32)",
                           path=spath)
