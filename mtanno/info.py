@@ -28,8 +28,10 @@ DEFAULT_WIDTH = 100
 def describe_feature_file(ff: FeatureFile) -> list[str]:
     """The lines ``mtanno info FILE.parquet`` prints: document, source motion file (with
     the start of its SHA-256), feature set and count, frames at the analysis and the native
-    rate, skeleton map and the mtanno version that wrote it (the file's metadata)."""
+    rate, the pose block if the file has one (``features --poses``: joints and unit),
+    skeleton map and the mtanno version that wrote it (the file's metadata)."""
     m = ff.meta
+    poses = m.get("poses") if ff.has_poses else None
     return [
         f"feature file   {ff.path}",
         f"document       {ff.document}",
@@ -38,6 +40,7 @@ def describe_feature_file(ff: FeatureFile) -> list[str]:
         f"{len(ff.names)} features",
         f"frames         {ff.X.shape[1]} at {m.get('analysis_fps')} Hz "
         f"({m.get('native_frames')} native at {m.get('native_fps')} Hz)",
+        *([f"poses          {len(poses['joints'])} joints, {poses['unit']}"] if poses else []),
         f"skeleton map   {m.get('skeleton_map')}",
         f"mtanno         {m.get('mtanno_version')}",
     ]

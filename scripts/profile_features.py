@@ -112,6 +112,7 @@ def instrument() -> None:
     _patch(io, "find_map", "skeleton map lookup")
     _patch(io, "forward_kinematics", "kinematics")
     _patch(extract, "features_from_motion", "features")
+    _patch(extract, "_motion_features", "features")
     _patch(features, "compute_features", "features")
     _patch(extract, "compute_features", "features")
     _patch(extract, "sha256_file", "SHA-256 of inputs")

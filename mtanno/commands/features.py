@@ -41,12 +41,17 @@ from mtanno.errors import MtannoError
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
               help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
                    "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
+@click.option("--poses", is_flag=True,
+              help="Also store the normalised poses of the same 30 Hz frames: 66 float32 "
+                   "columns pose.<joint>.<x|y|z> of the 22 canonical joints, root at x=z=0, "
+                   "facing +x, in leg lengths (docs/formats.md), for pose evidence without "
+                   "rereading the motion files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @scheduler_option
 @user_errors(2)
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, quiet, wait,
-                 scheduler):
+def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, poses, quiet,
+                 wait, scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
     annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
@@ -59,12 +64,16 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
     it: the ASF whose name begins the AMC's name (HDM_bd.asf for HDM_bd_squat1Reps_001_120.amc,
     02.asf for 02_05.amc), else the only ASF there.
 
+    With --poses every output also holds the poses of its rows, normalised as the pose
+    distance of `mtanno align` does (root at x = z = 0, turned to face +x, scaled by the leg
+    length), so that later stages can compare poses from the feature files alone.
+
     An output is up to date, and skipped unless --force, when the provenance it records
     matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
-    up axis and the extractor version. Files that fail are reported as `path:line: what is wrong` and
-    the others are still written. Exit code: 0 all written or up to date, 1 some files
-    failed, 2 usage error, 3 OUTDIR locked by another run (see --wait), 130 interrupted
-    (finished outputs stay, no partial file).
+    up axis, the extractor version, and whether it has poses (--poses). Files that fail are
+    reported as `path:line: what is wrong` and the others are still written. Exit code: 0
+    all written or up to date, 1 some files failed, 2 usage error, 3 OUTDIR locked by
+    another run (see --wait), 130 interrupted (finished outputs stay, no partial file).
 
     Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
     """
@@ -105,7 +114,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, qu
         with lock_output(outdir, wait=wait):
             summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
                                 progress=progress, feature_set=feature_set, up=up,
-                                scheduler=scheduler)
+                                scheduler=scheduler, poses=poses)
     finally:
         _remove_if_empty(made)  # a run that wrote nothing leaves no new folder behind
     bar.close()

@@ -12,7 +12,9 @@ definitions as data: joints, measure, thresholds, window), :mod:`~mtanno.feature
 (planes, angles, velocities, body units), :mod:`~mtanno.features.hysteresis` (two-threshold
 quantisation, 30 Hz reduction), :mod:`~mtanno.features.compute` (feature sets and
 :func:`compute_features`), :mod:`~mtanno.features.extract` (motion files → feature files,
-in batches: ``mtanno features``), ``_kernels`` (the numba kernels, private).
+in batches: ``mtanno features``), :mod:`~mtanno.features.poses` (poses normalised for root,
+heading and leg length, which feature files may carry), ``_kernels`` (the numba kernels,
+private).
 """
 
 from mtanno.features.compute import (

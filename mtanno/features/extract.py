@@ -56,36 +56,68 @@ def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
     """(features × analysis frames) uint8 features and the 1-based native frame of each
     column; ``feature_set`` names the table (default the 40 annotation features); ``up``
     is the motion's up axis (:func:`to_y_up`)."""
-    fs = _feature_set(feature_set)
-    try:
-        X, keep = compute_features(to_y_up(canonical_positions(motion), up),
-                                   to_y_up(motion.heading, up), motion.fps,
-                                   target_fps=target_fps, features=fs.features)
-    except MtannoError as exc:  # "motion has no frames", ...: say which motion
-        if exc.path is None and motion.source:
-            raise MtannoError(exc.message, path=motion.source) from None
-        raise
+    X, keep, _ = _motion_features(motion, _feature_set(feature_set), up, target_fps)
     return X, keep + 1
+
+
+def _named(exc: MtannoError, motion: Motion) -> MtannoError:
+    """``exc`` naming the motion's file when it names none ("motion has no frames", …)."""
+    if exc.path is None and motion.source:
+        return MtannoError(exc.message, path=motion.source)
+    return exc
+
+
+def _motion_features(motion: Motion, fs: FeatureSet, up: str,
+                     target_fps: float = ANALYSIS_FPS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features at the analysis rate, their 0-based kept native frames and the canonical
+    joint positions (native frames × 22 × 3, Y up) they were computed from."""
+    P = to_y_up(canonical_positions(motion), up)
+    try:
+        X, keep = compute_features(P, to_y_up(motion.heading, up), motion.fps,
+                                   target_fps=target_fps, features=fs.features)
+    except MtannoError as exc:
+        raise _named(exc, motion) from None
+    return X, keep, P
+
+
+def poses_at(positions: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The pose block of a feature file: (analysis frames × 22 × 3) float32 poses in leg
+    lengths, :func:`mtanno.features.poses.normalize_poses` of the canonical joint
+    positions (native frames × 22 × 3, Y up) at the kept native frames ``keep`` (0-based),
+    as the alignment module normalises a motion's analysis frames."""
+    from mtanno.features.poses import normalize_poses
+
+    return normalize_poses(positions[keep]).astype(np.float32)
 
 
 def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *,
                  asf: str | os.PathLike | None = None,
                  skeleton: str | os.PathLike | None = None,
                  feature_set: str | FeatureSet = FEATURE_SET,
-                 up: str = "y") -> tuple[np.ndarray, dict]:
+                 up: str = "y", poses: bool = False) -> tuple[np.ndarray, dict]:
     """Compute the features of one motion file; write them to ``dst`` if given.
 
     ``feature_set``: ``mr06-ak40`` (alias ``ak40``, default), ``mrc05`` or
     ``mrc05-reference``; its name is stored in the metadata. ``up``: the file's up axis,
-    "y" (default) or "z" (:func:`to_y_up`), stored in the metadata. Returns the
-    (features × frames) matrix and the metadata stored with it.
+    "y" (default) or "z" (:func:`to_y_up`), stored in the metadata. ``poses``: also store
+    the normalised poses of the analysis frames (:func:`poses_at`; the file's pose block,
+    described by the metadata's ``poses`` entry, ``docs/formats.md``); without it the file
+    holds the features only. Returns the (features × frames) matrix and the metadata
+    stored with it.
     """
     fs = _feature_set(feature_set)
     src = Path(src)
     if src.suffix.lower() == ".amc" and asf is None:
         asf = find_asf(src)
     motion = read_motion(src, asf=asf, skeleton=skeleton, sha256=True)
-    X, native = features_from_motion(motion, feature_set=fs, up=up)
+    X, keep, positions = _motion_features(motion, fs, up)
+    native = keep + 1
+    block = None
+    if poses:
+        try:
+            block = poses_at(positions, keep)
+        except MtannoError as exc:  # legs of no length: say which motion
+            raise _named(exc, motion) from None
     meta = {
         "document": src.stem,
         "source": str(src),
@@ -112,8 +144,12 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
         "groups": {g: [fs.names[i] for i in rows] for g, rows in fs.groups.items()},
         "mtanno_version": __version__,
     }
+    if block is not None:
+        from mtanno.features.poses import pose_metadata
+
+        meta["poses"] = pose_metadata()
     if dst is not None:
-        write_features(dst, X, fs.names, native, meta)
+        write_features(dst, X, fs.names, native, meta, poses=block)
     return X, meta
 
 
@@ -289,13 +325,17 @@ def _stored_meta(path: Path) -> dict | None:
 
 
 def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
-               skeleton: str | os.PathLike | None = None, up: str = "y") -> bool:
+               skeleton: str | os.PathLike | None = None, up: str = "y",
+               poses: bool = False) -> bool:
     """True if ``job.dst`` holds the features this job would compute now, judged by the
     provenance the output records: the same motion file (SHA-256), the same skeleton file
     (the ASF that would be used, SHA-256), the same skeleton map (the one that would be
     chosen for the recorded rig, by content), the same feature set and table, the same up
-    axis and the same extractor version. Modification times are not used: a touched but unchanged input is
-    still up to date, a changed ASF with an old time stamp is not."""
+    axis, the same extractor version, and a pose block exactly when ``poses`` is asked
+    (with the same ``poses`` description: joints, unit, normalisation). Modification times
+    are not used: a touched but unchanged input is still up to date, a changed ASF with an
+    old time stamp is not."""
+    from mtanno.features.poses import pose_metadata
     from mtanno.io.rigs import select_map
 
     meta = _stored_meta(job.dst) if job.dst.is_file() else None
@@ -305,6 +345,8 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
     if (meta.get("feature_set"), meta.get("feature_set_version"),
             meta.get("feature_table_sha256"), meta.get("extractor_version")) != \
             (fs.name, fs.version, fs.digest, EXTRACTOR_VERSION) or meta.get("up", "y") != up:
+        return False
+    if meta.get("poses") != (pose_metadata() if poses else None):
         return False
     try:
         if meta.get("source_sha256") != sha256_file(job.src):
@@ -325,19 +367,19 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
 
 
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
-             up: str = "y") -> Outcome:
+             up: str = "y", poses: bool = False) -> Outcome:
     status, message, frames = _extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
-                                           up)
+                                           up, poses)
     return Outcome(job, status, message, frames)
 
 
 def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
-                 feature_set: str, up: str) -> tuple[str, str, int]:
+                 feature_set: str, up: str, poses: bool = False) -> tuple[str, str, int]:
     """One document: (status, message, analysis frames); every error is caught and
     reported for this file alone, so the batch goes on."""
     try:
         X, _ = extract_file(src, dst, asf=asf, skeleton=skeleton, feature_set=feature_set,
-                            up=up)
+                            up=up, poses=poses)
         return "written", "", int(X.shape[1])
     except MtannoError as exc:
         return "failed", str(exc), 0
@@ -348,11 +390,12 @@ def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
 
 
 def _run_chunk(items: list[tuple[Path, Path, Path | None]], skeleton: str | None,
-               feature_set: str, up: str) -> list[tuple[str, str, int]]:
+               feature_set: str, up: str, poses: bool = False) -> list[tuple[str, str, int]]:
     """A task of a pool: several documents one after another, each failing alone. Tasks
     carry paths and return (status, message, frames) per document: the parent keeps the
     jobs, so nothing else crosses between the processes."""
-    return [_extract_one(src, dst, asf, skeleton, feature_set, up) for src, dst, asf in items]
+    return [_extract_one(src, dst, asf, skeleton, feature_set, up, poses)
+            for src, dst, asf in items]
 
 
 #: Most documents in one pool task. Short clips take a few milliseconds each, so one task
@@ -379,10 +422,13 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
               skeleton: str | None = None,
               progress: Callable[[Outcome], None] | None = None,
               feature_set: str = FEATURE_SET, up: str = "y",
-              scheduler: str | None = None) -> Summary:
+              scheduler: str | None = None, poses: bool = False) -> Summary:
     """Extract features for every job; failures are recorded, the batch goes on.
 
-    ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`).
+    ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`). ``poses``:
+    every output also holds the normalised poses of its frames (:func:`extract_file`); an
+    output with a pose block is not up to date without ``poses``, one without is not with
+    it.
 
     ``n_jobs`` > 1 runs documents in that many processes (:class:`mtanno.util.workers.WorkerPool`:
     they stop with this process); ``scheduler`` sends them to a dask.distributed cluster
@@ -409,18 +455,19 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     for j in jobs:
         if j.error:  # found unusable while planning: reported, never run
             record(Outcome(j, "failed", f"{j.src}: {j.error}"))
-        elif not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up):
+        elif not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up,
+                                      poses=poses):
             record(Outcome(j, "skipped"))
         else:
             todo.append(j)
     with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(todo)) as pool:
         if isinstance(pool, WorkerPool) and todo:
-            record(_run_one(todo[0], skeleton, feature_set, up))
+            record(_run_one(todo[0], skeleton, feature_set, up, poses))
             todo = todo[1:]
         # in this process one document per task, so progress is reported file by file
         chunks = _chunks(len(todo), getattr(pool, "n_jobs", 1),
                          1 if isinstance(pool, SerialPool) else CHUNK_FILES)
-        tasks = [([(j.src, j.dst, j.asf) for j in todo[a:b]], skeleton, feature_set, up)
+        tasks = [([(j.src, j.dst, j.asf) for j in todo[a:b]], skeleton, feature_set, up, poses)
                  for a, b in chunks]
         for (a, b), results in zip(chunks, pool.map(_run_chunk, tasks)):
             for j, (status, message, frames) in zip(todo[a:b], results):

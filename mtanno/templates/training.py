@@ -67,7 +67,9 @@ class TrainingExample:
     """One training example, read: its (features × frames) 0/1 matrix and provenance.
 
     ``start``/``end`` are the 1-based inclusive frames (at ``fps``) of the file that ``X``
-    holds.
+    holds. ``poses``: the normalised poses of the same frames ((frames × 22 × 3) float32, in
+    leg lengths, :mod:`mtanno.features.poses`) when loaded with ``poses=True`` from a feature
+    file that has a pose block (``mtanno features --poses``); else None.
     """
 
     class_name: str
@@ -81,6 +83,7 @@ class TrainingExample:
     feature_set: str
     fps: float
     performer: str | None = None
+    poses: np.ndarray | None = None
 
     def layout(self) -> FeatureLayout:
         """The example's :class:`~mtanno.util.store.FeatureLayout` (named after its file)."""
@@ -265,16 +268,21 @@ def group_by_class(sources: Iterable[ExampleSource], *,
 # --------------------------------------------------------------------------- loading
 
 
-def load_examples(sources: Iterable[ExampleSource]) -> list[TrainingExample]:
+def load_examples(sources: Iterable[ExampleSource], *,
+                  poses: bool = False) -> list[TrainingExample]:
     """Read the feature files of ``sources``, cut their frame ranges, check consistency
     (:func:`check_consistent`) and return the examples in :meth:`ExampleSource.sort_key`
-    order. Each file is read and hashed once."""
+    order. Each file is read and hashed once.
+
+    ``poses``: also cut each example's normalised poses (``TrainingExample.poses``, the
+    frames of ``X``) from files that have a pose block; examples from files without one
+    get None. Without it pose blocks are not read."""
     cache: dict[str, tuple] = {}
     out: list[TrainingExample] = []
     for src in sorted(sources, key=ExampleSource.sort_key):
         if src.path not in cache:
             try:
-                ff = read_features(src.path)
+                ff = read_features(src.path, poses=poses)
             except MtannoError as exc:
                 if src.origin is not None and not Path(src.path).exists():
                     raise MtannoError(f"feature file {src.path} not found (run `mtanno "
@@ -296,7 +304,8 @@ def load_examples(sources: Iterable[ExampleSource]) -> list[TrainingExample]:
             class_name=src.class_name, X=np.ascontiguousarray(ff.X[:, start - 1:end]),
             file=src.path, document=ff.document, sha256=digest, start=start, end=end,
             feature_names=list(ff.names), feature_set=str(ff.meta.get("feature_set", "")),
-            fps=ff.fps, performer=src.performer))
+            fps=ff.fps, performer=src.performer,
+            poses=None if ff.poses is None else np.ascontiguousarray(ff.poses[start - 1:end])))
     check_consistent(out)
     return out
 

@@ -7,6 +7,8 @@
   Lines by suffix; provenance; ``-`` for standard input and output);
 * :mod:`~mtanno.util.store` — feature files (Parquet): the one reader and writer, layouts;
 * :mod:`~mtanno.util._parquet` — the fast writer of short feature files (private);
+* :mod:`~mtanno.util._poseblock` — the optional pose block of feature files: column names
+  and checks (private);
 * :mod:`~mtanno.util.workers` — worker processes, dask clusters and the signal policy;
 * :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
 * :mod:`~mtanno.util.units` — the units every stage shares (the 30 Hz analysis rate);

@@ -5,7 +5,10 @@ column ``native_frame`` (int32, 1-based frame of the source file the row was tak
 one boolean column per feature, named as in :data:`mtanno.features.FEATURE_NAMES`. The
 Parquet key-value metadata ``mtanno`` holds a JSON object describing where the features
 came from (source path and SHA-256, frame rates, frame mapping, skeleton map, feature set,
-mtanno version).
+mtanno version). Optionally (``mtanno features --poses``) a pose block follows: float32
+columns ``pose.<joint>.<x|y|z>`` holding the normalised canonical joint positions of every
+row (:mod:`mtanno.features.poses`, in leg lengths), described by the metadata's ``poses``
+entry; readers skip it unless asked (``read_features(..., poses=True)``).
 """
 
 from __future__ import annotations
@@ -23,11 +26,18 @@ import pyarrow.parquet as pq
 
 from mtanno.errors import JSONError, MtannoError, parse_json, read_input
 from mtanno.util import _parquet
+from mtanno.util._poseblock import (
+    POSE_PREFIX,
+    check_pose_columns,
+    check_pose_meta,
+    pose_columns,
+)
 from mtanno.util.output import atomic_path, write_bytes
 
-__all__ = ["FEATURES_SCHEMA", "FeatureFile", "FeatureLayout", "atomic_path", "check_layout",
-           "common_layout", "document_files", "document_files_below", "feature_files",
-           "read_feature_matrix", "read_features", "sha256_file", "write_features"]
+__all__ = ["FEATURES_SCHEMA", "POSE_PREFIX", "FeatureFile", "FeatureLayout", "atomic_path",
+           "check_layout", "common_layout", "document_files", "document_files_below",
+           "feature_files", "pose_columns", "read_feature_matrix", "read_features",
+           "sha256_file", "write_features"]
 
 FEATURES_SCHEMA = "mtanno.features/1"
 #: Feature files of documents with at least this many frames are zstd-compressed.
@@ -62,6 +72,10 @@ class FeatureFile:
         The file read.
     sha256:
         SHA-256 of the file's bytes, when asked for.
+    poses:
+        (frames × 22 × 3) float32 normalised joint positions in leg lengths (canonical
+        joint order, :mod:`mtanno.features.poses`), when read with ``poses=True`` from a
+        file that has a pose block; else None.
     """
 
     X: np.ndarray
@@ -70,6 +84,13 @@ class FeatureFile:
     meta: dict
     path: str
     sha256: str | None = None
+    poses: np.ndarray | None = None
+
+    @property
+    def has_poses(self) -> bool:
+        """True if the file has a pose block (read or not; its metadata says so and its
+        columns were checked when the file was read)."""
+        return isinstance(self.meta.get("poses"), dict)
 
     @property
     def document(self) -> str:
@@ -190,16 +211,25 @@ def _check_meta(meta, spath: str) -> dict:
             isinstance(v, list) and all(isinstance(n, str) for n in v) for v in groups.values())):
         raise MtannoError("groups in the mtanno metadata must map group names to lists of "
                           "feature names", path=spath)
+    if "poses" in meta:
+        check_pose_meta(meta["poses"], spath)
     return meta
 
 
 def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tuple[str, ...],
-                   native_frames: np.ndarray, meta: dict) -> None:
+                   native_frames: np.ndarray, meta: dict, *,
+                   poses: np.ndarray | None = None) -> None:
     """Write a (features × frames) 0/1 matrix as a feature file, atomically.
 
     ``native_frames`` are 1-based; ``meta`` is stored as JSON under the key ``mtanno``
     (``schema`` is filled in; ``analysis_fps`` and ``feature_set`` are required, as
     :func:`read_features` requires them).
+
+    ``poses``: (frames × 22 × 3) normalised joint positions of the same frames, in leg
+    lengths (:func:`mtanno.features.poses.normalize_poses`), stored as the float32 pose
+    block (``docs/formats.md``); ``meta["poses"]`` describes them (filled in with
+    :func:`mtanno.features.poses.pose_metadata` when absent). Without ``poses`` the file is
+    exactly what it was before pose blocks existed.
     """
     X = np.asarray(X)
     if X.ndim != 2 or X.shape[0] != len(names):
@@ -208,12 +238,22 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     if len(set(names)) != len(names) or "native_frame" in names:
         raise MtannoError("feature names must be unique and differ from 'native_frame'",
                           path=str(path))
+    if any(nm.startswith(POSE_PREFIX) for nm in names):
+        raise MtannoError(f"feature names must not begin with {POSE_PREFIX!r} (the pose "
+                          f"columns' prefix)", path=str(path))
+    if poses is not None and "poses" not in meta:
+        from mtanno.features.poses import pose_metadata
+
+        meta = {**meta, "poses": pose_metadata()}
     meta = _check_meta({"schema": FEATURES_SCHEMA, **meta}, str(path))
     n = X.shape[1]
     native_frames = np.asarray(native_frames, dtype=np.int32)
     if native_frames.shape != (n,):
         raise MtannoError(f"native_frames must have one frame per column ({n}), got "
                           f"{native_frames.shape}", path=str(path))
+    if poses is not None or "poses" in meta:
+        _write_with_poses(path, X, names, native_frames, meta, poses)
+        return
     text = json.dumps(meta, sort_keys=True)
     schema = _schema(names).with_metadata({META_KEY: text})
     # every feature row as packed bits, little-endian: Parquet's PLAIN booleans and Arrow's
@@ -232,28 +272,72 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     columns = [pa.array(native_frames)]
     columns += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
                 for i in range(len(names))]
-    table = pa.Table.from_arrays(columns, schema=schema)
-    # No column statistics or dictionaries (readers take whole 0/1 columns); zstd only for
-    # documents long enough to gain from it: a clip of a few seconds compresses by a few
-    # percent, and the codec's per-column set-up was most of its writing time (archives of
-    # short clips are written thousands at a time).
+    _write_table(path, pa.Table.from_arrays(columns, schema=schema), n)
+
+
+def _write_table(path: str | os.PathLike, table: pa.Table, n: int) -> None:
+    """Write a feature file's table with pyarrow. No column statistics or dictionaries
+    (readers take whole columns); zstd only for documents long enough to gain from it: a
+    clip of a few seconds compresses by a few percent, and the codec's per-column set-up was
+    most of its writing time (archives of short clips are written thousands at a time)."""
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, write_statistics=False, use_dictionary=False,
                    compression="zstd" if n >= COMPRESS_FROM_FRAMES else "none")
     write_bytes(path, sink.getvalue())
 
 
-_SCHEMAS: dict[tuple[str, ...], pa.Schema] = {}
+def _write_with_poses(path: str | os.PathLike, X: np.ndarray, names: tuple[str, ...],
+                      native_frames: np.ndarray, meta: dict, poses: np.ndarray | None) -> None:
+    """:func:`write_features` of a file with a pose block: the feature columns, then one
+    float32 column per joint and axis (:func:`pose_columns`), written by pyarrow."""
+    spath = str(path)
+    joints = meta["poses"]["joints"]
+    if poses is None:
+        raise MtannoError("the metadata describes poses but none were given", path=spath)
+    n = X.shape[1]
+    P = np.asarray(poses)
+    if P.shape != (n, len(joints), 3):
+        raise MtannoError(f"poses must be (frames × {len(joints)} × 3) = ({n} × "
+                          f"{len(joints)} × 3), got {P.shape}", path=spath)
+    with np.errstate(over="ignore", invalid="ignore"):  # beyond float32: refused below
+        P = P.astype(np.float32)
+    if not np.isfinite(P).all():
+        raise MtannoError("poses contain NaN or infinite values (or values beyond float32)",
+                          path=spath)
+    cols = tuple(pose_columns(joints))
+    text = json.dumps(meta, sort_keys=True)
+    schema = _schema(names, cols).with_metadata({META_KEY: text})
+    flat = np.ascontiguousarray(P.reshape(n, len(cols)).T)  # one contiguous row per column
+    bits = np.ascontiguousarray(np.packbits(X != 0, axis=1, bitorder="little"))
+    short = 0 < n < min(COMPRESS_FROM_FRAMES, _parquet.MOST_ROWS)
+    created_by = _parquet.available_floats() if short else None
+    if created_by is not None:  # a short clip: its bytes assembled directly (see _parquet)
+        write_bytes(path, _parquet.encode(names, native_frames, bits, n, META_KEY,
+                                          text.encode("utf-8"), _parquet.arrow_schema(schema),
+                                          created_by, float_names=cols, floats=flat))
+        return
+    buf = pa.py_buffer(bits)
+    stride = bits.shape[1]
+    arrays = [pa.array(native_frames)]
+    arrays += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
+               for i in range(len(names))]
+    arrays += [pa.array(row) for row in flat]
+    _write_table(path, pa.Table.from_arrays(arrays, schema=schema), n)
 
 
-def _schema(names: tuple[str, ...]) -> pa.Schema:
-    """The Arrow schema of a feature file with these feature columns (built once)."""
-    schema = _SCHEMAS.get(names)
+_SCHEMAS: dict[tuple[tuple[str, ...], tuple[str, ...]], pa.Schema] = {}
+
+
+def _schema(names: tuple[str, ...], pose_names: tuple[str, ...] = ()) -> pa.Schema:
+    """The Arrow schema of a feature file with these feature (and pose) columns (built
+    once)."""
+    schema = _SCHEMAS.get((names, pose_names))
     if schema is None:
         if len(_SCHEMAS) > 16:
             _SCHEMAS.clear()
-        schema = _SCHEMAS[names] = pa.schema(
-            [pa.field("native_frame", pa.int32())] + [pa.field(nm, pa.bool_()) for nm in names])
+        schema = _SCHEMAS[names, pose_names] = pa.schema(
+            [pa.field("native_frame", pa.int32())] + [pa.field(nm, pa.bool_()) for nm in names]
+            + [pa.field(nm, pa.float32()) for nm in pose_names])
     return schema
 
 
@@ -454,7 +538,8 @@ def _is_motion_file(path: str, data) -> bool:
     return False
 
 
-def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFile:
+def read_features(path: str | os.PathLike, *, sha256: bool = False,
+                  poses: bool = False) -> FeatureFile:
     """Read and validate a feature file written by :func:`write_features` (or ``mtanno
     features``): the one reader every command uses.
 
@@ -468,17 +553,28 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     :func:`_check_against_rows`). The file is
     read once; with ``sha256`` its hash is computed from the same bytes
     (``FeatureFile.sha256``), for indexes that record what they were built from.
+
+    A pose block (``pose.*`` columns, ``docs/formats.md``) is checked against the
+    metadata's ``poses`` entry from the schema alone (every column there, float32, none
+    other) and otherwise not read; with ``poses`` it is read into ``FeatureFile.poses``
+    ((frames × 22 × 3) float32, None for a file without one), refused if it holds a null,
+    NaN or infinite value.
     """
     spath = str(path)
     data = read_input(path, what="feature file")
     try:
-        table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
+        pf = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False)
+        schema = pf.schema_arrow
+        wanted = None
+        if not poses and any(c.startswith(POSE_PREFIX) for c in schema.names):
+            wanted = list(dict.fromkeys(c for c in schema.names if not c.startswith(POSE_PREFIX)))
+        table = pf.read(columns=wanted, use_threads=False)
     except (pa.ArrowException, OSError, ValueError, IndexError) as exc:
         if _is_motion_file(spath, data):
             raise MtannoError("this is a motion file: run `mtanno features` first (later "
                               "stages read its Parquet feature file)", path=spath) from None
         raise MtannoError(f"not a readable Parquet feature file ({exc})", path=spath) from None
-    raw = (table.schema.metadata or {}).get(META_KEY)
+    raw = (schema.metadata or {}).get(META_KEY)
     if raw is None:
         raise MtannoError("Parquet file has no mtanno metadata (not written by mtanno "
                           "features?)", path=spath)
@@ -488,13 +584,14 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
         raise MtannoError(f"mtanno metadata is not valid JSON ({exc.message})",
                           path=spath) from None
     meta = _check_meta(meta, spath)
-    names = [c for c in table.column_names if c != "native_frame"]
-    if "native_frame" not in table.column_names or not names:
+    names = [c for c in schema.names if c != "native_frame" and not c.startswith(POSE_PREFIX)]
+    if "native_frame" not in schema.names or not names:
         raise MtannoError("feature file lacks the native_frame column or feature columns",
                           path=spath)
-    if len(set(table.column_names)) != len(table.column_names):
-        dup = sorted({c for c in table.column_names if table.column_names.count(c) > 1})
+    if len(set(schema.names)) != len(schema.names):
+        dup = sorted({c for c in schema.names if schema.names.count(c) > 1})
         raise MtannoError(f"column(s) {', '.join(dup)} appear twice", path=spath)
+    pose_cols = check_pose_columns(meta, schema, spath)
     X = np.empty((len(names), table.num_rows), dtype=np.uint8)
     for i, name in enumerate(names):
         col = _column(table, name, "boolean", spath, "; features must be true or false")
@@ -509,7 +606,29 @@ def read_features(path: str | os.PathLike, *, sha256: bool = False) -> FeatureFi
     _check_against_rows(meta, names, native, spath)
     meta["analysis_fps"] = float(meta["analysis_fps"])
     return FeatureFile(X=X, names=names, native_frames=native, meta=meta, path=spath,
-                       sha256=hashlib.sha256(data).hexdigest() if sha256 else None)
+                       sha256=hashlib.sha256(data).hexdigest() if sha256 else None,
+                       poses=_pose_values(table, pose_cols, spath) if poses and pose_cols
+                       else None)
+
+
+def _pose_values(table: pa.Table, columns: list[str], spath: str) -> np.ndarray:
+    """(frames × joints × 3) float32 poses from the checked pose ``columns`` of ``table``;
+    a null, NaN or infinite value is refused, naming the column and rows."""
+    n = table.num_rows
+    flat = np.empty((n, len(columns)), dtype=np.float32)
+    for k, c in enumerate(columns):
+        col = table.column(c)
+        if col.null_count:
+            nulls = col.is_null().to_numpy(zero_copy_only=False)
+            raise MtannoError(f"pose column '{c}' has {col.null_count} null value(s) (rows "
+                              f"{_rows(nulls)})", path=spath)
+        flat[:, k] = col.to_numpy()
+    bad = ~np.isfinite(flat)
+    if bad.any():
+        k = int(np.flatnonzero(bad.any(axis=0))[0])
+        raise MtannoError(f"pose column '{columns[k]}' has NaN or infinite values (rows "
+                          f"{_rows(bad[:, k])})", path=spath)
+    return flat.reshape(n, len(columns) // 3, 3)
 
 
 def read_feature_matrix(path: str | os.PathLike) -> np.ndarray:
