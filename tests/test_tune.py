@@ -39,11 +39,14 @@ def test_tune_is_deterministic_for_a_seed(world, tmp_path):
     a = tune(_sources(world), world.mt, seed=3, n_jobs=1)
     b = tune(_sources(world), world.mt, seed=3, n_jobs=2)
     assert a.params == b.params and a.steps == b.steps
-    write_tuned(tmp_path / "a.toml", a)
-    write_tuned(tmp_path / "b.toml", b)
-    assert (tmp_path / "a.toml").read_text() == (tmp_path / "b.toml").read_text()
-    for f in sorted((tmp_path / "a.templates").glob("*.json")) if a.extra_templates else []:
-        assert f.read_bytes() == (tmp_path / "b.templates" / f.name).read_bytes()
+    for d, r in (("a", a), ("b", b)):
+        (tmp_path / d).mkdir()
+        write_tuned(tmp_path / d / "t.toml", r)
+    assert (tmp_path / "a/t.toml").read_text() == (tmp_path / "b/t.toml").read_text()
+    for f in sorted((tmp_path / "a/t.templates").glob("*.json")) if a.extra_templates else []:
+        assert f.read_bytes() == (tmp_path / "b/t.templates" / f.name).read_bytes()
+    assert (tmp_path / "a/t.verify.parquet").read_bytes() == \
+        (tmp_path / "b/t.verify.parquet").read_bytes()
 
 
 def test_tune_with_keyframes_matches_inside_their_windows(world, tmp_path):
@@ -57,10 +60,13 @@ def test_tune_with_keyframes_matches_inside_their_windows(world, tmp_path):
     assert r.exit_code == 0, r.output
     train = ["--manifest", world.manifest, "--features-dir", world.feats, "--split", "train"]
     for jobs in ("1", "2"):
+        (tmp_path / f"j{jobs}").mkdir()
         r = cli("tune", "--mt", world.mt, "--keyframes", kf, *train, "-o",
-                tmp_path / f"t{jobs}.toml", "--jobs", jobs, "-q")
+                tmp_path / f"j{jobs}" / "t1.toml", "--jobs", jobs, "-q")
         assert r.exit_code == 0, r.output
-    assert _config_body(tmp_path / "t1.toml") == _config_body(tmp_path / "t2.toml")
+    assert _config_body(tmp_path / "j1/t1.toml") == _config_body(tmp_path / "j2/t1.toml")
+    (tmp_path / "j1/t1.toml").rename(tmp_path / "t1.toml")
+    (tmp_path / "j1/t1.verify.parquet").rename(tmp_path / "t1.verify.parquet")
     text = (tmp_path / "t1.toml").read_text()
     assert all(str(q) in text for q in sorted(kf.glob("*.json")))
     r = cli("annotate", "--mt", world.mt, "--classes", tmp_path / "t1.toml", "--keyframes", kf,
@@ -517,7 +523,8 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
 
     monkeypatch.setattr(Tuner, "search", search)
     r = tune(_sources(world), world.mt, seed=0, methods=[m for m in METHODS
-                                                        if m != "templates"])
+                                                        if m != "templates"],
+             confidence=False)  # (the scales were not matched in the folds)
     c = r.classes[0]
     mt = load_template_folder(world.mt)[c]
     assert [x.params["time_scale"] for x in r.extra_templates[c]] == [0.6, 1.6]

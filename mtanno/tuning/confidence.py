@@ -22,7 +22,6 @@ import numpy as np
 
 from mtanno.annotate.confidence import BANK_EVIDENCE, EVIDENCE, segment_evidence
 from mtanno.annotate.tables import Annotation
-from mtanno.errors import MtannoError
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
 __all__ = ["MIN_CONFIDENCE_GRID", "RIGHT_IOU", "ConfidenceFit", "learn_confidence",
@@ -110,9 +109,9 @@ def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=N
             owners.extend([len(runs) - 1] * len(ok))
     E = np.concatenate(rows_E) if rows_E else np.zeros((0, len(names)))
     y = np.array(right, dtype=np.float64)
-    if len(y) < 4 or y.min() == y.max():
-        raise MtannoError("too few held-out segments (or all right, or all wrong) to learn "
-                          "a confidence from")
+    if log and (len(y) < 10 or y.min(initial=0) == y.max(initial=0)):
+        log(f"confidence: warning: {len(y)} held-out segments, {int(y.sum())} right: too few "
+            "to learn from; the confidence is about constant")
     fit = fit_calibrated(E, y, names=names, rng=seed, groups=np.array(groups))
     table = _thresholds(tuner, folds, runs, np.array(owners), fit.oof, unknown_weight)
     best = max(table, key=lambda t: (round(t["J"], 9), -t["min_confidence"]))
