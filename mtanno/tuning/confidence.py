@@ -225,12 +225,14 @@ def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list
                 elif next(keep):
                     kept.append(s)
             if run.hidden is None:
-                total += _count(fd.truth, kept, len(tuner.names), fd.n_frames, fd.ignore)
+                # background frames count here: every label on them is wrong
+                total += _count(fd.truth, kept, len(tuner.names), fd.n_frames,
+                                fd.known_ignore)
                 for spans in fd.absent.values():
                     h, n = _covered_fraction(spans, kept, fd.n_frames)
                     unk[0] += h
                     unk[1] += n
-                spans = _background_spans(folds[run.fold], fd)
+                spans = _background_spans(fd)
                 h, n = _covered_fraction(spans, kept, fd.n_frames)
                 bg[0] += h
                 bg[1] += n
@@ -245,10 +247,10 @@ def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list
     return out
 
 
-def _background_spans(fold, fd) -> list[tuple[int, int]]:
+def _background_spans(fd) -> list[tuple[int, int]]:
     """The frames of the fold's background documents (the last of its held-out
     documents), as (first, last) spans."""
-    n_bg = len(fold.background)
+    n_bg = fd.n_background
     if not n_bg:
         return []
     off = fd.offsets

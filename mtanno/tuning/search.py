@@ -220,7 +220,10 @@ class _FoldData:
     groups: dict                            # (class, k) -> groups made
     hidden: dict = field(default_factory=dict)  # class -> _FoldData of its documents only
     absent: dict = field(default_factory=dict)  # class without a template here -> spans
-    ignore: np.ndarray | None = None        # their frames (not scored in F1, F2)
+    ignore: np.ndarray | None = None        # their frames and the background documents'
+                                            # (not scored in F1, F2 by the search)
+    known_ignore: np.ndarray | None = None  # the absent classes' frames only
+    n_background: int = 0                   # background documents (the last ones)
 
 
 def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
@@ -319,10 +322,17 @@ class Tuner:
                 for spans in absent.values():
                     for a, b in spans:
                         ignore[a:b + 1] = True
+            # background documents (the last ones) shape the confidence, not the search
+            n_bg = len(getattr(f, "background", ()))
+            known_ignore = ignore
+            if n_bg:
+                ignore = np.zeros(f.held_out.n_frames, dtype=bool) if ignore is None \
+                    else ignore.copy()
+                ignore[int(f.held_out.offsets[-1 - n_bg]):] = True
             fd = _FoldData(f.name, f.held_out.n_frames, f.held_out.offsets, present,
                            [(self.ids[c], a, b) for c, a, b in f.held_out.truth
                             if c in present], by_class, match, groups, absent=absent,
-                           ignore=ignore)
+                           ignore=ignore, known_ignore=known_ignore, n_background=n_bg)
             for c in present:
                 docs = sorted({int(np.searchsorted(fd.offsets, a, side="right")) - 1
                                for a, _ in by_class.get(c, [])})
