@@ -251,50 +251,51 @@ def write_features(path: str | os.PathLike, X: np.ndarray, names: list[str] | tu
     if native_frames.shape != (n,):
         raise MtannoError(f"native_frames must have one frame per column ({n}), got "
                           f"{native_frames.shape}", path=str(path))
-    if poses is not None or "poses" in meta:
-        _write_with_poses(path, X, names, native_frames, meta, poses)
-        return
+    cols, flat = _pose_block(meta, poses, n, str(path))
     text = json.dumps(meta, sort_keys=True)
-    schema = _schema(names).with_metadata({META_KEY: text})
+    schema = _schema(names, cols).with_metadata({META_KEY: text})
     # every feature row as packed bits, little-endian: Parquet's PLAIN booleans and Arrow's
     # boolean arrays alike; each row's bytes together, also for a matrix in Fortran order
     # (packbits keeps the memory order of its input)
     bits = np.ascontiguousarray(np.packbits(X != 0, axis=1, bitorder="little"))
     short = 0 < n < min(COMPRESS_FROM_FRAMES, _parquet.MOST_ROWS)
-    created_by = _parquet.available() if short else None
+    created_by = (_parquet.available_floats() if cols else _parquet.available()) \
+        if short else None
     if created_by is not None:  # a short clip: its bytes assembled directly (see _parquet)
         write_bytes(path, _parquet.encode(names, native_frames, bits, n, META_KEY,
                                           text.encode("utf-8"), _parquet.arrow_schema(schema),
-                                          created_by))
+                                          created_by, float_names=cols, floats=flat))
         return
     buf = pa.py_buffer(bits)
     stride = bits.shape[1]
     columns = [pa.array(native_frames)]
     columns += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
                 for i in range(len(names))]
-    _write_table(path, pa.Table.from_arrays(columns, schema=schema), n)
-
-
-def _write_table(path: str | os.PathLike, table: pa.Table, n: int) -> None:
-    """Write a feature file's table with pyarrow. No column statistics or dictionaries
-    (readers take whole columns); zstd only for documents long enough to gain from it: a
-    clip of a few seconds compresses by a few percent, and the codec's per-column set-up was
-    most of its writing time (archives of short clips are written thousands at a time)."""
+    columns += [pa.array(row) for row in flat]
+    table = pa.Table.from_arrays(columns, schema=schema)
+    # No column statistics or dictionaries (readers take whole columns); zstd only for
+    # documents long enough to gain from it: a clip of a few seconds compresses by a few
+    # percent, and the codec's per-column set-up was most of its writing time (archives of
+    # short clips are written thousands at a time).
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, write_statistics=False, use_dictionary=False,
                    compression="zstd" if n >= COMPRESS_FROM_FRAMES else "none")
     write_bytes(path, sink.getvalue())
 
 
-def _write_with_poses(path: str | os.PathLike, X: np.ndarray, names: tuple[str, ...],
-                      native_frames: np.ndarray, meta: dict, poses: np.ndarray | None) -> None:
-    """:func:`write_features` of a file with a pose block: the feature columns, then one
-    float32 column per joint and axis (:func:`pose_columns`), written by pyarrow."""
-    spath = str(path)
+_NO_POSES = np.empty((0, 0), dtype=np.float32)
+
+
+def _pose_block(meta: dict, poses: np.ndarray | None, n: int, spath: str,
+                ) -> tuple[tuple[str, ...], np.ndarray]:
+    """The pose columns of a file being written and their values (one contiguous float32
+    row per column), or no columns and an empty array for a file without poses; poses of
+    the wrong shape, NaN, infinite or beyond float32 are refused."""
+    if "poses" not in meta:
+        return (), _NO_POSES
     joints = meta["poses"]["joints"]
     if poses is None:
         raise MtannoError("the metadata describes poses but none were given", path=spath)
-    n = X.shape[1]
     P = np.asarray(poses)
     if P.shape != (n, len(joints), 3):
         raise MtannoError(f"poses must be (frames × {len(joints)} × 3) = ({n} × "
@@ -305,24 +306,7 @@ def _write_with_poses(path: str | os.PathLike, X: np.ndarray, names: tuple[str, 
         raise MtannoError("poses contain NaN or infinite values (or values beyond float32)",
                           path=spath)
     cols = tuple(pose_columns(joints))
-    text = json.dumps(meta, sort_keys=True)
-    schema = _schema(names, cols).with_metadata({META_KEY: text})
-    flat = np.ascontiguousarray(P.reshape(n, len(cols)).T)  # one contiguous row per column
-    bits = np.ascontiguousarray(np.packbits(X != 0, axis=1, bitorder="little"))
-    short = 0 < n < min(COMPRESS_FROM_FRAMES, _parquet.MOST_ROWS)
-    created_by = _parquet.available_floats() if short else None
-    if created_by is not None:  # a short clip: its bytes assembled directly (see _parquet)
-        write_bytes(path, _parquet.encode(names, native_frames, bits, n, META_KEY,
-                                          text.encode("utf-8"), _parquet.arrow_schema(schema),
-                                          created_by, float_names=cols, floats=flat))
-        return
-    buf = pa.py_buffer(bits)
-    stride = bits.shape[1]
-    arrays = [pa.array(native_frames)]
-    arrays += [pa.Array.from_buffers(pa.bool_(), n, [None, buf.slice(i * stride, stride)])
-               for i in range(len(names))]
-    arrays += [pa.array(row) for row in flat]
-    _write_table(path, pa.Table.from_arrays(arrays, schema=schema), n)
+    return cols, np.ascontiguousarray(P.reshape(n, len(cols)).T)
 
 
 _SCHEMAS: dict[tuple[tuple[str, ...], tuple[str, ...]], pa.Schema] = {}
