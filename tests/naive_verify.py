@@ -6,14 +6,12 @@ from __future__ import annotations
 import numpy as np
 
 
-def local_cost(q: np.ndarray, b: np.ndarray, group: int) -> float:
-    """Mean over groups of ``group`` dims of the Euclidean distance within the group."""
-    g = q.shape[0] // group
-    return float(np.mean([np.linalg.norm(q[k * group:(k + 1) * group]
-                                         - b[k * group:(k + 1) * group]) for k in range(g)]))
+def local_cost(q: np.ndarray, b: np.ndarray) -> float:
+    """Mean absolute difference of two rows."""
+    return float(np.mean([abs(float(x) - float(y)) for x, y in zip(q, b)]))
 
 
-def subsequence_cost(Q: np.ndarray, B: np.ndarray, group: int) -> float:
+def subsequence_cost(Q: np.ndarray, B: np.ndarray) -> float:
     """min over end columns of the full DTW matrix with free start in B, per query row."""
     n, m = Q.shape[0], B.shape[0]
     if m == 0:
@@ -21,7 +19,7 @@ def subsequence_cost(Q: np.ndarray, B: np.ndarray, group: int) -> float:
     D = np.full((n, m), np.inf)
     for j in range(m):
         for i in range(n):
-            c = local_cost(Q[i], B[j], group)
+            c = local_cost(Q[i], B[j])
             if i == 0:
                 D[i, j] = c
                 continue
@@ -32,6 +30,6 @@ def subsequence_cost(Q: np.ndarray, B: np.ndarray, group: int) -> float:
     return float(D[n - 1].min() / n)
 
 
-def subsequence_costs(Q: np.ndarray, B: np.ndarray, offsets, group: int) -> np.ndarray:
-    return np.array([subsequence_cost(Q, B[offsets[k]:offsets[k + 1]], group)
+def subsequence_costs(Q: np.ndarray, B: np.ndarray, offsets) -> np.ndarray:
+    return np.array([subsequence_cost(Q, B[offsets[k]:offsets[k + 1]])
                      for k in range(len(offsets) - 1)])

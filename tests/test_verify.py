@@ -21,37 +21,37 @@ from mtanno.annotate.verify import (
 from mtanno.errors import MtannoError
 
 
-def check_against_naive(seed: int, group: int) -> None:
+def check_against_naive(seed: int, binary: bool) -> None:
     rng = np.random.default_rng(seed)
-    dims = 3 * group * 2
+    dims = 6
     for _ in range(5):
         n = int(rng.integers(1, 7))
         lens = rng.integers(0, 9, size=int(rng.integers(1, 4)))
         B = rng.random((int(lens.sum()), dims)).astype(np.float32)
-        if group == 1:
+        if binary:
             B = (B > 0.5).astype(np.float32)
         Q = rng.random((n, dims)).astype(np.float32)
         off = np.concatenate([[0], np.cumsum(lens)])
-        got = subsequence_costs(Q, B, off, group=group)
-        want = naive_costs(Q, B, off, group)
+        got = subsequence_costs(Q, B, off)
+        want = naive_costs(Q, B, off)
         assert np.allclose(got, want, rtol=1e-5, atol=1e-6, equal_nan=False), (got, want)
 
 
-@pytest.mark.parametrize("group", [1, 3])
-def test_kernel_matches_naive(group):
+@pytest.mark.parametrize("binary", [True, False])
+def test_kernel_matches_naive(binary):
     for seed in range(6):
-        check_against_naive(seed, group)
+        check_against_naive(seed, binary)
 
 
 def test_kernel_without_jit():
-    run_without_jit("test_verify", "check_against_naive", (0, 3), (1, 1))
+    run_without_jit("test_verify", "check_against_naive", (0, False), (1, True))
 
 
 def test_own_subsequence_costs_zero_and_order():
     rng = np.random.default_rng(3)
     B = rng.random((30, 6)).astype(np.float32)
     off = np.array([0, 12, 30])
-    got = subsequence_costs(B[15:22], B, off, group=3)
+    got = subsequence_costs(B[15:22], B, off)
     assert got[1] == pytest.approx(0.0, abs=1e-6)  # the query lies inside item 1
     assert got[0] > 0.01
 
@@ -63,12 +63,11 @@ def test_subsequence_costs_refuse_bad_input():
                         ({"items": np.zeros((5, 4))}, "same dims"),
                         ({"offsets": np.array([0, 3])}, "offsets"),
                         ({"offsets": np.array([0, 4, 2, 5])}, "offsets"),
-                        ({"group": 4}, "multiple"),
+                        ({"query": np.zeros((3, 0)), "items": np.zeros((5, 0))}, "no dims"),
                         ({"query": np.full((3, 6), np.nan)}, "finite")]:
-        args = {"query": Q, "items": B, "offsets": np.array([0, 5]), "group": 3, **kwargs}
+        args = {"query": Q, "items": B, "offsets": np.array([0, 5]), **kwargs}
         with pytest.raises(MtannoError, match=msg):
-            subsequence_costs(args["query"], args["items"], args["offsets"],
-                              group=args["group"])
+            subsequence_costs(args["query"], args["items"], args["offsets"])
 
 
 def test_sequence_rates_and_joints():
@@ -77,7 +76,7 @@ def test_sequence_rates_and_joints():
     assert s.shape == (len(range(0, 10, VERIFY_STEP)), 40) and s.dtype == np.float32
     P = np.random.default_rng(0).random((10, 22, 3)).astype(np.float32)
     s = sequence(poses=P, representation="poses")
-    assert s.shape == (4, 3 * len(POSE_JOINTS))
+    assert s.shape == (len(range(0, 10, VERIFY_STEP)), 3 * len(POSE_JOINTS))
     assert np.array_equal(s[1, :3], P[VERIFY_STEP, 0])  # root first
     with pytest.raises(MtannoError, match="needs poses"):
         sequence(X=X, representation="poses")

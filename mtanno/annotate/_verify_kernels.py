@@ -3,10 +3,11 @@ subsequence DTW cost of a query sequence inside each item of a bank (private; wr
 :func:`mtanno.annotate.verify.subsequence_costs`, tested against a slow reference in
 ``tests/naive_verify.py``).
 
-Sequences are (frames × dims) float32 rows. The local cost of two rows is the mean over
-groups of ``group`` consecutive dims of the Euclidean distance within the group (group 3:
-the mean joint distance of two normalised poses, in leg lengths; group 1: the mean absolute
-difference, the Hamming distance over the number of features for 0/1 features). The DTW
+Sequences are (frames × dims) float32 rows. The local cost of two rows is their mean
+absolute difference over the dims: for normalised poses the mean coordinate difference in
+leg lengths (an L1 pose distance: five times cheaper than the mean joint distance, whose
+square roots do not vectorise), for 0/1 features the Hamming distance over the number of
+features. The DTW
 of query Q (n rows) inside item B (m rows), with a free start and end in B::
 
     D(0, j) = c(0, j)
@@ -26,47 +27,44 @@ _BIG = 1e300
 
 
 @numba.njit(cache=True, fastmath=True, inline="always")
-def _local(Q, B, i, j, group, ngroups):
+def _local(Q, B, i, j, dims):
     s = 0.0
-    if group == 1:  # no square root per dim
-        for d in range(ngroups):
-            s += abs(Q[i, d] - B[j, d])
-        return s / ngroups
-    for g in range(ngroups):
-        acc = 0.0
-        base = g * group
-        for d in range(group):
-            x = Q[i, base + d] - B[j, base + d]
-            acc += x * x
-        s += np.sqrt(acc)
-    return s / ngroups
+    for d in range(dims):
+        s += abs(Q[i, d] - B[j, d])
+    return s / dims
 
 
 @numba.njit(cache=True, fastmath=True)
-def _subsequence_costs(Q, B, offsets, group, out):
+def _item_cost(Q, B, a, b, col):
+    """Cost of ``Q`` inside rows ``a:b`` of ``B`` times n (``col``: a buffer of n)."""
+    n, dims = Q.shape
+    best = _BIG
+    for j in range(a, b):
+        first = j == a
+        above_old = 0.0  # D(i-1, j-1): col[i-1] before this column overwrote it
+        for i in range(n):
+            c = _local(Q, B, i, j, dims)
+            old = col[i]  # D(i, j-1)
+            if i == 0:
+                v = c  # free start in every column
+            elif first:
+                v = c + col[i - 1]
+            else:
+                m = above_old if above_old < col[i - 1] else col[i - 1]
+                v = c + (m if m < old else old)
+            above_old = old
+            col[i] = v
+        if col[n - 1] < best:
+            best = col[n - 1]
+    return best
+
+
+@numba.njit(cache=True, fastmath=True)
+def _subsequence_costs(Q, B, offsets, out):
     """Cost of ``Q`` inside each item k of ``B`` (rows ``offsets[k]:offsets[k+1]``) into
-    ``out[k]`` (module docstring); an empty item gets :data:`_BIG` / n (the caller makes
-    it ∞)."""
+    ``out[k]`` (module docstring); an empty item gets
+    :data:`_BIG` / n (the caller makes it ∞)."""
     n = Q.shape[0]
-    ngroups = Q.shape[1] // group
     col = np.empty(n)
     for k in range(offsets.shape[0] - 1):
-        best = _BIG
-        for j in range(offsets[k], offsets[k + 1]):
-            first = j == offsets[k]
-            above_old = 0.0  # D(i-1, j-1): col[i-1] before this column overwrote it
-            for i in range(n):
-                c = _local(Q, B, i, j, group, ngroups)
-                old = col[i]  # D(i, j-1)
-                if i == 0:
-                    v = c  # free start in every column
-                elif first:
-                    v = c + col[i - 1]
-                else:
-                    m = above_old if above_old < col[i - 1] else col[i - 1]
-                    v = c + (m if m < old else old)
-                above_old = old
-                col[i] = v
-            if col[n - 1] < best:
-                best = col[n - 1]
-        out[k] = best / n
+        out[k] = _item_cost(Q, B, offsets[k], offsets[k + 1], col) / n

@@ -10,7 +10,7 @@ segment frame) on one of two representations —
 
 * ``poses``: the normalised poses that ``mtanno features --poses`` stores (root at the
   origin of the floor plane, heading along +x, leg lengths; [MRC05] §7's pose distance),
-  joints :data:`POSE_JOINTS`, local cost the mean joint distance (leg lengths);
+  joints :data:`POSE_JOINTS`, local cost the mean coordinate difference (leg lengths);
 * ``features``: the 40 boolean relational features, local cost the Hamming distance over
   the number of features —
 
@@ -39,12 +39,12 @@ __all__ = ["BANK_FORMAT", "MAX_QUERY", "POSE_JOINTS", "REPRESENTATIONS", "VERIFY
            "VERIFY_STEP", "Bank", "build_bank", "read_bank", "sequence", "subsequence_costs",
            "write_bank"]
 
-#: Analysis frames per verification frame (30 Hz → 10 Hz).
-VERIFY_STEP = 3
+#: Analysis frames per verification frame (30 Hz → 5 Hz).
+VERIFY_STEP = 6
 #: Rate of the verification sequences (frames per second).
 VERIFY_FPS = 30.0 / VERIFY_STEP
 #: Longest query, in verification frames (a longer segment is sampled evenly).
-MAX_QUERY = 40
+MAX_QUERY = 20
 #: The joints compared in the pose representation (a subset of the 22 canonical joints:
 #: the body's extremities and middle, enough to tell motions apart at half the cost).
 POSE_JOINTS = ("root", "lknee", "rknee", "lankle", "rankle", "chest", "head", "lelbow",
@@ -92,16 +92,12 @@ def _query(seq: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(seq[idx])
 
 
-def _group(representation: str) -> int:
-    return 3 if representation == "poses" else 1
-
-
-def subsequence_costs(query: np.ndarray, items: np.ndarray, offsets: np.ndarray, *,
-                      group: int) -> np.ndarray:
+def subsequence_costs(query: np.ndarray, items: np.ndarray, offsets: np.ndarray
+                      ) -> np.ndarray:
     """Subsequence DTW cost of ``query`` (rows × dims) inside each item of ``items``
-    (rows ``offsets[k]:offsets[k+1]``): (items,) costs per query row (∞ for an empty item;
-    :mod:`mtanno.annotate._verify_kernels`). ``group``: 3 for poses (mean joint distance),
-    1 for features (mean absolute difference)."""
+    (rows ``offsets[k]:offsets[k+1]``): (items,) costs per query row, the local cost the
+    mean absolute difference of two rows (∞ for an empty item;
+    :mod:`mtanno.annotate._verify_kernels`)."""
     from mtanno.annotate._verify_kernels import _subsequence_costs
 
     Q = np.ascontiguousarray(query, dtype=np.float32)
@@ -112,15 +108,15 @@ def subsequence_costs(query: np.ndarray, items: np.ndarray, offsets: np.ndarray,
                           f"{Q.shape} and {B.shape}")
     if Q.shape[0] == 0:
         raise MtannoError("the query has no rows")
-    if group < 1 or Q.shape[1] % group:
-        raise MtannoError(f"dims {Q.shape[1]} are not a multiple of the group {group}")
+    if Q.shape[1] == 0:
+        raise MtannoError("the query has no dims")
     if off.ndim != 1 or off.size < 1 or off[0] != 0 or off[-1] != B.shape[0] \
             or np.any(np.diff(off) < 0):
         raise MtannoError("offsets must rise from 0 to the number of item rows")
     if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(B))):
         raise MtannoError("query and items must be finite")
     out = np.empty(off.size - 1)
-    _subsequence_costs(Q, B, off, int(group), out)
+    _subsequence_costs(Q, B, off, out)
     out[np.diff(off) == 0] = np.inf
     return out
 
@@ -141,10 +137,6 @@ class Bank:
     path: str | None = None
 
     @property
-    def group(self) -> int:
-        return _group(self.representation)
-
-    @property
     def classes(self) -> list[str]:
         return sorted({c for c in self.labels if c})
 
@@ -154,7 +146,7 @@ class Bank:
 
     def costs(self, query: np.ndarray) -> np.ndarray:
         """Cost of a query sequence inside every item (:func:`subsequence_costs`)."""
-        return subsequence_costs(_query(query), self.items, self.offsets, group=self.group)
+        return subsequence_costs(_query(query), self.items, self.offsets)
 
     def nearest(self, query: np.ndarray) -> dict[str, float]:
         """Per class (and ``""`` for background) the smallest cost of ``query`` inside its
@@ -213,8 +205,7 @@ def _scales(bank: Bank) -> dict[str, float]:
                 continue
             q = bank.items[bank.offsets[k]:bank.offsets[k + 1]]
             items, offs = _gather(bank, others)
-            vals.append(float(subsequence_costs(_query(q), items, offs,
-                                                group=bank.group).min()))
+            vals.append(float(subsequence_costs(_query(q), items, offs).min()))
         v = float(np.median(vals)) if vals else 1.0
         out[c] = v if v > 0 else 1.0
     return out
@@ -257,6 +248,10 @@ def read_bank(path: str | os.PathLike) -> Bank:
         raise MtannoError(f"not a readable verification bank: {exc}", path=spath) from None
     if not isinstance(meta, dict) or meta.get("format") != BANK_FORMAT:
         raise MtannoError("not a verification bank (no mtanno bank metadata)", path=spath)
+    if meta.get("version") != 1 or meta.get("step") != VERIFY_STEP:
+        raise MtannoError(f"verification bank of another version or rate (step "
+                          f"{meta.get('step')!r}, this mtanno verifies every {VERIFY_STEP}th "
+                          f"frame); run mtanno tune again", path=spath)
     try:
         rep = meta["representation"]
         labels = [str(x) for x in meta["labels"]]

@@ -5,7 +5,9 @@ motions are unknown there), segments on the background documents — with whethe
 is right (a truth segment of its label overlaps it with IoU ≥ :data:`RIGHT_IOU`), a
 calibrator fitted on them (:func:`mtanno.annotate.calibration.fit_calibrated`, grouped by
 held-out document), and the minimum confidence of an output row chosen on the calibrator's
-out-of-fold probabilities by the tuning objective J = (F1 + F2)/2 − w·U.
+out-of-fold probabilities by the tuning objective J = (F1 + F2)/2 − w·U, every label on a
+background document a false positive, the background weighted as half of the archive
+(:data:`BACKGROUND_SHARE`).
 
 The verification bank of a fold (:mod:`mtanno.annotate.verify`) holds the fold's training
 examples and the background documents that are not held out in it, so that no segment is
@@ -24,7 +26,7 @@ from mtanno.annotate.confidence import BANK_EVIDENCE, EVIDENCE, segment_evidence
 from mtanno.annotate.tables import Annotation
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
-__all__ = ["MIN_CONFIDENCE_GRID", "RIGHT_IOU", "ConfidenceFit", "learn_confidence",
+__all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "RIGHT_IOU", "ConfidenceFit", "learn_confidence",
            "segment_right"]
 
 #: IoU above which a segment's label counts as right.
@@ -208,10 +210,15 @@ def _over(run: _Run, sub, a: int, b: int) -> bool:
 
 def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list[dict]:
     """J, F1, F2, U and the fraction of background frames labelled for each minimum of
-    :data:`MIN_CONFIDENCE_GRID`, the segments below it dropped."""
+    :data:`MIN_CONFIDENCE_GRID`, the segments below it dropped.
+
+    Every label on a background frame is a false positive; the background's frames and
+    segments are weighted so that it counts as much as the held-out documents of known
+    classes (:data:`BACKGROUND_SHARE`: an archive at least half of whose motions belong
+    to no class), whatever the number of background files given."""
     out = []
     for m in MIN_CONFIDENCE_GRID:
-        total, unk, bg = Counts(), [0, 0], [0, 0]
+        known, unk, bg, bg_segs = Counts(), [0, 0], [0, 0], 0
         for r_i, run in enumerate(runs):
             idx = np.flatnonzero(owners == r_i)
             # segments of a left-out run not over the class were never scored (kept)
@@ -225,9 +232,7 @@ def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list
                 elif next(keep):
                     kept.append(s)
             if run.hidden is None:
-                # background frames count here: every label on them is wrong
-                total += _count(fd.truth, kept, len(tuner.names), fd.n_frames,
-                                fd.known_ignore)
+                known += _count(fd.truth, kept, len(tuner.names), fd.n_frames, fd.ignore)
                 for spans in fd.absent.values():
                     h, n = _covered_fraction(spans, kept, fd.n_frames)
                     unk[0] += h
@@ -236,15 +241,43 @@ def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list
                 h, n = _covered_fraction(spans, kept, fd.n_frames)
                 bg[0] += h
                 bg[1] += n
+                if spans:
+                    bg_segs += sum(1 for _, a, _ in kept if a >= spans[0][0])
             else:
                 h, n = _covered_fraction(sub.truth_by_class[run.hidden], kept, sub.n_frames)
                 unk[0] += h
                 unk[1] += n
         U = unk[0] / unk[1] if unk[1] else 0.0
-        f1, f2 = total.frame()[2], total.segment()[2]
+        f1, f2 = _weighted_f(known, bg[0], bg_segs, _background_weight(tuner, bg[1]))
         out.append({"min_confidence": m, "J": (f1 + f2) / 2 - unknown_weight * U, "F1": f1,
                     "F2": f2, "U": U, "background": bg[0] / bg[1] if bg[1] else 0.0})
     return out
+
+
+#: The share of an archive that the background is weighted to when the minimum confidence
+#: is chosen (the rest: the held-out documents of known classes).
+BACKGROUND_SHARE = 0.5
+
+
+def _background_weight(tuner, bg_frames: int) -> float:
+    """The weight of one background frame (or segment): the background weighs
+    :data:`BACKGROUND_SHARE` of all held-out frames."""
+    if not bg_frames:
+        return 0.0
+    known = sum(fd.n_frames for fd in tuner.folds) - bg_frames
+    return known / bg_frames * BACKGROUND_SHARE / (1 - BACKGROUND_SHARE)
+
+
+def _weighted_f(known: Counts, bg_frames: int, bg_segments: int, weight: float):
+    """(F1, F2) of the known documents' counts with the background's labelled frames and
+    segments added, weighted, to the predictions."""
+    from mtanno.evaluation.metrics import f_measure, ratio
+
+    p1 = ratio(known.frame_correct, known.frame_predicted + weight * bg_frames)
+    r1 = ratio(known.frame_correct, known.frame_support)
+    p2 = ratio(known.seg_correct, known.seg_predicted + weight * bg_segments)
+    r2 = ratio(known.seg_found, known.seg_support)
+    return f_measure(p1, r1), f_measure(p2, r2)
 
 
 def _background_spans(fd) -> list[tuple[int, int]]:
