@@ -149,7 +149,7 @@ def training_options(*, manifest_help: str, truth_help: str):
     examples of learn-mt, learn-keyframes and tune come from
     (:func:`mtanno.templates.training.collect_sources`); ``manifest_help`` and ``truth_help``
     say what each command makes of them."""
-    options = [
+    return stack(
         click.option("--manifest", type=click.Path(dir_okay=False), default=None,
                      help=manifest_help),
         click.option("--features-dir", type=click.Path(file_okay=False), default=None,
@@ -159,12 +159,17 @@ def training_options(*, manifest_help: str, truth_help: str):
                      help="With --manifest: use only rows whose split column is NAME "
                           "(e.g. train)."),
         click.option("--truth", type=click.Path(dir_okay=False), default=None,
-                     help=truth_help),
-    ]
+                     help=truth_help))
+
+
+def stack(*decorators):
+    """One decorator that applies ``decorators`` as if they were written one above the other
+    in this order (the first outermost): a group of options, or a whole command's decorator
+    stack, that several commands share."""
 
     def deco(fn):
-        for option in reversed(options):
-            fn = option(fn)
+        for d in reversed(decorators):
+            fn = d(fn)
         return fn
 
     return deco

@@ -13,6 +13,7 @@ from mtanno.commands._common import (
     DELTA,
     TAU,
     ProgressBar,
+    stack,
     user_errors,
 )
 from mtanno.errors import MtannoError
@@ -24,16 +25,15 @@ from mtanno.util.store import document_files
 def json_and_table_options(*, json_what: str, schema: str, table_what: str):
     """``--json FILE`` and ``-o TABLE``: the two further outputs of evaluate and
     evaluate-retrieval (``-`` for standard output)."""
-    def deco(fn):
-        fn = click.option("-o", "--output", "table_path", default=None,
-                          type=click.Path(dir_okay=False, allow_dash=True),
-                          help=f"Also write {table_what} (.csv, .parquet, .jsonl, or - for "
-                               "CSV on standard output).")(fn)
-        return click.option("--json", "json_path", default=None,
-                            type=click.Path(dir_okay=False, allow_dash=True),
-                            help=f"Also write {json_what} as JSON (schema {schema}; - for "
-                                 "standard output).")(fn)
-    return deco
+    return stack(
+        click.option("--json", "json_path", default=None,
+                     type=click.Path(dir_okay=False, allow_dash=True),
+                     help=f"Also write {json_what} as JSON (schema {schema}; - for "
+                          "standard output)."),
+        click.option("-o", "--output", "table_path", default=None,
+                     type=click.Path(dir_okay=False, allow_dash=True),
+                     help=f"Also write {table_what} (.csv, .parquet, .jsonl, or - for "
+                          "CSV on standard output)."))
 
 
 @click.command("evaluate")
