@@ -9,13 +9,7 @@ from pathlib import Path
 import click
 
 from mtanno.annotate import DEFAULT_TAU, load_class_models
-from mtanno.commands._common import (
-    DELTA,
-    TAU,
-    ProgressBar,
-    stack,
-    user_errors,
-)
+from mtanno.commands._common import DELTA, EXIT_BAD_INPUT_OR_PLOT, TAU, ProgressBar, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.model import template_files
@@ -218,7 +212,7 @@ def truth_mocap6(labels, output):
     click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
 
 
-@click.command("report", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@click.command("report", epilog=EXIT_BAD_INPUT_OR_PLOT)
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
                 type=click.Path())
 @click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
