@@ -167,12 +167,11 @@ def keyframes_show_cmd(files):
     group, gap bounds to the previous keyframe in frames at 30 Hz, vector), then one row
     per feature a keyframe fixes and one column per keyframe (1, 0, or · for a wildcard).
     A folder shows every query in it."""
-    from mtanno.keyframes import format_query, load_keyframes
+    from mtanno.keyframes import format_query, keyframe_files, load_keyframes
 
     first = True
     for f in files:
-        p = Path(f)
-        paths = sorted(p.glob("*.json")) if p.is_dir() else [p]
+        paths = keyframe_files(f)
         if not paths:
             raise MtannoError("no keyframe files (*.json) in this folder", path=f)
         for path in paths:
