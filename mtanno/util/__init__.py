@@ -8,6 +8,7 @@
 * :mod:`~mtanno.util.store` — feature files (Parquet): the one reader and writer, layouts;
 * :mod:`~mtanno.util._parquet` — the fast writer of short feature files (private);
 * :mod:`~mtanno.util.workers` — worker processes, dask clusters and the signal policy;
+* :mod:`~mtanno.util.outcomes` — the record of a batch that goes on past failures;
 * :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
 * :mod:`~mtanno.util.units` — the units every stage shares (the 30 Hz analysis rate);
 * ``_bits`` — bit kernels the stages' numba kernels share (private).
@@ -16,4 +17,4 @@ The modules are imported by name (``from mtanno.util.store import read_features`
 file imports none of them, so that loading one does not load the others.
 """
 
-__all__ = ["jitnote", "locks", "output", "store", "tables", "units", "workers"]
+__all__ = ["jitnote", "locks", "outcomes", "output", "store", "tables", "units", "workers"]
