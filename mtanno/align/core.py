@@ -68,24 +68,15 @@ class Alignment:
     full: bool
     seconds: dict[str, float] = field(default_factory=dict)
 
-    @property
-    def total_cost(self) -> float:
-        """Sum of the local costs along the path."""
-        return self.path.total
-
-    @property
-    def mean_cost(self) -> float:
-        """Total cost / number of path cells: the mean local cost along the path."""
-        return self.path.mean
-
-    @property
-    def fraction(self) -> float:
-        """Fraction of the n × m cost matrix that stage 2 computed."""
-        return self.path.fraction
-
-    @property
-    def band(self) -> int:
-        return self.coarse.band
+    # the parts' figures under the names the summary and the table use
+    total_cost = property(lambda self: self.path.total,
+                          doc="Sum of the local costs along the path.")
+    mean_cost = property(lambda self: self.path.mean,
+                         doc="Total cost / number of path cells: the mean local cost along "
+                             "the path.")
+    fraction = property(lambda self: self.path.fraction,
+                        doc="Fraction of the n × m cost matrix that stage 2 computed.")
+    band = property(lambda self: self.coarse.band, doc="The widening of stage 1's area, in frames.")
 
 
 def _codes(p: Performance, features: Sequence[str]) -> np.ndarray:

@@ -405,9 +405,10 @@ def _label_runs(dbars, firsts, lasts, offsets, extend, rank, out_p, out_s, out_t
     ss = out_s[:n][order]
     st = out_t[:n][order]
     m = 0
-    # numba twin of keyframes/_kernels.py merge_sorted: here runs merge per label and only
-    # where they overlap (touching runs stay two), and a kernel calls kernels of its own
-    # file only (numba's cache does not see changes to another file; util/_bits.py)
+    # numba twin of keyframes/_kernels.py dilate (and merge_sorted): here runs merge per
+    # label and only where they overlap (touching runs stay two), and a kernel calls
+    # kernels of its own file only (numba's cache does not see changes to another file;
+    # util/_bits.py)
     for i in range(n):
         if m > 0 and out_p[m - 1] == sp[i] and ss[i] <= out_t[m - 1]:  # overlapping: merge
             if st[i] > out_t[m - 1]:

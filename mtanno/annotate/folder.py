@@ -23,11 +23,12 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from mtanno.annotate.batch import AnnotationSetup
 from mtanno.errors import MtannoError
+from mtanno.util.outcomes import Outcomes
 
 __all__ = ["FORMATS", "DocJob", "DocOutcome", "FolderSummary", "annotate_folder",
            "folder_table", "plan_folder", "recipe", "up_to_date"]
@@ -66,19 +67,12 @@ class DocOutcome:
 
 
 @dataclass
-class FolderSummary:
-    """Outcomes of a folder batch, in the order of the jobs; ``seconds`` is the time spent
-    annotating (summed over the computed documents)."""
+class FolderSummary(Outcomes[DocOutcome]):
+    """Outcomes of a folder batch, in the order of the jobs (counts and the failed ones:
+    :class:`mtanno.util.outcomes.Outcomes`); ``seconds`` is the time spent annotating (summed
+    over the computed documents)."""
 
-    outcomes: list[DocOutcome] = field(default_factory=list)
     seconds: float = 0.0
-
-    def count(self, status: str) -> int:
-        return sum(o.status == status for o in self.outcomes)
-
-    @property
-    def failed(self) -> list[DocOutcome]:
-        return [o for o in self.outcomes if o.status == "failed"]
 
     @property
     def done(self) -> list[DocOutcome]:
@@ -198,22 +192,17 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
     expected = recipe(provenance_as_read(setup.provenance()))
     not_before = max((_mtime_ns(f) for f in setup.files()), default=0)
 
-    def record(o: DocOutcome) -> None:
-        summary.outcomes.append(o)
-        if progress:
-            progress(o)
-
     todo = []
     for job in jobs:
         skipped = None if force else up_to_date(job, expected, not_before=not_before)
         if skipped is not None:
-            record(skipped)
+            summary.record(skipped, progress)
         else:
             todo.append(job)
     for job, (_, result) in zip(todo, setup.iter_annotate([j.src for j in todo],
                                                           n_jobs=n_jobs, scheduler=scheduler)):
         if isinstance(result, str):
-            record(DocOutcome(job, "failed", result))
+            summary.record(DocOutcome(job, "failed", result), progress)
             continue
         doc, rows, native, digest, seconds = result
         summary.seconds += seconds
@@ -222,9 +211,10 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
             write_annotations(job.dst, rows, {doc: native}, provenance=setup.provenance(
                 inputs=[{"path": str(job.src), "sha256": digest}], documents={doc: frames}))
         except MtannoError as exc:
-            record(DocOutcome(job, "failed", str(exc)))
+            summary.record(DocOutcome(job, "failed", str(exc)), progress)
             continue
-        record(DocOutcome(job, "computed", sha256=digest, frames=frames, segments=len(rows)))
+        summary.record(DocOutcome(job, "computed", sha256=digest, frames=frames,
+                                  segments=len(rows)), progress)
     summary.outcomes.sort(key=lambda o: o.job.doc)
     return summary
 

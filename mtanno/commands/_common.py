@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import math
 import sys
+from pathlib import Path
 
 import click
 
@@ -15,6 +16,12 @@ from mtanno.errors import MtannoError
 #: How the API's parameter names read on the command line where they are not ``--name``
 #: (:meth:`mtanno.errors.MtannoError.for_command`).
 ARGUMENT_NAMES = {"training": "TRAINING"}
+
+
+#: The ``--help`` epilogs that several commands share.
+EXIT_BAD_INPUT = "Exit codes: 0 success, 2 bad input."
+EXIT_BAD_INPUT_OR_PLOT = "Exit codes: 0 success, 2 bad input or matplotlib missing."
+EXIT_PER_CLASS = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
 
 def user_errors(code: int):
@@ -144,12 +151,17 @@ def scheduler_option(fn):
                              "docs/scaling.md.")(fn)
 
 
+#: ``[TRAINING]...``: folders of training examples (ROOT/CLASS/*.parquet) for the commands
+#: that learn from them; :func:`training_options` gives the other ways to name them.
+training_argument = click.argument("training", nargs=-1, metavar="[TRAINING]...")
+
+
 def training_options(*, manifest_help: str, truth_help: str):
     """``--manifest``, ``--features-dir``, ``--split`` and ``--truth``: where the training
     examples of learn-mt, learn-keyframes and tune come from
     (:func:`mtanno.templates.training.collect_sources`); ``manifest_help`` and ``truth_help``
     say what each command makes of them."""
-    options = [
+    return stack(
         click.option("--manifest", type=click.Path(dir_okay=False), default=None,
                      help=manifest_help),
         click.option("--features-dir", type=click.Path(file_okay=False), default=None,
@@ -159,15 +171,29 @@ def training_options(*, manifest_help: str, truth_help: str):
                      help="With --manifest: use only rows whose split column is NAME "
                           "(e.g. train)."),
         click.option("--truth", type=click.Path(dir_okay=False), default=None,
-                     help=truth_help),
-    ]
+                     help=truth_help))
+
+
+def stack(*decorators):
+    """One decorator that applies ``decorators`` as if they were written one above the other
+    in this order (the first outermost): a group of options, or a whole command's decorator
+    stack, that several commands share."""
 
     def deco(fn):
-        for option in reversed(options):
-            fn = option(fn)
+        for d in reversed(decorators):
+            fn = d(fn)
         return fn
 
     return deco
+
+
+def class_file(outdir: Path, class_name: str) -> Path:
+    """``outdir/CLASS.json``: where learn-mt and learn-keyframes write a class's template or
+    keyframe query. A class name that cannot be a file name there (empty, hidden, with a path
+    separator or a NUL) is an error."""
+    if not class_name or class_name.startswith(".") or any(c in class_name for c in "/\\\0"):
+        raise MtannoError(f"class name {class_name!r} cannot be used as a file name")
+    return outdir / f"{class_name}.json"
 
 
 def waiting_note(folder):

@@ -9,12 +9,7 @@ from pathlib import Path
 import click
 
 from mtanno.annotate import DEFAULT_TAU, load_class_models
-from mtanno.commands._common import (
-    DELTA,
-    TAU,
-    ProgressBar,
-    user_errors,
-)
+from mtanno.commands._common import DELTA, EXIT_BAD_INPUT_OR_PLOT, TAU, ProgressBar, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.model import template_files
@@ -24,16 +19,15 @@ from mtanno.util.store import document_files
 def json_and_table_options(*, json_what: str, schema: str, table_what: str):
     """``--json FILE`` and ``-o TABLE``: the two further outputs of evaluate and
     evaluate-retrieval (``-`` for standard output)."""
-    def deco(fn):
-        fn = click.option("-o", "--output", "table_path", default=None,
-                          type=click.Path(dir_okay=False, allow_dash=True),
-                          help=f"Also write {table_what} (.csv, .parquet, .jsonl, or - for "
-                               "CSV on standard output).")(fn)
-        return click.option("--json", "json_path", default=None,
-                            type=click.Path(dir_okay=False, allow_dash=True),
-                            help=f"Also write {json_what} as JSON (schema {schema}; - for "
-                                 "standard output).")(fn)
-    return deco
+    return stack(
+        click.option("--json", "json_path", default=None,
+                     type=click.Path(dir_okay=False, allow_dash=True),
+                     help=f"Also write {json_what} as JSON (schema {schema}; - for "
+                          "standard output)."),
+        click.option("-o", "--output", "table_path", default=None,
+                     type=click.Path(dir_okay=False, allow_dash=True),
+                     help=f"Also write {table_what} (.csv, .parquet, .jsonl, or - for "
+                          "CSV on standard output)."))
 
 
 @click.command("evaluate")
@@ -218,7 +212,7 @@ def truth_mocap6(labels, output):
     click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
 
 
-@click.command("report", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@click.command("report", epilog=EXIT_BAD_INPUT_OR_PLOT)
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
                 type=click.Path())
 @click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),

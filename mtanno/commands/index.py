@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from mtanno.commands._common import NAMES, ProgressBar, user_errors, wait_option, waiting_note
+from mtanno.commands._common import NAMES, ProgressBar, stack, user_errors, wait_option, waiting_note
 from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
 
@@ -46,6 +46,19 @@ def _groups_option(value: str | None):
     type has refused a value that names no group (``''``, ``,``): it would have meant every
     group."""
     return None if value is None else value.split(",")
+
+
+#: The INDEX argument of every command that reads or updates an index.
+_INDEX = click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+
+
+def _update_command(name: str, items: str, metavar: str, *, quiet_help: str):
+    """The decorators of ``index add`` and ``index remove``, the two updates in place: INDEX,
+    the items (one or more), ``-q``, ``--wait``; exit code 2 for bad input."""
+    return stack(index_group.command(name), _INDEX,
+                 click.argument(items, nargs=-1, required=True, metavar=metavar),
+                 click.option("-q", "--quiet", is_flag=True, help=quiet_help),
+                 wait_option, user_errors(2))
 
 
 def _summary(index) -> str:
@@ -89,12 +102,8 @@ def _finish(failures: list[str], summary: str | None) -> None:
     sys.exit(1 if failures else 0)
 
 
-@index_group.command("add")
-@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
-@click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
-@wait_option
-@user_errors(2)
+@_update_command("add", "features", "FEATURES...",
+                 quiet_help="No progress bar and no summary line.")
 def add_cmd(index_dir, features, quiet, wait):
     """Add feature files to INDEX (a document already indexed is replaced if its file
     changed). Only the new files are read; one that cannot be read or lacks the index's
@@ -109,12 +118,7 @@ def add_cmd(index_dir, features, quiet, wait):
             f"index add: {report.line()}, {len(failures)} failed; {_summary(index)}")
 
 
-@index_group.command("remove")
-@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
-@click.argument("docs", nargs=-1, required=True, metavar="DOC...")
-@click.option("-q", "--quiet", is_flag=True, help="No summary line.")
-@wait_option
-@user_errors(2)
+@_update_command("remove", "docs", "DOC...", quiet_help="No summary line.")
 def remove_cmd(index_dir, docs, quiet, wait):
     """Remove documents (names = feature file stems) from INDEX."""
     from mtanno.index import remove_documents
@@ -125,7 +129,7 @@ def remove_cmd(index_dir, docs, quiet, wait):
 
 
 @index_group.command("info")
-@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+@_INDEX
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object instead.")
 @click.option("-o", "--output", default=None, type=click.Path(dir_okay=False, allow_dash=True),
               help="Write the per-group table (.csv, .parquet, .jsonl, or - for CSV on "
@@ -176,7 +180,7 @@ def info_cmd(index_dir, as_json, output):
 
 
 @click.command("query")
-@click.argument("index_dir", metavar="INDEX", type=click.Path(file_okay=False))
+@_INDEX
 @click.option("--example", default=None, metavar="FILE.parquet|DOC",
               help="Query by example: a feature file, or the name of an indexed document.")
 @click.option("--frames", default=None, metavar="A:B",

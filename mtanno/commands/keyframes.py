@@ -11,20 +11,22 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import (
+    EXIT_BAD_INPUT,
+    EXIT_PER_CLASS,
+    class_file,
     lock_output,
     scheduler_option,
     show_progress,
+    training_argument,
     training_options,
     user_errors,
     wait_option,
 )
 from mtanno.errors import MtannoError
 
-_EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
-
-@click.command("learn-keyframes", epilog=_EPILOG_EXIT)
-@click.argument("training", nargs=-1, metavar="[TRAINING]...")
+@click.command("learn-keyframes", epilog=EXIT_PER_CLASS)
+@training_argument
 @click.option("--mt", "mt_dir", required=True, type=click.Path(),
               help="Folder of class templates (CLASS.json from learn-mt); keyframe positions "
                    "refer to their columns.")
@@ -125,7 +127,7 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
             try:
                 if cls not in templates:
                     raise MtannoError(f"no template for class '{cls}' in {mt_dir}")
-                target = _class_file(out, cls)
+                target = class_file(out, cls)
                 q = learn_keyframes(ts, cls, templates[cls], method=method, runs=runs, seed=seed,
                                     jobs=jobs, scheduler=scheduler, params=params,
                                 columns=columns,
@@ -152,18 +154,12 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     sys.exit(1 if failed else 0)
 
 
-def _class_file(outdir: Path, class_name: str) -> Path:
-    if not class_name or class_name.startswith(".") or any(c in class_name for c in "/\\\0"):
-        raise MtannoError(f"class name {class_name!r} cannot be used as a file name")
-    return outdir / f"{class_name}.json"
-
-
 @click.group("keyframes")
 def keyframes_group():
     """Inspect keyframe query files (CLASS.json from `mtanno learn-keyframes`)."""
 
 
-@keyframes_group.command("show", epilog="Exit codes: 0 success, 2 bad input.")
+@keyframes_group.command("show", epilog=EXIT_BAD_INPUT)
 @click.argument("files", nargs=-1, required=True, type=click.Path(), metavar="KF.json...")
 @user_errors(2)
 def keyframes_show_cmd(files):
@@ -171,12 +167,11 @@ def keyframes_show_cmd(files):
     group, gap bounds to the previous keyframe in frames at 30 Hz, vector), then one row
     per feature a keyframe fixes and one column per keyframe (1, 0, or · for a wildcard).
     A folder shows every query in it."""
-    from mtanno.keyframes import format_query, load_keyframes
+    from mtanno.keyframes import format_query, keyframe_files, load_keyframes
 
     first = True
     for f in files:
-        p = Path(f)
-        paths = sorted(p.glob("*.json")) if p.is_dir() else [p]
+        paths = keyframe_files(f)
         if not paths:
             raise MtannoError("no keyframe files (*.json) in this folder", path=f)
         for path in paths:

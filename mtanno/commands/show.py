@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import click
 
-from mtanno.commands._common import NAMES, user_errors
+from mtanno.commands._common import EXIT_BAD_INPUT, NAMES, user_errors
 
 
-@click.command("show", epilog="Exit codes: 0 success, 2 bad input.")
+@click.command("show", epilog=EXIT_BAD_INPUT)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--frames", default=None, metavar="A:B",
               help="Frames to show, 1-based inclusive at 30 Hz (default: all).")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import click
 
-from mtanno.commands._common import user_errors
+from mtanno.commands._common import EXIT_BAD_INPUT, user_errors
 
 
 @click.group("skeleton")
@@ -17,7 +17,7 @@ def skeleton_group() -> None:
     """Skeleton maps: which rig joint is which canonical joint."""
 
 
-@skeleton_group.command("guess", epilog="Exit codes: 0 success, 2 bad input.")
+@skeleton_group.command("guess", epilog=EXIT_BAD_INPUT)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", default="-", show_default=True, metavar="MAP.toml",
               help="Where to write the map ('-': standard output).")

@@ -13,9 +13,14 @@ import numpy as np
 
 from mtanno.commands._common import (
     DELTA,
+    EXIT_BAD_INPUT,
+    EXIT_BAD_INPUT_OR_PLOT,
+    EXIT_PER_CLASS,
     Number,
+    class_file,
     lock_output,
     show_progress,
+    training_argument,
     training_options,
     user_errors,
     wait_option,
@@ -25,17 +30,9 @@ from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.describe import TOP_FEATURES
 from mtanno.templates.learn import ITER_MAX, ITER_THRESH
 
-_EPILOG_EXIT = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
-
-def _safe_class_file(outdir: Path, class_name: str) -> Path:
-    if not class_name or class_name.startswith(".") or any(c in class_name for c in "/\\\0"):
-        raise MtannoError(f"class name {class_name!r} cannot be used as a file name")
-    return outdir / f"{class_name}.json"
-
-
-@click.command("learn-mt", epilog=_EPILOG_EXIT)
-@click.argument("training", nargs=-1, metavar="[TRAINING]...")
+@click.command("learn-mt", epilog=EXIT_PER_CLASS)
+@training_argument
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
               help="Output folder; one CLASS.json per class is written there.")
 @training_options(
@@ -110,7 +107,7 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
             try:
                 if done.error is not None:
                     raise MtannoError(done.error)
-                save_template(_safe_class_file(out, done.class_name), done.template)
+                save_template(class_file(out, done.class_name), done.template)
             except MtannoError as exc:
                 failed.append(done.class_name)
                 bar.write(f"mtanno: class {done.class_name}: {exc}", file=sys.stderr)
@@ -133,7 +130,7 @@ def mt_group():
     """Inspect and transform motion-template files (CLASS.json from `mtanno learn-mt`)."""
 
 
-@mt_group.command("show", epilog="Exit codes: 0 success, 2 bad input.")
+@mt_group.command("show", epilog=EXIT_BAD_INPUT)
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization δ for the feature ranking and picture of an unquantized "
@@ -162,7 +159,7 @@ def mt_show_cmd(template, delta, top, picture, files):
                                files=files))
 
 
-@mt_group.command("mirror", epilog="Exit codes: 0 success, 2 bad input.")
+@mt_group.command("mirror", epilog=EXIT_BAD_INPUT)
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output template file.")
@@ -186,7 +183,7 @@ def mt_mirror_cmd(template, output, name):
     click.echo(f"mt mirror: {mt.class_name} -> {output}", err=True)
 
 
-@mt_group.command("scale", epilog="Exit codes: 0 success, 2 bad input.")
+@mt_group.command("scale", epilog=EXIT_BAD_INPUT)
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--factor", required=True, type=Number(0.1, 10),
               help="Performances this many times as long: 0.6 for faster ones, 1.6 for "
@@ -217,7 +214,7 @@ def mt_scale_cmd(template, factor, output):
                f"(factor {factor:g}) -> {output}", err=True)
 
 
-@mt_group.command("quantize", epilog="Exit codes: 0 success, 2 bad input.")
+@mt_group.command("quantize", epilog=EXIT_BAD_INPUT)
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("--delta", required=True, type=DELTA,
               help="Entries ≤ δ become 0, entries ≥ 1−δ become 1, the rest the wildcard "
@@ -242,7 +239,7 @@ def mt_quantize_cmd(template, delta, output):
                f"entries are wildcards -> {output}", err=True)
 
 
-@mt_group.command("plot", epilog="Exit codes: 0 success, 2 bad input or matplotlib missing.")
+@mt_group.command("plot", epilog=EXIT_BAD_INPUT_OR_PLOT)
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Picture file: .png, .svg or .pdf.")

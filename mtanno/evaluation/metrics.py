@@ -44,17 +44,9 @@ class PRF:
     tp_r: int = 0  # numerator of R
     n_r: int = 0   # denominator of R
 
-    @property
-    def P(self) -> float:
-        return ratio(self.tp_p, self.n_p)
-
-    @property
-    def R(self) -> float:
-        return ratio(self.tp_r, self.n_r)
-
-    @property
-    def F(self) -> float:
-        return f_measure(self.P, self.R)
+    P = property(lambda self: ratio(self.tp_p, self.n_p), doc="Precision tp_p / n_p.")
+    R = property(lambda self: ratio(self.tp_r, self.n_r), doc="Recall tp_r / n_r.")
+    F = property(lambda self: f_measure(self.P, self.R), doc="F-measure of P and R.")
 
     def as_dict(self) -> dict[str, float]:
         """P, R, F and the counts: ``support`` (truth frames or segments), ``predicted``

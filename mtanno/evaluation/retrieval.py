@@ -30,13 +30,9 @@ class RetrievalRow:
     relevant: int
     occurrences: int
 
-    @property
-    def P(self) -> float:
-        return ratio(self.relevant, self.hits)
-
-    @property
-    def R(self) -> float:
-        return ratio(self.relevant, self.occurrences)
+    P = property(lambda self: ratio(self.relevant, self.hits), doc="Precision relevant / hits.")
+    R = property(lambda self: ratio(self.relevant, self.occurrences),
+                 doc="Recall relevant / occurrences.")
 
 
 def retrieval_rows(label: str, hits: Sequence[Segment], costs: Sequence[float],

@@ -34,7 +34,9 @@ def fixed_hits(src, src_lists, src_lists_off, offsets, postings, member, seg_lis
     cnt = 0
     # numba twin of the candidate loop of adaptive_hits: both walk the postings of some
     # lists, but a shared walk would have to collect the candidates into an array first
-    # (numba has no cheap callbacks), an extra pass and allocation per query
+    # (numba has no cheap callbacks), an extra pass and allocation per query: measured
+    # (one inlined gather kernel, 300 fuzzy and 300 adaptive example queries on the index of
+    # the HDM05 clips, numba 0.68) 5 % slower here, as fast in adaptive_hits
     for p in range(src.shape[0]):
         j = src[p]
         for li in range(src_lists_off[p], src_lists_off[p + 1]):
@@ -82,7 +84,7 @@ def adaptive_hits(j, lists, offsets, postings, member, seg_list, seg_doc, seg_le
     """
     n_pos = member.shape[0]
     cnt = 0
-    # numba twin of the candidate loop of fixed_hits (see there): written out for speed
+    # numba twin of the candidate loop of fixed_hits (the figures are there): written out
     for li in range(lists.shape[0]):
         v = lists[li]
         for idx in range(offsets[v], offsets[v + 1]):

@@ -22,8 +22,12 @@ from mtanno.util._bits import popcount64 as _popcount
 def dilate(doc, start, end, lo, hi, out_doc, out_start, out_end):
     """Minkowski sum of an interval list with [lo, hi] (``lo ≤ hi``): every interval
     [s, e] becomes [s + lo, e + hi]; overlapping or touching results of one document are
-    merged. Returns the number of intervals written."""
+    merged. Returns the number of intervals written. The input may overlap or touch too
+    (sorted by (doc, start)): with lo = hi = 0 this is :func:`merge_sorted`."""
     cnt = 0
+    # numba twin of the run merge in annotate/_kernels.py _label_runs, which merges per
+    # label and only where runs overlap: each kernel file calls its own kernels only
+    # (numba's cache does not see changes to another file; util/_bits.py)
     for i in range(doc.shape[0]):
         s = start[i] + lo
         e = end[i] + hi
@@ -109,20 +113,7 @@ def pair_spans(a_doc, a_start, a_end, b_doc, b_start, b_end, dmin, dmax,
 def merge_sorted(doc, start, end, out_doc, out_start, out_end):
     """Union of intervals sorted by (doc, start) (they may overlap or touch): the maximal
     runs of covered frames. Returns the number written."""
-    # numba twin of the run merge in annotate/_kernels.py _label_runs, which merges per
-    # label and only where runs overlap: each kernel file calls its own kernels only
-    # (numba's cache does not see changes to another file; util/_bits.py)
-    cnt = 0
-    for i in range(doc.shape[0]):
-        if cnt > 0 and out_doc[cnt - 1] == doc[i] and start[i] <= out_end[cnt - 1] + 1:
-            if end[i] > out_end[cnt - 1]:
-                out_end[cnt - 1] = end[i]
-        else:
-            out_doc[cnt] = doc[i]
-            out_start[cnt] = start[i]
-            out_end[cnt] = end[i]
-            cnt += 1
-    return cnt
+    return dilate(doc, start, end, 0, 0, out_doc, out_start, out_end)
 
 
 @numba.njit(cache=True)

@@ -507,29 +507,29 @@ def load_keyframes(path: str | os.PathLike) -> KeyframeQuery:
     return parse_keyframes(d, text=text, path=spath)
 
 
-def _load_folder(folder: str | os.PathLike) -> list[tuple[Path, KeyframeQuery]]:
+def _load_folder(folder: str | os.PathLike) -> dict[str, tuple[Path, KeyframeQuery]]:
+    """Class name → (file, query) of every keyframe file of ``folder`` (or of one file), in
+    file order; two files of one class are an error."""
     p = Path(folder)
     if not p.exists():
         raise MtannoError("keyframe folder or file not found", path=str(p))
     paths = keyframe_files(p)
     if not paths:
         raise MtannoError("no keyframe files (*.json) in this folder", path=str(p))
-    out: list[tuple[Path, KeyframeQuery]] = []
-    seen: dict[str, Path] = {}
+    out: dict[str, tuple[Path, KeyframeQuery]] = {}
     for f in paths:
         q = load_keyframes(f)
-        if q.class_name in seen:
+        if q.class_name in out:
             raise MtannoError(f"class '{q.class_name}' has two keyframe files: "
-                              f"{seen[q.class_name]} and {f}")
-        seen[q.class_name] = f
-        out.append((f, q))
+                              f"{out[q.class_name][0]} and {f}")
+        out[q.class_name] = (f, q)
     return out
 
 
 def load_keyframe_folder(folder: str | os.PathLike) -> dict[str, KeyframeQuery]:
     """Class name → query of every ``*.json`` in ``folder`` (or of one file). Two files
     of one class are an error."""
-    return {q.class_name: q for _, q in _load_folder(folder)}
+    return {c: q for c, (_, q) in _load_folder(folder).items()}
 
 
 def keyframe_files(folder: str | os.PathLike) -> list[Path]:
@@ -549,7 +549,7 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
     from mtanno.util.store import sha256_file
 
     queries, files = {}, []
-    for f, q in _load_folder(folder):
+    for f, q in _load_folder(folder).values():
         if q.feature_set != feature_set:
             raise MtannoError(f"keyframes of class '{q.class_name}' are for feature set "
                               f"'{q.feature_set}' but the templates use '{feature_set}'",

@@ -10,6 +10,7 @@
 * :mod:`~mtanno.util._poseblock` — the optional pose block of feature files: column names
   and checks (private);
 * :mod:`~mtanno.util.workers` — worker processes, dask clusters and the signal policy;
+* :mod:`~mtanno.util.outcomes` — the record of a batch that goes on past failures;
 * :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
 * :mod:`~mtanno.util.units` — the units every stage shares (the 30 Hz analysis rate);
 * ``_bits`` — bit kernels the stages' numba kernels share (private).
@@ -18,4 +19,4 @@ The modules are imported by name (``from mtanno.util.store import read_features`
 file imports none of them, so that loading one does not load the others.
 """
 
-__all__ = ["jitnote", "locks", "output", "store", "tables", "units", "workers"]
+__all__ = ["jitnote", "locks", "outcomes", "output", "store", "tables", "units", "workers"]
