@@ -46,7 +46,7 @@ from mtanno.errors import MtannoError
 
 __all__ = ["CALIBRATION_FOLDS", "CALIBRATION_L2", "CALIBRATION_METHODS", "DEFAULT_CALIBRATION",
            "NEWTON_MAX_ITER", "UNCALIBRATED", "CalibrationResult", "Calibrator", "IsotonicModel",
-           "LogisticModel", "fit_calibrated", "fit_isotonic", "fit_logistic",
+           "LogisticModel", "check_labels", "fit_calibrated", "fit_isotonic", "fit_logistic",
            "uncalibrated_confidence"]
 
 #: The methods of :func:`fit_calibrated` (module docstring).
@@ -77,7 +77,7 @@ def _array(values, what: str) -> np.ndarray:
     return a
 
 
-def _labels(y, n: int, what: str = "labels") -> np.ndarray:
+def check_labels(y, n: int, what: str = "labels") -> np.ndarray:
     """0/1 labels (1 = right) as float64, one per row."""
     a = _array(y, what)
     if a.ndim != 1 or len(a) != n:
@@ -121,6 +121,17 @@ def _names(names, k: int) -> tuple[str, ...]:
     if not all(isinstance(s, str) and s for s in out) or len(set(out)) != len(out):
         raise MtannoError(f"evidence names must be distinct non-empty strings, got {list(out)}")
     return out
+
+
+def _listed_names(d, what: str, path) -> tuple[str, ...]:
+    """The ``names`` list of a model's table, checked (else an error naming ``path``)."""
+    names = d["names"]
+    if not isinstance(names, (list, tuple)):
+        raise MtannoError(f"{what}: names must be a list of strings", path=path)
+    try:
+        return _names(names, len(names))
+    except MtannoError as exc:
+        raise MtannoError(f"{what}: {exc.message}", path=path) from None
 
 
 def _fallback(y: np.ndarray, w: np.ndarray) -> tuple[str | None, float]:
@@ -241,13 +252,7 @@ class LogisticModel:
         finite numbers, every scale > 0 (else :class:`MtannoError` naming ``path``)."""
         what = "logistic model"
         _table(d, ("names", "mean", "scale", "coef", "intercept"), ("fallback",), what, path)
-        names = d["names"]
-        if not isinstance(names, (list, tuple)):
-            raise MtannoError(f"{what}: names must be a list of strings", path=path)
-        try:
-            names = _names(names, len(names))
-        except MtannoError as exc:
-            raise MtannoError(f"{what}: {exc.message}", path=path) from None
+        names = _listed_names(d, what, path)
         n = len(names)
         return cls(names=names, mean=_floats(d, "mean", what, path, n=n),
                    scale=_floats(d, "scale", what, path, n=n, positive=True),
@@ -329,7 +334,7 @@ def fit_logistic(X, y, *, names: Sequence[str] | None = None, l2: float = CALIBR
     X = _matrix(X)
     n, k = X.shape
     names = _names(names, k)
-    y = _labels(y, n)
+    y = check_labels(y, n)
     w = _weights(weights, n)
     if not (isinstance(l2, (int, float)) and not isinstance(l2, bool) and math.isfinite(l2)
             and l2 > 0):
@@ -432,7 +437,7 @@ def fit_isotonic(score, y, *, weights=None) -> IsotonicModel:
     s = _array(score, "scores").astype(np.float64)
     if s.ndim != 1:
         raise MtannoError(f"scores must be one value per row (1-D), got shape {s.shape}")
-    y = _labels(y, len(s))
+    y = check_labels(y, len(s))
     w = _weights(weights, len(s))
     bad = np.flatnonzero(~np.isfinite(s))
     if len(bad):
@@ -502,13 +507,7 @@ class Calibrator:
         if method not in CALIBRATION_METHODS:
             raise MtannoError(f"{what}: unknown method {method!r} (methods: "
                               f"{', '.join(CALIBRATION_METHODS)})", path=path)
-        names = d["names"]
-        if not isinstance(names, (list, tuple)):
-            raise MtannoError(f"{what}: names must be a list of strings", path=path)
-        try:
-            names = _names(names, len(names))
-        except MtannoError as exc:
-            raise MtannoError(f"{what}: {exc.message}", path=path) from None
+        names = _listed_names(d, what, path)
         wants = {"logistic": "platt" in method, "isotonic": "isotonic" in method}
         for part, wanted in wants.items():
             if wanted != (part in d):
@@ -600,7 +599,7 @@ def fit_calibrated(X, y, *, names: Sequence[str], method: str = DEFAULT_CALIBRAT
     X = _matrix(X)
     n, k = X.shape
     names = _names(names, k)
-    y = _labels(y, n)
+    y = check_labels(y, n)
     if method == "isotonic" and k != 1:
         raise MtannoError(f"calibration 'isotonic' takes one evidence column, got {k} "
                           f"({', '.join(names)}): use 'platt+isotonic' to combine them")

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mtanno.annotate.calibration import check_labels
 from mtanno.errors import MtannoError
 
 __all__ = ["DEFAULT_BINS", "ReliabilityTable", "auroc", "expected_calibration_error",
@@ -38,12 +39,7 @@ def _inputs(values, right, what: str) -> tuple[np.ndarray, np.ndarray]:
     bad = np.flatnonzero(np.isnan(v))
     if len(bad):
         raise MtannoError(f"{what} must not be NaN (index {bad[0]})")
-    rf = r.astype(np.float64)
-    bad = np.flatnonzero((rf != 0) & (rf != 1))
-    if len(bad):
-        raise MtannoError(f"right must be 0 or 1 (wrong or right), got {r[bad[0]].item()!r} at "
-                          f"index {bad[0]}")
-    return v, rf == 1
+    return v, check_labels(r, len(v), "right") == 1
 
 
 def auroc(score, right) -> float:

@@ -14,12 +14,20 @@ import pyarrow as pa
 
 from mtanno.errors import MtannoError
 
-__all__ = ["POSE_AXES", "POSE_PREFIX", "check_pose_columns", "check_pose_meta", "pose_columns"]
+__all__ = ["POSE_AXES", "POSE_PREFIX", "check_pose_columns", "check_pose_meta", "pose_columns",
+           "text_field"]
 
 #: Columns whose names begin so are the pose block (``pose.<joint>.<x|y|z>``, float32); no
 #: feature column may be named so.
 POSE_PREFIX = "pose."
 POSE_AXES = ("x", "y", "z")
+
+
+def text_field(value, message: str, spath: str) -> str:
+    """``value`` if it is a non-empty string, else the error ``message, got value``."""
+    if not isinstance(value, str) or not value:
+        raise MtannoError(f"{message}, got {value!r}", path=spath)
+    return value
 
 
 def pose_columns(joints: Sequence[str]) -> list[str]:
@@ -45,10 +53,8 @@ def check_pose_meta(block, spath: str) -> list[str]:
     if block.get("unit") != want["unit"]:
         raise MtannoError(f"poses in the mtanno metadata must be in {want['unit']!r}, got unit "
                           f"{block.get('unit')!r}", path=spath)
-    how = block.get("normalisation")
-    if not isinstance(how, str) or not how:
-        raise MtannoError(f"poses in the mtanno metadata must say their normalisation (a "
-                          f"non-empty string), got {how!r}", path=spath)
+    text_field(block.get("normalisation"), "poses in the mtanno metadata must say their "
+               "normalisation (a non-empty string)", spath)
     return list(want["joints"])
 
 

@@ -31,6 +31,7 @@ from mtanno.util._poseblock import (
     check_pose_columns,
     check_pose_meta,
     pose_columns,
+    text_field,
 )
 from mtanno.util.output import atomic_path, write_bytes
 
@@ -198,10 +199,8 @@ def _check_meta(meta, spath: str) -> dict:
     if not _positive_number(fps):
         raise MtannoError(f"analysis_fps in the mtanno metadata must be a positive number, "
                           f"got {fps!r}", path=spath)
-    fs = meta.get("feature_set")
-    if not isinstance(fs, str) or not fs:
-        raise MtannoError(f"feature_set in the mtanno metadata must be a non-empty string, "
-                          f"got {fs!r}", path=spath)
+    text_field(meta.get("feature_set"), "feature_set in the mtanno metadata must be a "
+               "non-empty string", spath)
     version = meta.get("feature_set_version", 1)
     if isinstance(version, bool) or not isinstance(version, int):
         raise MtannoError(f"feature_set_version in the mtanno metadata must be an integer, "
