@@ -1,0 +1,136 @@
+"""Open-world annotation end to end on the synthetic world (issue 26): tune with background
+motions, the tuned confidence and its minimum applied by annotate, the uncalibrated score
+without a tuned confidence, and bad --background and --min-confidence input."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+from world import assert_one_line, cli
+
+from mtanno.annotate import read_annotation_table
+
+BACKGROUND_CLASS = "waveRHand"  # left out of the templates: its clips are the background
+
+
+@pytest.fixture(scope="module")
+def tuned(world, tmp_path_factory):
+    """Templates without one class, tuned with that class's clips as background."""
+    root = tmp_path_factory.mktemp("open")
+    mt = root / "mt"
+    shutil.copytree(world.mt, mt)
+    (mt / f"{BACKGROUND_CLASS}.json").unlink()
+    manifest = root / "clips.csv"
+    lines = world.manifest.read_text().splitlines()
+    manifest.write_text("\n".join([lines[0]] + [ln for ln in lines[1:]
+                                                 if f",{BACKGROUND_CLASS}," not in ln]) + "\n")
+    background = world.feats / BACKGROUND_CLASS
+    config = root / "tuned.toml"
+    r = cli("tune", "--mt", mt, "--manifest", manifest, "--features-dir", world.feats,
+            "--split", "train", "--background", background, "-o", config, "-q")
+    assert r.exit_code == 0, r.output
+    return root, mt, manifest, config, background
+
+
+def test_tune_records_the_background_and_the_confidence(tuned):
+    from mtanno.annotate import load_class_config
+    from mtanno.annotate.verify import read_bank
+    from mtanno.util.store import sha256_file
+
+    root, mt, _, config, background = tuned
+    cfg = load_class_config(config)
+    files = sorted(background.glob("*.parquet"))
+    assert cfg.background == {str(f): sha256_file(f) for f in files}
+    conf = cfg.confidence
+    assert set(conf["evidence"]) == {"cost", "length", "verify", "margin", "background"}
+    assert 0.0 <= conf["min_confidence"] <= 0.8
+    bank = read_bank(root / conf["bank"])
+    assert bank.representation == "features"  # the synthetic features have no poses
+    assert bank.has_background and BACKGROUND_CLASS not in bank.classes
+    assert conf["bank_sha256"] == sha256_file(root / conf["bank"])
+    assert "AUROC" in config.read_text()
+
+
+def test_annotate_gives_the_tuned_confidence_and_applies_its_minimum(world, tuned, tmp_path):
+    _, mt, _, config, _ = tuned
+    out = tmp_path / "a.csv"
+    r = cli("annotate", "--mt", mt, "--classes", config, world.docfeats, "-o", out,
+            "--min-confidence", "0", "-q")
+    assert r.exit_code == 0, r.output
+    rows, prov = read_annotation_table(out)
+    assert rows and all(0.0 <= a.confidence <= 1.0 for a in rows)
+    assert prov["confidence"]["calibrated"] is True
+    assert prov["confidence"]["min_confidence"] == 0.0
+    assert prov["confidence"]["bank"]["representation"] == "features"
+    assert len(prov["background"]) == len(list((world.feats / BACKGROUND_CLASS).glob("*")))
+    # the minimum drops exactly the rows below it
+    cut = sorted(a.confidence for a in rows)[len(rows) // 2]
+    out2 = tmp_path / "b.csv"
+    r = cli("annotate", "--mt", mt, "--classes", config, world.docfeats, "-o", out2,
+            "--min-confidence", str(cut), "-q")
+    assert r.exit_code == 0, r.output
+    kept, _ = read_annotation_table(out2)
+    assert kept == [a for a in rows if a.confidence >= cut]
+
+
+def test_without_a_tuned_confidence_the_score_is_uncalibrated(world):
+    rows, prov = read_annotation_table(world.annotation)
+    assert prov["confidence"] == {"calibrated": False, "score": "1 - cost/tau, clipped to [0, 1]",
+                                  "min_confidence": 0.0}
+    for a in rows:
+        want = 0.0 if math.isinf(a.cost) else min(1.0, max(0.0, 1 - a.cost / 0.13))
+        assert a.confidence == pytest.approx(want, abs=1e-6)
+
+
+def test_a_pose_bank_needs_feature_files_with_poses(world, tuned, tmp_path):
+    """A configuration verifying by poses, given feature files without them: each file
+    fails with one line saying how to make them; exit code 1."""
+    from mtanno.annotate.verify import POSE_JOINTS, build_bank, read_bank, write_bank
+    from mtanno.util.store import sha256_file
+
+    root, mt, _, config, _ = tuned
+    old = read_bank(root / "tuned.verify.parquet")
+    rng = np.random.default_rng(0)
+    ex = [(c, p, rng.random((5, 3 * len(POSE_JOINTS))).astype(np.float32))
+          for c, p in zip(old.labels, old.performers) if c]
+    cfg_dir = tmp_path / "cfg"
+    shutil.copytree(root, cfg_dir, ignore=shutil.ignore_patterns("mt"))
+    write_bank(cfg_dir / "tuned.verify.parquet", build_bank(ex, representation="poses"))
+    text = (cfg_dir / "tuned.toml").read_text().replace(
+        json.dumps(sha256_file(root / "tuned.verify.parquet")),
+        json.dumps(sha256_file(cfg_dir / "tuned.verify.parquet")))
+    (cfg_dir / "tuned.toml").write_text(text)
+    r = cli("annotate", "--mt", mt, "--classes", cfg_dir / "tuned.toml", world.docfeats,
+            "-o", tmp_path / "a.csv")
+    assert r.exit_code == 1, r.output
+    assert "features --poses" in r.output and "Traceback" not in r.output
+
+
+def test_bad_background_is_one_line_and_exit_2(world, tuned, tmp_path):
+    _, mt, manifest, _, _ = tuned
+    train = ["--manifest", manifest, "--features-dir", world.feats, "--split", "train"]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    other = tmp_path / "mrc05"
+    r = cli("features", world.clips / BACKGROUND_CLASS, "-o", other, "--feature-set", "mrc05",
+            "-q")
+    assert r.exit_code == 0, r.output
+    other_file = sorted(other.rglob("*.parquet"))[0]
+    training_clip = sorted((world.feats / "squat").glob("*.parquet"))[0]
+    for bad, says in ((empty, "no feature files"), (other_file, "feature"),
+                      (training_clip, "also a training file")):
+        r = cli("tune", "--mt", mt, *train, "--background", bad, "-o", tmp_path / "t.toml")
+        line = assert_one_line(r, bad, codes=(2,))
+        assert says in line, line
+        assert not (tmp_path / "t.toml").exists()
+
+
+@pytest.mark.parametrize("value", ["-0.1", "1.5", "nan", "x"])
+def test_bad_min_confidence_is_a_usage_error(world, value, tmp_path):
+    r = cli("annotate", "--mt", world.mt, world.docfeats, "-o", tmp_path / "a.csv",
+            "--min-confidence", value)
+    assert r.exit_code == 2 and "--min-confidence" in r.output and "Traceback" not in r.output
