@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 SHARED ?= ../shared/data
 OUT    ?= out
 
-.PHONY: install test demo bench lint clean experiment-hdm05 experiment-mocap6 experiment-bandai
+.PHONY: install test demo bench lint clean experiment-hdm05 experiment-mocap6 experiment-bandai experiment-openworld
 
 $(BIN)/mtanno: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,12 +28,12 @@ demo: $(BIN)/mtanno  ## features → learn-mt → tune → compose → annotate 
 	  DATA="$(OUT)/demo/clips"; ACTOR=d; \
 	fi; \
 	set -e; M=$(BIN)/mtanno; D=$(OUT)/demo; \
-	$$M features "$$DATA" -o $$D/features --jobs 2 -q; \
+	$$M features "$$DATA" -o $$D/features --poses --jobs 2 -q; \
 	$$M learn-mt --manifest "$$DATA/clips.csv" --features-dir $$D/features --split train -o $$D/mt -q; \
 	$$M tune --mt $$D/mt --manifest "$$DATA/clips.csv" --features-dir $$D/features --split train \
 	  -o $$D/tuned.toml --jobs 2 -q; \
 	$$M compose "$$DATA/clips.csv" --actor $$ACTOR --docs 10 --seed 1 -o $$D/docs; \
-	$$M features $$D/docs -o $$D/doc_features --jobs 2 -q; \
+	$$M features $$D/docs -o $$D/doc_features --poses --jobs 2 -q; \
 	$$M annotate --mt $$D/mt $$D/doc_features -o $$D/annotation_untuned.csv --jobs 2 -q; \
 	$$M annotate --mt $$D/mt --classes $$D/tuned.toml $$D/doc_features \
 	  -o $$D/annotation.csv -o $$D/annotation.parquet --jobs 2; \
@@ -50,6 +50,9 @@ experiment-hdm05: $(BIN)/mtanno  ## the HDM05 annotation experiment (scripts/exp
 
 experiment-mocap6: $(BIN)/mtanno  ## the CMU mocap6 annotation experiment
 	scripts/experiment_mocap6.sh $(OUT)/mocap6
+
+experiment-openworld: $(BIN)/mtanno  ## the open-world protocol: foreign archives, background, confidence (issue 26)
+	scripts/experiment_openworld.sh $(OUT)/openworld
 
 experiment-bandai: $(BIN)/mtanno  ## the Bandai set-2 leave-one-style-out annotation experiment
 	scripts/experiment_bandai.sh $(OUT)/bandai

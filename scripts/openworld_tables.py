@@ -43,25 +43,13 @@ def confidence(paths: list[str], truth: str, bins: int = 10) -> dict:
         auroc,
         expected_calibration_error,
         reliability_table,
+        rows_right,
     )
     from mtanno.evaluation.truth import read_truth
 
     rows, _, _ = read_annotation_tables(paths)
-    segs = read_truth(truth)
-    by_doc: dict[str, list] = {}
-    for s in segs:  # 1-based inclusive → 0-based
-        by_doc.setdefault(s.doc, []).append((s.label, s.start - 1, s.end - 1))
-    right, prob = [], []
-    for r in rows:
-        ok = False
-        for lab, a, b in by_doc.get(r.doc, []):
-            if lab != r.label or b < r.start or a > r.end:
-                continue
-            inter = min(b, r.end) - max(a, r.start) + 1
-            union = max(b, r.end) - min(a, r.start) + 1
-            ok = ok or inter / union >= 0.5
-        right.append(ok)
-        prob.append(r.confidence)
+    right = rows_right(rows, read_truth(truth))
+    prob = [r.confidence for r in rows]
     p, y = np.array(prob, dtype=float), np.array(right, dtype=float)
     keep = ~np.isnan(p)
     table = reliability_table(p[keep], y[keep], bins=bins)

@@ -211,7 +211,9 @@ def test_report_files_and_tables(world, tmp_path):
 
     assert total == sum(read_features(p).X.shape[1] for p in world.doc_files)
     page = (out / "index.html").read_text()
-    assert page.count("<img ") == 1 + 2 * len(docs) + len(list(world.mt.glob("*.json")))
+    # confusion, reliability of the confidence, timelines and Δ curves, templates
+    assert page.count("<img ") == 2 + 2 * len(docs) + len(list(world.mt.glob("*.json")))
+    assert (out / "reliability.png").is_file() and "AUROC" in page
     assert "src='data:image/png;base64," in page and "segments overlap" not in page
     assert ev.exit_code == 0
 

@@ -29,6 +29,7 @@ _MODULE_OF = {
     "OVERLAPS": "segmentation",
     "OverlapCounts": "segmentation",
     "PRF": "metrics",
+    "RIGHT_IOU": "calibration",
     "ReliabilityTable": "calibration",
     "Report": "metrics",
     "ReportResult": "report",
@@ -46,6 +47,8 @@ _MODULE_OF = {
     "levenshtein": "segmentation",
     "read_truth": "truth",
     "reliability_table": "calibration",
+    "rows_right": "calibration",
+    "segment_right": "calibration",
     "retrieval_evaluation": "retrieval",
     "retrieval_report": "retrieval",
     "retrieval_rows": "retrieval",
@@ -60,10 +63,10 @@ _MODULE_OF = {
 }
 
 __all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval", "OverlapCounts",
-           "ReliabilityTable", "Report", "ReportResult", "RetrievalRow", "Segment",
+           "RIGHT_IOU", "ReliabilityTable", "Report", "ReportResult", "RetrievalRow", "Segment",
            "SegmentationScores", "auroc", "check_within", "confusion_matrix", "edit_score",
            "evaluate_annotations", "expected_calibration_error", "frame_level", "levenshtein",
-           "read_truth", "reliability_table", "segmentation_scores",
+           "read_truth", "reliability_table", "rows_right", "segment_right", "segmentation_scores",
            "retrieval_evaluation", "retrieval_report", "retrieval_rows", "retrieval_table",
            "segment_level", "separation_quotient", "top_k_recall", "truth_table",
            "write_report", "write_truth"]

@@ -17,8 +17,36 @@ import numpy as np
 from mtanno.annotate.calibration import check_labels
 from mtanno.errors import MtannoError
 
-__all__ = ["DEFAULT_BINS", "ReliabilityTable", "auroc", "expected_calibration_error",
-           "reliability_table"]
+__all__ = ["DEFAULT_BINS", "RIGHT_IOU", "ReliabilityTable", "auroc",
+           "expected_calibration_error", "reliability_table", "rows_right", "segment_right"]
+
+#: IoU with a truth segment of its label from which a segment's label counts as right
+#: (issue 26: what the confidence is the probability of).
+RIGHT_IOU = 0.5
+
+
+def segment_right(seg: tuple[int, int, int], truth) -> bool:
+    """Whether segment (label, first, last) overlaps a truth segment (label, first, last)
+    of its label with IoU ≥ :data:`RIGHT_IOU` (inclusive frames, any base, the same for
+    both)."""
+    p, a, b = seg
+    for q, s, e in truth:
+        if q != p or e < a or s > b:
+            continue
+        if (min(b, e) - max(a, s) + 1) / (max(b, e) - min(a, s) + 1) >= RIGHT_IOU:
+            return True
+    return False
+
+
+def rows_right(rows, truth) -> np.ndarray:
+    """Per annotation row (0-based frames, :class:`mtanno.annotate.Annotation`) whether
+    its label is right against ``truth`` (:class:`mtanno.evaluation.truth.Segment`,
+    1-based frames): :func:`segment_right` in its document."""
+    by_doc: dict[str, list] = {}
+    for s in truth:
+        by_doc.setdefault(s.doc, []).append((s.label, s.start - 1, s.end - 1))
+    return np.array([segment_right((r.label, r.start, r.end), by_doc.get(r.doc, ()))
+                     for r in rows], dtype=bool)
 
 #: Equal-width bins on [0, 1] of the calibration error and the reliability table.
 DEFAULT_BINS = 10

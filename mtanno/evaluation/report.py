@@ -311,6 +311,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     result.files += [folder / "confusion.csv", folder / "confusion.csv.meta.json"]
     w.figure(plot_confusion(M, labels), "confusion", "Confusion matrix (frames)",
              "rows: truth, columns: annotation; counts of frames")
+    _reliability(w, truth, annotation, prov)
     colours = label_colours(labels)
     for d in docs:
         lanes = {"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d],
@@ -339,6 +340,34 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     write_text(result.page, _page(result, w.images, rows, title, prov))
     result.files.append(result.page)
     return result
+
+
+def _reliability(w: _Writer, truth, annotation, prov: dict) -> None:
+    """The reliability diagram of the rows' confidence against the truth (issue 26), and
+    its AUROC and ECE as a note; nothing when no row has a confidence or there is no
+    truth."""
+    from mtanno.evaluation.calibration import (
+        auroc,
+        expected_calibration_error,
+        reliability_table,
+        rows_right,
+    )
+    from mtanno.plot import plot_reliability
+
+    rows = [a for a in annotation if not math.isnan(a.confidence)]
+    if not rows or not truth:
+        return
+    right = rows_right(rows, truth)
+    prob = np.array([a.confidence for a in rows])
+    table = reliability_table(prob, right)
+    calibrated = (prov.get("confidence") or {}).get("calibrated")
+    what = "calibrated" if calibrated else "uncalibrated (1 − cost/τ: a score, not a probability)"
+    w.figure(plot_reliability(table), "reliability", "Confidence",
+             f"reliability of the confidence, {what}: per bin the fraction of rows whose "
+             "label is right (IoU ≥ 0.5 with a truth segment of its label)")
+    w.result.notes.append(
+        f"confidence ({what}): {int(right.sum())} of {len(rows)} rows right, AUROC "
+        f"{auroc(prob, right):.3f}, ECE {expected_calibration_error(prob, right):.3f}")
 
 
 def _legend(ax, labels, colours) -> None:

@@ -17,20 +17,18 @@ verified against its own motion.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mtanno.annotate.confidence import BANK_EVIDENCE, EVIDENCE, segment_evidence
 from mtanno.annotate.tables import Annotation
+from mtanno.evaluation.calibration import segment_right
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
-__all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "RIGHT_IOU", "ConfidenceFit", "learn_confidence",
-           "segment_right"]
+__all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "ConfidenceFit", "learn_confidence"]
 
-#: IoU above which a segment's label counts as right.
-RIGHT_IOU = 0.5
 #: Minimum confidences tried for the output rows.
 MIN_CONFIDENCE_GRID = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 
@@ -51,20 +49,6 @@ class ConfidenceFit:
     kinds: list[str]
     table: list[dict] = field(default_factory=list)
     representation: str | None = None
-
-
-def segment_right(seg: tuple[int, int, int], truth: Sequence[tuple[int, int, int]]) -> bool:
-    """Whether segment (label, first, last) overlaps a truth segment of its label with
-    IoU ≥ :data:`RIGHT_IOU` (0-based inclusive frames)."""
-    p, a, b = seg
-    for q, s, e in truth:
-        if q != p or e < a or s > b:
-            continue
-        inter = min(b, e) - max(a, s) + 1
-        union = max(b, e) - min(a, s) + 1
-        if inter / union >= RIGHT_IOU:
-            return True
-    return False
 
 
 @dataclass
