@@ -18,7 +18,7 @@ DOCS="13_29 13_30 13_31"
 mkdir -p "$OUT"
 
 # The mocap6 AMC files name an ASF that was never published: subject 02's has the same bones.
-"$MTANNO" features "$SHARED/cmu_mocap6" --asf "$SHARED/cmu_02/02.asf" -o "$OUT/features" -q
+"$MTANNO" features "$SHARED/cmu_mocap6" --asf "$SHARED/cmu_02/02.asf" -o "$OUT/features" --poses -q
 "$MTANNO" truth mocap6 "$SHARED/cmu_mocap6/labels.json" -o "$OUT/truth.csv" 2>/dev/null
 
 RUNS="none ga hard heuristic"
@@ -89,6 +89,9 @@ for test in $DOCS; do
     -o "$r/annotation_knn.csv" 2> /dev/null
   "$MTANNO" annotate --mt "$r/mt" --classes "$r/tuned.toml" "$OUT/features/$test.parquet" \
     -o "$r/annotation_tuned.csv" -q
+  # issue 26: the same tuning without the confidence (every row kept, as in issue 10)
+  "$MTANNO" annotate --mt "$r/mt" --classes "$r/tuned.toml" "$OUT/features/$test.parquet" \
+    --min-confidence 0 -o "$r/annotation_tuned_all.csv" -q
   "$MTANNO" annotate --mt "$r/mt" --classes "$r/tuned_kf.toml" --keyframes "$r/kf_ga" \
     "$OUT/features/$test.parquet" -o "$r/annotation_tuned_kf.csv" -q
   for a in $ABLATION; do
@@ -107,15 +110,17 @@ for test in $DOCS; do
     "$MTANNO" tune --mt "$u/mt" --truth "$u/train_truth.csv" "${train[@]}" -o "$u/tuned.toml" -q
     "$MTANNO" annotate --mt "$u/mt" --classes "$u/tuned.toml" "$OUT/features/$test.parquet" \
       -o "$u/tuned.csv" -q
+    "$MTANNO" annotate --mt "$u/mt" --classes "$u/tuned.toml" "$OUT/features/$test.parquet" \
+      --min-confidence 0 -o "$u/tuned_all.csv" -q
     "$here/.venv/bin/python" "$here/scripts/baseline_knn.py" --truth "$u/train_truth.csv" \
       $(printf -- '--train %s ' "${train[@]}") "$OUT/features/$test.parquet" -o "$u/knn.csv" \
       2> /dev/null
-    for run in reference tuned knn; do
+    for run in reference tuned tuned_all knn; do
       "${TABLES[@]}" unknown "$u/$run.csv" --truth "$OUT/truth.csv" --class "$c" -o "$u/$run.json"
     done
   done
 done
-for run in knn tuned tuned_kf $(for a in $ABLATION; do echo "ab_$a"; done); do
+for run in knn tuned tuned_all tuned_kf $(for a in $ABLATION; do echo "ab_$a"; done); do
   annotations=()
   for test in $DOCS; do annotations+=("$OUT/test_$test/annotation_$run.csv"); done
   "$MTANNO" evaluate "${annotations[@]}" --truth "$OUT/truth.csv" --json "$OUT/report_$run.json" \
@@ -124,6 +129,7 @@ done
 echo "== issue 10 summary (all three rotations evaluated together)"
 "${TABLES[@]}" quality "baseline (k-NN, 1 s majority)=$OUT/report_knn.json" \
   "reference annotation=$OUT/report_none.json" "tuned=$OUT/report_tuned.json" \
+  "tuned, every row (--min-confidence 0)=$OUT/report_tuned_all.json" \
   "tuned + GA keyframes=$OUT/report_tuned_kf.json"
 echo
 echo "Ablation (tune re-run with one method left out; 'none' = one tau for all classes):"
@@ -133,4 +139,4 @@ echo
 echo "Unknown-class rate (fraction of a left-out class's frames labelled with another class):"
 rates() { ls "$OUT"/test_*/unknown/*/"$1".json | tr '\n' ','; }
 "${TABLES[@]}" unknown-table "baseline=$(rates knn)" "reference=$(rates reference)" \
-  "tuned=$(rates tuned)"
+  "tuned=$(rates tuned)" "tuned, every row (--min-confidence 0)=$(rates tuned_all)"

@@ -311,3 +311,32 @@ def test_report_page_loads_every_image_in_a_browser(world, tmp_path):
     assert f'data-loaded="{n_images}/{n_images}"' in r.stdout, r.stdout[-500:]
     # confusion matrix, a timeline per document, a heat map per template
     assert n_images == 1 + len(world.doc_files) + len(list(world.mt.glob("*.json")))
+
+
+def test_report_without_truth_summarises_and_lists_rows_for_review(world, tmp_path):
+    """Issue 24: an archive nobody has labelled — per class segments, duration and share,
+    the annotation's timelines, and every row, the least confident first."""
+    from mtanno.annotate import read_annotation_table
+
+    out = tmp_path / "rep"
+    r = run("report", world.annotation, "-o", out, "-q")
+    assert r.exit_code == 0, r.output
+    rows, prov = read_annotation_table(world.annotation)
+    frames = prov["documents"]
+    summary = {s["class"]: s for s in csv.DictReader((out / "summary.csv").open())}
+    for lab in {a.label for a in rows}:
+        mine = [a for a in rows if a.label == lab]
+        covered = sum(len({f for a in mine if a.doc == d for f in range(a.start, a.end + 1)})
+                      for d in frames)
+        assert int(summary[lab]["segments"]) == len(mine)
+        assert int(summary[lab]["frames"]) == covered
+        assert float(summary[lab]["share"]) == pytest.approx(covered / sum(frames.values()),
+                                                             abs=1e-4)
+    review = list(csv.DictReader((out / "review.csv").open()))
+    assert len(review) == len(rows)
+    conf = [float(x["confidence"]) for x in review]
+    assert conf == sorted(conf)
+    page = (out / "index.html").read_text()
+    assert "Classes in the annotation" in page and "Review list" in page
+    assert not (out / "per_class.csv").exists() and not (out / "confusion.csv").exists()
+    assert page.count("<img ") == len(frames)  # one timeline per document

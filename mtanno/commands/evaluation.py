@@ -215,8 +215,9 @@ def truth_mocap6(labels, output):
 @click.command("report", epilog=EXIT_BAD_INPUT_OR_PLOT)
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
                 type=click.Path())
-@click.option("--truth", "truth_path", required=True, type=click.Path(dir_okay=False),
-              help="Ground truth table (doc,start,end,label[,fps]).")
+@click.option("--truth", "truth_path", default=None, type=click.Path(dir_okay=False),
+              help="Ground truth table (doc,start,end,label[,fps]); without it the page "
+                   "summarises the annotation (an archive nobody has labelled).")
 @click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
               help="Report folder (created): index.html, tables, PNG and SVG figures.")
 @click.option("--mt", "mt_dir", type=click.Path(exists=True), default=None,
@@ -237,13 +238,17 @@ def truth_mocap6(labels, output):
 @user_errors(2)
 def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, title,
                quiet):
-    """Write a report of annotation tables against ground truth ([MBS09] §7) into a folder.
+    """Write a report of annotation tables into a folder, against ground truth ([MBS09] §7)
+    when --truth is given.
 
     \b
     index.html                 self-contained page (images inline): open it in a browser
-    per_class.csv|.md|.tex     P/R/F per class, frames and segments, with support
-    confusion.csv|.png|.svg    frame-level confusion matrix, truth x annotation, with "none"
-    timeline_DOC.png|.svg      per document: truth against annotation
+    per_class.csv|.md|.tex     with --truth: P/R/F per class, frames and segments, support
+    confusion.csv|.png|.svg    with --truth: frame confusion matrix, truth x annotation
+    reliability.png|.svg       with --truth: how well the confidence column is calibrated
+    summary.csv|.md            without --truth: per class segments, duration, share
+    review.csv                 every row, the least confident first (the rows to check)
+    timeline_DOC.png|.svg      per document: truth (if given) and annotation
     template_CLASS.png|.svg    with --mt: the templates as heat maps
     delta_DOC.png|.svg         with --mt and --features: each class's Δ over the document
 
@@ -277,13 +282,15 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
                **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     annotations = annotation_files(annotations)
-    check_outputs([], [*annotations, truth_path, *paths,
+    check_outputs([], [*annotations, *([truth_path] if truth_path else []), *paths,
                        *(template_files(mt_dir) if mt_dir else [])],
                   folders={out_dir: REPORT_FILES}, scanned=scanned)
     rows, frames, provs = read_annotation_tables(annotations)
     recorded = annotation_parameters(provs)
-    truth = read_truth(truth_path)
-    check_within(truth, frames, path=truth_path)
+    truth = None
+    if truth_path is not None:
+        truth = read_truth(truth_path)
+        check_within(truth, frames, path=truth_path)
     templates = load_template_folder(mt_dir) if mt_dir else None
     feats = {}
     for p in paths:
@@ -300,11 +307,13 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
                               delta=delta if delta is not None else recorded["delta"],
                               extra_templates=recorded["extra_templates"],
                               title=title, progress=bar, provenance=provenance(
-                                  inputs=[*annotations, truth_path], truth=str(truth_path)))
+                                  inputs=[*annotations, *([truth_path] if truth_path else [])],
+                                  truth=str(truth_path) if truth_path else None))
     if not quiet:
-        ov = result.evaluation.frame
-        click.echo(f"report: {len(result.evaluation.documents)} documents, F1 {ov.F:.3f}, "
-                   f"{len(result.files)} files -> {result.page}", err=True)
+        what = (f"{len(result.evaluation.documents)} documents, F1 "
+                f"{result.evaluation.frame.F:.3f}" if result.evaluation is not None else
+                f"{len({r.doc for r in rows})} documents, {len(rows)} rows, no truth")
+        click.echo(f"report: {what}, {len(result.files)} files -> {result.page}", err=True)
 
 
 COMMANDS = [evaluate_cmd, evaluate_retrieval_cmd, compose_cmd, truth_group, report_cmd]

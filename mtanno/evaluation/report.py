@@ -47,9 +47,10 @@ FORMATS = ("png", "svg")
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
 #: after documents and classes), for :func:`mtanno.util.output.check_outputs`.
 REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
-                "per_class.tex", "confusion.csv", "confusion.csv.meta.json",
-                *(f"{stem}.{fmt}" for stem in ("confusion", "timeline_*", "template_*",
-                                               "delta_*") for fmt in FORMATS))
+                "per_class.tex", "confusion.csv", "confusion.csv.meta.json", "summary.csv",
+                "summary.csv.meta.json", "summary.md", "review.csv", "review.csv.meta.json",
+                *(f"{stem}.{fmt}" for stem in ("confusion", "reliability", "timeline_*",
+                                               "template_*", "delta_*") for fmt in FORMATS))
 
 
 @dataclass
@@ -126,6 +127,16 @@ def markdown_table(rows: Sequence[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _plain_markdown(rows: Sequence[dict]) -> str:
+    """Rows of any columns (the first row's) as a Markdown table; numbers as they are,
+    missing values "–"."""
+    cols = list(rows[0]) if rows else []
+    lines = ["| " + " | ".join(cols) + " |", "|---|" + "---:|" * (len(cols) - 1)]
+    for r in rows:
+        lines.append("| " + " | ".join("–" if r[c] is None else str(r[c]) for c in cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def _tex(text: str) -> str:
     """Text with LaTeX's special characters escaped."""
     text = text.replace("\\", "\0")
@@ -194,18 +205,21 @@ def _html_table(rows: Sequence[dict]) -> str:
     return "\n".join(out) + "</table>"
 
 
-def _page(result: ReportResult, images, rows, title: str, provenance: dict) -> str:
+def _page(result: ReportResult, images, rows, title: str, provenance: dict, *, docs=(),
+          review=(), scored: bool = True) -> str:
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
              "</title><style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
              "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;"
              "text-align:right}img{max-width:100%;display:block;margin:8px 0}</style></head>"
              f"<body><h1>{html.escape(title)}</h1>"]
-    docs = result.evaluation.documents if result.evaluation else []
+    files = ("per_class.csv/.md/.tex, confusion.csv" if scored else "summary.csv/.md (no "
+             "truth given: no scores)")
     parts.append(f"<p>{len(docs)} document(s); frames at 30 Hz. Files beside this page: "
-                 "per_class.csv/.md/.tex, confusion.csv, every figure as PNG and SVG.</p>")
+                 f"{files}, review.csv, every figure as PNG and SVG.</p>")
     for note in result.notes:
         parts.append(f"<p><b>Note:</b> {html.escape(note)}</p>")
-    parts.append("<h2>Precision, recall, F per class</h2>" + _html_table(rows))
+    parts.append(("<h2>Precision, recall, F per class</h2>" if scored else
+                  "<h2>Classes in the annotation</h2>") + _html_table(rows))
     sections: dict[str, list] = {}
     for section, caption, png in images:
         sections.setdefault(section, []).append((caption, png))
@@ -216,6 +230,9 @@ def _page(result: ReportResult, images, rows, title: str, provenance: dict) -> s
             parts.append(f"<figure><img alt='{html.escape(caption)}' "
                          f"src='data:image/png;base64,{data}'>"
                          f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+    if review:
+        parts.append("<h2>Review list</h2><p>Every row, the least confident first.</p>"
+                     + _html_table(review))
     parts.append("<h2>Provenance</h2><pre>" + html.escape(
         "\n".join(f"{k}: {v}" for k, v in provenance.items() if k != "inputs")) + "</pre>")
     parts.append("</body></html>\n")
@@ -241,7 +258,7 @@ def annotation_parameters(provenances: Sequence[dict]) -> dict:
             "extra_templates": sorted(extra) if isinstance(extra, dict) else []}
 
 
-def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
+def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                  annotation: Sequence[Annotation], *, frames: dict[str, int] | None = None,
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
                  tau: float | None = None, tau_per_class: dict[str, float] | None = None,
@@ -258,10 +275,15 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     it. ``extra_templates`` names the classes the annotation also matched further
     templates for (a tuned configuration's ``[templates]``): their curves, of the class's
     own template only, are not the annotation's Δ, and the page says so. Documents are
-    those annotated. ``progress(done, total)`` is called after each figure."""
+    those annotated. ``progress(done, total)`` is called after each figure.
+
+    Without ``truth`` (None; issue 24, an archive nobody has labelled) the page has, instead
+    of the scores and the confusion matrix, per class the number of segments, their
+    duration and share of the archive (``summary.csv``); the timelines show the annotation
+    alone. Either way ``review.csv`` and the page's review list hold every row, the least
+    confident first (the rows to check)."""
     from mtanno.plot import (
         label_colours,
-        plot_confusion,
         plot_template,
         plot_timeline,
         require_matplotlib,
@@ -277,25 +299,80 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     frames = dict(frames or {})
     # documents with rows, and those recorded as annotated without any (their truth counts)
     docs = sorted({a.doc for a in annotation} | set(frames))
+    scored = truth is not None
+    truth = list(truth or [])
     for d in docs:
         last = max([a.end + 1 for a in annotation if a.doc == d]
                    + [s.end for s in truth if s.doc == d] + [0])
         frames[d] = max(frames.get(d, 0), last)
     frames = {d: frames[d] for d in docs}
-    from mtanno.annotate.tables import to_segments
-
-    out = to_segments(annotation)
-    ev = evaluate_annotations(truth, out, documents=docs, frames=frames)
-    result.evaluation = ev
-    result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
-    rows = ev.rows()
     prov = dict(provenance or {})
     import pyarrow as pa
 
+    w = _Writer(folder, result, progress=progress, figures=len(docs) + len(templates or {})
+                + (sum(d in features for d in docs) if templates and features else 0)
+                + (2 if scored else 0))
+    if scored:
+        rows, labels = _scores(w, truth, annotation, docs, frames, prov)
+    else:
+        rows = summary_rows(annotation, frames)
+        labels = [r["class"] for r in rows[:-1]]
+        write_table(folder / "summary.csv", pa.Table.from_pylist(rows), provenance=prov)
+        result.files += [folder / "summary.csv", folder / "summary.csv.meta.json"]
+        w.text("summary.md", _plain_markdown(rows))
+    review = review_rows(annotation)
+    write_table(folder / "review.csv", pa.Table.from_pylist(review), provenance=prov)
+    result.files += [folder / "review.csv", folder / "review.csv.meta.json"]
+    colours = label_colours(labels)
+    for d in docs:
+        lanes = {**({"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d]}
+                    if scored else {}),
+                 "annotation": [(a.start + 1, a.end + 1, a.label) for a in annotation
+                                if a.doc == d]}
+        ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
+        present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
+        _legend(ax, present, colours)
+        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
+        ax.set_title(d)
+        w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation" if scored
+                 else "Timelines of the annotation", d)
+    if templates:
+        for name, mt in templates.items():
+            w.figure(plot_template(mt), f"template_{_safe(name)}", "Templates",
+                     f"template {name}")
+    if templates and features:
+        _delta_figures(w, templates, {d: features[d] for d in docs if d in features}, tau,
+                       tau_per_class or {}, delta)
+        if extra_templates:
+            result.notes.append(
+                "the annotation also matched further templates of "
+                f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
+                "their Δ curves here are those of the class's own template only")
+    from mtanno.util.output import write_text
+
+    write_text(result.page, _page(result, w.images, rows, title, prov, docs=docs,
+                                  review=review, scored=scored))
+    result.files.append(result.page)
+    return result
+
+
+def _scores(w: _Writer, truth, annotation, docs, frames, prov) -> tuple[list[dict], list[str]]:
+    """The evaluation against ``truth``: the per-class table (CSV, Markdown, LaTeX), the
+    confusion matrix (table and figure) and the reliability of the confidence; returns the
+    table's rows and the matrix's labels."""
+    import pyarrow as pa
+
+    from mtanno.annotate.tables import to_segments
+    from mtanno.plot import plot_confusion
+    from mtanno.util.tables import write_table
+
+    result, folder = w.result, w.folder
+    ev = evaluate_annotations(truth, to_segments(annotation), documents=docs, frames=frames)
+    result.evaluation = ev
+    result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
+    rows = ev.rows()
     write_table(folder / "per_class.csv", pa.Table.from_pylist(rows), provenance=prov)
     result.files += [folder / "per_class.csv", folder / "per_class.csv.meta.json"]
-    w = _Writer(folder, result, progress=progress, figures=1 + len(docs) + len(templates or {})
-                + (sum(d in features for d in docs) if templates and features else 0))
     w.text("per_class.md", markdown_table(rows))
     w.text("per_class.tex", latex_table(rows))
     M, labels, overlapped = confusion_matrix(truth, annotation, frames)
@@ -312,34 +389,48 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment],
     w.figure(plot_confusion(M, labels), "confusion", "Confusion matrix (frames)",
              "rows: truth, columns: annotation; counts of frames")
     _reliability(w, truth, annotation, prov)
-    colours = label_colours(labels)
-    for d in docs:
-        lanes = {"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d],
-                 "annotation": [(a.start + 1, a.end + 1, a.label) for a in annotation
-                                if a.doc == d]}
-        ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
-        present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
-        _legend(ax, present, colours)
-        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
-        ax.set_title(d)
-        w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation", d)
-    if templates:
-        for name, mt in templates.items():
-            w.figure(plot_template(mt), f"template_{_safe(name)}", "Templates",
-                     f"template {name}")
-    if templates and features:
-        _delta_figures(w, templates, {d: features[d] for d in docs if d in features}, tau,
-                       tau_per_class or {}, delta)
-        if extra_templates:
-            result.notes.append(
-                "the annotation also matched further templates of "
-                f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
-                "their Δ curves here are those of the class's own template only")
-    from mtanno.util.output import write_text
+    return rows, labels
 
-    write_text(result.page, _page(result, w.images, rows, title, prov))
-    result.files.append(result.page)
-    return result
+
+def summary_rows(annotation: Sequence[Annotation], frames: dict[str, int]) -> list[dict]:
+    """Per label of ``annotation`` (and ``all``): segments, labelled frames (frames at 30
+    Hz; a frame two rows of a label cover counts once), seconds, their share of the
+    documents' ``frames`` and the rows' mean confidence (None where no row has one)."""
+    total = sum(frames.values())
+    out = []
+    labels = sorted({a.label for a in annotation})
+    for lab in [*labels, None]:
+        rows = [a for a in annotation if lab is None or a.label == lab]
+        covered = 0
+        for d in sorted({a.doc for a in rows}):
+            mask = np.zeros(frames.get(d, 0) or max(a.end + 1 for a in rows if a.doc == d),
+                            dtype=bool)
+            for a in rows:
+                if a.doc == d:
+                    mask[a.start:a.end + 1] = True
+            covered += int(mask.sum())
+        conf = [a.confidence for a in rows if not math.isnan(a.confidence)]
+        out.append({"class": lab if lab is not None else "all", "segments": len(rows),
+                    "frames": covered, "seconds": round(covered / 30.0, 2),
+                    "share": round(covered / total, 4) if total else None,
+                    "mean confidence": round(float(np.mean(conf)), 4) if conf else None})
+    return out
+
+
+def review_rows(annotation: Sequence[Annotation]) -> list[dict]:
+    """Every row (1-based frames at 30 Hz), the least confident first (rows without a
+    confidence last; ties by cost, highest first, then document and start): the order in
+    which a reviewer checks them."""
+    def key(a):
+        c = a.confidence
+        return (math.isnan(c), c if not math.isnan(c) else 0.0,
+                -a.cost if math.isfinite(a.cost) else -math.inf, a.doc, a.start)
+
+    return [{"doc": a.doc, "start": a.start + 1, "end": a.end + 1, "label": a.label,
+             "seconds": round((a.end - a.start + 1) / 30.0, 2),
+             "cost": a.cost if math.isfinite(a.cost) else None,
+             "confidence": None if math.isnan(a.confidence) else a.confidence}
+            for a in sorted(annotation, key=key)]
 
 
 def _reliability(w: _Writer, truth, annotation, prov: dict) -> None:
