@@ -9,7 +9,8 @@
 # actor-mm clips in manifest order. Issue 10: the k-NN frame-classifier baseline, the
 # annotation tuned by `mtanno tune` on the train split only (with and without GA keyframes),
 # the ablation (tune with each method left out) and the unknown-class protocol (each class
-# in turn left out of templates and tuning, the fraction of its frames labelled anyway).
+# in turn left out of templates and tuning, the fraction of its frames labelled anyway). Issue
+# 26: the open-world protocol (scripts/experiment_openworld.sh) into OUT/openworld.
 #
 #   scripts/experiment_hdm05.sh [OUT] [SEEDS...]      (defaults: out/hdm05, seeds 1 2 3)
 set -euo pipefail
@@ -168,3 +169,7 @@ echo "Unknown-class rate (fraction of a left-out class's frames labelled with an
 rates() { for c in "$U"/*/; do for s in $SEEDS; do printf '%s,' "$c/seed${s}_$1.json"; done; done; }
 "${TABLES[@]}" unknown-table "baseline=$(rates knn)" "reference=$(rates reference)" \
   "tuned=$(rates tuned)"
+
+# --------------------------------------------------------------------------- issue 26
+echo "== issue 26: the open-world protocol (foreign archives, background, confidence)"
+"$here/scripts/experiment_openworld.sh" "$OUT/openworld" $SEEDS
