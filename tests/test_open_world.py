@@ -134,3 +134,22 @@ def test_bad_min_confidence_is_a_usage_error(world, value, tmp_path):
     r = cli("annotate", "--mt", world.mt, world.docfeats, "-o", tmp_path / "a.csv",
             "--min-confidence", value)
     assert r.exit_code == 2 and "--min-confidence" in r.output and "Traceback" not in r.output
+
+
+def test_tune_on_annotated_documents_with_poses_verifies_by_poses(world, tmp_path):
+    """--truth documents: the held-out documents are the feature files themselves, read
+    with their poses, so the bank verifies by poses (auto)."""
+    from mtanno.annotate import load_class_config
+    from mtanno.annotate.verify import read_bank
+
+    feats = tmp_path / "docsP"
+    r = cli("features", world.docs, "-o", feats, "--poses", "-q")
+    assert r.exit_code == 0, r.output
+    config = tmp_path / "t.toml"
+    r = cli("tune", "--mt", world.mt, "--truth", world.truth, feats, "-o", config, "-q")
+    assert r.exit_code == 0, r.output
+    conf = load_class_config(config).confidence
+    assert read_bank(tmp_path / conf["bank"]).representation == "poses"
+    r = cli("annotate", "--mt", world.mt, "--classes", config, feats, "-o", tmp_path / "a.csv",
+            "--min-confidence", "0", "-q")
+    assert r.exit_code == 0, r.output

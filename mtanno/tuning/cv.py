@@ -149,17 +149,23 @@ def _documents(examples: Sequence[TrainingExample], read_document) -> HeldOut:
     by_file: dict[str, list[TrainingExample]] = {}
     for ex in examples:
         by_file.setdefault(ex.file, []).append(ex)
-    parts, offsets, names, truth = [], [0], [], []
+    parts, offsets, names, truth, poses = [], [0], [], [], []
     for file in sorted(by_file):
         X = read_document(file)
+        P = None
+        if isinstance(X, tuple):  # (features, poses or None)
+            X, P = X
+        poses.append(P)
         start = offsets[-1]
         for ex in by_file[file]:
             truth.append((ex.class_name, start + ex.start - 1, start + ex.end - 1))
         parts.append(X)
         offsets.append(start + X.shape[1])
         names.append(by_file[file][0].document)
+    P = None if any(p is None for p in poses) else np.ascontiguousarray(
+        np.concatenate(poses), dtype=np.float32)
     return HeldOut(np.ascontiguousarray(np.concatenate(parts, axis=1)),
-                   np.array(offsets, np.int64), names, truth)
+                   np.array(offsets, np.int64), names, truth, P)
 
 
 def _with_background(ho: HeldOut, background: Sequence, idx: Sequence[int]) -> HeldOut:
@@ -187,9 +193,10 @@ def make_folds(examples: Sequence[TrainingExample], *, documents: str = "compose
 
     ``documents`` says how held-out clips become documents (:data:`DOCUMENT_MODES`).
     Examples cut from annotated documents (``--truth``) give the documents themselves
-    instead: pass ``read_document(path) -> features`` to read the examples' own feature
-    files whole. ``background``: (name, features, poses or None) of documents that hold
-    no class, spread over the folds (module docstring). Folds come in
+    instead: pass ``read_document(path) -> features`` (or ``(features, poses or None)``)
+    to read the examples' own feature files whole. ``background``: (name, features, poses
+    or None) of documents that hold no class, spread over the folds (module docstring).
+    Folds come in
     the order of their names; a fold without training examples of a class leaves that
     class out of the fold's templates.
     """

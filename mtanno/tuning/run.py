@@ -165,6 +165,11 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                        read_document=_read_document if any(
                            s.start is not None for s in sources) else None,
                        background=bg_docs)
+    if representation == "poses" and any(f.held_out.poses is None for f in folds):
+        if verify == "poses":
+            raise MtannoError("{verify} poses needs poses in every held-out document (run "
+                              "mtanno features --poses)", options=("verify",))
+        representation = "features"  # auto: a document without poses
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
@@ -227,10 +232,12 @@ def _check_options(methods, documents, unknown_weight, verify) -> list[str]:
 
 
 def _read_document(path):
-    """The features of a whole training document (examples cut from annotated ones)."""
+    """The features and poses (None without) of a whole training document (examples cut
+    from annotated ones)."""
     from mtanno.util.store import read_features
 
-    return read_features(path).X
+    ff = read_features(path, poses=True)
+    return ff.X, ff.poses
 
 
 def _representation(verify: str, examples, bg_docs) -> str | None:
