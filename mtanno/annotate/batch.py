@@ -149,9 +149,9 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     bank = confidence.bank if confidence is not None else None
     need_poses = bank is not None and bank.representation == "poses"
     try:
-        ff = read_features(path, sha256=True, **({"poses": True} if need_poses else {}))
+        ff = read_features(path, sha256=True, poses=need_poses)
         check_layout(ff, layout)
-        if need_poses and getattr(ff, "poses", None) is None:
+        if need_poses and ff.poses is None:
             raise MtannoError("the class configuration verifies segments by their poses, "
                               "but this feature file has none (run mtanno features --poses)",
                               path=ff.path)
@@ -174,7 +174,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                        single_label=single_label and not by_confidence,
                                        packed=packed, matrix=False)
         try:
-            rows = score_document(rows, X=ff.X, poses=getattr(ff, "poses", None),
+            rows = score_document(rows, X=ff.X, poses=ff.poses,
                                   models=models, config=config, confidence=confidence)
         except MtannoError as exc:
             raise MtannoError(exc.message, path=exc.path or ff.path) from None

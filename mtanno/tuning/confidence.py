@@ -27,7 +27,8 @@ from mtanno.annotate.tables import Annotation
 from mtanno.evaluation.calibration import segment_right
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
-__all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "ConfidenceFit", "learn_confidence"]
+__all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "ConfidenceFit", "bank_of",
+           "learn_confidence"]
 
 #: Minimum confidences tried for the output rows.
 MIN_CONFIDENCE_GRID = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
@@ -61,6 +62,8 @@ class _Run:
     costs: list[float]              # Δ/τ at the segment's end (∞: unknown)
     frame_of: np.ndarray | None     # run frame → frame of the fold's held-out documents
     hidden: str | None = None       # the class left out (None: all classes)
+    scored: list[bool] = field(default_factory=list)  # per segment: has evidence (in a
+    # left-out run only those over the left-out class; the others are the fold's own)
 
 
 def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=None,
@@ -110,16 +113,23 @@ def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=N
                          kinds, table, representation)
 
 
+def bank_of(examples, background_seqs, representation: str):
+    """The verification bank of training ``examples`` (their performer, else their
+    document, as the performer) and the background sequences ``background_seqs``."""
+    from mtanno.annotate.verify import build_bank, sequence
+
+    items = [(e.class_name, str(e.performer if e.performer is not None else e.document),
+              sequence(X=e.X, poses=e.poses, representation=representation))
+             for e in examples]
+    return build_bank(items, list(background_seqs or []), representation=representation)
+
+
 def _fold_bank(fold, background_seqs, representation):
     """The verification bank of one fold: its training examples and the background
     documents not held out in it."""
-    from mtanno.annotate.verify import build_bank, sequence
-
-    examples = [(e.class_name, str(e.performer if e.performer is not None else e.document),
-                 sequence(X=e.X, poses=getattr(e, "poses", None),
-                          representation=representation)) for e in fold.train]
-    bg = [s for k, s in enumerate(background_seqs or []) if k not in set(fold.background)]
-    return build_bank(examples, bg, representation=representation)
+    held = set(fold.background)
+    return bank_of(fold.train, [s for k, s in enumerate(background_seqs or [])
+                                if k not in held], representation)
 
 
 def _runs(tuner, fd, params, j: int):
@@ -127,7 +137,7 @@ def _runs(tuner, fd, params, j: int):
     the documents holding it."""
     arrays = tuner._arrays(fd, params) if params.resolve else None
     segs = tuner._segments(fd, params, fd.classes, arrays)
-    yield _Run(j, segs, _costs(tuner, fd, segs, arrays), None)
+    yield _Run(j, segs, _costs(tuner, fd, segs, arrays), None, scored=[True] * len(segs))
     for c, sub in fd.hidden.items():
         rest = [x for x in fd.classes if x != c]
         if not rest:
@@ -136,7 +146,8 @@ def _runs(tuner, fd, params, j: int):
                                                else None)
         s2 = tuner._segments(sub, params, rest, sub_arrays)
         frame_of = None if sub is fd else _frames_of(fd, sub, c)
-        yield _Run(j, s2, _costs(tuner, sub, s2, sub_arrays), frame_of, c)
+        yield _Run(j, s2, _costs(tuner, sub, s2, sub_arrays), frame_of, c,
+                   [_over(sub.truth_by_class[c], a, b) for _, a, b in s2])
 
 
 def _frames_of(fd, sub, c: str) -> np.ndarray:
@@ -163,8 +174,8 @@ def _run_evidence(run: _Run, fold, fd, tuner, bank, names, taus, lengths, repres
     ho = fold.held_out
     n_known = len(ho.offsets) - 1 - len(fold.background)
     rows, ok, kind, doc = [], [], [], []
-    for (p, a, b), cost in zip(run.segs, run.costs):
-        if run.hidden is not None and not _over(run, sub, a, b):
+    for (p, a, b), cost, scored in zip(run.segs, run.costs, run.scored):
+        if not scored:
             continue  # a known class's segment: scored in the fold's own run
         A, B = (a, b) if run.frame_of is None else (int(run.frame_of[a]), int(run.frame_of[b]))
         d = int(np.searchsorted(ho.offsets, A, side="right")) - 1
@@ -185,11 +196,10 @@ def _run_evidence(run: _Run, fold, fd, tuner, bank, names, taus, lengths, repres
     return E, ok, kind, doc
 
 
-def _over(run: _Run, sub, a: int, b: int) -> bool:
-    """Whether a segment of a class-left-out run lies mostly over the left-out class."""
-    n = b - a + 1
-    hit = sum(max(0, min(b, e) - max(a, s) + 1) for s, e in sub.truth_by_class[run.hidden])
-    return hit * 2 >= n
+def _over(spans, a: int, b: int) -> bool:
+    """Whether frames a..b lie mostly over ``spans`` (the left-out class's truth)."""
+    hit = sum(max(0, min(b, e) - max(a, s) + 1) for s, e in spans)
+    return hit * 2 >= b - a + 1
 
 
 def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list[dict]:
@@ -205,16 +215,10 @@ def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list
         known, unk, bg, bg_segs = Counts(), [0, 0], [0, 0], 0
         for r_i, run in enumerate(runs):
             idx = np.flatnonzero(owners == r_i)
-            # segments of a left-out run not over the class were never scored (kept)
-            keep = iter(prob[idx] >= m)
+            keep = iter(prob[idx] >= m)  # segments without evidence are kept
             fd = tuner.folds[run.fold]
             sub = fd if run.hidden is None else fd.hidden[run.hidden]
-            kept = []
-            for s in run.segs:
-                if run.hidden is not None and not _over(run, sub, s[1], s[2]):
-                    kept.append(s)
-                elif next(keep):
-                    kept.append(s)
+            kept = [s for s, scored in zip(run.segs, run.scored) if not scored or next(keep)]
             if run.hidden is None:
                 known += _count(fd.truth, kept, len(tuner.names), fd.n_frames, fd.ignore)
                 for spans in fd.absent.values():

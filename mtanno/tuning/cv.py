@@ -103,7 +103,7 @@ def _fold_keys(examples: Sequence[TrainingExample], seed: int) -> list[str]:
 
 def _poses_of(examples: Sequence[TrainingExample], order: Sequence[int]):
     """The examples' poses concatenated in ``order`` (None unless every one has them)."""
-    got = [getattr(examples[i], "poses", None) for i in order]
+    got = [examples[i].poses for i in order]
     if not got or any(p is None for p in got):
         return None
     return np.ascontiguousarray(np.concatenate(got), dtype=np.float32)

@@ -244,7 +244,7 @@ def _representation(verify: str, examples, bg_docs) -> str | None:
     """The bank's representation for ``verify`` (None: no bank)."""
     if verify == "none":
         return None
-    posed = all(getattr(e, "poses", None) is not None for e in examples) and all(
+    posed = all(e.poses is not None for e in examples) and all(
         p is not None for _, _, p in bg_docs)
     if verify == "poses" and not posed:
         raise MtannoError("{verify} poses needs poses in every training and background "
@@ -264,7 +264,7 @@ def _background_inputs(background, layout, examples, *, poses: bool):
     training = {e.sha256: e.file for e in examples}
     docs, records = [], []
     for path in feature_files(background):
-        ff = read_features(path, sha256=True, **({"poses": True} if poses else {}))
+        ff = read_features(path, sha256=True, poses=poses)
         check_layout(ff, layout, path=str(path))
         if ff.sha256 in training:
             raise MtannoError(f"background file is also a training file ({training[ff.sha256]}"
@@ -272,7 +272,7 @@ def _background_inputs(background, layout, examples, *, poses: bool):
                               path=str(path))
         if ff.X.shape[1] == 0:
             raise MtannoError("background feature file has no frames", path=str(path))
-        docs.append((ff.document, ff.X, getattr(ff, "poses", None)))
+        docs.append((ff.document, ff.X, ff.poses))
         records.append({"path": str(path), "sha256": ff.sha256})
     return docs, records
 
@@ -280,8 +280,8 @@ def _background_inputs(background, layout, examples, *, poses: bool):
 def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
                       unknown_weight, seed, log):
     """The confidence fitted on the folds and the verification bank of everything."""
-    from mtanno.annotate.verify import build_bank, sequence
-    from mtanno.tuning.confidence import learn_confidence
+    from mtanno.annotate.verify import sequence
+    from mtanno.tuning.confidence import bank_of, learn_confidence
 
     seqs = None
     if representation is not None:
@@ -292,13 +292,7 @@ def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, repres
     fit = learn_confidence(tuner, params, folds, templates=templates, background_seqs=seqs,
                            representation=representation, unknown_weight=unknown_weight,
                            seed=seed, log=log)
-    bank = None
-    if representation is not None:
-        bank = build_bank([(e.class_name, str(e.performer if e.performer is not None
-                                               else e.document),
-                            sequence(X=e.X, poses=getattr(e, "poses", None),
-                                     representation=representation)) for e in examples],
-                          seqs, representation=representation)
+    bank = bank_of(examples, seqs, representation) if representation is not None else None
     return fit, bank
 
 
@@ -315,8 +309,7 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     first = next(iter(templates.values()))
     layout = first.layout(f"the templates in {mt_dir}")
     groups = group_by_class(sources)
-    examples = [e for c in groups for e in (load_examples(groups[c], poses=True) if poses
-                                            else load_examples(groups[c]))]
+    examples = [e for c in groups for e in load_examples(groups[c], poses=poses)]
     for ex in examples:
         check_layout(ex.layout(), layout, path=ex.file)
     no_examples = [c for c in classes if c not in groups]

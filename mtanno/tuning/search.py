@@ -323,7 +323,7 @@ class Tuner:
                     for a, b in spans:
                         ignore[a:b + 1] = True
             # background documents (the last ones) shape the confidence, not the search
-            n_bg = len(getattr(f, "background", ()))
+            n_bg = len(f.background)
             known_ignore = ignore
             if n_bg:
                 ignore = np.zeros(f.held_out.n_frames, dtype=bool) if ignore is None \
