@@ -309,8 +309,9 @@ def test_report_page_loads_every_image_in_a_browser(world, tmp_path):
                        timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
     assert f'data-loaded="{n_images}/{n_images}"' in r.stdout, r.stdout[-500:]
-    # confusion matrix, a timeline per document, a heat map per template
-    assert n_images == 1 + len(world.doc_files) + len(list(world.mt.glob("*.json")))
+    # confusion matrix, reliability of the confidence, a timeline per document, a heat
+    # map per template
+    assert n_images == 2 + len(world.doc_files) + len(list(world.mt.glob("*.json")))
 
 
 def test_report_without_truth_summarises_and_lists_rows_for_review(world, tmp_path):
