@@ -90,7 +90,7 @@ def main(argv=None) -> int:
           f"unknown-class weight {a.unknown_weight:g}) — a diagnosis, not a result")
     print("| test | P1 | R1 | F1 | P2 | R2 | F2 | U (one-fold) | δ | decoder | copies |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    pooled, unk, f1s, f2s = Counts(), [0, 0], [], []
+    pooled, unk, f1s, f2s = Counts.zero(), [0, 0], [], []
     for name, train, held, ho, mt_dir in runs(a.kind, a.out, a.style or BANDAI_STYLES):
         p, ev, _ = ceiling(name, train, held, ho, mt_dir, a.unknown_weight)
         (p1, r1, f1), (p2, r2, f2) = ev.counts.frame(), ev.counts.segment()

@@ -10,14 +10,7 @@ import pytest
 
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES, MIRROR_PAIRS
-from mtanno.templates.model import (
-    SCHEMA,
-    MotionTemplate,
-    load_template,
-    mirror,
-    quantize,
-    save_template,
-)
+from mtanno.templates import SCHEMA, MotionTemplate, load_template, mirror, quantize, save_template
 
 
 def make_mt(K=6, seed=0, **kw) -> MotionTemplate:

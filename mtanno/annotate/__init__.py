@@ -26,6 +26,20 @@ Modules, in the order the data flows through them:
 The public names of these modules are importable from ``mtanno.annotate`` itself.
 """
 
+__all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "CALIBRATION_FOLDS", "CALIBRATION_L2",
+           "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION", "DEFAULT_DELTA",
+           "DEFAULT_TAU", "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
+           "AnnotationSetup", "CalibrationResult", "Calibrator", "ClassConfig", "ClassModel",
+           "IsotonicModel", "LogisticModel", "Windows", "annotate_document", "annotate_files",
+           "annotation_files", "annotation_setup", "annotation_table", "check_tau",
+           "class_config_text", "class_deltas", "class_models", "evidence_covered",
+           "fit_calibrated", "fit_isotonic", "fit_logistic", "label_document",
+           "label_frames", "load_annotation_setup", "load_class_config", "load_class_models",
+           "load_config_templates", "merge_annotation_tables", "merged_spans",
+           "modified_delta", "read_annotation_table", "read_annotation_tables",
+           "read_annotations", "segments_from_labels", "single_label_segments",
+           "to_segments", "uncalibrated_confidence", "write_annotations", "write_class_config"]
+
 from mtanno.annotate.batch import (
     AnnotationBatch,
     AnnotationSetup,
@@ -88,17 +102,3 @@ from mtanno.annotate.tables import (
     to_segments,
     write_annotations,
 )
-
-__all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "CALIBRATION_FOLDS", "CALIBRATION_L2",
-           "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION", "DEFAULT_DELTA",
-           "DEFAULT_TAU", "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
-           "AnnotationSetup", "CalibrationResult", "Calibrator", "ClassConfig", "ClassModel",
-           "IsotonicModel", "LogisticModel", "Windows", "annotate_document", "annotate_files",
-           "annotation_files", "annotation_setup", "annotation_table", "check_tau",
-           "class_config_text", "class_deltas", "class_models", "evidence_covered",
-           "fit_calibrated", "fit_isotonic", "fit_logistic", "label_document",
-           "label_frames", "load_annotation_setup", "load_class_config", "load_class_models",
-           "load_config_templates", "merge_annotation_tables", "merged_spans",
-           "modified_delta", "read_annotation_table", "read_annotation_tables",
-           "read_annotations", "segments_from_labels", "single_label_segments",
-           "to_segments", "uncalibrated_confidence", "write_annotations", "write_class_config"]

@@ -28,8 +28,11 @@ frames and P labels, with O(L) memory besides the P × L distance and start arra
 Frames are 0-based inside this module.
 """
 
-
 from __future__ import annotations
+
+__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "EvidenceSums",
+           "RowEvidence", "decode_segments", "distinct_frames", "evidence_columns",
+           "evidence_sums", "fold_label", "frame_evidence", "relative_evidence", "row_evidence"]
 
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -50,11 +53,6 @@ from mtanno.annotate._kernels import (
 )
 from mtanno.errors import MtannoError
 from mtanno.templates.match import check_spans
-
-__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "EvidenceSums",
-           "RowEvidence", "decode_segments", "distinct_frames", "evidence_columns",
-           "evidence_sums", "fold_label", "frame_evidence", "relative_evidence", "row_evidence"]
-
 
 #: Frames a segment start may move from its match's start (boundary refinement).
 DEFAULT_SLACK = 3

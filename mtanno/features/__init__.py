@@ -17,6 +17,13 @@ heading and leg length, which feature files may carry), ``_kernels`` (the numba 
 private).
 """
 
+__all__ = [
+    "ANALYSIS_FPS", "FEATURES", "FEATURE_NAMES", "FEATURE_SET", "FEATURE_SETS",
+    "FEATURE_SET_VERSION", "GROUPS", "MIRROR_PAIRS", "Feature", "FeatureSet",
+    "analysis_frames", "compute_features", "compute_features_native", "feature_index",
+    "get_feature_set", "hysteresis", "mirror_permutation",
+]
+
 from mtanno.features.compute import (
     FEATURE_SETS,
     FeatureSet,
@@ -36,10 +43,3 @@ from mtanno.features.table import (
     feature_index,
     mirror_permutation,
 )
-
-__all__ = [
-    "ANALYSIS_FPS", "FEATURES", "FEATURE_NAMES", "FEATURE_SET", "FEATURE_SETS",
-    "FEATURE_SET_VERSION", "GROUPS", "MIRROR_PAIRS", "Feature", "FeatureSet",
-    "analysis_frames", "compute_features", "compute_features_native", "feature_index",
-    "get_feature_set", "hysteresis", "mirror_permutation",
-]

@@ -19,6 +19,15 @@
 * ``_kernels`` — numba kernels of segmentation and the inverted lists (private).
 """
 
+__all__ = [
+    "INDEX_FORMAT", "QUERY_MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits",
+    "GroupIndex", "GroupQuery", "Hits", "Index", "Query", "UpdateReport", "add_documents",
+    "build_index", "example_matrix", "example_query", "frame_codes", "group_sizes",
+    "index_from_matrices", "load_query", "open_index", "parse_query", "rank_by_template",
+    "rank_by_template_file", "remove_documents", "resolve_features", "run_group", "search",
+    "segment", "write_query_hits",
+]
+
 from mtanno.index.build import (
     UpdateReport,
     add_documents,
@@ -53,12 +62,3 @@ from mtanno.index.query import (
 )
 from mtanno.index.ranking import rank_by_template, rank_by_template_file, write_query_hits
 from mtanno.index.storage import INDEX_FORMAT, CorruptIndex, group_sizes
-
-__all__ = [
-    "INDEX_FORMAT", "QUERY_MODES", "CorruptIndex", "Document", "FuzzySet", "GroupHits",
-    "GroupIndex", "GroupQuery", "Hits", "Index", "Query", "UpdateReport", "add_documents",
-    "build_index", "example_matrix", "example_query", "frame_codes", "group_sizes",
-    "index_from_matrices", "load_query", "open_index", "parse_query", "rank_by_template",
-    "rank_by_template_file", "remove_documents", "resolve_features", "run_group", "search",
-    "segment", "write_query_hits",
-]

@@ -18,6 +18,14 @@
 * ``_kernels`` — numba kernels on interval lists (private).
 """
 
+__all__ = [
+    "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeHits", "KeyframeQuery", "KeyframeSet",
+    "chain_hits", "class_spans",
+    "class_windows", "document_windows", "format_query", "keyframe_files", "load_class_keyframes",
+    "load_keyframe_folder", "load_keyframes",
+    "save_keyframes", "search_documents", "search_index", "stiffness_bounds",
+]
+
 from mtanno.keyframes.model import (
     SCHEMA,
     Extension,
@@ -42,11 +50,3 @@ from mtanno.keyframes.search import (
     search_documents,
     search_index,
 )
-
-__all__ = [
-    "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeHits", "KeyframeQuery", "KeyframeSet",
-    "chain_hits", "class_spans",
-    "class_windows", "document_windows", "format_query", "keyframe_files", "load_class_keyframes",
-    "load_keyframe_folder", "load_keyframes",
-    "save_keyframes", "search_documents", "search_index", "stiffness_bounds",
-]

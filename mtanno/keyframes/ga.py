@@ -49,15 +49,25 @@ class GAParams:
     """Parameters of one GA run (defaults: [MBS09] §6–7)."""
 
     population: int = 50
+    """M, individuals that survive each generation."""
     parents: int = 5
+    """r, parents drawn per generation (r(r−1)/2 offspring)."""
     generations: int = 100
+    """G, generations per run."""
     beta: float = 2.0
+    """β of the fitness F_β (β > 1 weighs recall above precision)."""
     mean_keyframes: float = 3.0
+    """Mean of the Normal that draws an initial individual's number of keyframes N."""
     sd_keyframes: float = 1.0
+    """Its standard deviation."""
     max_keyframes: int = 5
+    """Most keyframes an individual may hold (at initialization and after mutation)."""
     stiffness: tuple[float, float] = (0.5, 0.9)
+    """Range of s ~ U(lo, hi) for gap bounds dmin = ⌈s·d⌉, dmax = ⌊d/s⌋ (d in frames)."""
     specialize_delta: float = 0.05
+    """δ_s: a wildcard is specialized only where the soft template is ≤ δ_s or ≥ 1 − δ_s."""
     mismatches: int = 0
+    """Fixed entries a keyframe may get wrong (0, 1 or 2; see ``fitness.keyframe_tolerance``)."""
 
     def __post_init__(self):
         for name in ("population", "parents", "generations", "max_keyframes"):

@@ -26,6 +26,13 @@ Typical use by a later stage::
     mt.weights  # (K,)
 """
 
+__all__ = [
+    "SCHEMA", "ExampleSource", "LearnResult", "MotionTemplate", "TrainingExample",
+    "group_by_class", "learn_template", "load_examples", "load_template", "mirror",
+    "quantize", "save_template", "sources_from_manifest", "sources_from_tree",
+    "sources_from_truth",
+]
+
 from mtanno.templates.learn import LearnResult, learn_template
 from mtanno.templates.model import (
     SCHEMA,
@@ -44,10 +51,3 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
-
-__all__ = [
-    "SCHEMA", "ExampleSource", "LearnResult", "MotionTemplate", "TrainingExample",
-    "group_by_class", "learn_template", "load_examples", "load_template", "mirror",
-    "quantize", "save_template", "sources_from_manifest", "sources_from_tree",
-    "sources_from_truth",
-]

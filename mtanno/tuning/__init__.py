@@ -16,8 +16,8 @@ The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
 :mod:`mtanno.annotate.decode`.
 """
 
-from mtanno.tuning.run import TuneResult, template_folder_of, tune, write_tuned
-from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params
-
 __all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder_of", "tune",
            "write_tuned"]
+
+from mtanno.tuning.run import TuneResult, template_folder_of, tune, write_tuned
+from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params

@@ -212,7 +212,7 @@ def _thresholds(tuner, folds, runs, owners, prob, unknown_weight: float) -> list
     to no class), whatever the number of background files given."""
     out = []
     for m in MIN_CONFIDENCE_GRID:
-        known, unk, bg, bg_segs = Counts(), [0, 0], [0, 0], 0
+        known, unk, bg, bg_segs = Counts.zero(), [0, 0], [0, 0], 0
         for r_i, run in enumerate(runs):
             idx = np.flatnonzero(owners == r_i)
             keep = iter(prob[idx] >= m)  # segments without evidence are kept

@@ -24,15 +24,20 @@ __all__ = ["Counts", "count", "covered_fraction"]
 class Counts:
     """Frame-level (correct, predicted, support) and segment-level (correct output
     segments, output segments, found truth segments, truth segments) counts; they add up
-    over folds."""
+    over folds, starting from :meth:`zero`."""
 
-    frame_correct: int = 0
-    frame_predicted: int = 0
-    frame_support: int = 0
-    seg_correct: int = 0
-    seg_predicted: int = 0
-    seg_found: int = 0
-    seg_support: int = 0
+    frame_correct: int
+    frame_predicted: int
+    frame_support: int
+    seg_correct: int
+    seg_predicted: int
+    seg_found: int
+    seg_support: int
+
+    @classmethod
+    def zero(cls) -> Counts:
+        """No frame and no segment: the start of a sum."""
+        return cls(0, 0, 0, 0, 0, 0, 0)
 
     def __iadd__(self, other: Counts) -> Counts:
         for k, v in vars(other).items():
@@ -122,16 +127,17 @@ def _count(truth, output, n_labels: int, n_frames: int, ignore=None) -> Counts:
             o &= keep
             predicted += int(np.count_nonzero(o))
         both += int(np.count_nonzero(t & o))
-    c = Counts(frame_correct=both, frame_predicted=int(co[:, -1].sum()) if keep is None
-               else predicted, frame_support=int(ct[:, -1].sum()))
-    if keep is not None:  # segments wholly inside ignored frames are not counted
+    if keep is None:
+        predicted = int(co[:, -1].sum())
+    else:  # segments wholly inside ignored frames are not counted
         kc = np.concatenate([[0], np.cumsum(keep)])
         output = [(p, a, b) for p, a, b in output if kc[b + 1] - kc[a] > 0]
-    c.seg_predicted = len(output)
-    c.seg_support = len(truth)
-    c.seg_correct = sum(1 for p, a, b in output if ct[p, b + 1] - ct[p, a] > 0)
-    c.seg_found = sum(1 for p, a, b in truth if co[p, b + 1] - co[p, a] > 0)
-    return c
+    return Counts(
+        frame_correct=both, frame_predicted=predicted, frame_support=int(ct[:, -1].sum()),
+        seg_correct=sum(1 for p, a, b in output if ct[p, b + 1] - ct[p, a] > 0),
+        seg_predicted=len(output),
+        seg_found=sum(1 for p, a, b in truth if co[p, b + 1] - co[p, a] > 0),
+        seg_support=len(truth))
 
 
 def covered_fraction(frames: Sequence[tuple[int, int]], output: Sequence[tuple[int, int, int]],

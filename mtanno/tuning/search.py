@@ -410,7 +410,7 @@ class Tuner:
         """J and the counts of ``params`` over all folds (unknown rate with each class left
         out in turn)."""
         self.evaluations += 1
-        total = Counts()
+        total = Counts.zero()
         unk = [0, 0]
         per: dict[str, Counts] = {}
         per_unk: dict[str, tuple[int, int]] = {}
@@ -424,7 +424,7 @@ class Tuner:
                     got = _count([t for t in fd.truth if t[0] == cid],
                                  [s for s in segs if s[0] == cid], len(self.names), fd.n_frames,
                                  fd.ignore)
-                    per.setdefault(c, Counts())
+                    per.setdefault(c, Counts.zero())
                     per[c] += got
             for c, spans in fd.absent.items():  # unknown here, whatever the weight
                 hit, n = _covered_fraction(spans, segs, fd.n_frames)
