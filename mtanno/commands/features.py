@@ -91,7 +91,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
             listed.extend(line.strip() for line in sys.stdin if line.strip())
         else:
             items.append(item)
-    from mtanno.util.output import make_folder
+    from mtanno.util.output import output_folder
 
     jobs_list = plan_batch(items, outdir, asf=asf, listed=listed)
     if not jobs_list:
@@ -100,8 +100,6 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
             f" (searched the folder{'s' if len(folders) > 1 else ''} "
             f"{', '.join(folders[:3])}{' …' if len(folders) > 3 else ''} and below)"
             if folders else ""))
-    made = _missing_folders(Path(outdir))
-    make_folder(outdir)
     bar = tqdm(total=len(jobs_list), unit="file", disable=not show_progress(quiet),
                desc="features")
 
@@ -110,38 +108,14 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
         if outcome.status == "failed":
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
-    try:
-        with lock_output(outdir, wait=wait):
-            summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                                progress=progress, feature_set=feature_set, up=up,
-                                scheduler=scheduler, poses=poses)
-    finally:
-        _remove_if_empty(made)  # a run that wrote nothing leaves no new folder behind
+    with output_folder(outdir), lock_output(outdir, wait=wait):
+        summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
+                            progress=progress, feature_set=feature_set, up=up,
+                            scheduler=scheduler, poses=poses)
     bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)
     sys.exit(1 if summary.failed else 0)
-
-
-def _missing_folders(folder: Path) -> list[Path]:
-    """``folder`` and those of its parents that do not exist yet, innermost first."""
-    out = []
-    while not folder.exists() and not folder.is_symlink() and folder != folder.parent:
-        out.append(folder)
-        folder = folder.parent
-    return out
-
-
-def _remove_if_empty(folders: list[Path]) -> None:
-    """Remove the folders this run made (innermost first) that are still empty; one that
-    another run has written into meanwhile is kept."""
-    import os
-
-    for f in folders:
-        try:
-            os.rmdir(f)
-        except OSError:
-            return
 
 
 @click.command("info")

@@ -134,6 +134,29 @@ def make_folder(folder: str | os.PathLike) -> Path:
     return folder
 
 
+@contextlib.contextmanager
+def output_folder(folder: str | os.PathLike) -> Iterator[Path]:
+    """:func:`make_folder` for the ``with`` block; the folders it made (``folder`` and parents
+    that did not exist) are removed again on leaving, innermost first, while they are empty
+    — after an error or an interrupt too — so a run that wrote nothing leaves no new folder
+    behind. A folder another run has written into meanwhile is kept."""
+    folder = Path(folder)
+    made = []
+    f = folder
+    while not f.exists() and not f.is_symlink() and f != f.parent:
+        made.append(f)
+        f = f.parent
+    make_folder(folder)
+    try:
+        yield folder
+    finally:
+        for f in made:
+            try:
+                os.rmdir(f)
+            except OSError:
+                break
+
+
 def _check_target(target: Path) -> bool:
     """False if ``target`` exists and is not a regular file (``/dev/null``, a FIFO): it is
     written in place, since renaming over a device would replace it. A folder, or a
