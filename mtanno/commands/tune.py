@@ -4,8 +4,6 @@ Exit codes: 0 success, 2 usage error or bad input, 130 interrupted."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from mtanno.commands._common import Number, scheduler_option, training_options, user_errors
@@ -88,50 +86,23 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     Example: mtanno tune --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o tuned.toml --jobs 2
     """
-    from mtanno.keyframes import keyframe_files
-    from mtanno.templates.model import template_files
-    from mtanno.templates.training import collect_sources
-    from mtanno.tuning import template_folder_of, tune, write_tuned
-    from mtanno.tuning.run import bank_path_of
-    from mtanno.util.output import check_outputs
+    from mtanno.tuning import template_folder_of
+    from mtanno.tuning.run import tune_files
     from mtanno.util.tables import command_line
 
-    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth,
-                              note=None if quiet else lambda m: click.echo(f"tune: {m}", err=True))
-    planned = [output, *([bank_path_of(output)] if confidence else [])] + (
-        [Path(ablation_dir) / f"{n}.toml" for n in
-         [*(f"without-{m}" for m in METHODS), "none"]] if ablation_dir else [])
-    check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
-                             *(s.path for s in sources), *background,
-                             *(keyframe_files(kf_dir) if kf_dir else [])])
-
-    def log(line: str) -> None:
-        if not quiet:
-            click.echo(f"tune: {line}", err=True)
-
-    if not quiet:
-        files = sorted({s.path for s in sources})
-        click.echo(f"tune: training inputs: {len(sources)} examples in {len(files)} feature "
-                   f"files" + (f" (manifest {manifest}, split {split or 'all'})" if manifest
-                               else f" (truth {truth})" if truth else ""), err=True)
-    result = tune(sources, mt_dir, keyframes_dir=kf_dir, seed=seed, n_jobs=jobs,
-                  methods=[m for m in METHODS if m not in disabled], documents=documents,
-                  unknown_weight=unknown_weight, ablation=ablation_dir is not None, log=log,
-                  scheduler=scheduler, background=background, verify=verify,
-                  confidence=confidence)
-    write_tuned(output, result, command=command_line())
+    result = tune_files(
+        training, mt_dir, output, manifest=manifest, features_dir=features_dir, split=split,
+        truth=truth, keyframes_dir=kf_dir, ablation_dir=ablation_dir,
+        log=None if quiet else lambda line: click.echo(f"tune: {line}", err=True),
+        command=command_line(), seed=seed, n_jobs=jobs,
+        methods=[m for m in METHODS if m not in disabled], documents=documents,
+        unknown_weight=unknown_weight, scheduler=scheduler, background=background,
+        verify=verify, confidence=confidence)
     if result.not_validated:
         click.echo(f"tune: warning: class(es) {', '.join(result.not_validated)} could not be "
                    "cross-validated: all their examples come from one performer, so their "
                    "thresholds are learned only from the motions they must not label",
                    err=True)
-    if ablation_dir is not None:
-        from mtanno.util.output import make_folder
-
-        make_folder(Path(ablation_dir))
-        for name, variant in result.ablation.items():
-            write_tuned(Path(ablation_dir) / f"{name}.toml", variant, command=command_line())
     if not quiet:
         extra = (f", extra templates in {template_folder_of(output)}"
                  if result.extra_templates else "")

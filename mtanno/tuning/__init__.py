@@ -9,7 +9,8 @@
   coordinate search.
 * :mod:`~mtanno.tuning.confidence` — the confidence of the segments (issue 26): evidence
   of the held-out segments, calibration, the minimum confidence of an output row.
-* :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run) and :func:`write_tuned` (the
+* :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run), :func:`tune_files` (the run as
+  the command does it, from file names to files) and :func:`write_tuned` (the
   configuration, its extra templates and its verification bank).
 
 The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
@@ -17,7 +18,7 @@ The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
 """
 
 __all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder_of", "tune",
-           "write_tuned"]
+           "tune_files", "write_tuned"]
 
-from mtanno.tuning.run import TuneResult, template_folder_of, tune, write_tuned
+from mtanno.tuning.run import TuneResult, template_folder_of, tune, tune_files, write_tuned
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params

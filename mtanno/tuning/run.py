@@ -37,7 +37,7 @@ from mtanno.tuning.search import (
 )
 
 __all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "template_folder_of", "tune",
-           "write_tuned"]
+           "tune_files", "write_tuned"]
 
 
 @dataclass
@@ -210,6 +210,49 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
                                            folds_held, seed, subset, documents, unknown_weight,
                                            seconds, template_sha256=shas)
+    return result
+
+
+def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
+               output: str | os.PathLike, *, manifest: str | os.PathLike | None = None,
+               features_dir: str | os.PathLike | None = None, split: str | None = None,
+               truth: str | os.PathLike | None = None,
+               keyframes_dir: str | os.PathLike | None = None,
+               ablation_dir: str | os.PathLike | None = None,
+               log: Callable[[str], None] | None = None, command: Sequence[str] = (),
+               **options) -> TuneResult:
+    """The whole ``mtanno tune`` run: the training examples named as
+    :func:`mtanno.templates.training.collect_sources` takes them, every output checked
+    against the inputs before any work (:func:`mtanno.util.output.check_outputs`),
+    :func:`tune` (``options`` are its keyword options), and the configuration written to
+    ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
+    ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there. ``log`` receives
+    the notes on the inputs and the search log, a line each."""
+    from mtanno.keyframes import keyframe_files
+    from mtanno.templates.model import template_files
+    from mtanno.templates.training import collect_sources
+    from mtanno.util.output import check_outputs, make_folder
+
+    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
+                              split=split, truth=truth, note=log)
+    ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
+    planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
+               *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
+    check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
+                            *(s.path for s in sources), *options.get("background", ()),
+                            *(keyframe_files(keyframes_dir) if keyframes_dir else [])])
+    if log:
+        files = {s.path for s in sources}
+        log(f"training inputs: {len(sources)} examples in {len(files)} feature files"
+            + (f" (manifest {manifest}, split {split or 'all'})" if manifest
+               else f" (truth {truth})" if truth else ""))
+    result = tune(sources, mt_dir, keyframes_dir=keyframes_dir, log=log,
+                  ablation=ablation_dir is not None, **options)
+    write_tuned(output, result, command=command)
+    if ablation_dir is not None:
+        make_folder(ablation_dir)
+        for name, variant in result.ablation.items():
+            write_tuned(Path(ablation_dir) / f"{name}.toml", variant, command=command)
     return result
 
 
