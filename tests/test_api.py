@@ -96,3 +96,27 @@ def test_annotate_documents_applies_a_class_configuration_as_the_command_does(wo
     with pytest.warns(UserWarning, match=f"the template\\(s\\) of {names[0]} are not those"):
         mtanno.annotate_documents(world.docfeats, changed, config=cfg, tau=0.2)
     assert cfg.default_tau == 0.12  # tau=0.2 did not change the object passed
+
+
+def test_annotate_to_is_the_command_from_file_names_to_files(world, tmp_path):
+    """``mtanno.annotate.annotate_to`` writes what ``mtanno annotate -o`` wrote (the world's
+    annotation table), says the run in words, and speaks in parameter names."""
+    from mtanno.annotate import annotate_to
+
+    seen = []
+    run = annotate_to([world.docfeats], world.mt, outputs=[tmp_path / "a.csv"],
+                      on_start=lambda setup, missing, n: seen.append((missing, n)),
+                      progress=lambda path, error: seen.append(error))
+    n = len(world.doc_files)
+    assert seen == [([], n), *[None] * n]
+    assert run.exit_code == 0 and run.documents == n and run.failed == 0
+    assert run.written == [tmp_path / "a.csv"] and run.what.startswith(f"{n} documents, ")
+    assert read_annotations(tmp_path / "a.csv") == read_annotations(world.annotation)
+
+    folder = annotate_to([world.docfeats, tmp_path / "none"], world.mt, out_dir=tmp_path / "out")
+    assert folder.exit_code == 1 and len(folder.missing) == 1 and folder.failed == 0
+    assert folder.written == [tmp_path / "out"]
+    with pytest.raises(mtanno.MtannoError, match=r"^give outputs= \(one table"):
+        annotate_to([world.docfeats], world.mt)
+    with pytest.raises(mtanno.MtannoError, match=r"^force= goes with out_dir="):
+        annotate_to([world.docfeats], world.mt, outputs=[tmp_path / "b.csv"], force=True)

@@ -17,6 +17,8 @@ Modules, in the order the data flows through them:
 * :mod:`~mtanno.annotate.batch` — batches of feature files (:class:`AnnotationSetup`,
   :func:`annotate_files`);
 * :mod:`~mtanno.annotate.folder` — resumable annotation into a folder (``--output-dir``);
+* :mod:`~mtanno.annotate.run` — the whole ``mtanno annotate`` run, from file names to
+  files (:func:`annotate_to`);
 * :mod:`~mtanno.annotate.calibration` — the calibrated confidence of segments (issue 26:
   :func:`fit_calibrated`, :class:`Calibrator`) and the uncalibrated fallback score;
 * :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private);
@@ -26,19 +28,20 @@ Modules, in the order the data flows through them:
 The public names of these modules are importable from ``mtanno.annotate`` itself.
 """
 
-__all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "CALIBRATION_FOLDS", "CALIBRATION_L2",
-           "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION", "DEFAULT_DELTA",
-           "DEFAULT_TAU", "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
-           "AnnotationSetup", "CalibrationResult", "Calibrator", "ClassConfig", "ClassModel",
-           "IsotonicModel", "LogisticModel", "Windows", "annotate_document", "annotate_files",
-           "annotation_files", "annotation_setup", "annotation_table", "check_tau",
-           "class_config_text", "class_deltas", "class_models", "evidence_covered",
-           "fit_calibrated", "fit_isotonic", "fit_logistic", "label_document",
-           "label_frames", "load_annotation_setup", "load_class_config", "load_class_models",
-           "load_config_templates", "merge_annotation_tables", "merged_spans",
-           "modified_delta", "read_annotation_table", "read_annotation_tables",
-           "read_annotations", "segments_from_labels", "single_label_segments",
-           "to_segments", "uncalibrated_confidence", "write_annotations", "write_class_config"]
+__all__ = [
+    "ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "AnnotateRun", "CALIBRATION_FOLDS",
+    "CALIBRATION_L2", "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION", "DEFAULT_DELTA",
+    "DEFAULT_TAU", "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
+    "AnnotationSetup", "CalibrationResult", "Calibrator", "ClassConfig", "ClassModel",
+    "IsotonicModel", "LogisticModel", "Windows", "annotate_document", "annotate_files",
+    "annotate_to", "annotation_files", "annotation_setup", "annotation_table", "check_tau",
+    "class_config_text", "class_deltas", "class_models", "evidence_covered", "fit_calibrated",
+    "fit_isotonic", "fit_logistic", "label_document", "label_frames", "load_annotation_setup",
+    "load_class_config", "load_class_models", "load_config_templates", "merge_annotation_tables",
+    "merged_spans", "modified_delta", "read_annotation_table", "read_annotation_tables",
+    "read_annotations", "segments_from_labels", "single_label_segments", "to_segments",
+    "uncalibrated_confidence", "write_annotations", "write_class_config",
+]
 
 from mtanno.annotate.batch import (
     AnnotationBatch,
@@ -89,6 +92,7 @@ from mtanno.annotate.label import (
     segments_from_labels,
     single_label_segments,
 )
+from mtanno.annotate.run import AnnotateRun, annotate_to
 from mtanno.annotate.tables import (
     ANNOTATION_COLUMNS,
     ANNOTATION_SUFFIXES,

@@ -30,9 +30,11 @@ Frames are 0-based inside this module.
 
 from __future__ import annotations
 
-__all__ = ["DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "EvidenceSums",
-           "RowEvidence", "decode_segments", "distinct_frames", "evidence_columns",
-           "evidence_sums", "fold_label", "frame_evidence", "relative_evidence", "row_evidence"]
+__all__ = [
+    "DEFAULT_SLACK", "EVIDENCE_MARGIN", "Decoded", "EvidenceColumns", "EvidenceSums", "RowEvidence",
+    "decode_segments", "distinct_frames", "evidence_columns", "evidence_sums", "fold_label",
+    "frame_evidence", "relative_evidence", "row_evidence",
+]
 
 from collections.abc import Sequence
 from dataclasses import dataclass

@@ -24,12 +24,15 @@ EXIT_BAD_INPUT_OR_PLOT = "Exit codes: 0 success, 2 bad input or matplotlib missi
 EXIT_PER_CLASS = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
 
 
-def user_errors(code: int):
+def user_errors(code: int, *, flags: dict[str, str] | None = None):
     """Turn MtannoError (and an OSError of the file system) into a one-line message and
     exit ``code`` (no traceback). The API's parameter names in the message become the
-    command's flags (``features_dir=`` → ``--features-dir``). A reader that closed
+    command's flags (``features_dir=`` → ``--features-dir``; ``flags`` names those of the
+    command that are not ``--name``, beside :data:`ARGUMENT_NAMES`). A reader that closed
     standard output early (``| head``) ends the command quietly with exit code 141
     (:func:`closed_output_edge`)."""
+
+    names = {**ARGUMENT_NAMES, **(flags or {})}
 
     def deco(fn):
         @functools.wraps(fn)
@@ -37,7 +40,7 @@ def user_errors(code: int):
             try:
                 return fn(*args, **kwargs)
             except MtannoError as exc:
-                click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
+                click.echo(f"mtanno: {exc.for_command(names)}", err=True)
                 sys.exit(getattr(exc, "exit_code", code))  # LockBusy: 3
             except OSError as exc:  # the file system said no where no reader expected it
                 closed_output_edge(exc)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
@@ -12,15 +11,12 @@ from mtanno.commands._common import (
     DELTA,
     TAU,
     Number,
-    lock_output,
     scheduler_option,
     show_progress,
     user_errors,
     wait_option,
+    waiting_note,
 )
-from mtanno.errors import MtannoError
-from mtanno.templates.model import template_files
-from mtanno.util.store import document_files
 
 
 @click.command("annotate")
@@ -69,7 +65,8 @@ from mtanno.util.store import document_files
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @scheduler_option
-@user_errors(2)
+@user_errors(2, flags={"outputs": "-o TABLE", "out_dir": "--output-dir OUT/",
+                        "fmt": "--format"})
 def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
                  delta, variant, former_variant, match_variant, single_label, min_confidence,
                  jobs, quiet, wait, scheduler):
@@ -104,93 +101,46 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     variant = former_variant or variant  # --variant: the former name of --dbar
     from tqdm import tqdm
 
-    from mtanno.annotate import check_tau, load_annotation_setup
-    from mtanno.util.output import check_outputs
+    from mtanno.annotate.run import annotate_to
 
-    _check_options(outputs, out_dir, fmt, force, wait)
-    if tau is not None:
-        tau = check_tau(tau, what="--tau")
-    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
-    if out_dir is not None:
-        from mtanno.annotate.folder import plan_folder
+    bar = None
 
-        folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv", failures=missing)
-        paths = [j.src for j in folder_jobs]
-    else:
-        folder_jobs, paths = [], document_files(features, failures=missing)
-    written = _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir,
-                             config_path, kf_dir)
-    setup = load_annotation_setup(mt_dir, config_path=config_path, keyframes_dir=kf_dir,
-                                  tau=tau, delta=delta, dbar_variant=variant,
-                                  match_variant=match_variant, single_label=single_label,
-                                  min_confidence=min_confidence)
-    check_outputs(written, setup.files(), writable=False)  # the configuration's templates
-    _notes(setup, missing, quiet)
-    bar = tqdm(total=len(paths), unit="doc", disable=not show_progress(quiet), desc="annotate")
-    failures = _FailureLines(lambda line: bar.write(line, file=sys.stderr))
+    def write(line: str) -> None:
+        if bar is None:
+            click.echo(line, err=True)
+        else:
+            bar.write(line, file=sys.stderr)
+
+    failures = _FailureLines(write)
+
+    def start(setup, missing, n):
+        nonlocal bar
+        _notes(setup, missing, quiet)
+        bar = tqdm(total=n, unit="doc", disable=not show_progress(quiet), desc="annotate")
 
     def note_failure(path, error):
         bar.update(1)
         failures.add(path, error)
 
-    if out_dir is None:
-        failed, what, seconds = _to_tables(setup, paths, outputs, jobs, scheduler,
-                                           note_failure, bar, failures)
-        if failed < 0:  # nothing annotated: no empty table
-            failed, outputs = -failed, ["nothing written"]
-    else:
-        failed, what, seconds = _to_folder(setup, folder_jobs, out_dir, outputs, force, jobs,
-                                           scheduler, wait, missing, note_failure, bar,
-                                           failures)
-        outputs = (out_dir, *outputs)
-    if out_dir is None:
-        failed += len(missing)
-    if not quiet:
-        kf = f", keyframes for {len(setup.keyframes)}" if setup.keyframes else ""
-        tail = "" if out_dir is not None else f", {failed} failed"
-        click.echo(f"annotate: {what}, {len(setup.classes)} classes{kf}{tail}, "
-                   f"{seconds:.2f} s of annotation -> {', '.join(map(str, outputs))}", err=True)
-    sys.exit(1 if failed or missing else 0)
-
-
-def _to_tables(setup, paths, outputs, jobs, scheduler, note_failure, bar, failures):
-    """Annotate ``paths`` into the -o tables: (failed documents — negative when all
-    failed and nothing was written —, what was done, seconds of annotation)."""
-    from mtanno.annotate import write_annotations
-
-    batch = setup.annotate(paths, n_jobs=jobs, scheduler=scheduler, progress=note_failure)
-    bar.close()
-    failures.finish()
-    prov = setup.provenance(inputs=batch.files, documents=batch.frames)
-    failed = len(batch.failed)
-    if paths and failed == len(paths):
-        return -failed, "0 documents, 0 segments", batch.seconds
-    for out in outputs:
-        write_annotations(out, batch.rows, batch.native, provenance=prov)
-    return failed, f"{len(paths) - failed} documents, {len(batch.rows)} segments", batch.seconds
-
-
-def _to_folder(setup, folder_jobs, out_dir, outputs, force, jobs, scheduler, wait, missing,
-               note_failure, bar, failures):
-    """Annotate into ``out_dir`` (and the -o tables assembled from it), holding its lock:
-    (failed documents, what was done, seconds of annotation)."""
-    from mtanno.annotate.folder import annotate_folder, folder_table
-    from mtanno.util.tables import write_table
-
-    with lock_output(out_dir, wait=wait):
-        summary = annotate_folder(
-            folder_jobs, setup, force=force, n_jobs=jobs, scheduler=scheduler,
-            progress=lambda o: note_failure(o.job.src,
-                                            o.message if o.status == "failed" else None))
-        bar.close()
+    try:
+        run = annotate_to(
+            features, mt_dir, outputs=outputs, out_dir=out_dir, fmt=fmt, force=force,
+            wait=wait, keyframes_dir=kf_dir, config_path=config_path, tau=tau, delta=delta,
+            dbar_variant=variant, match_variant=match_variant, single_label=single_label,
+            min_confidence=min_confidence, n_jobs=jobs, scheduler=scheduler, on_start=start,
+            progress=note_failure, on_wait=waiting_note(out_dir))
+    finally:
+        if bar is not None:
+            bar.close()
         failures.finish()
-        if outputs:
-            table, prov = folder_table(summary, setup)
-            for out in outputs:
-                write_table(out, table, provenance=prov)
-    what = f"{len(folder_jobs)} documents: {summary.line()}" + (
-        f", {len(missing)} input(s) without feature files" if missing else "")
-    return len(summary.failed), what, summary.seconds
+    if not quiet:
+        setup = run.setup
+        kf = f", keyframes for {len(setup.keyframes)}" if setup.keyframes else ""
+        tail = "" if out_dir is not None else f", {run.failed} failed"
+        click.echo(f"annotate: {run.what}, {len(setup.classes)} classes{kf}{tail}, "
+                   f"{run.seconds:.2f} s of annotation -> {', '.join(map(str, run.written))}",
+                   err=True)
+    sys.exit(run.exit_code)
 
 
 class _FailureLines:
@@ -228,43 +178,6 @@ class _FailureLines:
             self.write(f"{self.held[0]} (the same for all {len(self.held)} documents)")
             self.held = []
         self._release()
-
-
-def _check_options(outputs, out_dir, fmt, force, wait) -> None:
-    """The outputs' formats, and the options that go with --output-dir only."""
-    from mtanno.util.tables import table_format
-
-    for out in outputs:
-        table_format(out)
-    if not outputs and out_dir is None:
-        raise MtannoError("give -o TABLE (one table of all documents), --output-dir OUT/ "
-                          "(one table per document), or both")
-    if out_dir is None:
-        for flag, given in (("--format", fmt), ("--force", force), ("--wait", wait)):
-            if given:
-                raise MtannoError(f"{flag} goes with --output-dir (an -o table is always "
-                                  "written anew, in the format of its suffix)")
-
-
-def _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir, config_path,
-                   kf_dir) -> list:
-    """Every output against the inputs (:func:`mtanno.util.output.check_outputs`); returns
-    the files the run writes. A document's table that cannot be written fails alone: only
-    -o is tried first; no output where the features are read from, and no -o table among
-    the --output-dir tables (`mtanno evaluate OUT/` would read its rows twice)."""
-    from mtanno.annotate import ANNOTATION_SUFFIXES
-    from mtanno.keyframes import keyframe_files
-    from mtanno.util.output import check_outputs
-    from mtanno.util.tables import output_files
-
-    tables = [f for out in outputs for f in output_files(out)]
-    written = [*(f for j in folder_jobs for f in output_files(j.dst)), *tables]
-    check_outputs(written, [mt_dir, *template_files(mt_dir), config_path, *paths,
-                            *(keyframe_files(kf_dir) if kf_dir else [])],
-                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()},
-                  writable=False)
-    check_outputs(tables, [], scanned={out_dir: ANNOTATION_SUFFIXES} if out_dir else None)
-    return written
 
 
 def _notes(setup, missing, quiet) -> None:
