@@ -120,3 +120,25 @@ def test_annotate_to_is_the_command_from_file_names_to_files(world, tmp_path):
         annotate_to([world.docfeats], world.mt)
     with pytest.raises(mtanno.MtannoError, match=r"^force= goes with out_dir="):
         annotate_to([world.docfeats], world.mt, outputs=[tmp_path / "b.csv"], force=True)
+
+
+def test_extract_to_is_the_features_command(world, tmp_path):
+    """``mtanno.features.extract.extract_to`` writes the world's feature files, and a run
+    that writes nothing leaves no folder behind."""
+    from mtanno.features.extract import extract_to
+
+    clip = world.clips / "squat" / "SYN_a_squat_001.amc"
+    started = []
+    summary = extract_to([clip], tmp_path / "f", on_start=started.append)
+    assert started == [1] and summary.line().startswith("1 written")
+    assert np.array_equal(read_features(tmp_path / "f" / "SYN_a_squat_001.parquet").X,
+                          read_features(world.feats / "squat" / "SYN_a_squat_001.parquet").X)
+    with pytest.raises(mtanno.MtannoError, match=r"output folder name \(outdir=\) is empty"):
+        extract_to([clip], " ")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(mtanno.MtannoError, match="no .amc or .bvh files"):
+        extract_to([tmp_path / "empty"], tmp_path / "new" / "out")
+    bad = tmp_path / "bad.amc"
+    bad.write_text("not a motion\n")
+    assert extract_to([bad], tmp_path / "new" / "out").failed
+    assert not (tmp_path / "new").exists()

@@ -13,11 +13,11 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import (
-    lock_output,
     scheduler_option,
     show_progress,
     user_errors,
     wait_option,
+    waiting_note,
 )
 from mtanno.errors import MtannoError
 
@@ -49,7 +49,7 @@ from mtanno.errors import MtannoError
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @wait_option
 @scheduler_option
-@user_errors(2)
+@user_errors(2, flags={"outdir": "-o"})
 def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, poses, quiet,
                  wait, scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
@@ -79,11 +79,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
     """
     from tqdm import tqdm
 
-    from mtanno.features.extract import plan_batch, run_batch
+    from mtanno.features.extract import extract_to
 
-    if not outdir.strip():
-        raise MtannoError("the output folder name (-o) is empty; name a folder ('.' for "
-                          "this one)")
     items: list[str] = []
     listed: list[str] = []  # names read from standard input: one that fails is reported
     for item in inputs:
@@ -91,28 +88,25 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
             listed.extend(line.strip() for line in sys.stdin if line.strip())
         else:
             items.append(item)
-    from mtanno.util.output import output_folder
+    bar = None
 
-    jobs_list = plan_batch(items, outdir, asf=asf, listed=listed)
-    if not jobs_list:
-        folders = [i for i in items if Path(i).is_dir()]
-        raise MtannoError("no .amc or .bvh files found in the inputs" + (
-            f" (searched the folder{'s' if len(folders) > 1 else ''} "
-            f"{', '.join(folders[:3])}{' …' if len(folders) > 3 else ''} and below)"
-            if folders else ""))
-    bar = tqdm(total=len(jobs_list), unit="file", disable=not show_progress(quiet),
-               desc="features")
+    def start(n: int) -> None:
+        nonlocal bar
+        bar = tqdm(total=n, unit="file", disable=not show_progress(quiet), desc="features")
 
     def progress(outcome):
         bar.update(1)
         if outcome.status == "failed":
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
-    with output_folder(outdir), lock_output(outdir, wait=wait):
-        summary = run_batch(jobs_list, n_jobs=jobs, force=force, skeleton=skeleton,
-                            progress=progress, feature_set=feature_set, up=up,
-                            scheduler=scheduler, poses=poses)
-    bar.close()
+    try:
+        summary = extract_to(items, outdir, listed=listed, asf=asf, wait=wait,
+                             on_wait=waiting_note(outdir), on_start=start, n_jobs=jobs,
+                             force=force, skeleton=skeleton, progress=progress,
+                             feature_set=feature_set, up=up, scheduler=scheduler, poses=poses)
+    finally:
+        if bar is not None:
+            bar.close()
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)
     sys.exit(1 if summary.failed else 0)

@@ -473,3 +473,35 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
             for j, (status, message, frames) in zip(todo[a:b], results):
                 record(Outcome(j, status, message, frames))
     return summary
+
+
+def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
+               listed: Iterable[str | os.PathLike] = (), asf: str | os.PathLike | None = None,
+               wait: bool = False, on_wait: Callable[[str], None] | None = None,
+               on_start: Callable[[int], None] | None = None, **options) -> Summary:
+    """The whole ``mtanno features`` run: the jobs of :func:`plan_batch` (``inputs``,
+    ``listed``, ``asf``), an error when they hold no motion file, the output folder made
+    and locked (:func:`mtanno.util.locks.folder_lock`: busy is
+    :class:`~mtanno.util.locks.LockBusy`, or with ``wait`` waited for after one
+    ``on_wait(holder)`` call) and :func:`run_batch` (``options`` are its keyword options).
+    A run that writes nothing leaves no new folder behind
+    (:func:`mtanno.util.output.output_folder`). ``on_start(n)`` is called before the first
+    of ``n`` jobs."""
+    from mtanno.util.locks import folder_lock
+    from mtanno.util.output import output_folder
+
+    if not str(outdir).strip():
+        raise MtannoError("the output folder name ({outdir}) is empty; name a folder ('.' "
+                          "for this one)", options=("outdir",))
+    items = list(inputs)
+    jobs = plan_batch(items, outdir, asf=asf, listed=listed)
+    if not jobs:
+        folders = [str(i) for i in items if Path(i).is_dir()]
+        raise MtannoError("no .amc or .bvh files found in the inputs" + (
+            f" (searched the folder{'s' if len(folders) > 1 else ''} "
+            f"{', '.join(folders[:3])}{' …' if len(folders) > 3 else ''} and below)"
+            if folders else ""))
+    if on_start:
+        on_start(len(jobs))
+    with output_folder(outdir), folder_lock(outdir, wait=wait, on_wait=on_wait):
+        return run_batch(jobs, **options)
