@@ -27,7 +27,8 @@ import re
 import sys
 from pathlib import Path
 
-_STAMP = re.compile(rb'("created"\s*:\s*)"[^"]*"|("mtanno_version"\s*:\s*)"[^"]*"'
+_STAMP = re.compile(rb'("created"\s*:\s*)"[^"]*"|(\bcreated: )[0-9T:+.-]+'
+                    rb'|("mtanno_version"\s*:\s*)"[^"]*"'
                     rb'|("extractor_version"\s*:\s*)"[^"]*"'
                     rb'|(<dc:date>)[^<]*(</dc:date>)|(CreationDate\s*\(?)[^)\n]*'
                     rb'|(mtanno )\d+\.\d+\.\d+[^\s"<,]*|(Date: )[^\n]*'

@@ -114,7 +114,8 @@ def align(a: Performance, b: Performance, *, features: Sequence[str] | None = No
             if p.joints is None:
                 raise MtannoError("a feature file has features but no joint positions: the "
                                   "positions cost needs the motion file (.amc, .bvh); use "
-                                  "--cost features for feature files", path=p.where)
+                                  "{cost} features for feature files", path=p.where,
+                                  options=("cost",))
     for p in (a, b):
         if p.frames == 0:
             raise MtannoError("motion has no frames", path=p.where)
@@ -150,7 +151,8 @@ def align_files(path_a: str | os.PathLike, path_b: str | os.PathLike, *,
             if str(p).lower().endswith(".parquet"):
                 raise MtannoError("a feature file has features but no joint positions: the "
                                   "positions cost needs the motion file (.amc, .bvh); use "
-                                  "--cost features for feature files", path=str(p))
+                                  "{cost} features for feature files", path=str(p),
+                                  options=("cost",))
     a = load_performance(path_a, asf=asf, skeleton=skeleton, feature_set=feature_set)
     b = load_performance(path_b, asf=asf, skeleton=skeleton, feature_set=feature_set)
     return align(a, b, **options)

@@ -166,8 +166,8 @@ def _run(kind: int, PA, PB, CA, CB, nfeat: float, tie: float, n: int, m: int,
     cells = int(offsets[-1])
     if cells > MAX_CELLS:
         raise MtannoError(f"the area has {cells} cells, more than the {MAX_CELLS} one DTW "
-                          "computes (one byte each); restrict it (a smaller --band, or not "
-                          "--full)")
+                          "computes (one byte each); restrict it (a smaller {band}, or not "
+                          "{full})", options=("band", "full"))
     wa = _weights(wa, n, "weights_a")
     wb = _weights(wb, m, "weights_b")
     steps = np.empty(cells, dtype=np.uint8)

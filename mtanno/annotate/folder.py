@@ -107,7 +107,8 @@ def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, 
             if p.is_dir() and (out == p.resolve() or p.resolve() in out.parents):
                 raise MtannoError(f"the output folder is inside the input folder {p}: its "
                                   "Parquet tables would be read as feature files; choose "
-                                  "another folder, or --format csv", path=str(outdir))
+                                  "another folder, or {fmt} csv", path=str(outdir),
+                                  options=("fmt",))
     jobs = [DocJob(src, outdir / rel.with_suffix(FORMATS[fmt]))
             for src, rel in document_files_below(inputs, failures=failures)]
     return sorted(jobs, key=lambda j: j.doc)

@@ -287,7 +287,7 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
         full = (1 << n_bits) - 1
         if any(len(s.patterns) != 1 or s.patterns[0][0] != full for s in gq.sets):
             raise MtannoError(f"exact mode needs every feature of group '{g.name}' fixed at "
-                              "every position (use --mode fuzzy or adaptive)")
+                              "every position (use {mode} fuzzy or adaptive)", options=("mode",))
     L = len(gq.sets)
     if mode == "adaptive" and any(a.intersects(b) for a, b in zip(gq.sets, gq.sets[1:])):
         # the runs of intersecting neighbours overlap: a run may end past its document

@@ -107,8 +107,8 @@ def sources_from_tree(roots: Iterable[str | os.PathLike]) -> list[ExampleSource]
         if not root.exists():
             raise MtannoError("training folder not found", path=str(root))
         if not root.is_dir():
-            raise MtannoError("not a folder (expected ROOT/CLASS/*.parquet; use --truth for "
-                              "annotated documents)", path=str(root))
+            raise MtannoError("not a folder (expected ROOT/CLASS/*.parquet; use {truth} for "
+                              "annotated documents)", path=str(root), options=("truth",))
         found = []
         for cls_dir in sorted(p for p in root.iterdir() if p.is_dir()):
             for f in sorted(cls_dir.glob("*.parquet")):
