@@ -11,7 +11,8 @@ import pytest
 
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES
-from mtanno.util.store import atomic_path, read_feature_matrix, read_features, write_features
+from mtanno.util.output import atomic_path
+from mtanno.util.store import read_feature_matrix, read_features, write_features
 
 
 def test_round_trip(tmp_path):

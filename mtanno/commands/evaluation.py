@@ -11,6 +11,8 @@ import click
 from mtanno.annotate import DEFAULT_TAU, load_class_models
 from mtanno.commands._common import DELTA, EXIT_BAD_INPUT_OR_PLOT, TAU, ProgressBar, stack, user_errors
 from mtanno.errors import MtannoError
+from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
+from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.model import template_files
 from mtanno.util.store import document_files
@@ -95,7 +97,7 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
               help="Ground truth of the documents (doc,start,end,label[,fps]).")
 @click.option("--delta", type=DELTA, default=RETRIEVAL_DELTA, show_default=True,
               help=f"Quantization delta of the templates ([MR06] retrieval: {RETRIEVAL_DELTA:g}).")
-@click.option("--max-hits", default=2000, show_default=True, type=click.IntRange(min=1),
+@click.option("--max-hits", default=RETRIEVAL_MAX_HITS, show_default=True, type=click.IntRange(min=1),
               help="Hit cap per class and document.")
 @click.option("--class", "classes", multiple=True, help="Only these classes.")
 @json_and_table_options(json_what="the results", schema="mtanno.retrieval-evaluation/1",
@@ -153,7 +155,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
 @click.option("--split", default=None, help="Use the clips of this split only.")
 @click.option("--root", type=click.Path(file_okay=False), default=None,
               help="Folder the manifest's file column is relative to [default: its folder].")
-@click.option("--docs", "n_docs", default=10, show_default=True, type=click.IntRange(min=1),
+@click.option("--docs", "n_docs", default=COMPOSE_DOCS, show_default=True, type=click.IntRange(min=1),
               help="Number of documents.")
 @click.option("--clips-per-doc", type=click.IntRange(min=1), default=None,
               help="Clips per document [default: all clips, each once].")

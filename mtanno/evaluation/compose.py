@@ -30,7 +30,7 @@ from mtanno.features.hysteresis import analysis_frames
 from mtanno.io.amc import read_amc_values, write_amc
 from mtanno.io.asf import AsfSkeleton, read_asf
 from mtanno.io.skeleton import euler_matrix
-from mtanno.util.store import atomic_path
+from mtanno.util.output import atomic_path
 
 
 @dataclass(frozen=True)
@@ -157,7 +157,11 @@ def _steps(progress: Callable[[int, int], None] | None, total: int) -> Callable[
     return step
 
 
-def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: int = 10,
+#: Documents ``compose`` makes unless told.
+DEFAULT_DOCS = 10
+
+
+def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: int = DEFAULT_DOCS,
                       clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
                       asf: str | os.PathLike | None = None, prefix: str | None = None,
                       shuffle: bool = True, inputs: Sequence[str | os.PathLike] = (),

@@ -110,7 +110,7 @@ def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
 def write_amc(path: str | os.PathLike, header: list[str], layout: list[tuple[str, int]],
               values: np.ndarray) -> None:
     """Write AMC frames (numbered from 1) with the given header lines, atomically."""
-    from mtanno.util.store import atomic_path
+    from mtanno.util.output import atomic_path
 
     names = [name for name, _ in layout]
     counts = [n for _, n in layout]

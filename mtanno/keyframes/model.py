@@ -592,7 +592,7 @@ def _dumps_provenance(prov: dict) -> str:
 
 def save_keyframes(path: str | os.PathLike, q: KeyframeQuery) -> None:
     """Write ``q`` as JSON to ``path`` atomically."""
-    from mtanno.util.store import atomic_path
+    from mtanno.util.output import atomic_path
 
     _validate(q)
     text = dumps(q)

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mtanno.errors import MtannoError, read_json
-from mtanno.util.store import atomic_path
+from mtanno.util.output import atomic_path
 from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
 if TYPE_CHECKING:

@@ -33,9 +33,9 @@ from mtanno.util._poseblock import (
     pose_columns,
     text_field,
 )
-from mtanno.util.output import atomic_path, write_bytes
+from mtanno.util.output import write_bytes
 
-__all__ = ["FEATURES_SCHEMA", "POSE_PREFIX", "FeatureFile", "FeatureLayout", "atomic_path",
+__all__ = ["FEATURES_SCHEMA", "POSE_PREFIX", "FeatureFile", "FeatureLayout",
            "check_layout", "common_layout", "document_files", "document_files_below",
            "feature_files", "pose_columns", "read_feature_matrix", "read_features",
            "sha256_file", "write_features"]
