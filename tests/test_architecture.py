@@ -11,7 +11,8 @@ name a package's ``__init__`` re-exports counts as its defining module); imports
   function over 100 lines (a numba kernel may be longer where a comment beginning
   ``# one kernel:`` says why splitting it would cost speed);
 * every subpackage's ``__init__.py`` has a docstring naming each of its modules and an
-  ``__all__``.
+  ``__all__``;
+* docs/architecture.md names every file of the package.
 """
 
 from __future__ import annotations
@@ -213,3 +214,12 @@ def test_package_docstring_lists_its_modules(package):
     assert any(isinstance(n, ast.Assign) and any(getattr(t, "id", None) == "__all__"
                                                  for t in n.targets) for n in tree.body), \
         f"{path}: no __all__"
+
+
+def test_architecture_doc_names_every_file_of_the_package():
+    """docs/architecture.md draws the tree `ls -R mtanno` shows: every file is named there
+    (a module added without a line in the drawing fails here)."""
+    doc = (PACKAGE.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    missing = [str(p.relative_to(PACKAGE.parent)) for p in sorted(PACKAGE.rglob("*"))
+               if p.is_file() and "__pycache__" not in p.parts and p.name not in doc]
+    assert not missing, f"not in docs/architecture.md: {missing}"
