@@ -7,7 +7,6 @@ from __future__ import annotations
 import functools
 import math
 import sys
-from pathlib import Path
 
 import click
 
@@ -188,15 +187,6 @@ def stack(*decorators):
         return fn
 
     return deco
-
-
-def class_file(outdir: Path, class_name: str) -> Path:
-    """``outdir/CLASS.json``: where learn-mt and learn-keyframes write a class's template or
-    keyframe query. A class name that cannot be a file name there (empty, hidden, with a path
-    separator or a NUL) is an error."""
-    if not class_name or class_name.startswith(".") or any(c in class_name for c in "/\\\0"):
-        raise MtannoError(f"class name {class_name!r} cannot be used as a file name")
-    return outdir / f"{class_name}.json"
 
 
 def waiting_note(folder):

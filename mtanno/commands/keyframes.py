@@ -13,7 +13,6 @@ import click
 from mtanno.commands._common import (
     EXIT_BAD_INPUT,
     EXIT_PER_CLASS,
-    class_file,
     lock_output,
     scheduler_option,
     show_progress,
@@ -23,6 +22,7 @@ from mtanno.commands._common import (
     wait_option,
 )
 from mtanno.errors import MtannoError
+from mtanno.templates.model import class_file
 
 
 @click.command("learn-keyframes", epilog=EXIT_PER_CLASS)

@@ -5,7 +5,6 @@ error or bad input."""
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import click
@@ -17,15 +16,13 @@ from mtanno.commands._common import (
     EXIT_BAD_INPUT_OR_PLOT,
     EXIT_PER_CLASS,
     Number,
-    class_file,
-    lock_output,
     show_progress,
     training_argument,
     training_options,
     user_errors,
     wait_option,
+    waiting_note,
 )
-from mtanno.errors import MtannoError
 from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.describe import TOP_FEATURES
 from mtanno.templates.learn import ITER_MAX, ITER_THRESH
@@ -83,46 +80,37 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     """
     from tqdm import tqdm
 
-    from mtanno.templates.learn import learn_classes
-    from mtanno.templates.model import save_template
-    from mtanno.templates.training import collect_sources, group_by_class
-    from mtanno.util.output import check_outputs
+    from mtanno.templates.learn import learn_to_folder
 
-    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth,
-                              note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
-    groups = group_by_class(sources, classes=list(classes) or None)
-    out = Path(outdir)
-    check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth],
-                  writable=False)  # a class whose file cannot be written fails alone
-    t0 = time.perf_counter()
-    written, failed, n_examples = [], [], 0
-    with lock_output(out, wait=wait):
-        bar = tqdm(total=len(groups), unit="class", desc="learn-mt",
-                   disable=not show_progress(quiet))
-        for done in learn_classes(groups, hard=hard, iter_max=iterations, thresh=thresh):
-            bar.update(1)
-            bar.set_postfix_str(done.class_name)
-            try:
-                if done.error is not None:
-                    raise MtannoError(done.error)
-                save_template(class_file(out, done.class_name), done.template)
-            except MtannoError as exc:
-                failed.append(done.class_name)
-                bar.write(f"mtanno: class {done.class_name}: {exc}", file=sys.stderr)
-                continue
-            if done.warning:
-                bar.write(f"learn-mt: {done.warning}", file=sys.stderr)
-            written.append(done.class_name)
-            n_examples += done.n_examples
-        bar.close()
+    bar = None
+
+    def start(n: int) -> None:
+        nonlocal bar
+        bar = tqdm(total=n, unit="class", desc="learn-mt", disable=not show_progress(quiet))
+
+    def progress(done, error):
+        bar.update(1)
+        bar.set_postfix_str(done.class_name)
+        if error is not None:
+            bar.write(f"mtanno: class {done.class_name}: {error}", file=sys.stderr)
+        elif done.warning:
+            bar.write(f"learn-mt: {done.warning}", file=sys.stderr)
+
+    try:
+        run = learn_to_folder(
+            training, outdir, manifest=manifest, features_dir=features_dir, split=split,
+            truth=truth, classes=classes, hard=hard, iter_max=iterations, thresh=thresh,
+            wait=wait, on_wait=waiting_note(outdir), on_start=start, progress=progress,
+            note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
+    finally:
+        if bar is not None:
+            bar.close()
     if not quiet:
         kind = "hard" if hard else "soft"
-        click.echo(f"learn-mt: {len(written)} {kind} template(s) from {n_examples} examples "
-                   f"-> {out}, {len(failed)} class(es) failed, "
-                   f"{time.perf_counter() - t0:.1f} s", err=True)
-    sys.exit(1 if failed else 0)
+        click.echo(f"learn-mt: {len(run.written)} {kind} template(s) from {run.n_examples} "
+                   f"examples -> {Path(outdir)}, {len(run.failed)} class(es) failed, "
+                   f"{run.seconds:.1f} s", err=True)
+    sys.exit(run.exit_code)
 
 
 @click.group("mt")

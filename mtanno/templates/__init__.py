@@ -27,13 +27,13 @@ Typical use by a later stage::
 """
 
 __all__ = [
-    "SCHEMA", "ExampleSource", "LearnResult", "MotionTemplate", "TrainingExample",
-    "group_by_class", "learn_template", "load_examples", "load_template", "mirror",
+    "SCHEMA", "ExampleSource", "LearnResult", "LearnRun", "MotionTemplate", "TrainingExample",
+    "group_by_class", "learn_template", "learn_to_folder", "load_examples", "load_template", "mirror",
     "quantize", "save_template", "sources_from_manifest", "sources_from_tree",
     "sources_from_truth",
 ]
 
-from mtanno.templates.learn import LearnResult, learn_template
+from mtanno.templates.learn import LearnResult, LearnRun, learn_template, learn_to_folder
 from mtanno.templates.model import (
     SCHEMA,
     MotionTemplate,

@@ -481,6 +481,15 @@ def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
                    params=params, history={k: list(v) for k, v in mt.history.items()})
 
 
+def class_file(folder: str | os.PathLike, class_name: str) -> Path:
+    """``folder/CLASS.json``: where learn-mt and learn-keyframes write a class's template or
+    keyframe query. A class name that cannot be a file name there (empty, hidden, with a path
+    separator or a NUL) is an error."""
+    if not class_name or class_name.startswith(".") or any(c in class_name for c in "/\\\0"):
+        raise MtannoError(f"class name {class_name!r} cannot be used as a file name")
+    return Path(folder) / f"{class_name}.json"
+
+
 def template_files(folder: str | os.PathLike) -> list[Path]:
     """The template files of a folder (``*.json``, sorted), or the one file given."""
     root = Path(folder)
