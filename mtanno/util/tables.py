@@ -211,9 +211,13 @@ def dumps(obj: Any, **kwargs: Any) -> str:
     they are, but a lone surrogate (a non-UTF-8 byte of a file name in a path) written as
     its ``\\uDCxx`` escape: valid UTF-8 that reads back as the same string, so
     :func:`os.fsencode` of a path read back gives the file's name again."""
-    out = json.dumps(_clean(obj), ensure_ascii=False, **kwargs)
-    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", out) \
-        if _SURROGATE.search(out) else out
+    return _escape_surrogates(json.dumps(_clean(obj), ensure_ascii=False, **kwargs))
+
+
+def _escape_surrogates(text: str) -> str:
+    """JSON text with each lone surrogate as its ``\\uDCxx`` escape (:func:`dumps`)."""
+    return _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", text) \
+        if _SURROGATE.search(text) else text
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
@@ -226,9 +230,10 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
 
 
 def json_compact(x: Any) -> str:
-    """One value as compact JSON with non-ASCII characters kept (no other change: the
-    value of one line of :func:`json_object_lines`)."""
-    return json.dumps(x, ensure_ascii=False)
+    """One value as compact JSON with non-ASCII characters kept, lone surrogates escaped as
+    :func:`dumps` does (no other change: the value of one line of
+    :func:`json_object_lines`)."""
+    return _escape_surrogates(json.dumps(x, ensure_ascii=False))
 
 
 def json_list_lines(items: Iterable[str], level: int = 1) -> str:

@@ -329,6 +329,31 @@ def test_json_of_non_utf8_names_is_valid_utf8(tmp_path):
     assert text(os.fsdecode(b"a\xff\xfe")) == "a\\xff\\xfe" and text("café") == "café"
 
 
+def test_a_template_learned_from_non_utf8_file_names(world, tmp_path):
+    """learn-mt of examples whose file names are not UTF-8 writes the template (it was a
+    UnicodeEncodeError): the training records' paths read back as the files' names, and the
+    template annotates."""
+    from mtanno.templates.model import load_template
+
+    folder = tmp_path / "train" / "squat"
+    folder.mkdir(parents=True)
+    raw = []
+    for i, src in enumerate(sorted((world.feats / "squat").glob("*.parquet"))[:3]):
+        name = os.fsencode(folder) + b"/ex\xff%d.parquet" % i
+        try:
+            with open(name, "wb") as fh:
+                fh.write(src.read_bytes())
+        except OSError:
+            pytest.skip("this file system refuses names that are not UTF-8")
+        raw.append(name)
+    r = cli("learn-mt", tmp_path / "train", "-o", tmp_path / "mts", "-q")
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    mt = load_template(tmp_path / "mts" / "squat.json")
+    assert sorted(os.fsencode(t["file"]) for t in mt.training) == raw
+    r = cli("annotate", "--mt", tmp_path / "mts", world.docfeats, "-o", tmp_path / "a.csv", "-q")
+    assert r.exit_code == 0, r.output
+
+
 # ----------------------------------------------------------------------- 5: a full device
 
 
