@@ -13,6 +13,21 @@
   ``file,class,actor,take`` with ``actor`` = the style (the performer ``tune`` holds out);
 * ``OUT/S/truth.csv`` — every clip of S as one document, labelled with its content over all
   its frames.
+
+    bandai_folds.py review FOLD OUT --k K [--seed 0]
+
+``review`` (issue 24, the review loop of scripts/experiment_review.sh) simulates a person who
+reviewed ``K`` clips per content of the held-out style S of fold folder ``FOLD``
+(``OUT/S`` of ``folds``) on the report page and downloaded the truth: it writes
+
+* ``OUT/reviewed.csv`` — that truth CSV (``doc,start,end,label,fps``, whole clips, 30 Hz), the
+  format the page's "Download truth" writes; the clips are the first K of a seeded
+  shuffle of each content's clips (``random.Random("SEED:review:S:CONTENT")``), so the
+  clips of K = 1 are among those of K = 2;
+* ``OUT/train.csv`` — the fold's training manifest plus a row per reviewed segment (actor
+  S: ``tune`` holds the reviewed clips out as one more performer);
+* ``OUT/truth.csv`` and ``OUT/documents.txt`` — the clips of S that were not reviewed: the
+  test documents and their truth (a document reviewed is never tested on).
 """
 
 from __future__ import annotations
@@ -74,6 +89,36 @@ def folds(feats: Path, out: Path, per: int, seed: int) -> None:
               f"documents -> {d}", file=sys.stderr)
 
 
+def review(fold: Path, out: Path, k: int, seed: int) -> None:
+    import csv
+
+    train = (fold / "train.csv").read_text().splitlines()
+    with open(fold / "truth.csv", newline="") as fh:
+        truth = list(csv.DictReader(fh))
+    style = fold.name
+    by_content: dict[str, list[dict]] = defaultdict(list)
+    for row in truth:
+        by_content[row["label"]].append(row)
+    reviewed = []
+    for content, rows in sorted(by_content.items()):
+        order = sorted(rows, key=lambda r: r["doc"])
+        random.Random(f"{seed}:review:{style}:{content}").shuffle(order)
+        reviewed += order[:k]
+    names = {r["doc"] for r in reviewed}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "reviewed.csv").write_text("doc,start,end,label,fps\n" + "".join(
+        f"{r['doc']},{r['start']},{r['end']},{r['label']},30\n" for r in reviewed))
+    rows = train + [f"{style}/{r['doc']}.bvh,{r['label']},{style},"
+                    f"{_NAME.match(r['doc'])['take']}" for r in reviewed]
+    (out / "train.csv").write_text("\n".join(rows) + "\n")
+    test = [r for r in truth if r["doc"] not in names]
+    (out / "truth.csv").write_text("doc,start,end,label\n" + "".join(
+        f"{r['doc']},{r['start']},{r['end']},{r['label']}\n" for r in test))
+    (out / "documents.txt").write_text("".join(f"{style}/{r['doc']}.parquet\n" for r in test))
+    print(f"bandai_folds: {style}, k = {k}: {len(reviewed)} reviewed clips, {len(test)} test "
+          f"documents -> {out}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -83,7 +128,15 @@ def main(argv=None) -> int:
     f.add_argument("out", type=Path)
     f.add_argument("--per", type=int, default=12)
     f.add_argument("--seed", type=int, default=0)
+    r = sub.add_parser("review")
+    r.add_argument("fold", type=Path)
+    r.add_argument("out", type=Path)
+    r.add_argument("--k", type=int, required=True)
+    r.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
+    if a.cmd == "review":
+        review(a.fold, a.out, a.k, a.seed)
+        return 0
     if a.cmd == "unpack":
         for p in unpack():
             print(p)
