@@ -48,6 +48,7 @@ def test_wheel_contents(wheel):
     for m in ("cmu-asf", "bandai-bvh", "cmu-bvh"):
         assert f"mtanno/skeletons/{m}.toml" in names
     assert "mtanno/py.typed" in names
+    assert "mtanno/evaluation/player.js" in names  # the report page's player
     assert any(n.endswith("licenses/LICENSE") for n in names)
     meta = next(n for n in names if n.endswith("METADATA"))
     text = zipfile.ZipFile(wheel).read(meta).decode()

@@ -226,8 +226,13 @@ def truth_mocap6(labels, output):
               help="Template folder: adds each template as a heat map, and with --features "
                    "each class's Δ curve over every document.")
 @click.option("--features", "features", multiple=True, type=click.Path(exists=True),
-              help="Feature files or folders of the annotated documents (with --mt). "
+              help="Feature files or folders of the annotated documents: with --mt the Δ "
+                   "curves; files with poses (features --poses) give the players. "
                    "Repeatable.")
+@click.option("--motions", "motions", multiple=True, type=click.Path(), metavar="PATH",
+              help="Motion files (.amc, .bvh) or folders of them, matched to the documents "
+                   "by file name: a stick-figure player per document (instead of the poses "
+                   "of --features). Repeatable.")
 @click.option("--tau", type=TAU, default=None,
               help="Threshold drawn in the Δ plots [default: the annotation's tau, and "
                    "its per-class taus in the classes' colours].")
@@ -238,7 +243,7 @@ def truth_mocap6(labels, output):
               help="Title of the page.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, title,
+def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, tau, delta, title,
                quiet):
     """Write a report of annotation tables into a folder, against ground truth ([MBS09] §7)
     when --truth is given.
@@ -253,6 +258,13 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     timeline_DOC.png|.svg      per document: truth (if given) and annotation
     template_CLASS.png|.svg    with --mt: the templates as heat maps
     delta_DOC.png|.svg         with --mt and --features: each class's Δ over the document
+
+    With --motions (or --features files that hold poses) the page shows each document's
+    motion as a stick figure with its annotation under it; a click on a row of the review
+    list plays that segment, and #autoplay after the page's address plays them all. In
+    the review list a row is accepted, rejected, relabelled or moved by frames, and
+    "Download truth" saves the accepted rows as a truth CSV for learn-mt, tune and
+    evaluate --truth (docs/report.md).
 
     ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
     table below a folder, such as the per-document tables of `mtanno annotate
@@ -277,15 +289,16 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
     from mtanno.util.tables import provenance
 
     require_matplotlib()
-    if features and not mt_dir:
-        raise MtannoError("--features goes with --mt (the Δ curves need the templates)")
     paths = document_files(features) if features else []
+    from mtanno.evaluation.player import motion_files
+
+    motion_paths = motion_files(motions)
     # folders read whole: an output there would be read by the next run
     scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
                **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     annotations = annotation_files(annotations)
     check_outputs([], [*annotations, *([truth_path] if truth_path else []), *paths,
-                       *(template_files(mt_dir) if mt_dir else [])],
+                       *motion_paths.values(), *(template_files(mt_dir) if mt_dir else [])],
                   folders={out_dir: REPORT_FILES}, scanned=scanned)
     rows, frames, provs = read_annotation_tables(annotations)
     recorded = annotation_parameters(provs)
@@ -294,10 +307,16 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
         truth = read_truth(truth_path)
         check_within(truth, frames, path=truth_path)
     templates = load_template_folder(mt_dir) if mt_dir else None
-    feats = {}
+    feats, poses = {}, {}
     for p in paths:
-        ff = read_features(p)
+        ff = read_features(p, poses=not motions)
         feats[ff.document] = ff.X
+        if ff.poses is not None:
+            poses[ff.document] = ff.poses
+    if motions:
+        from mtanno.evaluation.player import load_motion_poses
+
+        poses = load_motion_poses(motion_paths, sorted({r.doc for r in rows} | set(frames)))
     if tau is None:  # the annotation's thresholds
         tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
         per_class = recorded["tau_per_class"]
@@ -305,7 +324,9 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, tau, delta, t
         per_class = {}
     with ProgressBar("report", "figure", quiet=quiet) as bar:
         result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
-                              features=feats or None, tau=tau, tau_per_class=per_class,
+                              features=(feats or None) if mt_dir else None, tau=tau,
+                              tau_per_class=per_class, poses=poses if motions or poses
+                              else None,
                               delta=delta if delta is not None else recorded["delta"],
                               extra_templates=recorded["extra_templates"],
                               title=title, progress=bar, provenance=provenance(

@@ -16,10 +16,12 @@ Modules:
   table (issue 26);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
   clips (``mtanno compose``);
-* :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``).
+* :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``);
+* :mod:`~mtanno.evaluation.player` — the report page's stick-figure players and its review
+  list's controls (review to truth; the script ``player.js`` is package data).
 
 Every module's public names are importable from the package, attached on first use
-(PEP 562), except those of ``compose`` (import :mod:`mtanno.evaluation.compose`): reading a
+(PEP 562), except those of ``compose`` and ``player`` (import them): reading a
 truth table loads neither the report nor the feature extractor.
 """
 

@@ -12,7 +12,10 @@ documents' feature files) :func:`write_report` writes into one folder:
   truth × annotation, with a "none" row and column (frames without a label);
 * ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
 * with templates and features: ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4)
-  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4).
+  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4);
+* on the page, with the documents' poses, a stick-figure player per document, and always
+  the review list with the controls that turn it into a truth CSV
+  (:mod:`mtanno.evaluation.player`).
 
 A confusion matrix needs one label per frame. Annotations from ``annotate
 --single-label`` are a partition; the default output may overlap, and then each frame is
@@ -35,6 +38,7 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
+from mtanno.evaluation.player import review_html
 from mtanno.evaluation.truth import Segment
 
 if TYPE_CHECKING:
@@ -205,13 +209,22 @@ def _html_table(rows: Sequence[dict]) -> str:
     return "\n".join(out) + "</table>"
 
 
+_STYLE = ("body{font-family:sans-serif;max-width:1200px;margin:auto}"
+          "table{border-collapse:collapse;max-width:100%}td,th{border:1px solid #ccc;"
+          "padding:2px 6px;text-align:right;overflow-wrap:anywhere}"
+          "img{max-width:100%;display:block;margin:8px 0}"
+          "pre{white-space:pre-wrap;overflow-wrap:anywhere}"
+          ".player{margin:12px 0}canvas.figure{display:block;border:1px solid #ddd}"
+          "canvas.timeline{display:block;width:100%;cursor:pointer}"
+          "tr.review{cursor:pointer}tr.review.accept{background:#e6f4e6}"
+          "tr.review.reject{background:#f6e6e6;color:#888}"
+          "td input{width:5em}td input.label{width:13em}")
+
+
 def _page(result: ReportResult, images, rows, title: str, provenance: dict, *, docs=(),
-          review=(), scored: bool = True) -> str:
+          review: str = "", scored: bool = True, motions: str = "", script: str = "") -> str:
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
-             "</title><style>body{font-family:sans-serif;max-width:1200px;margin:auto}"
-             "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;"
-             "text-align:right}img{max-width:100%;display:block;margin:8px 0}</style></head>"
-             f"<body><h1>{html.escape(title)}</h1>"]
+             f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"]
     files = ("per_class.csv/.md/.tex, confusion.csv" if scored else "summary.csv/.md (no "
              "truth given: no scores)")
     parts.append(f"<p>{len(docs)} document(s); frames at 30 Hz. Files beside this page: "
@@ -230,11 +243,10 @@ def _page(result: ReportResult, images, rows, title: str, provenance: dict, *, d
             parts.append(f"<figure><img alt='{html.escape(caption)}' "
                          f"src='data:image/png;base64,{data}'>"
                          f"<figcaption>{html.escape(caption)}</figcaption></figure>")
-    if review:
-        parts.append("<h2>Review list</h2><p>Every row, the least confident first.</p>"
-                     + _html_table(review))
+    parts += [motions, review]
     parts.append("<h2>Provenance</h2><pre>" + html.escape(
         "\n".join(f"{k}: {v}" for k, v in provenance.items() if k != "inputs")) + "</pre>")
+    parts.append(script)
     parts.append("</body></html>\n")
     return "\n".join(parts)
 
@@ -264,7 +276,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                  tau: float | None = None, tau_per_class: dict[str, float] | None = None,
                  delta: float | None = None, extra_templates: Sequence[str] = (),
                  title: str = REPORT_TITLE, provenance: dict | None = None,
-                 progress: Callable[[int, int], None] | None = None) -> ReportResult:
+                 progress: Callable[[int, int], None] | None = None,
+                 poses: dict[str, np.ndarray] | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
     document's length (default: the last labelled frame of truth or annotation);
@@ -281,11 +294,13 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     of the scores and the confusion matrix, per class the number of segments, their
     duration and share of the archive (``summary.csv``); the timelines show the annotation
     alone. Either way ``review.csv`` and the page's review list hold every row, the least
-    confident first (the rows to check)."""
+    confident first (the rows to check), with the controls that turn a review into a truth
+    CSV (:func:`mtanno.evaluation.player.review_html`). ``poses`` (document → normalised
+    poses at the 30 Hz frames, :mod:`mtanno.evaluation.player`) adds a stick-figure player
+    per document that has them."""
     from mtanno.plot import (
         label_colours,
         plot_template,
-        plot_timeline,
         require_matplotlib,
     )
     from mtanno.util.output import make_folder
@@ -324,18 +339,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     write_table(folder / "review.csv", pa.Table.from_pylist(review), provenance=prov)
     result.files += [folder / "review.csv", folder / "review.csv.meta.json"]
     colours = label_colours(labels)
-    for d in docs:
-        lanes = {**({"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d]}
-                    if scored else {}),
-                 "annotation": [(a.start + 1, a.end + 1, a.label) for a in annotation
-                                if a.doc == d]}
-        ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
-        present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
-        _legend(ax, present, colours)
-        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
-        ax.set_title(d)
-        w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation" if scored
-                 else "Timelines of the annotation", d)
+    _timelines(w, docs, truth if scored else None, annotation, frames, colours)
     if templates:
         for name, mt in templates.items():
             w.figure(plot_template(mt), f"template_{_safe(name)}", "Templates",
@@ -350,10 +354,45 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                 "their Δ curves here are those of the class's own template only")
     from mtanno.util.output import write_text
 
-    write_text(result.page, _page(result, w.images, rows, title, prov, docs=docs,
-                                  review=review, scored=scored))
+    motions, script = _players(annotation, docs, frames, colours, poses)
+    classes = sorted({a.label for a in annotation} | {s.label for s in truth})
+    write_text(result.page, _page(
+        result, w.images, rows, title, prov, docs=docs, scored=scored, motions=motions,
+        review=review_html(review, classes, set(poses or ())), script=script))
     result.files.append(result.page)
     return result
+
+
+def _timelines(w: _Writer, docs, truth, annotation, frames, colours) -> None:
+    """Per document its timeline figure: truth (None: not given) and annotation."""
+    from mtanno.plot import plot_timeline
+
+    for d in docs:
+        lanes = {**({"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d]}
+                    if truth is not None else {}),
+                 "annotation": [(a.start + 1, a.end + 1, a.label) for a in annotation
+                                if a.doc == d]}
+        ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
+        present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
+        _legend(ax, present, colours)
+        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
+        ax.set_title(d)
+        w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation"
+                 if truth is not None else "Timelines of the annotation", d)
+
+
+def _players(annotation, docs, frames, colours, poses) -> tuple[str, str]:
+    """The page's section of players (none without ``poses``) and its script (players
+    and the review list's controls)."""
+    from matplotlib.colors import to_hex
+
+    from mtanno.evaluation.player import player_script, players_data, players_html
+
+    hexes = {lab: to_hex(colours.get(lab, "#888888")) for lab in {a.label for a in annotation}}
+    shown = {d: poses[d] for d in docs if d in (poses or {})}
+    data = players_data(shown, annotation, frames, hexes)
+    section = "" if poses is None else players_html(data, [d for d in docs if d not in shown])
+    return section, player_script(data)
 
 
 def _scores(w: _Writer, truth, annotation, docs, frames, prov) -> tuple[list[dict], list[str]]:
