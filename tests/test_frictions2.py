@@ -168,3 +168,122 @@ def test_bandai_example_ranks_its_own_clip_first(tmp_path):
                                                frames=(int(a), int(b)), min_segment=3))
             top = index.documents[int(hits.doc[0])].name
             assert (top, hits.score[0]) == (ex.name, 0), (ex.name, a, b, chosen, top)
+
+
+# --- exit codes: one rule for batches ----------------------------------------------------
+
+def _lines(r) -> list[str]:
+    return [m for m in r.output.splitlines() if m.startswith("mtanno: ")]
+
+
+def test_features_goes_on_past_a_missing_path_or_an_unknown_type(world, tmp_path):
+    """Issue 25: a missing path beside good ones aborted `features` with exit 2 while a
+    corrupt file was skipped with exit 1. Now every bad input of a batch is one line and
+    the others are written (exit 1); exit 2 only when no input is usable, as `info` gives
+    for the one file it reads; a run that wrote nothing leaves no output folder."""
+    from world import cli
+
+    good = world.clips / "squat"
+    c3d = tmp_path / "take.c3d"
+    c3d.write_bytes(b"\x02\x50" + bytes(510))
+    for bad, words in ((tmp_path / "nope.amc", "no such file or directory"),
+                       (c3d, "unknown motion file type '.c3d'")):
+        out = tmp_path / f"out_{bad.suffix[1:]}"
+        r = cli("features", good, bad, "-o", out)
+        assert r.exit_code == 1, r.output
+        assert _lines(r) == [f"mtanno: {bad}: {words} (expected .amc or .bvh)"
+                             if bad == c3d else f"mtanno: {bad}: {words}"]
+        assert len(list(out.glob("*.parquet"))) == len(list(good.glob("*.amc"))) > 0
+        assert "1 failed" in r.output
+        alone = tmp_path / f"alone_{bad.suffix[1:]}"
+        r = cli("features", bad, "-o", alone)
+        assert r.exit_code == 2 and len(_lines(r)) == 1 and words in r.output
+        assert not alone.exists()
+    r = cli("info", c3d)
+    assert r.exit_code == 2 and "unknown motion file type '.c3d'" in r.output
+    corrupt = tmp_path / "corrupt"
+    corrupt.mkdir()
+    (corrupt / "x.bvh").write_text("junk\n")
+    r = cli("features", corrupt, "-o", tmp_path / "nothing")
+    assert r.exit_code == 1 and "0 written" in r.output
+    assert not (tmp_path / "nothing").exists()
+
+
+@pytest.mark.parametrize("command", ["annotate", "index", "index add", "retrieve",
+                                     "evaluate-retrieval"])
+def test_batches_go_on_past_a_missing_path(world, tmp_path, command):
+    """The same rule in the other batch commands: the missing path is one line, the good
+    input is processed, exit code 1; the missing path alone is exit code 2."""
+    from world import cli
+
+    missing = tmp_path / "nope.parquet"
+
+    def run(*inputs):
+        if command == "annotate":
+            return cli("annotate", "--mt", world.mt, *inputs, "-o", tmp_path / "a.csv", "-q")
+        if command == "index":
+            return cli("index", *inputs, "-o", tmp_path / "idx", "-q")
+        if command == "index add":
+            idx = tmp_path / "idx_add"
+            if not idx.exists():
+                world.copy(world.index, idx)
+            return cli("index", "add", idx, *inputs, "-q")
+        if command == "retrieve":
+            return cli("retrieve", "--mt", world.template, *inputs, "-o", tmp_path / "h.csv",
+                       "-q")
+        return cli("evaluate-retrieval", "--mt", world.mt, "--truth", world.truth, *inputs,
+                   "-o", tmp_path / "e.csv")
+
+    r = run(world.doc_files[0], missing)
+    assert r.exit_code == 1, r.output
+    assert _lines(r) == [f"mtanno: {missing}: no such feature file or folder"]
+    if command != "index add":
+        assert any(tmp_path.glob("[aihe]*.*")) or (tmp_path / "idx").is_dir()
+    if command != "index add":
+        r = run(missing)
+        assert r.exit_code == 2 and len(_lines(r)) == 1, r.output
+
+
+def test_retrieve_takes_the_template_folder_annotate_takes(world, tmp_path):
+    """Issue 25: `retrieve --mt MT/` refused the folder `annotate --mt MT/` takes. Each
+    class is retrieved; a first column names it, ranks count per class, and each class's
+    rows equal a retrieve of its template alone."""
+    import csv
+
+    from world import cli
+
+    out = tmp_path / "all.csv"
+    r = cli("retrieve", "--mt", world.mt, world.docfeats, "--tau", "0.2", "-o", out, "-q")
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader(out.open()))
+    classes = sorted(p.stem for p in world.mt.glob("*.json"))
+    assert list(rows[0]) == ["class", "doc", "start", "end", "start_native", "end_native",
+                             "cost", "rank"]
+    assert sorted({r["class"] for r in rows}) <= classes and len({r["class"] for r in rows}) > 1
+    for cls in {r["class"] for r in rows}:
+        one = tmp_path / f"{cls}.csv"
+        r = cli("retrieve", "--mt", world.mt / f"{cls}.json", world.docfeats, "--tau", "0.2",
+                "-o", one, "-q")
+        assert r.exit_code == 0
+        alone = list(csv.DictReader(one.open()))
+        assert [{k: v for k, v in x.items() if k != "class"} for x in rows
+                if x["class"] == cls] == alone
+
+
+def test_an_interrupted_learn_keyframes_leaves_no_empty_folder(world, tmp_path, monkeypatch):
+    """Issue 25: learn-keyframes interrupted (Ctrl-C) before it wrote a class left an empty
+    output folder; now the folder it made is removed (mtanno.util.output.output_folder)."""
+    import mtanno.keyframes.learn
+    from world import cli
+
+    started = []
+
+    def interrupted(*args, **kwargs):
+        started.append(1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(mtanno.keyframes.learn, "learn_keyframes", interrupted)
+    out = tmp_path / "new" / "kf"
+    r = cli("learn-keyframes", "--mt", world.mt, world.feats, "-o", out, "--runs", "2", "-q")
+    assert started and r.exit_code != 0
+    assert not out.exists() and not out.parent.exists()
