@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from world import cli
 
 from mtanno.index import example_query, index_from_matrices, search
 from mtanno.index.example import drop_short_segments
@@ -181,7 +182,6 @@ def test_features_goes_on_past_a_missing_path_or_an_unknown_type(world, tmp_path
     corrupt file was skipped with exit 1. Now every bad input of a batch is one line and
     the others are written (exit 1); exit 2 only when no input is usable, as `info` gives
     for the one file it reads; a run that wrote nothing leaves no output folder."""
-    from world import cli
 
     good = world.clips / "squat"
     c3d = tmp_path / "take.c3d"
@@ -214,7 +214,6 @@ def test_features_goes_on_past_a_missing_path_or_an_unknown_type(world, tmp_path
 def test_batches_go_on_past_a_missing_path(world, tmp_path, command):
     """The same rule in the other batch commands: the missing path is one line, the good
     input is processed, exit code 1; the missing path alone is exit code 2."""
-    from world import cli
 
     missing = tmp_path / "nope.parquet"
 
@@ -250,7 +249,6 @@ def test_retrieve_takes_the_template_folder_annotate_takes(world, tmp_path):
     rows equal a retrieve of its template alone."""
     import csv
 
-    from world import cli
 
     out = tmp_path / "all.csv"
     r = cli("retrieve", "--mt", world.mt, world.docfeats, "--tau", "0.2", "-o", out, "-q")
@@ -274,7 +272,6 @@ def test_an_interrupted_learn_keyframes_leaves_no_empty_folder(world, tmp_path, 
     """Issue 25: learn-keyframes interrupted (Ctrl-C) before it wrote a class left an empty
     output folder; now the folder it made is removed (mtanno.util.output.output_folder)."""
     import mtanno.keyframes.learn
-    from world import cli
 
     started = []
 
@@ -287,3 +284,33 @@ def test_an_interrupted_learn_keyframes_leaves_no_empty_folder(world, tmp_path, 
     r = cli("learn-keyframes", "--mt", world.mt, world.feats, "-o", out, "--runs", "2", "-q")
     assert started and r.exit_code != 0
     assert not out.exists() and not out.parent.exists()
+
+
+# --- guessed skeleton maps: outputs stay up to date ---------------------------------------
+
+def test_a_guessed_map_output_is_up_to_date_on_the_second_run(tmp_path):
+    """Issue 25: a BVH no built-in map fits (its map is guessed from names and tree) was
+    recomputed by every `features` run: the up-to-date check looked for a map file that
+    fits and found none. Now the guessed map's content hash is compared (the guess is a
+    function of the file): the second run writes nothing; --force still recomputes."""
+    from conftest import SHARED
+    from data_cache import bandai_clips
+    from test_rig_guess import BANDAI_CONVENTIONS, parse_bvh
+
+    if not (SHARED / "data" / "bandai").is_dir():
+        pytest.skip("../shared/data/bandai is not present")
+    clip = next(p for p in bandai_clips("set1.tar.xz")
+                if p.name == "dataset-1_walk_normal_001.bvh")
+    src = tmp_path / "in"
+    src.mkdir()
+    for c in ("mixamo", "unreal"):
+        BANDAI_CONVENTIONS[c](parse_bvh(clip.read_text())).write(src / f"{c}.bvh")
+    out = tmp_path / "out"
+    r = cli("features", src, "-o", out)
+    assert r.exit_code == 0 and "2 written" in r.output, r.output
+    r = cli("info", src / "mixamo.bvh")
+    assert "guessed" in r.output or "generated" in r.output, r.output
+    r = cli("features", src, "-o", out)
+    assert r.exit_code == 0 and "0 written" in r.output and "2 up to date" in r.output, r.output
+    r = cli("features", src, "-o", out, "--force")
+    assert "2 written" in r.output
