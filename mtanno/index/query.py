@@ -493,3 +493,4 @@ def warm_up() -> None:
              GroupQuery("h", (FuzzySet.exact(1, 1),)))
     search(idx, Query(parts, "adaptive"))
     search(idx, Query(parts[:1], "exact"))
+    search(idx, Query(parts, "adaptive", smooth=True))  # a query by example's kernel
