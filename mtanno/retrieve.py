@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,7 +35,7 @@ from mtanno.templates.match import DEFAULT_STEP_WEIGHTS, DEFAULT_STEPS, Prepared
 
 __all__ = ["DEFAULT_DELTA", "DEFAULT_MAX_HITS", "DEFAULT_TAU", "HIT_MODES", "Hit", "HitList",
            "RetrievalBatch", "extract_hits", "hit_table", "retrieve",
-           "retrieve_files", "write_hits"]
+           "retrieve_files", "retrieve_files_classes", "write_hits"]
 
 #: How hits are picked from Δ (:func:`extract_hits`).
 HIT_MODES = ("retrieval", "classification")
@@ -222,29 +222,37 @@ def retrieve(template_values: np.ndarray, weights: np.ndarray,
 HIT_COLUMNS = ("doc", "start", "end", "start_native", "end_native", "cost", "rank")
 
 
-def hit_table(hits: Sequence[Hit], native: Sequence[np.ndarray]):
+def hit_table(hits: Sequence[Hit] | Mapping[str, Sequence[Hit]], native: Sequence[np.ndarray]):
     """The hit table (``docs/retrieval.md``) as a :class:`pyarrow.Table`: doc, start, end
     (1-based inclusive 30 Hz frames), start_native, end_native (frames of the source motion
     file, from each document's ``native`` frame column, indexed by ``Hit.doc_index``),
-    cost, rank (1 = cheapest)."""
+    cost, rank (1 = cheapest). ``hits`` may map class names to their hits (``retrieve
+    --mt`` with a folder of templates): then a first column ``class`` names each hit's
+    class, the classes follow each other in the mapping's order and ranks count per class."""
     import pyarrow as pa
 
     from mtanno.util.tables import arrow_table
 
-    cols: dict[str, list] = {c: [] for c in HIT_COLUMNS}
-    for rank, h in enumerate(hits, 1):
-        nat = native[h.doc_index]
-        for c, v in zip(HIT_COLUMNS, (str(h.doc), h.start + 1, h.end + 1, int(nat[h.start]),
-                                      int(nat[h.end]), float(h.cost), rank)):
-            cols[c].append(v)
-    types = {"doc": pa.string(), "cost": pa.float64()}
-    return arrow_table(cols, types)  # (names of non-UTF-8 files written as text)
+    by_class = hits if isinstance(hits, Mapping) else None
+    groups = by_class.items() if by_class is not None else [(None, hits)]
+    names = (("class",) if by_class is not None else ()) + HIT_COLUMNS
+    cols: dict[str, list] = {c: [] for c in names}
+    for cls, class_hits in groups:
+        for rank, h in enumerate(class_hits, 1):
+            nat = native[h.doc_index]
+            row = (str(h.doc), h.start + 1, h.end + 1, int(nat[h.start]), int(nat[h.end]),
+                   float(h.cost), rank)
+            for c, v in zip(names, ((cls,) if by_class is not None else ()) + row):
+                cols[c].append(v)
+    types = {"class": pa.string(), "doc": pa.string(), "cost": pa.float64()}
+    return arrow_table(cols, {c: t for c, t in types.items() if c in cols})
 
 
-def write_hits(path: str | os.PathLike, hits: Sequence[Hit], native: Sequence[np.ndarray], *,
-               provenance: dict | None = None) -> None:
-    """Write the hit table (:func:`hit_table`) in the format of ``path``'s suffix (``-``:
-    CSV on standard output), atomically and with its provenance (:mod:`mtanno.util.tables`)."""
+def write_hits(path: str | os.PathLike, hits: Sequence[Hit] | Mapping[str, Sequence[Hit]],
+               native: Sequence[np.ndarray], *, provenance: dict | None = None) -> None:
+    """Write the hit table (:func:`hit_table`; one class's hits, or class → hits) in the
+    format of ``path``'s suffix (``-``: CSV on standard output), atomically and with its
+    provenance (:mod:`mtanno.util.tables`)."""
     from mtanno.util.tables import write_table
 
     write_table(path, hit_table(hits, native), provenance=provenance)
@@ -260,6 +268,30 @@ class RetrievalBatch:
     native: list[np.ndarray] = field(default_factory=list)
     files: list[dict] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
+    by_class: dict[str, HitList] = field(default_factory=dict)
+
+
+def _documents(paths: Sequence[str | os.PathLike], layout, batch: RetrievalBatch,
+               progress: Callable[[str, str | None], None] | None):
+    """Yield (document name, features) of each feature file that can be read and fits
+    ``layout``; record its native frames and file in ``batch``, a failure in
+    ``batch.failed``, and call ``progress`` once per file."""
+    from mtanno.util.store import check_layout, read_features
+
+    for p in paths:
+        try:
+            ff = read_features(p, sha256=True)
+            check_layout(ff, layout)
+        except MtannoError as exc:
+            batch.failed.append(str(exc))
+            if progress:
+                progress(str(p), str(exc))
+            continue
+        batch.native.append(ff.native_frames)
+        batch.files.append({"path": str(p), "sha256": ff.sha256})
+        yield ff.document, ff.X
+        if progress:
+            progress(str(p), None)
 
 
 def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
@@ -270,28 +302,30 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
     and checked against the template's ``layout`` (:func:`mtanno.util.store.check_layout`); a
     file that fails is recorded in ``failed`` and the others are still searched.
     ``progress`` is called once per file with its path and its failure (None on success)."""
-    from mtanno.util.store import check_layout, read_features
-
     batch = RetrievalBatch(HitList())
+    batch.hits = retrieve(template_values, weights, _documents(paths, layout, batch, progress),
+                          tau=tau, max_hits=max_hits, variant=variant)
+    return batch
 
-    def documents():
-        for p in paths:
-            try:
-                ff = read_features(p, sha256=True)
-                check_layout(ff, layout)
-            except MtannoError as exc:
-                batch.failed.append(str(exc))
-                if progress:
-                    progress(str(p), str(exc))
-                continue
-            batch.native.append(ff.native_frames)
-            batch.files.append({"path": str(p), "sha256": ff.sha256})
-            yield ff.document, ff.X
-            if progress:
-                progress(str(p), None)
 
-    batch.hits = retrieve(template_values, weights, documents(), tau=tau, max_hits=max_hits,
-                          variant=variant)
+def retrieve_files_classes(templates: Mapping[str, tuple[np.ndarray, np.ndarray]],
+                           paths: Sequence[str | os.PathLike], *, layout, tau: float,
+                           max_hits: int = DEFAULT_MAX_HITS, variant: str = "reference",
+                           progress: Callable[[str, str | None], None] | None = None
+                           ) -> RetrievalBatch:
+    """:func:`retrieve_files` for several classes at once (``retrieve --mt FOLDER``, the
+    folders ``annotate --mt`` takes): ``templates`` maps class names to (quantized values,
+    weights) of one feature ``layout``; each feature file is read and checked once, then
+    every class is retrieved on the good ones. ``by_class`` holds each class's ranked hits
+    (``hits`` those of all classes, in class order); ``max_hits`` applies per class."""
+    batch = RetrievalBatch(HitList())
+    docs = list(_documents(paths, layout, batch, progress))
+    for cls, (values, weights) in templates.items():
+        batch.by_class[cls] = retrieve(values, weights, docs, tau=tau, max_hits=max_hits,
+                                       variant=variant)
+    batch.hits = HitList((h for hl in batch.by_class.values() for h in hl),
+                         truncated=any(hl.truncated for hl in batch.by_class.values()),
+                         cap=int(max_hits))
     return batch
 
 

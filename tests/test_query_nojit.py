@@ -26,7 +26,14 @@ def results() -> dict:
     from naive_features import features_numpy
 
     from mtanno.features import compute_features_native, get_feature_set
-    from mtanno.index import FuzzySet, GroupQuery, Query, index_from_matrices, search
+    from mtanno.index import (
+        FuzzySet,
+        GroupQuery,
+        Query,
+        example_query,
+        index_from_matrices,
+        search,
+    )
 
     rng = np.random.default_rng(9)
     names = ["a", "b", "c", "d"]
@@ -42,6 +49,10 @@ def results() -> dict:
     hits = search(idx, Query(two, "adaptive"))
     out["two"] = [hits.doc.tolist(), hits.start.tolist(), hits.end.tolist()]
     out["intervals"] = [a.tolist() for a in idx.groups["g"].intervals([(5, 4)])]
+    for feats, frames, n in ((["a", "c"], (5, 40), 3), (["a", "b", "d"], (0, 59), 1)):
+        hits = search(idx, example_query(idx, docs["x1"], names, feats, frames=frames,
+                                         min_segment=n))  # smoothed (Query.smooth)
+        out[f"example{n}"] = [hits.doc.tolist(), hits.start.tolist(), hits.score.tolist()]
     J = rng.normal(size=(40, 22, 3)) * 25
     H = np.zeros((40, 3))
     for name in ("mrc05", "mrc05-reference"):

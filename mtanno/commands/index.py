@@ -202,8 +202,9 @@ def info_cmd(index_dir, as_json, output):
               help="Allow up to M query segments to disagree (exact and fuzzy modes).")
 @click.option("--min-segment", "min_segment", type=click.IntRange(min=1), default=None,
               metavar="N", help="Shortest phase in frames at 30 Hz: shorter example segments "
-              "are transitions, not query segments, and documents may pass through other "
-              "vectors for up to N-1 frames between two query segments (adaptive mode). "
+              "are transients, not query segments, and so are the documents' (adaptive "
+              "mode); a query file's documents may pass through other vectors for up to N-1 "
+              "frames between two query segments. "
               "[default: 3 with --example; the query file's min_segment, else 1, with "
               "--query]")
 @click.option("--rank-mt", "rank_mt", default=None, type=click.Path(dir_okay=False),
@@ -235,11 +236,13 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     keyframes, the frames of the earliest keyframe chain in the hit, then the hit's last
     frame).
 
-    A query by example ignores transients: example segments shorter than --min-segment
-    frames are not query segments, and documents may pass through short transitions
-    between query segments. Its hits are trimmed: they keep at most as many frames of the
-    poses before and after the motion (the first and last query segments) as the example
-    has; span_start and span_end give the untrimmed hit.
+    A query by example ignores transients: runs shorter than --min-segment frames, of the
+    whole example and of every document, are given to the run before them, and the
+    example is cut by --frames afterwards, so its own source is always the first hit, with
+    score 0. The first and last query segments are scored against the whole runs the cut
+    fell in. Hits are trimmed: they keep at most as many frames of the poses before and
+    after the motion (the first and last query segments) as the example has; span_start
+    and span_end give the untrimmed hit.
     """
     import time
 

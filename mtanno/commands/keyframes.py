@@ -87,7 +87,7 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
         group_by_class,
         load_examples,
     )
-    from mtanno.util.output import check_outputs
+    from mtanno.util.output import check_outputs, output_folder
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth,
@@ -119,7 +119,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     total = len(todo) * (runs if method == "ga" else 1)
     bar = tqdm(total=total, unit="run" if method == "ga" else "class", desc="learn-keyframes",
                disable=not show_progress(quiet))
-    with lock_output(out, wait=wait):
+    # a run that writes nothing (every class failed, or interrupted) leaves no new folder
+    with output_folder(out), lock_output(out, wait=wait):
         t0 = time.perf_counter()
         written, failed = [], []
         for cls in todo:

@@ -21,7 +21,9 @@ from mtanno.util.store import feature_files
 @click.argument("features", nargs=-1, required=True, metavar="FEATURES...")
 @click.option("--mt", "mt_path", required=True, type=click.Path(),
               help="Template JSON of the class (from learn-mt; quantized with its delta, or "
-                   "with --delta, when it is not quantized yet), or a folder holding one.")
+                   "with --delta, when it is not quantized yet), or a folder of templates "
+                   "(as annotate --mt takes): every class is retrieved, the table gets a "
+                   "class column.")
 @click.option("--tau", default=DEFAULT_TAU, show_default=True, type=TAU,
               help="Quality threshold: hits have cost Δ ≤ tau ([MR06]: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
@@ -53,7 +55,13 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
     recursively. Each file is one document; matches never cross documents. Hits are
     found greedily by increasing cost Δ (algorithms.md §3.4–3.5) and ranked over all
     documents. Output columns: doc, start, end (1-based inclusive 30 Hz frames),
-    start_native, end_native (frames of the source motion file), cost, rank.
+    start_native, end_native (frames of the source motion file), cost, rank. With a
+    folder of several templates (--mt MT/, as annotate takes) each class is retrieved and
+    a first column, class, names it; ranks and --max-hits count per class.
+
+    A FEATURES path that names no feature file, or a file that cannot be used, is
+    reported in one line and the others are searched (exit code 1); with no usable
+    feature file at all the exit code is 2.
 
     Example: mtanno retrieve --mt mts/squat1Reps.json feats/ --tau 0.06 -o squat_hits.csv
     """
@@ -61,8 +69,13 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
     from tqdm import tqdm
 
     from mtanno.annotate import check_tau
-    from mtanno.retrieve import retrieval_template, retrieve_files, write_hits
-    from mtanno.templates.model import load_one_template, template_files
+    from mtanno.retrieve import (
+        retrieval_template,
+        retrieve_files,
+        retrieve_files_classes,
+        write_hits,
+    )
+    from mtanno.templates.model import load_template, load_template_folder, template_files
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
@@ -72,9 +85,12 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
     files = feature_files(features, failures=missing)
     check_outputs(output_files(output), [mt_path, *template_files(mt_path), *files],
                   scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
-    mt = retrieval_template(load_one_template(mt_path), delta=qdelta)
-    mt_path = mt.path  # the file, for messages and the provenance
-    layout = mt.layout(f"template {mt_path}")
+    found = (load_template_folder(mt_path) if Path(mt_path).is_dir() else
+             {"": load_template(mt_path)})
+    mts = {m.class_name: retrieval_template(m, delta=qdelta) for m in found.values()}
+    mt = next(iter(mts.values()))
+    several = len(mts) > 1
+    layout = mt.layout(f"template {mt.path}")
     for message in missing:
         click.echo(f"mtanno: {message}", err=True)
     bar = tqdm(total=len(files), unit="file", disable=not show_progress(quiet), desc="retrieve")
@@ -84,19 +100,28 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
         if error is not None:
             bar.write(f"mtanno: {error}", file=sys.stderr)
 
-    batch = retrieve_files(mt.values, mt.weights, files, layout=layout, tau=tau,
-                           max_hits=max_hits, variant=variant, progress=progress)
+    if several:
+        batch = retrieve_files_classes({c: (m.values, m.weights) for c, m in mts.items()},
+                                       files, layout=layout, tau=tau, max_hits=max_hits,
+                                       variant=variant, progress=progress)
+    else:
+        batch = retrieve_files(mt.values, mt.weights, files, layout=layout, tau=tau,
+                               max_hits=max_hits, variant=variant, progress=progress)
     bar.close()
     hits = batch.hits
-    write_hits(output, hits, batch.native, provenance=provenance(
-        inputs=batch.files, templates=[{"class": mt.class_name, **file_record(mt_path)}],
-        tau=tau, delta=mt.delta, variant=variant, max_hits=max_hits,
-        feature_set=mt.feature_set, truncated=hits.truncated))
+    deltas = sorted({m.delta for m in mts.values()})
+    write_hits(output, batch.by_class if several else hits, batch.native,
+               provenance=provenance(
+        inputs=batch.files, templates=[{"class": c, **file_record(m.path)}
+                                       for c, m in mts.items()],
+        tau=tau, delta=deltas[0] if len(deltas) == 1 else deltas, variant=variant,
+        max_hits=max_hits, feature_set=mt.feature_set, truncated=hits.truncated))
     if hits.truncated:
         click.echo(f"retrieve: the hit cap --max-hits {max_hits} was reached; more hits with "
                    f"cost ≤ {tau:g} exist", err=True)
     if not quiet:
-        click.echo(f"retrieve: {len(hits)} hit(s) of {mt.class_name} in "
+        what = f"{len(mts)} classes" if several else mt.class_name
+        click.echo(f"retrieve: {len(hits)} hit(s) of {what} in "
                    f"{len(files) - len(batch.failed)} document(s), tau {tau:g}, "
                    f"{len(batch.failed) + len(missing)} failed"
                    + (f" -> {output}" if output != "-" else ""), err=True)

@@ -267,15 +267,17 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
 
     A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
     ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
-    Raises :class:`MtannoError` for a missing input, one that is neither a motion file nor
-    a folder, two inputs with the same output, or an output that is one of the inputs
-    (:func:`mtanno.util.output.check_outputs`). ``listed`` are more inputs, read from a list
-    (``features -``): one of them that is missing or not a motion file is a failed job
-    (reported, the batch goes on) instead of an error, as is an entry of a folder with a
-    motion suffix that is not a regular file (a FIFO is never opened).
+    An input that is missing or neither a motion file nor a folder is a failed job
+    (reported, the batch goes on: exit code 1), as is an entry of a folder with a motion
+    suffix that is not a regular file (a FIFO is never opened); when no input is usable,
+    the first such input on the command line is raised instead (exit code 2). ``listed``
+    are more inputs, read from a list (``features -``), whose failures are always failed
+    jobs. Raises :class:`MtannoError` for two inputs with the same output, or an output
+    that is one of the inputs (:func:`mtanno.util.output.check_outputs`).
     """
     outdir = Path(outdir)
     jobs: list[Job] = []
+    refused: list[MtannoError] = []  # bad command-line inputs, raised when nothing is usable
     for item, strict in [*((i, True) for i in inputs), *((i, False) for i in listed)]:
         p = Path(item)
         why = _not_regular(p)
@@ -285,9 +287,11 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
         if why is None and not _is_motion(p):
             why = _unknown_type(p)
         if why is not None and strict:
-            raise MtannoError("no such file or directory" if why == "motion file not found"
-                              else why, path=str(p))
+            why = "no such file or directory" if why == "motion file not found" else why
+            refused.append(MtannoError(why, path=str(p)))
         jobs.append(Job(p, outdir / (p.stem + ".parquet"), error=why or ""))
+    if refused and all(j.error for j in jobs):
+        raise refused[0]
     seen: dict[Path, Path] = {}
     for j in jobs:
         if j.error:
@@ -360,10 +364,27 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
         nodes = meta.get("rig_nodes")
         if not isinstance(nodes, list):
             return False
-        smap = select_map(str(meta.get("rig")), [str(n) for n in nodes], skeleton)
+        try:
+            smap = select_map(str(meta.get("rig")), [str(n) for n in nodes], skeleton)
+        except MtannoError:
+            if (skeleton is not None or meta.get("skeleton_map_file") != "generated"
+                    or meta.get("rig") != "bvh"):
+                return False
+            return _guessed_digest(job.src) == meta.get("skeleton_map_sha256")
     except (OSError, MtannoError):
         return False
     return smap.digest == meta.get("skeleton_map_sha256")
+
+
+def _guessed_digest(src: Path) -> str:
+    """The content hash of the skeleton map :func:`mtanno.io.guess.guess_map` makes for a
+    BVH file no map fits (the map is made from the file's names, tree and first frames, so
+    the same file gives the same map): an output whose recorded map has this hash is up to
+    date, instead of recomputed on every run."""
+    from mtanno.io.bvh import read_bvh
+    from mtanno.io.guess import guess_map
+
+    return guess_map(*read_bvh(src)).digest
 
 
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,

@@ -14,6 +14,7 @@ document's segments are one contiguous range and a hit never crosses a document 
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 
 @numba.njit(cache=True)
@@ -189,5 +190,82 @@ def merge_rows(rows, seg_doc, seg_start, seg_len, out_doc, out_start, out_end):
             out_doc[cnt] = seg_doc[r]
             out_start[cnt] = seg_start[r]
             out_end[cnt] = seg_start[r] + seg_len[r] - 1
+            cnt += 1
+    return cnt
+
+
+@numba.njit(cache=True)
+def smoothed_hits(docs, doc_offsets, code, seg_start, seg_len, mask, values, min_len,
+                  out_doc, out_rows, out_bounds):
+    """Hits of a query by example on the documents' *smoothed* segmentation
+    ([MRC05] §5.2 adaptive hits, with the example's own smoothing applied to the documents).
+
+    For each document number in ``docs``: its segments are projected onto the query's
+    chosen bits (``code & mask``) and equal neighbours joined (the runs of [MRC05]'s
+    coarsening); runs shorter than ``min_len`` frames but the first and last (the
+    recording's ends cut a pose short) are then given to the run before them and equal
+    neighbours joined again — the rule of :func:`mtanno.index.example.drop_short_segments`
+    with ``keep_ends``, which the example's segmentation went through — and a hit is
+    ``L = len(values)`` consecutive smoothed runs with exactly those projected values.
+    Writes per hit its document, the segment row where each of its runs starts plus one
+    past its last row (``out_rows``, hits × (L+1)) and the runs' start frames plus end + 1
+    (``out_bounds``); returns the number of hits (outputs must hold one row per segment of
+    the candidate documents)."""
+    L = values.shape[0]
+    cnt = 0
+    for di in range(docs.shape[0]):
+        d = docs[di]
+        lo = doc_offsets[d]
+        hi = doc_offsets[d + 1]
+        n = hi - lo
+        if n == 0:
+            continue
+        # projected runs: value, first row, frames
+        r_val = np.empty(n, np.int64)
+        r_row = np.empty(n, np.int64)
+        r_len = np.empty(n, np.int64)
+        nr = 0
+        for r in range(lo, hi):
+            v = code[r] & mask
+            if nr > 0 and r_val[nr - 1] == v:
+                r_len[nr - 1] += seg_len[r]
+            else:
+                r_val[nr] = v
+                r_row[nr] = r
+                r_len[nr] = seg_len[r]
+                nr += 1
+        # drop the short runs but the first and last (drop_short_segments, keep_ends)
+        c_val = np.empty(nr, np.int64)
+        c_row = np.empty(nr, np.int64)
+        c_start = np.empty(nr, np.int64)
+        c_len = np.empty(nr, np.int64)
+        nc = 0
+        frame = seg_start[lo]
+        for k in range(nr):
+            if nc > 0 and (c_val[nc - 1] == r_val[k]
+                           or (r_len[k] < min_len and k < nr - 1)):
+                c_len[nc - 1] += r_len[k]  # a transient, or the same value again
+            else:
+                c_val[nc] = r_val[k]
+                c_row[nc] = r_row[k]
+                c_start[nc] = frame
+                c_len[nc] = r_len[k]
+                nc += 1
+            frame += r_len[k]
+        for k in range(nc - L + 1):
+            ok = True
+            for i in range(L):
+                if c_val[k + i] != values[i]:
+                    ok = False
+                    break
+            if not ok:
+                continue
+            out_doc[cnt] = d
+            for i in range(L):
+                out_rows[cnt, i] = c_row[k + i]
+                out_bounds[cnt, i] = c_start[k + i]
+            last = k + L - 1
+            out_rows[cnt, L] = c_row[last + 1] if last + 1 < nc else hi
+            out_bounds[cnt, L] = c_start[last] + c_len[last]
             cnt += 1
     return cnt

@@ -16,8 +16,8 @@ from mtanno.errors import MtannoError
 from mtanno.index.core import Index, segment
 from mtanno.index.query import FuzzySet, GroupQuery, Query
 
-__all__ = ["DEFAULT_MIN_SEGMENT", "drop_short_segments", "example_matrix", "example_file_query",
-           "example_query", "load_query", "parse_query", "resolve_features"]
+__all__ = ["DEFAULT_MIN_SEGMENT", "cut_segments", "drop_short_segments", "example_matrix",
+           "example_file_query", "example_query", "load_query", "parse_query", "resolve_features"]
 
 
 def example_matrix(index: Index, example: str | os.PathLike
@@ -61,14 +61,17 @@ def _projection(index: Index, features: Sequence[str]) -> dict[str, list[tuple[i
 DEFAULT_MIN_SEGMENT = 3
 
 
-def drop_short_segments(lengths: np.ndarray, values: np.ndarray, min_segment: int
-                        ) -> tuple[list[int], list[int]]:
+def drop_short_segments(lengths: np.ndarray, values: np.ndarray, min_segment: int, *,
+                        keep_ends: bool = False) -> tuple[list[int], list[int]]:
     """An example's segmentation without its transients: segments shorter than
     ``min_segment`` frames are dropped and their frames given to the segment before them
     (the one after, at the start), then neighbours with equal vectors are joined. When no
-    segment is long enough the longest one (the first of equal ones) stays. Returns
-    (lengths, values)."""
+    segment is long enough the longest one (the first of equal ones) stays. With
+    ``keep_ends`` the first and last segments stay whatever their length (a recording's
+    ends cut a pose short; they are not transients). Returns (lengths, values)."""
     keep = [int(n) >= min_segment for n in lengths]
+    if keep_ends and keep:
+        keep[0] = keep[-1] = True
     if not any(keep):
         keep[int(np.argmax(lengths))] = True
     out_len: list[int] = []
@@ -100,9 +103,12 @@ def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: S
     index's feature set), ``frames`` an optional 0-based inclusive range.
 
     ``min_segment`` (frames; :data:`DEFAULT_MIN_SEGMENT` on the command line): example
-    segments shorter than it are transitions, not query segments
-    (:func:`drop_short_segments`), and the query lets documents pass through transitions
-    of up to ``min_segment − 1`` frames between its segments (adaptive mode)."""
+    segments shorter than it are transients, not query segments
+    (:func:`drop_short_segments`, applied to the whole example before ``frames`` cuts it:
+    :func:`cut_segments`). In the adaptive mode the query is *smoothed*
+    (:attr:`Query.smooth`): each document's runs over the chosen features go through the
+    same rule, so the example's own source is found with the same segments, and ranks
+    first with score 0 whatever the cut."""
     features = [index.features[_feature_pos(index, f)] for f in features]
     pos = {n: i for i, n in enumerate(names)}
     missing = [f for f in features if f not in pos]
@@ -115,14 +121,40 @@ def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: S
     parts = []
     for g, chosen in _projection(index, features).items():
         mask = sum(1 << bit for _, bit in chosen)
-        codes = np.zeros(b - a + 1, dtype=np.int64)
+        codes = np.zeros(n, dtype=np.int64)
         for i, bit in chosen:
-            codes |= X[pos[features[i]], a:b + 1].astype(np.int64) << bit
-        _, lengths, vals = segment(codes)
-        lengths, vals = drop_short_segments(lengths, vals, min_segment)
+            codes |= X[pos[features[i]]].astype(np.int64) << bit
+        lengths, vals, context = cut_segments(codes, a, b, min_segment)
         sets = tuple(FuzzySet(((mask, int(v)),)) for v in vals)
-        parts.append(GroupQuery(g, sets, tuple(int(x) for x in lengths)))
-    return Query(tuple(parts), mode, mismatches, min_segment)
+        parts.append(GroupQuery(g, sets, tuple(lengths), context=context))
+    return Query(tuple(parts), mode, mismatches, min_segment, smooth=mode == "adaptive")
+
+
+def cut_segments(codes: np.ndarray, a: int, b: int, min_segment: int
+                 ) -> tuple[list[int], list[int], tuple[int, int]]:
+    """The segments of frames ``a..b`` (0-based, inclusive) of an example whose per-frame
+    codes are ``codes``: the whole example is segmented and smoothed
+    (:func:`drop_short_segments`, its first and last runs kept), as every document of the
+    index is when queried
+    (:attr:`Query.smooth`), then cut to the range, so the cut's segments are those its
+    source document has there. The first and last are usually partial (the cut falls
+    inside a run); one shorter than ``min_segment`` frames is left out (the frames before
+    the motion chosen), unless it is all there is. Returns (lengths, values, the whole
+    lengths of the runs the first and last segments were cut from), frames."""
+    _, lengths, vals = segment(codes)
+    lengths, vals = drop_short_segments(lengths, vals, min_segment, keep_ends=True)
+    ends = np.cumsum(lengths)
+    starts = ends - np.asarray(lengths)
+    first = int(np.searchsorted(ends, a, side="right"))
+    last = int(np.searchsorted(ends, b, side="right"))
+    cut = [int(min(e, b + 1) - max(s, a)) for s, e in zip(starts[first:last + 1],
+                                                          ends[first:last + 1])]
+    idx = list(range(first, last + 1))
+    if len(cut) > 1 and cut[-1] < min_segment:
+        cut, idx = cut[:-1], idx[:-1]
+    if len(cut) > 1 and cut[0] < min_segment:
+        cut, idx = cut[1:], idx[1:]
+    return cut, [int(vals[i]) for i in idx], (int(lengths[idx[0]]), int(lengths[idx[-1]]))
 
 
 def _feature_pos(index: Index, name: str) -> int:

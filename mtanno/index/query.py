@@ -22,8 +22,13 @@ Hits on a document with F-feature sequence w_1 … w_M (its F-segments, [MRC05] 
   runs of V_2 … V_L; the hit reports the coarsened boundaries ([MRC05] §5.2, the example
   after eq. 11). With ``min_segment = N > 1`` the runs need not be adjacent: between two
   consecutive runs the document may pass through other vectors for at most N − 1 frames
-  (a *transition*: one knee bending a frame before the other), and query by example turns
-  example segments shorter than N frames into such transitions too (:func:`example_query`).
+  (a *transition*: one knee bending a frame before the other).
+* query by example (``Query.smooth``, adaptive mode): the example's runs over the chosen
+  features shorter than N frames were given to their neighbours
+  (:func:`mtanno.index.example.drop_short_segments`), and each candidate document's runs
+  over the same features go through the same rule; a hit is L consecutive smoothed runs
+  with the example's values. The example is smoothed whole before ``--frames`` cuts it,
+  so its source document has exactly the cut's runs there.
 
 Hits of queries with segment lengths (query by example) are *trimmed*: the first and last
 query segments are the poses before and after the motion, and a hit keeps at most as many
@@ -35,7 +40,10 @@ Queries over several groups are answered per group and intersected on frames: a 
 combination of one hit per group in the same document whose frame ranges overlap, reported
 as the common frames. Hits are ranked by the segment-length heuristic of [MRC05] §6.2 (sum over
 positions of |query segment length − hit segment length| in frames) when the query has
-segment lengths (query by example), else listed in document order.
+segment lengths (query by example), else listed in document order. An example cut by
+``--frames`` usually starts and ends inside runs; its first and last positions are scored
+against the whole runs the cut fell in (``GroupQuery.context``), so the example's own
+source scores 0 and ranks first whatever the cut.
 """
 
 from __future__ import annotations
@@ -99,12 +107,15 @@ class FuzzySet:
 @dataclass(frozen=True)
 class GroupQuery:
     """A query over one group: fuzzy sets, optional segment lengths in frames (for ranking)
-    and optional per-position flags saying where a mismatch is allowed."""
+    and optional per-position flags saying where a mismatch is allowed. ``context`` (query
+    by example): the whole lengths in the example, frames, of the runs its first and last
+    segment were cut from by ``--frames``, which the ranking compares hits with."""
 
     group: str
     sets: tuple[FuzzySet, ...]
     lengths: tuple[int, ...] | None = None
     allowed: tuple[bool, ...] | None = None
+    context: tuple[int, int] | None = None
 
     def __post_init__(self):
         if not self.sets:
@@ -134,8 +145,18 @@ class GroupQuery:
                 i = max(i - 1, 0)
             else:
                 i += 1
+        context = self.context if len(sets) == len(self.sets) else None
         return GroupQuery(self.group, tuple(sets), None if lengths is None else tuple(lengths),
-                          None if allowed is None else tuple(allowed))
+                          None if allowed is None else tuple(allowed), context)
+
+    @property
+    def projection(self) -> tuple[int, tuple[int, ...]] | None:
+        """(mask, values) when every set is one pattern over the same mask (a query by
+        example: the chosen features fixed, the group's others free), else None."""
+        masks = {s.patterns[0][0] for s in self.sets if len(s.patterns) == 1}
+        if len(masks) != 1 or any(len(s.patterns) != 1 for s in self.sets):
+            return None
+        return masks.pop(), tuple(s.patterns[0][1] for s in self.sets)
 
     @property
     def trivial(self) -> bool:
@@ -148,12 +169,16 @@ class Query:
     """A query: one :class:`GroupQuery` per group, the mode, the number of mismatches and,
     for the adaptive mode, the shortest run in frames that counts as a phase of the motion
     (``min_segment``; shorter runs between two phases are transitions, module docstring;
-    1 is [MRC05]'s rule)."""
+    1 is [MRC05]'s rule). ``smooth`` (query by example, adaptive mode): the documents'
+    runs over the chosen features are smoothed as the example's were (runs shorter than
+    ``min_segment`` given to their neighbour) and matched run for run, instead of passing
+    through transitions (module docstring)."""
 
     parts: tuple[GroupQuery, ...]
     mode: str = "adaptive"
     mismatches: int = 0
     min_segment: int = 1
+    smooth: bool = False
 
     def __post_init__(self):
         if self.mode not in QUERY_MODES:
@@ -166,6 +191,11 @@ class Query:
                               f"{self.min_segment!r}")
         if self.mismatches and self.mode == "adaptive":
             raise MtannoError("mismatches work with the exact and fuzzy modes, not adaptive")
+        if self.smooth and self.mode != "adaptive":
+            raise MtannoError("smoothed documents (query by example) need the adaptive mode")
+        if self.smooth and any(p.projection is None for p in self.parts):
+            raise MtannoError("a smoothed query needs one pattern over the same features at "
+                              "every position of a group (a query by example)")
         if not self.parts:
             raise MtannoError("query has no groups")
         if len({p.group for p in self.parts}) != len(self.parts):
@@ -268,10 +298,11 @@ def _csr(member: np.ndarray, positions: Sequence[int]) -> tuple[np.ndarray, np.n
 
 
 def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatches: int = 0,
-              min_segment: int = 1) -> GroupHits:
+              min_segment: int = 1, smooth: bool = False) -> GroupHits:
     """All hits of one (normalized) group query; see the module docstring (``min_segment``
     in frames at the index's rate: transitions of up to ``min_segment − 1`` frames between
-    the runs of an adaptive hit)."""
+    the runs of an adaptive hit; with ``smooth``, the documents' runs shorter than that are
+    given to their neighbours instead, as in the example, :attr:`Query.smooth`)."""
     if gq.group not in index.groups:
         raise MtannoError(f"unknown group '{gq.group}' (index groups: {', '.join(index.groups)})")
     if mode not in QUERY_MODES:
@@ -298,6 +329,8 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
                           f"(group '{g.name}'); must be fewer")
     member = _membership(g, gq.sets)
     sizes = member.astype(np.int64) @ g.list_sizes
+    if smooth:
+        return _smoothed_group(g, gq, member, sizes, min_segment)
     if mode == "adaptive":
         j = int(np.argmin(sizes))
         lists = np.flatnonzero(member[j]).astype(np.int64)
@@ -336,11 +369,47 @@ def run_group(index: Index, gq: GroupQuery, *, mode: str = "adaptive", mismatche
     return GroupHits(g.name, rows, g.doc[rows[:, 0]].astype(np.int64), start, end, bounds)
 
 
-def _length_score(bounds: np.ndarray, lengths: Sequence[int] | None) -> np.ndarray:
+def _smoothed_group(g: GroupIndex, gq: GroupQuery, member: np.ndarray, sizes: np.ndarray,
+                    min_segment: int) -> GroupHits:
+    """Hits of a query by example on the smoothed documents (:attr:`Query.smooth`): the
+    candidates are the documents holding a segment of every query value (a smoothed run
+    keeps the value of one of its segments), then ``_kernels.smoothed_hits`` walks them."""
+    mask, values = gq.projection
+    L = len(values)
+    docs = None
+    for j in np.argsort(sizes, kind="stable"):  # rarest value first: fewest documents
+        lists = np.flatnonzero(member[j])
+        rows = np.concatenate([g.postings[g.list_offsets[v]:g.list_offsets[v + 1]]
+                               for v in lists]) if len(lists) else np.zeros(0, np.int32)
+        have = np.unique(g.doc[rows])
+        docs = have if docs is None else np.intersect1d(docs, have, assume_unique=True)
+        if not len(docs):
+            break
+    docs = docs.astype(np.int64)
+    cap = int((g.doc_offsets[docs + 1] - g.doc_offsets[docs]).sum()) if len(docs) else 0
+    doc = np.empty(cap, np.int64)
+    rows = np.empty((cap, L + 1), np.int64)
+    bounds = np.empty((cap, L + 1), np.int64)
+    n = _kernels.smoothed_hits(docs, g.doc_offsets, g.code, g.start, g.length, np.int64(mask),
+                               np.array(values, np.int64), int(min_segment), doc, rows, bounds)
+    doc, rows, bounds = doc[:n], rows[:n], bounds[:n]
+    return GroupHits(g.name, rows, doc, bounds[:, 0].copy(), bounds[:, -1] - 1, bounds)
+
+
+def _length_score(bounds: np.ndarray, lengths: Sequence[int] | None,
+                  context: tuple[int, int] | None = None) -> np.ndarray:
+    """[MRC05] §6.2's segment-length score of hits (lower is better): Σ over positions of
+    |query length − hit run length|, frames. With ``context`` (an example cut by
+    ``--frames``, :attr:`GroupQuery.context`) the first and last positions are compared
+    with the whole runs of the example the cut fell in, not with the cut's partial ones,
+    which the document's runs never share (so the example's source scores 0)."""
     if lengths is None:
         return np.full(len(bounds), np.nan)
     hit_len = np.diff(bounds, axis=1)
-    return np.abs(hit_len - np.asarray(lengths, dtype=np.int64)[None, :]).sum(axis=1).astype(float)
+    q = np.array(lengths, dtype=np.int64)
+    if context is not None:
+        q[0], q[-1] = context
+    return np.abs(hit_len - q[None, :]).sum(axis=1).astype(float)
 
 
 def _trim(gh: GroupHits, lengths: Sequence[int] | None):
@@ -379,7 +448,7 @@ def search(index: Index, query: Query) -> Hits:
     if len(parts) == 1 and parts[0].trivial:
         raise MtannoError("query constrains no feature (every set allows every vector)")
     ghits = [run_group(index, p, mode=query.mode, mismatches=query.mismatches,
-                       min_segment=query.min_segment) for p in parts]
+                       min_segment=query.min_segment, smooth=query.smooth) for p in parts]
     trimmed = [_trim(gh, p.lengths) for p, gh in zip(parts, ghits)]
     first = ghits[0]
     doc, (start, end, _) = first.doc, trimmed[0]
@@ -398,7 +467,7 @@ def search(index: Index, query: Query) -> Hits:
         picks = [p[order] for p in picks]
     score = np.zeros(len(doc))
     for p, gh, pick in zip(parts, ghits, picks):  # [MRC05]'s score: the runs as matched
-        score += _length_score(gh.bounds[pick], p.lengths)
+        score += _length_score(gh.bounds[pick], p.lengths, p.context)
     with_span = any(p.lengths is not None and len(p.sets) > 1 for p in parts)
     hits = Hits(doc, start, end, score,
                 {gh.group: b[pick] for gh, (_, _, b), pick in zip(ghits, trimmed, picks)},
@@ -424,3 +493,4 @@ def warm_up() -> None:
              GroupQuery("h", (FuzzySet.exact(1, 1),)))
     search(idx, Query(parts, "adaptive"))
     search(idx, Query(parts[:1], "exact"))
+    search(idx, Query(parts, "adaptive", smooth=True))  # a query by example's kernel
