@@ -250,3 +250,35 @@ def test_long_commands_show_a_progress_bar_on_a_terminal(world, tmp_path, comman
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "%|" not in r.stderr  # not a terminal: no bar
+
+
+@pytest.mark.parametrize("command", ["learn-mt", "learn-keyframes", "tune"])
+def test_a_missing_training_folder_beside_good_ones_is_reported_and_skipped(world, tmp_path,
+                                                                             command):
+    """One rule for batches: a training folder that gives no example is one line and the
+    others are used (exit 1); only when no input is usable is it exit 2 (it was exit 2 with
+    a good folder beside it)."""
+    missing = tmp_path / "nope"
+    extra = {"learn-mt": [], "learn-keyframes": ["--mt", world.mt, "--method", "heuristic"],
+             "tune": ["--mt", world.mt, "--no-confidence", "--disable", "templates"]}[command]
+    out = tmp_path / ("c.toml" if command == "tune" else "o")
+    r = cli(command, world.feats, missing, "-o", out, "-q", *extra)
+    assert r.exit_code == 1, r.output
+    assert f"mtanno: {missing}: training folder not found" in r.output
+    assert out.exists()
+    r = cli(command, missing, "-o", tmp_path / ("d.toml" if command == "tune" else "p"),
+            "-q", *extra)
+    assert r.exit_code == 2 and "training folder not found" in r.output
+
+
+def test_an_interrupted_learn_mt_leaves_no_empty_folder(world, tmp_path, monkeypatch):
+    import mtanno.templates.learn as learn
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+        yield  # a generator, like learn_classes
+
+    monkeypatch.setattr(learn, "learn_classes", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        learn.learn_to_folder([world.feats], tmp_path / "new" / "mts")
+    assert not (tmp_path / "new").exists()

@@ -20,7 +20,8 @@ ARGUMENT_NAMES = {"training": "TRAINING"}
 #: The ``--help`` epilogs that several commands share.
 EXIT_BAD_INPUT = "Exit codes: 0 success, 2 bad input."
 EXIT_BAD_INPUT_OR_PLOT = "Exit codes: 0 success, 2 bad input or matplotlib missing."
-EXIT_PER_CLASS = "Exit codes: 0 success, 1 some classes failed, 2 usage error or bad input."
+EXIT_PER_CLASS = ("Exit codes: 0 success, 1 some classes failed or a training folder gave no "
+                  "example (the others were used), 2 usage error or bad input.")
 
 
 def user_errors(code: int, *, flags: dict[str, str] | None = None):

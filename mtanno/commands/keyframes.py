@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import (
+    ARGUMENT_NAMES,
     EXIT_BAD_INPUT,
     EXIT_PER_CLASS,
     lock_output,
@@ -89,9 +90,12 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     )
     from mtanno.util.output import check_outputs, output_folder
 
+    bad_inputs: list[MtannoError] = []  # training folders without examples: the others go on
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth,
+                              split=split, truth=truth, failures=bad_inputs,
                               note=None if quiet else lambda m: click.echo(f"learn-keyframes: {m}", err=True))
+    for exc in bad_inputs:
+        click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     groups = group_by_class(sources, classes=list(classes) or None)
     templates = load_template_folder(mt_dir)
     all_groups = group_by_class(sources)
@@ -152,7 +156,7 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
         note = f", {len(skipped)} without template skipped" if skipped else ""
         click.echo(f"learn-keyframes: {len(written)} class(es) ({method}) -> {out}, "
                    f"{len(failed)} failed{note}, {time.perf_counter() - t0:.1f} s", err=True)
-    sys.exit(1 if failed else 0)
+    sys.exit(1 if failed or bad_inputs else 0)
 
 
 @click.group("keyframes")

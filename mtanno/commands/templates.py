@@ -11,6 +11,7 @@ import click
 import numpy as np
 
 from mtanno.commands._common import (
+    ARGUMENT_NAMES,
     DELTA,
     EXIT_BAD_INPUT,
     EXIT_BAD_INPUT_OR_PLOT,
@@ -105,6 +106,8 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     finally:
         if bar is not None:
             bar.close()
+    for exc in run.skipped:
+        click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     if not quiet:
         kind = "hard" if hard else "soft"
         click.echo(f"learn-mt: {len(run.written)} {kind} template(s) from {run.n_examples} "

@@ -1,19 +1,30 @@
 """The ``tune`` command (issue 10): annotation parameters learned by cross-validation inside
 the training data, written as the class configuration ``annotate --classes`` reads.
-Exit codes: 0 success, 2 usage error or bad input, 130 interrupted."""
+Exit codes: 0 success, 1 a training folder gave no example (the others were used), 2 usage
+error or bad input, 130 interrupted."""
 
 from __future__ import annotations
 
+import sys
+
 import click
 
-from mtanno.commands._common import Number, scheduler_option, training_options, user_errors
+from mtanno.commands._common import (
+    ARGUMENT_NAMES,
+    Number,
+    scheduler_option,
+    training_options,
+    user_errors,
+)
+from mtanno.errors import MtannoError
 from mtanno.tuning.cv import DOCUMENT_MODES
 from mtanno.tuning.run import VERIFY_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
 
-@click.command("tune", epilog="Exit codes: 0 success, 2 usage error or bad input, "
-                              "130 interrupted.")
+@click.command("tune", epilog="Exit codes: 0 success, 1 a training folder gave no example "
+                              "(the others were used), 2 usage error or bad input, 130 "
+                              "interrupted.")
 @click.argument("training", nargs=-1, metavar="[TRAINING]...")
 @click.option("--mt", "mt_dir", required=True, type=click.Path(),
               help="Folder of class templates (CLASS.json from learn-mt): the classes tuned.")
@@ -90,6 +101,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     from mtanno.tuning.run import tune_files
     from mtanno.util.tables import command_line
 
+    skipped: list[MtannoError] = []
     result = tune_files(
         training, mt_dir, output, manifest=manifest, features_dir=features_dir, split=split,
         truth=truth, keyframes_dir=kf_dir, ablation_dir=ablation_dir,
@@ -97,7 +109,9 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
         command=command_line(), seed=seed, n_jobs=jobs,
         methods=[m for m in METHODS if m not in disabled], documents=documents,
         unknown_weight=unknown_weight, scheduler=scheduler, background=background,
-        verify=verify, confidence=confidence)
+        verify=verify, confidence=confidence, failures=skipped)
+    for exc in skipped:
+        click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     if result.not_validated:
         click.echo(f"tune: warning: class(es) {', '.join(result.not_validated)} could not be "
                    "cross-validated: all their examples come from one performer, so their "
@@ -114,5 +128,6 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
                    f"{result.reference.counts.frame()[2]:.3f} F2 "
                    f"{result.reference.counts.segment()[2]:.3f}), {result.seconds:.1f} s -> "
                    f"{output}{extra}", err=True)
+    sys.exit(1 if skipped else 0)
 
 COMMANDS = [tune_cmd]

@@ -462,17 +462,19 @@ def learn_classes(groups: dict, *, hard: bool = False, iter_max: int = ITER_MAX,
 @dataclass
 class LearnRun:
     """What :func:`learn_to_folder` did: the classes written and those that failed, the
-    examples the written ones were learned from, seconds of learning."""
+    examples the written ones were learned from, seconds of learning, and the training
+    inputs that gave no example (each an error; the others were used)."""
 
     written: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
     n_examples: int = 0
     seconds: float = 0.0
+    skipped: list[MtannoError] = field(default_factory=list)
 
     @property
     def exit_code(self) -> int:
-        """0 when every class was written, else 1."""
-        return 1 if self.failed else 0
+        """0 when every class was written from every input, else 1."""
+        return 1 if self.failed or self.skipped else 0
 
 
 def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.PathLike, *,
@@ -490,7 +492,9 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     notes), grouped by class (only ``classes``, if given), every output checked against the
     inputs, and one template per class learned (:func:`learn_classes`) and written to
     ``outdir/CLASS.json`` under the folder's lock (:func:`mtanno.util.locks.folder_lock`;
-    ``wait``/``on_wait`` as there). A class that fails fails alone. ``on_start(n)`` is called
+    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder). A class
+    that fails fails alone, as does a training folder that gives no example
+    (:attr:`LearnRun.skipped`). ``on_start(n)`` is called
     before the first of ``n`` classes, ``progress(done, error)`` after each (``error``: why
     it failed, None when it was written)."""
     import time
@@ -498,20 +502,20 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     from mtanno.templates.model import class_file, save_template
     from mtanno.templates.training import collect_sources, group_by_class
     from mtanno.util.locks import folder_lock
-    from mtanno.util.output import check_outputs
+    from mtanno.util.output import check_outputs, output_folder
 
+    run = LearnRun()
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth, note=note)
+                              split=split, truth=truth, note=note, failures=run.skipped)
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth],
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
-    run = LearnRun()
     if on_start:
         on_start(len(groups))
-    with folder_lock(out, wait=wait, on_wait=on_wait):
+    with output_folder(out), folder_lock(out, wait=wait, on_wait=on_wait):
         for done in learn_classes(groups, hard=hard, iter_max=iter_max, thresh=thresh):
             try:
                 if done.error is not None:

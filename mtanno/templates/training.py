@@ -99,24 +99,37 @@ class TrainingExample:
 # --------------------------------------------------------------------------- collecting
 
 
-def sources_from_tree(roots: Iterable[str | os.PathLike]) -> list[ExampleSource]:
-    """One example per ``ROOT/CLASS/*.parquet`` file; the class is the folder name."""
+def sources_from_tree(roots: Iterable[str | os.PathLike], *,
+                      failures: list[MtannoError] | None = None) -> list[ExampleSource]:
+    """One example per ``ROOT/CLASS/*.parquet`` file; the class is the folder name.
+
+    A root that is missing, not a folder or without such files is an error; with
+    ``failures`` it is appended there instead and the others are used (a batch goes on
+    past a bad input), unless no root gives an example."""
     out: list[ExampleSource] = []
+    errors: list[MtannoError] = []
     for root in roots:
         root = Path(root)
         if not root.exists():
-            raise MtannoError("training folder not found", path=str(root))
-        if not root.is_dir():
-            raise MtannoError("not a folder (expected ROOT/CLASS/*.parquet; use {truth} for "
-                              "annotated documents)", path=str(root), options=("truth",))
-        found = []
-        for cls_dir in sorted(p for p in root.iterdir() if p.is_dir()):
-            for f in sorted(cls_dir.glob("*.parquet")):
-                found.append(ExampleSource(cls_dir.name, str(f)))
-        if not found:
-            raise MtannoError("no CLASS/*.parquet feature files in this folder",
-                              path=str(root))
-        out.extend(found)
+            errors.append(MtannoError("training folder not found", path=str(root)))
+        elif not root.is_dir():
+            errors.append(MtannoError("not a folder (expected ROOT/CLASS/*.parquet; use "
+                                      "{truth} for annotated documents)", path=str(root),
+                                      options=("truth",)))
+        else:
+            found = [ExampleSource(cls_dir.name, str(f))
+                     for cls_dir in sorted(p for p in root.iterdir() if p.is_dir())
+                     for f in sorted(cls_dir.glob("*.parquet"))]
+            if not found:
+                errors.append(MtannoError("no CLASS/*.parquet feature files in this folder",
+                                          path=str(root)))
+            out.extend(found)
+        if errors and failures is None:
+            raise errors[0]
+    if errors and not out:
+        raise errors[0]
+    if failures is not None:
+        failures.extend(errors)
     return out
 
 
@@ -213,13 +226,15 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
                     features_dir: str | os.PathLike | None = None, split: str | None = None,
                     truth: str | os.PathLike | None = None,
                     ignored: list[str] | None = None,
-                    note: Callable[[str], None] | None = None) -> list[ExampleSource]:
+                    note: Callable[[str], None] | None = None,
+                    failures: list[MtannoError] | None = None) -> list[ExampleSource]:
     """Training examples named the three ways learn-mt, learn-keyframes and tune accept
     (module docstring): a manifest with its features folder (and split), a truth table with
     the documents' feature files or folders (``ignored`` receives the truth's documents
     without one, :func:`sources_from_truth`; ``note`` is called with one line naming them,
-    :func:`ignored_documents_note`), or class folders. Contradictory combinations are
-    errors saying which options go together."""
+    :func:`ignored_documents_note`), or class folders (``failures``: as
+    :func:`sources_from_tree`). Contradictory combinations are errors saying which options
+    go together."""
     if manifest is not None and truth is not None:
         raise MtannoError("{manifest} and {truth} exclude each other",
                           options=("manifest", "truth"))
@@ -238,7 +253,7 @@ def collect_sources(training: Sequence[str | os.PathLike] = (), *,
         raise MtannoError("give {training} folders or files (or {manifest})",
                           options=("training", "manifest"))
     if truth is None:
-        return sources_from_tree(training)
+        return sources_from_tree(training, failures=failures)
     missing: list[str] = []
     sources = sources_from_truth(truth, training, ignored=missing)
     if ignored is not None:

@@ -220,21 +220,23 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
                keyframes_dir: str | os.PathLike | None = None,
                ablation_dir: str | os.PathLike | None = None,
                log: Callable[[str], None] | None = None, command: Sequence[str] = (),
-               **options) -> TuneResult:
+               failures: list[MtannoError] | None = None, **options) -> TuneResult:
     """The whole ``mtanno tune`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them, every output checked
     against the inputs before any work (:func:`mtanno.util.output.check_outputs`),
     :func:`tune` (``options`` are its keyword options), and the configuration written to
     ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
     ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there. ``log`` receives
-    the notes on the inputs and the search log, a line each."""
+    the notes on the inputs and the search log, a line each; ``failures`` receives the
+    training folders that give no example (the others are used; without it such a folder is
+    an error)."""
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.model import template_files
     from mtanno.templates.training import collect_sources
     from mtanno.util.output import check_outputs, make_folder
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth, note=log)
+                              split=split, truth=truth, note=log, failures=failures)
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
     planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
