@@ -134,6 +134,7 @@ def plot_timeline(rows: dict[str, Sequence[tuple[int, int, str]]], *, n_frames: 
     ax = _axes(ax, (12, 0.6 + 0.45 * len(rows)))
     labels = sorted({lab for segs in rows.values() for _, _, lab in segs})
     colours = colours or label_colours(labels)
+    bars: dict[tuple, list] = {}  # one collection per (lane, place, label): fast to draw
     for lane, segs in enumerate(rows.values()):
         ordered = sorted(segs)
         for k, (s, e, lab) in enumerate(ordered):
@@ -141,8 +142,9 @@ def plot_timeline(rows: dict[str, Sequence[tuple[int, int, str]]], *, n_frames: 
                 any(a <= e and s <= b for a, b, _ in ordered[k + 1:])
             height = 0.4 if overlap else 0.8
             y = lane - 0.4 + (0.4 if overlap and k % 2 else 0)
-            ax.broken_barh([(s - 0.5, e - s + 1)], (y, height),
-                           facecolors=colours.get(lab, NONE_COLOUR))
+            bars.setdefault((y, height, lab), []).append((s - 0.5, e - s + 1))
+    for (y, height, lab), spans in bars.items():
+        ax.broken_barh(spans, (y, height), facecolors=colours.get(lab, NONE_COLOUR))
     ax.set_yticks(range(len(rows)), list(rows))
     ax.set_ylim(len(rows) - 0.5, -0.5)
     ax.set_xlim(0.5, n_frames + 0.5)
