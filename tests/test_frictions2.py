@@ -82,6 +82,17 @@ def _oracle(docs, names, X_ex, chosen, a, b, min_segment):
     return sorted(out)
 
 
+def _random_cut(rng):
+    """A random index, its documents and names, a source document, its features and a cut
+    (first, last frame) of it."""
+    index, docs = _random_index(rng)
+    names = [d.name for d in index.documents]
+    src = names[int(rng.integers(len(names)))]
+    X = docs[src]
+    a = int(rng.integers(X.shape[1]))
+    return index, docs, names, src, X, a, int(rng.integers(a, X.shape[1]))
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_example_query_equals_brute_force_and_finds_itself_first(seed):
     """Issue 25: `query --example X --frames 40:100 --features F` ranked the example's own
@@ -92,13 +103,7 @@ def test_example_query_equals_brute_force_and_finds_itself_first(seed):
     the source's hit covering the cut is first with score 0."""
     rng = np.random.default_rng(seed)
     for _ in range(60):
-        index, docs = _random_index(rng)
-        names = [d.name for d in index.documents]
-        src = names[int(rng.integers(len(names)))]
-        X = docs[src]
-        n = X.shape[1]
-        a = int(rng.integers(n))
-        b = int(rng.integers(a, n))
+        index, docs, names, src, X, a, b = _random_cut(rng)
         group = GROUPS["g"] if rng.random() < 0.7 else GROUPS["h"]
         chosen = [f for f in group if rng.random() < 0.6] or [group[0]]
         min_segment = int(rng.integers(1, 5))
@@ -122,13 +127,7 @@ def test_example_query_over_groups_finds_itself_first():
     worse score."""
     rng = np.random.default_rng(7)
     for _ in range(150):
-        index, docs = _random_index(rng)
-        names = [d.name for d in index.documents]
-        src = names[int(rng.integers(len(names)))]
-        X = docs[src]
-        n = X.shape[1]
-        a = int(rng.integers(n))
-        b = int(rng.integers(a, n))
+        index, _, names, src, X, a, b = _random_cut(rng)
         chosen = [f for f in FEATURES if rng.random() < 0.5] or ["a", "d"]
         hits = search(index, example_query(index, X, FEATURES, chosen, frames=(a, b),
                                            min_segment=int(rng.integers(1, 5))))
