@@ -232,3 +232,22 @@ def test_cmu_trials_annotated_with_hdm05_templates_play_in_the_page(tmp_path, br
             "'[data-mtanno-player]')].find(e => e.dataset.doc === tr.dataset.doc);"
             " return [+tr.querySelector('input.start').value, +p.dataset.frame]; })()")
         assert abs(shown - start) <= 1
+
+
+def test_a_motion_that_cannot_be_read_is_reported_and_the_page_written(world, tmp_path):
+    """One rule for batches: a broken motion file is one line naming it, its document gets
+    no player (the page says so), the others play; exit code 1."""
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    amcs = sorted(world.docs.glob("*.amc"))
+    for f in amcs:
+        (docs / f.name).write_bytes(f.read_bytes())
+    (docs / amcs[0].name).write_text(":FULLY-SPECIFIED\n:DEGREES\n1\nroot 1 2\n")
+    asf = next(world.docs.glob("*.asf"))
+    (docs / asf.name).write_bytes(asf.read_bytes())
+    r = cli("report", world.annotation, "-o", tmp_path / "rep", "--motions", docs, "-q")
+    assert r.exit_code == 1, r.output
+    assert r.output.count("\n") == 1 and amcs[0].name in r.output, r.output
+    page = (tmp_path / "rep" / "index.html").read_text(encoding="utf-8")
+    assert page.count("data-mtanno-player data-doc") == len(amcs) - 1
+    assert f"No motion for 1 document(s): {amcs[0].stem}" in page

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import click
 
-from mtanno.annotate import DEFAULT_TAU, load_class_models
-from mtanno.commands._common import DELTA, EXIT_BAD_INPUT_OR_PLOT, TAU, ProgressBar, stack, user_errors
+from mtanno.annotate import load_class_models
+from mtanno.commands._common import DELTA, TAU, ProgressBar, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
 from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
@@ -214,7 +214,9 @@ def truth_mocap6(labels, output):
     click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
 
 
-@click.command("report", epilog=EXIT_BAD_INPUT_OR_PLOT)
+@click.command("report", epilog="Exit codes: 0 success, 1 a feature or motion file could "
+                                "not be read (the report was written without it), 2 bad "
+                                "input or matplotlib missing.")
 @click.argument("annotations", nargs=-1, required=True, metavar="ANNOTATIONS...",
                 type=click.Path())
 @click.option("--truth", "truth_path", default=None, type=click.Path(dir_okay=False),
@@ -273,70 +275,21 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, tau,
     Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
     with --single-label; overlapping rows are resolved by segment cost (the page says so).
     """
-    from pathlib import Path
+    from mtanno.evaluation.report import report_files
 
-    from mtanno.annotate import (
-        ANNOTATION_SUFFIXES,
-        annotation_files,
-        read_annotation_tables,
-    )
-    from mtanno.evaluation.report import REPORT_FILES, annotation_parameters, write_report
-    from mtanno.evaluation.truth import check_within, read_truth
-    from mtanno.plot import require_matplotlib
-    from mtanno.templates.model import load_template_folder, template_files
-    from mtanno.util.output import check_outputs
-    from mtanno.util.store import document_files, read_features
-    from mtanno.util.tables import provenance
-
-    require_matplotlib()
-    paths = document_files(features) if features else []
-    from mtanno.evaluation.player import motion_files
-
-    motion_paths = motion_files(motions)
-    # folders read whole: an output there would be read by the next run
-    scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
-               **{f: (".parquet",) for f in features if Path(f).is_dir()}}
-    annotations = annotation_files(annotations)
-    check_outputs([], [*annotations, *([truth_path] if truth_path else []), *paths,
-                       *motion_paths.values(), *(template_files(mt_dir) if mt_dir else [])],
-                  folders={out_dir: REPORT_FILES}, scanned=scanned)
-    rows, frames, provs = read_annotation_tables(annotations)
-    recorded = annotation_parameters(provs)
-    truth = None
-    if truth_path is not None:
-        truth = read_truth(truth_path)
-        check_within(truth, frames, path=truth_path)
-    templates = load_template_folder(mt_dir) if mt_dir else None
-    feats, poses = {}, {}
-    for p in paths:
-        ff = read_features(p, poses=not motions)
-        feats[ff.document] = ff.X
-        if ff.poses is not None:
-            poses[ff.document] = ff.poses
-    if motions:
-        from mtanno.evaluation.player import load_motion_poses
-
-        poses = load_motion_poses(motion_paths, sorted({r.doc for r in rows} | set(frames)))
-    if tau is None:  # the annotation's thresholds
-        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
-        per_class = recorded["tau_per_class"]
-    else:
-        per_class = {}
+    failures: list[str] = []  # inputs that could not be used: reported, the report goes on
     with ProgressBar("report", "figure", quiet=quiet) as bar:
-        result = write_report(out_dir, truth, rows, frames=frames, templates=templates,
-                              features=(feats or None) if mt_dir else None, tau=tau,
-                              tau_per_class=per_class, poses=poses if motions or poses
-                              else None,
-                              delta=delta if delta is not None else recorded["delta"],
-                              extra_templates=recorded["extra_templates"],
-                              title=title, progress=bar, provenance=provenance(
-                                  inputs=[*annotations, *([truth_path] if truth_path else [])],
-                                  truth=str(truth_path) if truth_path else None))
+        result, rows = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
+                                    features=features, motions=motions, tau=tau, delta=delta,
+                                    title=title, progress=bar, failures=failures)
+    for message in failures:
+        click.echo(f"mtanno: {message}", err=True)
     if not quiet:
         what = (f"{len(result.evaluation.documents)} documents, F1 "
                 f"{result.evaluation.frame.F:.3f}" if result.evaluation is not None else
                 f"{len({r.doc for r in rows})} documents, {len(rows)} rows, no truth")
         click.echo(f"report: {what}, {len(result.files)} files -> {result.page}", err=True)
+    sys.exit(1 if failures else 0)
 
 
 COMMANDS = [evaluate_cmd, evaluate_retrieval_cmd, compose_cmd, truth_group, report_cmd]

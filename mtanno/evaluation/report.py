@@ -530,3 +530,81 @@ def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
         ax.figure.set_size_inches(12, max(3.5, 1.0 + 0.16 * len(models)))
         w.figure(ax, f"delta_{_safe(d)}", "Distance curves Δ per class", d)
+
+
+def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
+                 truth_path: str | os.PathLike | None = None,
+                 mt_dir: str | os.PathLike | None = None,
+                 features: Sequence[str | os.PathLike] = (),
+                 motions: Sequence[str | os.PathLike] = (), tau: float | None = None,
+                 delta: float | None = None, title: str = REPORT_TITLE,
+                 progress: Callable[[int, int], None] | None = None,
+                 failures: list[str] | None = None) -> tuple[ReportResult, list]:
+    """The whole ``mtanno report`` run: the annotation tables (files or folders of them),
+    the truth, templates, feature files and motion files read and checked against the
+    output folder (never an input there), and :func:`write_report` with the thresholds and
+    δ the annotation recorded (``tau``, ``delta`` override them). Poses for the players
+    come from ``motions`` (:func:`mtanno.evaluation.player.motion_files`), else from the
+    pose blocks of ``features``; Δ curves need ``mt_dir`` and ``features``. A feature or
+    motion file that cannot be read is left out and its message appended to ``failures``
+    (an error without it). Returns the result and the annotation's rows."""
+    from mtanno.annotate import (
+        ANNOTATION_SUFFIXES,
+        DEFAULT_TAU,
+        annotation_files,
+        read_annotation_tables,
+    )
+    from mtanno.evaluation.player import load_motion_poses, motion_files
+    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.plot import require_matplotlib
+    from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.util.output import check_outputs
+    from mtanno.util.store import document_files, read_features
+    from mtanno.util.tables import provenance
+
+    require_matplotlib()
+    paths = document_files(features, failures=failures) if features else []
+    motion_paths = motion_files(motions)
+    # folders read whole: an output there would be read by the next run
+    scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
+               **{f: (".parquet",) for f in features if Path(f).is_dir()}}
+    annotations = annotation_files(annotations)
+    inputs = [*annotations, *([truth_path] if truth_path else [])]
+    check_outputs([], [*inputs, *paths, *motion_paths.values(),
+                       *(template_files(mt_dir) if mt_dir else [])],
+                  folders={out_dir: REPORT_FILES}, scanned=scanned)
+    rows, frames, provs = read_annotation_tables(annotations)
+    recorded = annotation_parameters(provs)
+    truth = None
+    if truth_path is not None:
+        truth = read_truth(truth_path)
+        check_within(truth, frames, path=truth_path)
+    feats, poses = {}, {}
+    for p in paths:
+        try:
+            ff = read_features(p, poses=not motions)
+        except MtannoError as exc:
+            if failures is None:
+                raise
+            failures.append(str(exc))
+            continue
+        feats[ff.document] = ff.X
+        if ff.poses is not None:
+            poses[ff.document] = ff.poses
+    if motions:
+        poses = load_motion_poses(motion_paths, sorted({r.doc for r in rows} | set(frames)),
+                                  failures=failures)
+    per_class = recorded["tau_per_class"] if tau is None else {}
+    if tau is None:  # the annotation's thresholds
+        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
+    result = write_report(
+        out_dir, truth, rows, frames=frames,
+        templates=load_template_folder(mt_dir) if mt_dir else None,
+        features=(feats or None) if mt_dir else None, tau=tau, tau_per_class=per_class,
+        poses=poses if motions or poses else None,
+        delta=delta if delta is not None else recorded["delta"],
+        extra_templates=recorded["extra_templates"], title=title, progress=progress,
+        provenance=provenance(inputs=[*inputs, *motion_paths.values()],
+                              truth=str(truth_path) if truth_path else None))
+    return result, rows
+
