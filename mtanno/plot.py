@@ -51,12 +51,15 @@ def _axes(ax, size: tuple[float, float]):
 
 
 def label_colours(labels: Sequence[str]) -> dict[str, Any]:
-    """One colour per label (in the order given), "none" grey."""
+    """One colour per label (in the order given), "none" grey; the first ten labels get
+    ten clearly different colours (tab20's dark ones), the next ten their light pairs."""
     require_matplotlib()
     from matplotlib import colormaps
 
-    cmap = colormaps["tab20"]
-    out = {lab: cmap(i % 20) for i, lab in enumerate(lab for lab in labels if lab != "none")}
+    cmap = colormaps["tab20"]  # its dark ten first, then their light pairs: the first ten
+    order = [*range(0, 20, 2), *range(1, 20, 2)]  # labels are ten distinct colours
+    out = {lab: cmap(order[i % 20])
+           for i, lab in enumerate(lab for lab in labels if lab != "none")}
     out["none"] = NONE_COLOUR
     return out
 

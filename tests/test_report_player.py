@@ -251,3 +251,19 @@ def test_a_motion_that_cannot_be_read_is_reported_and_the_page_written(world, tm
     page = (tmp_path / "rep" / "index.html").read_text(encoding="utf-8")
     assert page.count("data-mtanno-player data-doc") == len(amcs) - 1
     assert f"No motion for 1 document(s): {amcs[0].stem}" in page
+
+
+def test_motions_after_one_flag_and_an_asf_elsewhere(world, tmp_path):
+    """`--motions a.amc b.amc` puts b.amc among the annotation tables: one line saying to
+    repeat the flag; an AMC without an ASF beside it plays with --asf."""
+    amcs = sorted(world.docs.glob("*.amc"))
+    r = cli("report", world.annotation, "-o", tmp_path / "rep", "--motions", amcs[0], amcs[1])
+    assert r.exit_code == 2 and "give --motions before each motion file" in r.output
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    (alone / amcs[0].name).write_bytes(amcs[0].read_bytes())
+    r = cli("report", world.annotation, "-o", tmp_path / "a", "--motions", alone, "-q")
+    assert r.exit_code == 1 and "asf" in r.output.lower(), r.output
+    page = _report(world, tmp_path / "b", "--motions", alone, "--asf",
+                   next(world.docs.glob("*.asf")))
+    assert page.count("data-mtanno-player data-doc") == 1

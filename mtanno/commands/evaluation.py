@@ -235,6 +235,8 @@ def truth_mocap6(labels, output):
               help="Motion files (.amc, .bvh) or folders of them, matched to the documents "
                    "by file name: a stick-figure player per document (instead of the poses "
                    "of --features). Repeatable.")
+@click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
+              help="ASF skeleton of AMC motions (default: found beside or above each).")
 @click.option("--tau", type=TAU, default=None,
               help="Threshold drawn in the Δ plots [default: the annotation's tau, and "
                    "its per-class taus in the classes' colours].")
@@ -245,8 +247,8 @@ def truth_mocap6(labels, output):
               help="Title of the page.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
-def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, tau, delta, title,
-               quiet):
+def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf, tau, delta,
+               title, quiet):
     """Write a report of annotation tables into a folder, against ground truth ([MBS09] §7)
     when --truth is given.
 
@@ -280,8 +282,8 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, tau,
     failures: list[str] = []  # inputs that could not be used: reported, the report goes on
     with ProgressBar("report", "figure", quiet=quiet) as bar:
         result, rows = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
-                                    features=features, motions=motions, tau=tau, delta=delta,
-                                    title=title, progress=bar, failures=failures)
+                                    features=features, motions=motions, asf=asf, tau=tau,
+                                    delta=delta, title=title, progress=bar, failures=failures)
     for message in failures:
         click.echo(f"mtanno: {message}", err=True)
     if not quiet:

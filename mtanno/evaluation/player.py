@@ -91,10 +91,12 @@ def motion_files(inputs: Iterable[str | os.PathLike]) -> dict[str, Path]:
 
 
 def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
+                      asf: str | os.PathLike | None = None,
                       failures: list[str] | None = None) -> dict[str, np.ndarray]:
     """The normalised poses at the 30 Hz analysis frames of each document of ``docs`` that
     has a motion file in ``files`` (:func:`motion_files`), as ``features --poses`` computes
-    them (ASF found beside or above an AMC file, skeleton map detected). A file that cannot
+    them (``asf``, else the ASF found beside or above an AMC file; skeleton map detected). A
+    file that cannot
     be read is left out, its message appended to ``failures`` (an error without it)."""
     from mtanno.features.extract import poses_at, to_y_up
     from mtanno.features.hysteresis import analysis_frames
@@ -105,7 +107,7 @@ def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
         if d not in files:
             continue
         try:
-            motion = read_motion(files[d])
+            motion = read_motion(files[d], asf=asf)
             P = to_y_up(canonical_positions(motion))
             out[d] = poses_at(P, analysis_frames(P.shape[0], motion.fps))
         except MtannoError as exc:

@@ -29,6 +29,7 @@ import base64
 import html
 import math
 import os
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -229,8 +230,9 @@ def _page(result: ReportResult, images, rows, title: str, provenance: dict, *, d
              "truth given: no scores)")
     parts.append(f"<p>{len(docs)} document(s); frames at 30 Hz. Files beside this page: "
                  f"{files}, review.csv, every figure as PNG and SVG.</p>")
-    for note in result.notes:
-        parts.append(f"<p><b>Note:</b> {html.escape(note)}</p>")
+    for note in result.notes:  # `command` in a note is code on the page, not a backtick
+        text = re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(note))
+        parts.append(f"<p><b>Note:</b> {text}</p>")
     parts.append(("<h2>Precision, recall, F per class</h2>" if scored else
                   "<h2>Classes in the annotation</h2>") + _html_table(rows))
     sections: dict[str, list] = {}
@@ -536,7 +538,8 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
                  truth_path: str | os.PathLike | None = None,
                  mt_dir: str | os.PathLike | None = None,
                  features: Sequence[str | os.PathLike] = (),
-                 motions: Sequence[str | os.PathLike] = (), tau: float | None = None,
+                 motions: Sequence[str | os.PathLike] = (),
+                 asf: str | os.PathLike | None = None, tau: float | None = None,
                  delta: float | None = None, title: str = REPORT_TITLE,
                  progress: Callable[[int, int], None] | None = None,
                  failures: list[str] | None = None) -> tuple[ReportResult, list]:
@@ -545,7 +548,8 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     output folder (never an input there), and :func:`write_report` with the thresholds and
     δ the annotation recorded (``tau``, ``delta`` override them). Poses for the players
     come from ``motions`` (:func:`mtanno.evaluation.player.motion_files`), else from the
-    pose blocks of ``features``; Δ curves need ``mt_dir`` and ``features``. A feature or
+    pose blocks of ``features`` (``asf``: the ASF of AMC motions, else found beside them);
+    Δ curves need ``mt_dir`` and ``features``. A feature or
     motion file that cannot be read is left out and its message appended to ``failures``
     (an error without it). Returns the result and the annotation's rows."""
     from mtanno.annotate import (
@@ -556,6 +560,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     )
     from mtanno.evaluation.player import load_motion_poses, motion_files
     from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.io import MOCAP_SUFFIXES
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
     from mtanno.util.output import check_outputs
@@ -563,6 +568,9 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     from mtanno.util.tables import provenance
 
     require_matplotlib()
+    if any(Path(a).suffix.lower() in MOCAP_SUFFIXES for a in annotations):
+        raise MtannoError("a motion file among the annotation tables: give {motions} before "
+                          "each motion file, or their folder", options=("motions",))
     paths = document_files(features, failures=failures) if features else []
     motion_paths = motion_files(motions)
     # folders read whole: an output there would be read by the next run
@@ -593,7 +601,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
             poses[ff.document] = ff.poses
     if motions:
         poses = load_motion_poses(motion_paths, sorted({r.doc for r in rows} | set(frames)),
-                                  failures=failures)
+                                  asf=asf, failures=failures)
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
         tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
