@@ -267,3 +267,17 @@ def test_motions_after_one_flag_and_an_asf_elsewhere(world, tmp_path):
     page = _report(world, tmp_path / "b", "--motions", alone, "--asf",
                    next(world.docs.glob("*.asf")))
     assert page.count("data-mtanno-player data-doc") == 1
+
+
+def test_an_empty_motion_path_is_refused_and_unannotated_twins_are_ignored(world, tmp_path):
+    r = cli("report", world.annotation, "-o", tmp_path / "rep", "--motions", "", "-q")
+    assert r.exit_code == 2 and "an empty motion path" in r.output
+    twin = tmp_path / "twin"
+    twin.mkdir()
+    other = sorted(world.docs.glob("*.amc"))[0]
+    for folder in (twin, tmp_path / "twin2"):
+        folder.mkdir(exist_ok=True)
+        (folder / "not_annotated.amc").write_bytes(other.read_bytes())
+    files = motion_files([world.docs, twin, tmp_path / "twin2"],
+                         [p.stem for p in world.doc_files])
+    assert "not_annotated" not in files and len(files) == len(world.doc_files)

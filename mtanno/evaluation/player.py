@@ -64,14 +64,20 @@ def decode_poses(text: str) -> np.ndarray:
     return q.reshape(-1, len(CANONICAL_JOINTS), 3).astype(np.float64) * POSE_QUANTUM
 
 
-def motion_files(inputs: Iterable[str | os.PathLike]) -> dict[str, Path]:
+def motion_files(inputs: Iterable[str | os.PathLike],
+                 docs: Iterable[str] | None = None) -> dict[str, Path]:
     """Document name (file stem) → motion file, of files and folders (searched
-    recursively for ``.amc`` and ``.bvh``). A missing input, a file that is not a motion
-    file, or two files of one document are errors naming them."""
+    recursively for ``.amc`` and ``.bvh``); with ``docs``, of those documents only. An
+    empty name, a missing input, a file that is not a motion file, or two files of one
+    document (of ``docs``) are errors naming them."""
     from mtanno.io import MOCAP_SUFFIXES
 
+    wanted = None if docs is None else set(docs)
     out: dict[str, Path] = {}
     for item in inputs:
+        if not str(item).strip():
+            raise MtannoError("an empty motion path (name a file or a folder; '.' for this "
+                              "one)")
         p = Path(item)
         if p.is_dir():
             found = sorted(f for f in p.rglob("*") if f.suffix.lower() in MOCAP_SUFFIXES
@@ -83,6 +89,8 @@ def motion_files(inputs: Iterable[str | os.PathLike]) -> dict[str, Path]:
         else:
             raise MtannoError("motion file or folder not found", path=str(p))
         for f in found:
+            if wanted is not None and f.stem not in wanted:
+                continue
             if f.stem in out and out[f.stem] != f:
                 raise MtannoError(f"two motion files of document {f.stem!r}: {out[f.stem]} "
                                   f"and {f}")

@@ -572,16 +572,17 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         raise MtannoError("a motion file among the annotation tables: give {motions} before "
                           "each motion file, or their folder", options=("motions",))
     paths = document_files(features, failures=failures) if features else []
-    motion_paths = motion_files(motions)
     # folders read whole: an output there would be read by the next run
     scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
                **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     annotations = annotation_files(annotations)
     inputs = [*annotations, *([truth_path] if truth_path else [])]
-    check_outputs([], [*inputs, *paths, *motion_paths.values(),
-                       *(template_files(mt_dir) if mt_dir else [])],
+    check_outputs([], [*inputs, *paths, *(template_files(mt_dir) if mt_dir else [])],
                   folders={out_dir: REPORT_FILES}, scanned=scanned)
     rows, frames, provs = read_annotation_tables(annotations)
+    docs = sorted({r.doc for r in rows} | set(frames))
+    motion_paths = motion_files(motions, docs)
+    check_outputs([], [*motion_paths.values()], folders={out_dir: REPORT_FILES})
     recorded = annotation_parameters(provs)
     truth = None
     if truth_path is not None:
@@ -600,8 +601,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         if ff.poses is not None:
             poses[ff.document] = ff.poses
     if motions:
-        poses = load_motion_poses(motion_paths, sorted({r.doc for r in rows} | set(frames)),
-                                  asf=asf, failures=failures)
+        poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures)
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
         tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
