@@ -40,7 +40,7 @@ def setup(out: Path) -> tuple[Path, Path]:
     docs = out / "docs"
     if not (docs / "truth.csv").exists():
         run("compose", HDM05 / "clips.csv", "--actor", "mm", "--docs", 10, "--clips-per-doc",
-            20, "--seed", 0, "-o", docs, "-q")
+            28, "--seed", 0, "-o", docs, "-q")
     ann = out / "annotation.csv"
     with open(docs / "truth.csv", newline="") as fh:
         truth = list(csv.DictReader(fh))
