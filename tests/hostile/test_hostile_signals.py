@@ -26,8 +26,6 @@ from mtanno.util.store import read_features, write_features
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
-#: How long a worker may outlive its parent (issue 8).
-GRACE = 1.0
 
 
 def _alive(pid: int) -> bool:
@@ -56,10 +54,13 @@ def _wait_until(condition, proc, what: str) -> None:
         time.sleep(0.02)
 
 
-def _interrupt(args, sig, ready, *, group=False):
+def _interrupt(args, sig, ready, *, group=False, work=None):
     """Start mtanno ARGS, wait for ``ready()`` and two workers, send ``sig`` (to the whole
     process group with ``group``, as Ctrl-C in a terminal does). Returns the exit code, the
-    standard error and the seconds the last worker outlived the parent."""
+    standard error and how much work the workers did after the parent ended: ``work()``
+    (e.g. the outputs written) once they are gone, less its value when the parent ended
+    (issue 8: workers die with their parent; no wall-clock bound, which a loaded machine
+    would break: a worker that went on would keep writing)."""
     proc = subprocess.Popen([*MTANNO, *map(str, args)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
@@ -74,12 +75,12 @@ def _interrupt(args, sig, ready, *, group=False):
             _, err = proc.communicate(timeout=HANG)
         except subprocess.TimeoutExpired:
             pytest.fail(f"the run did not end within {HANG:.0f} s of {sig!r}")
-        ended = time.monotonic()
-        while any(_alive(w) for w in workers) and time.monotonic() - ended < 10 * GRACE:
+        at_end = work() if work else 0
+        deadline = time.monotonic() + HANG
+        while any(_alive(w) for w in workers) and time.monotonic() < deadline:
             time.sleep(0.01)
-        outlived = time.monotonic() - ended
-        assert not any(_alive(w) for w in workers), "workers still running"
-        return proc.returncode, err, outlived
+        assert not any(_alive(w) for w in workers), f"workers still running after {HANG} s"
+        return proc.returncode, err, (work() if work else 0) - at_end
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
@@ -104,10 +105,12 @@ CASES = [("SIGINT", False), ("SIGINT", True), ("SIGTERM", False), ("SIGKILL", Fa
 def test_features_jobs_2(motion_batch, tmp_path, name, group):
     out = tmp_path / "out"
     sig = getattr(signal, name)
-    code, err, outlived = _interrupt(
+    written = lambda: len(list(out.glob("*.parquet")))  # noqa: E731
+    code, err, after = _interrupt(
         ["features", motion_batch, "-o", out, "--jobs", "2"], sig,
-        lambda: len(list(out.glob("*.parquet"))) >= 3, group=group)
-    assert outlived <= GRACE, f"a worker outlived the parent by {outlived:.2f} s"
+        lambda: written() >= 3, group=group, work=written)
+    # at most the file each worker was renaming into place when its parent ended
+    assert after <= 2, f"the workers wrote {after} files after their parent ended"
     if sig == signal.SIGKILL:
         assert code == -signal.SIGKILL
     else:
@@ -154,9 +157,8 @@ def test_annotate_jobs_2(long_documents, tmp_path, name, group):
         started.append(time.monotonic())
         return time.monotonic() - started[0] >= 0.5
 
-    code, err, outlived = _interrupt(["annotate", "--mt", mt, docs, "-o", out, "--jobs", "2"],
-                                     sig, busy, group=group)
-    assert outlived <= GRACE, f"a worker outlived the parent by {outlived:.2f} s"
+    code, err, _ = _interrupt(["annotate", "--mt", mt, docs, "-o", out, "--jobs", "2"],
+                              sig, busy, group=group)
     assert code == (-signal.SIGKILL if sig == signal.SIGKILL else 130), err
     if sig != signal.SIGKILL:
         assert err.strip().splitlines()[-1].startswith(f"mtanno: interrupted ({name})")
@@ -175,9 +177,10 @@ def test_workers_stop_when_the_parent_dies_without_the_kernels_help(tmp_path):
     script.write_text(
         "import os, sys, time\n"
         "import mtanno.util.workers as w\n"
+        f"HANG = {HANG}\n"
         "def task(path):\n"
         "    open(path, 'w').close()  # the worker is in its task\n"
-        "    time.sleep(60)\n"
+        "    time.sleep(10 * HANG)  # far beyond the wait below: only the watchdog ends it\n"
         "w._set_parent_death_signal = lambda signum: False\n"
         "pool = w.WorkerPool(1)\n"
         f"pool.submit(task, {str(busy)!r})\n"
@@ -190,8 +193,7 @@ def test_workers_stop_when_the_parent_dies_without_the_kernels_help(tmp_path):
     _wait_until(busy.exists, proc, "the worker was in its task")
     proc.kill()
     proc.wait()
-    ended = time.monotonic()
-    while _alive(worker) and time.monotonic() - ended < 10 * GRACE:
+    deadline = time.monotonic() + HANG  # the event, not a wall-clock bound on the watchdog
+    while _alive(worker) and time.monotonic() < deadline:
         time.sleep(0.01)
     assert not _alive(worker)
-    assert time.monotonic() - ended <= GRACE
