@@ -21,13 +21,15 @@
 #     the manifest's actor column is what makes tune hold out the styles, and the reviewed
 #     clips as one more performer.
 # Per (style, K): the reference annotation and the tuned one of the test documents,
-# `mtanno evaluate --json`; then the tables (scripts/review_tables.py): per K the mean over
-# the held-out styles, and per style.
+# `mtanno evaluate --json`, and the tuned one once more on the test documents of the last K
+# (the same documents for every K); then the tables (scripts/review_tables.py): per K the
+# mean over the held-out styles, per style, and on the same documents.
 #
 #   scripts/experiment_review.sh [OUT] [STYLES...]   (defaults: out/review, all five styles)
 #
 # Environment: FEATURES=DIR reuses feature files DIR/<style>/*.parquet (else they are
-# computed from the unpacked archives, as experiment_bandai.sh does); KS (default "0 1 2");
+# computed from the unpacked archives, as experiment_bandai.sh does); KS (default "0 1 2",
+# in increasing order);
 # SEED (default 0) of the reviewed draw; REUSE=1 keeps tuned configurations already there;
 # JOBS (default 2). Every command runs under `nice` (the machine is shared).
 set -euo pipefail
@@ -86,6 +88,17 @@ for S in $STYLES; do
     echo "$(( $(date +%s) - s0 ))" > "$d/seconds.txt"
     echo "-- $S, K = $K: $n training examples, ${#docs[@]} test documents," \
       "$(cat "$d/seconds.txt") s; tuned: $(tail -1 "$d/report_tuned.txt")"
+  done
+  # every K also on the same test documents, those of the last K (the reviewed clips are
+  # nested in K, so its test documents are among every smaller K's): report_tuned_common.json
+  last=${KS##* }
+  docargs=()
+  while read -r doc; do doc=${doc##*/}; docargs+=(--doc "${doc%.parquet}"); done \
+    < "$OUT/$S/k$last/documents.txt"
+  for K in $KS; do
+    "${MTANNO[@]}" evaluate "$OUT/$S/k$K/annotation_tuned.csv" --truth \
+      "$OUT/$S/k$last/truth.csv" "${docargs[@]}" --json "$OUT/$S/k$K/report_tuned_common.json" \
+      > /dev/null
   done
 done
 

@@ -5,7 +5,9 @@ held-out styles of F1 and F2 (frames and segments, [MBS09] §7), F1@50, Edit and
 accuracy (all 0–1, from ``mtanno evaluate --json``), for the reference annotation and the
 tuned one; then the tuned figures per style. ``test docs`` is the number of test documents
 (summed over the styles in the first table): K·10 clips of each style are reviewed and so
-leave its test.
+leave its test. When every ``report_tuned_common.json`` is there (the tuned annotation of
+each K evaluated on the test documents of the last K), a third table gives the means on
+those same documents, so that the K compare on one test.
 
 Usage: ``review_tables.py OUT [--styles S...] [--ks K...]`` (reads
 OUT/<style>/k<K>/report_{reference,tuned}.json). Prints Markdown.
@@ -65,6 +67,16 @@ def tables(out: Path, styles: Sequence[str], ks: Sequence[str]) -> str:
         for k in ks:
             figures, docs = per_style[(s, k)]
             lines.append(f"| {s} | {k} | {_cells(figures)} | {docs} |")
+    common = {(s, k): out / s / f"k{k}" / "report_tuned_common.json" for s in styles
+              for k in ks}
+    if all(p.exists() for p in common.values()):
+        lines += ["", f"Tuned, every K on the same test documents (those of K = {ks[-1]}):",
+                  "", f"| K | {head} | test docs |", "|---" * (len(COLUMNS) + 2) + "|"]
+        for k in ks:
+            reports = [_report(common[(s, k)]) for s in styles]
+            mean = [sum(col) / len(col) for col in zip(*map(_figures, reports))]
+            docs = sum(len(r["documents"]) for r in reports)
+            lines.append(f"| {k} | {_cells(mean)} | {docs} |")
     return "\n".join(lines)
 
 
