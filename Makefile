@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 SHARED ?= ../shared/data
 OUT    ?= out
 
-.PHONY: install test demo bench lint clean experiment-hdm05 experiment-mocap6 experiment-bandai experiment-openworld
+.PHONY: install test demo bench lint clean experiment-hdm05 experiment-mocap6 experiment-bandai experiment-openworld experiment-review
 
 $(BIN)/mtanno: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -56,6 +56,9 @@ experiment-openworld: $(BIN)/mtanno  ## the open-world protocol: foreign archive
 
 experiment-bandai: $(BIN)/mtanno  ## the Bandai set-2 leave-one-style-out annotation experiment
 	scripts/experiment_bandai.sh $(OUT)/bandai
+
+experiment-review: $(BIN)/mtanno  ## the Bandai set-2 review loop: K = 0, 1, 2 reviewed clips per content (issue 24)
+	scripts/experiment_review.sh $(OUT)/review
 
 bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the peers first
 	$(BIN)/pip install --quiet -e '.[test,bench]'

@@ -14,20 +14,29 @@
 * ``OUT/S/truth.csv`` — every clip of S as one document, labelled with its content over all
   its frames.
 
-    bandai_folds.py review FOLD OUT --k K [--seed 0]
+    bandai_folds.py review FOLD OUT --k K [--seed 0] [--features FEATS]
 
 ``review`` (issue 24, the review loop of scripts/experiment_review.sh) simulates a person who
 reviewed ``K`` clips per content of the held-out style S of fold folder ``FOLD``
-(``OUT/S`` of ``folds``) on the report page and downloaded the truth: it writes
+(``OUT/S`` of ``folds``; S is its name) on the report page and downloaded the truth: it
+writes
 
-* ``OUT/reviewed.csv`` — that truth CSV (``doc,start,end,label,fps``, whole clips, 30 Hz), the
-  format the page's "Download truth" writes; the clips are the first K of a seeded
-  shuffle of each content's clips (``random.Random("SEED:review:S:CONTENT")``), so the
-  clips of K = 1 are among those of K = 2;
-* ``OUT/train.csv`` — the fold's training manifest plus a row per reviewed segment (actor
-  S: ``tune`` holds the reviewed clips out as one more performer);
+* ``OUT/reviewed.csv`` — that truth CSV (``doc,start,end,label,fps``, whole clips, 1-based
+  inclusive frames at 30 Hz), the format the page's "Download truth" writes; the clips are
+  the first K of a seeded shuffle of each content's clips of S
+  (``random.Random("SEED:review:S:CONTENT")``, :func:`draw_reviewed`), so the clips of
+  K = 1 are among those of K = 2;
+* ``OUT/train.csv`` — the fold's training manifest plus one row per segment of
+  ``reviewed.csv`` as read back by mtanno's truth reader (actor S: ``tune`` holds the
+  reviewed clips out as one more performer, as it holds out each training style);
 * ``OUT/truth.csv`` and ``OUT/documents.txt`` — the clips of S that were not reviewed: the
-  test documents and their truth (a document reviewed is never tested on).
+  test documents and their truth (a document reviewed is never tested on);
+* with ``--features FEATS`` (the folder of ``folds``): ``OUT/train_truth.csv`` — the same
+  training examples as one truth table for ``learn-mt --truth``: a whole-clip row
+  (``doc,start,end,label,fps``) per training clip of the fold, then the rows of
+  ``reviewed.csv`` appended as downloaded.
+
+K = 0 gives the fold itself: ``train.csv`` and ``truth.csv`` are byte for byte the fold's.
 """
 
 from __future__ import annotations
@@ -89,32 +98,70 @@ def folds(feats: Path, out: Path, per: int, seed: int) -> None:
               f"documents -> {d}", file=sys.stderr)
 
 
-def review(fold: Path, out: Path, k: int, seed: int) -> None:
+def draw_reviewed(truth: list[dict[str, str]], style: str, k: int,
+                  seed: int) -> list[dict[str, str]]:
+    """The rows of the held-out style's truth (``doc,start,end,label`` dicts, one whole clip
+    each) that a reviewer accepted: per content (label, in sorted order) the first ``k`` of
+    the content's rows sorted by document and shuffled by
+    ``random.Random("SEED:review:STYLE:CONTENT")`` — reproducible, independent of the other
+    contents, and nested in ``k`` (a content with fewer than ``k`` clips gives them all)."""
+    if k < 0:
+        raise SystemExit(f"bandai_folds: --k must be >= 0 (got {k})")
+    by_content: dict[str, list[dict[str, str]]] = defaultdict(list)
+    for row in truth:
+        by_content[row["label"]].append(row)
+    reviewed: list[dict[str, str]] = []
+    for content, rows in sorted(by_content.items()):
+        order = sorted(rows, key=lambda r: r["doc"])
+        random.Random(f"{seed}:review:{style}:{content}").shuffle(order)
+        reviewed += order[:k]
+    return reviewed
+
+
+def _frames(feats: Path, rel: str) -> int:
+    """Analysis frames (30 Hz) of the feature file FEATS/<rel>.parquet."""
+    import pyarrow.parquet as pq
+
+    return pq.ParquetFile(feats / f"{rel}.parquet").metadata.num_rows
+
+
+def review(fold: Path, out: Path, k: int, seed: int, feats: Path | None = None) -> None:
+    """Write OUT's files for ``k`` reviewed clips per content (module docstring)."""
     import csv
+
+    from mtanno.evaluation.truth import read_truth
 
     train = (fold / "train.csv").read_text().splitlines()
     with open(fold / "truth.csv", newline="") as fh:
         truth = list(csv.DictReader(fh))
     style = fold.name
-    by_content: dict[str, list[dict]] = defaultdict(list)
-    for row in truth:
-        by_content[row["label"]].append(row)
-    reviewed = []
-    for content, rows in sorted(by_content.items()):
-        order = sorted(rows, key=lambda r: r["doc"])
-        random.Random(f"{seed}:review:{style}:{content}").shuffle(order)
-        reviewed += order[:k]
+    reviewed = draw_reviewed(truth, style, k, seed)
     names = {r["doc"] for r in reviewed}
     out.mkdir(parents=True, exist_ok=True)
-    (out / "reviewed.csv").write_text("doc,start,end,label,fps\n" + "".join(
-        f"{r['doc']},{r['start']},{r['end']},{r['label']},30\n" for r in reviewed))
-    rows = train + [f"{style}/{r['doc']}.bvh,{r['label']},{style},"
-                    f"{_NAME.match(r['doc'])['take']}" for r in reviewed]
+    downloaded = "doc,start,end,label,fps\n" + "".join(
+        f"{r['doc']},{r['start']},{r['end']},{r['label']},30\n" for r in reviewed)
+    (out / "reviewed.csv").write_text(downloaded)
+    # the loop as a user runs it: the downloaded truth is read back, not the rows drawn
+    whole = {r["doc"]: int(r["end"]) for r in truth}
+    rows = list(train)
+    for seg in read_truth(out / "reviewed.csv"):
+        if seg.doc not in whole or (seg.start, seg.end) != (1, whole[seg.doc]):
+            raise SystemExit(f"bandai_folds: reviewed segment {seg} is not a whole clip of "
+                             f"{style} (a manifest row is a whole clip)")
+        rows.append(f"{style}/{seg.doc}.bvh,{seg.label},{style},{_NAME.match(seg.doc)['take']}")
     (out / "train.csv").write_text("\n".join(rows) + "\n")
     test = [r for r in truth if r["doc"] not in names]
     (out / "truth.csv").write_text("doc,start,end,label\n" + "".join(
         f"{r['doc']},{r['start']},{r['end']},{r['label']}\n" for r in test))
     (out / "documents.txt").write_text("".join(f"{style}/{r['doc']}.parquet\n" for r in test))
+    if feats is not None:
+        lines = ["doc,start,end,label,fps"]
+        for line in train[1:]:
+            file, label = line.split(",")[:2]
+            rel = str(Path(file).with_suffix(""))
+            lines.append(f"{Path(rel).name},1,{_frames(feats, rel)},{label},30")
+        (out / "train_truth.csv").write_text(
+            "\n".join(lines) + "\n" + downloaded.split("\n", 1)[1])
     print(f"bandai_folds: {style}, k = {k}: {len(reviewed)} reviewed clips, {len(test)} test "
           f"documents -> {out}", file=sys.stderr)
 
@@ -133,9 +180,10 @@ def main(argv=None) -> int:
     r.add_argument("out", type=Path)
     r.add_argument("--k", type=int, required=True)
     r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--features", type=Path, default=None)
     a = ap.parse_args(argv)
     if a.cmd == "review":
-        review(a.fold, a.out, a.k, a.seed)
+        review(a.fold, a.out, a.k, a.seed, a.features)
         return 0
     if a.cmd == "unpack":
         for p in unpack():
