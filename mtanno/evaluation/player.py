@@ -104,8 +104,8 @@ def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
     """The normalised poses at the 30 Hz analysis frames of each document of ``docs`` that
     has a motion file in ``files`` (:func:`motion_files`), as ``features --poses`` computes
     them (``asf``, else the ASF found beside or above an AMC file; skeleton map detected). A
-    file that cannot
-    be read is left out, its message appended to ``failures`` (an error without it)."""
+    file that cannot be read is left out, its message appended to ``failures`` (an error
+    without it)."""
     from mtanno.features.extract import poses_at, to_y_up
     from mtanno.features.hysteresis import analysis_frames
     from mtanno.io import canonical_positions, read_motion
@@ -131,9 +131,13 @@ def players_data(poses: dict[str, np.ndarray], annotation, frames: dict[str, int
     its frames, encoded poses and annotation segments (1-based start, end, label), and
     each label's colour (``#rrggbb``)."""
     index = {name: i for i, name in enumerate(CANONICAL_JOINTS)}
+    rows: dict[str, list] = {}  # the segments of each document, grouped once
+    for a in annotation:
+        if a.doc in poses:
+            rows.setdefault(a.doc, []).append((a.start + 1, a.end + 1, a.label))
     docs = {}
     for d, P in sorted(poses.items()):
-        segs = sorted((a.start + 1, a.end + 1, a.label) for a in annotation if a.doc == d)
+        segs = sorted(rows.get(d, []))
         docs[d] = {"frames": int(frames.get(d, P.shape[0])), "poses": encode_poses(P),
                    "posed": int(P.shape[0]), "segments": [list(s) for s in segs]}
     return {"bones": [[index[a], index[b]] for a, b in BONES], "quantum": POSE_QUANTUM,

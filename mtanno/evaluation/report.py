@@ -369,11 +369,15 @@ def _timelines(w: _Writer, docs, truth, annotation, frames, colours) -> None:
     """Per document its timeline figure: truth (None: not given) and annotation."""
     from mtanno.plot import plot_timeline
 
+    by_doc: dict[str, dict[str, list]] = {d: {} for d in docs}  # lanes, grouped once
+    for s in truth or ():
+        if s.doc in by_doc:
+            by_doc[s.doc].setdefault("truth", []).append((s.start, s.end, s.label))
+    for a in annotation:
+        by_doc[a.doc].setdefault("annotation", []).append((a.start + 1, a.end + 1, a.label))
     for d in docs:
-        lanes = {**({"truth": [(s.start, s.end, s.label) for s in truth if s.doc == d]}
-                    if truth is not None else {}),
-                 "annotation": [(a.start + 1, a.end + 1, a.label) for a in annotation
-                                if a.doc == d]}
+        lanes = {**({"truth": by_doc[d].get("truth", [])} if truth is not None else {}),
+                 "annotation": by_doc[d].get("annotation", [])}
         ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
         present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
         _legend(ax, present, colours)
