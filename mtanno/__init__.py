@@ -22,6 +22,7 @@ light): :func:`read_motion`, :func:`compute_features`, :func:`learn_templates`,
 
 from mtanno._version import __version__
 from mtanno.errors import MtannoError
+from mtanno.util.lazy import submodule_getattr
 
 _API = ("annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
         "load_templates", "read_motion")
@@ -29,12 +30,16 @@ _API = ("annotate_documents", "compute_features", "evaluate_annotation", "learn_
 __all__ = ["MtannoError", "__version__", *_API]
 
 
-def __getattr__(name: str):
+def _api(name: str):
     if name in _API:
         from mtanno import api
 
         return getattr(api, name)
-    raise AttributeError(f"module 'mtanno' has no attribute {name!r}")
+    raise AttributeError(name)
+
+
+# the facade's names, then the subpackages on first use (mtanno.annotate.load_class_config)
+__getattr__ = submodule_getattr(__name__, _api)
 
 
 def __dir__() -> list[str]:

@@ -23,6 +23,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from mtanno.util.lazy import submodule_getattr
+
 _EXPORTS = {
     "coarse": ("ALL", "POSE", "CoarseAlignment", "Segments", "coarse_alignment",
                "pose_features", "select_features"),
@@ -38,12 +40,15 @@ _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in nam
 __all__ = sorted(_MODULE_OF)
 
 
-def __getattr__(name: str) -> Any:
+def _attach(name: str) -> Any:
     if name not in _MODULE_OF:
-        raise AttributeError(f"module 'mtanno.align' has no attribute {name!r}")
+        raise AttributeError(name)
     value = getattr(importlib.import_module(f"mtanno.align.{_MODULE_OF[name]}"), name)
     globals()[name] = value
     return value
+
+
+__getattr__ = submodule_getattr(__name__, _attach)  # the names above, then submodules
 
 
 def __dir__() -> list[str]:

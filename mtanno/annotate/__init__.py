@@ -106,3 +106,6 @@ from mtanno.annotate.tables import (
     to_segments,
     write_annotations,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -129,7 +129,7 @@ class AnnotationBatch:
         try:
             import pandas  # noqa: F401
         except ImportError:
-            raise MtannoError("AnnotationBatch.to_pandas needs pandas (pip install pandas); "
+            raise MtannoError("AnnotationBatch.to_pandas needs pandas (pip install 'mtanno[pandas]'); "
                               "to_arrow() gives the same table without it") from None
         return self.to_arrow().to_pandas()
 

@@ -25,6 +25,8 @@ Every module's public names are importable from the package, attached on first u
 truth table loads neither the report nor the feature extractor.
 """
 
+from mtanno.util.lazy import submodule_getattr
+
 _MODULE_OF = {
     "ClassRetrieval": "retrieval",
     "EVALUATION_SCHEMA": "metrics",
@@ -74,7 +76,7 @@ __all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval",
            "write_report", "write_truth"]
 
 
-def __getattr__(name: str):
+def _attach(name: str):
     # the names are attached on first use (PEP 562), so that a module that needs one
     # of them (a truth table, the P/R/F formulas) does not load the report and the rest
     if name in _MODULE_OF:
@@ -83,7 +85,10 @@ def __getattr__(name: str):
         value = getattr(importlib.import_module(f"mtanno.evaluation.{_MODULE_OF[name]}"), name)
         globals()[name] = value
         return value
-    raise AttributeError(f"module 'mtanno.evaluation' has no attribute {name!r}")
+    raise AttributeError(name)
+
+
+__getattr__ = submodule_getattr(__name__, _attach)  # the names above, then submodules
 
 
 def __dir__() -> list[str]:

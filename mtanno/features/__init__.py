@@ -43,3 +43,6 @@ from mtanno.features.table import (
     feature_index,
     mirror_permutation,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -51,3 +51,6 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -13,10 +13,18 @@
 * :mod:`~mtanno.util.outcomes` — the record of a batch that goes on past failures;
 * :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
 * :mod:`~mtanno.util.units` — the units every stage shares (the 30 Hz analysis rate);
+* :mod:`~mtanno.util.lazy` — modules loaded on attribute access (``mtanno.util.store``
+  after a bare ``import mtanno``);
 * ``_bits`` — bit kernels the stages' numba kernels share (private).
 
-The modules are imported by name (``from mtanno.util.store import read_features``); this
-file imports none of them, so that loading one does not load the others.
+The modules are imported by name (``from mtanno.util.store import read_features``) or on
+first attribute access; this file imports none of them but :mod:`~mtanno.util.lazy`, so that
+loading one does not load the others.
 """
 
-__all__ = ["jitnote", "locks", "outcomes", "output", "store", "tables", "units", "workers"]
+from mtanno.util.lazy import submodule_getattr
+
+__all__ = ["jitnote", "lazy", "locks", "outcomes", "output", "store", "tables", "units", "workers"]
+
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use
