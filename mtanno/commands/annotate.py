@@ -47,7 +47,7 @@ from mtanno.commands._common import (
                    f"--classes, else {DEFAULT_DELTA:g}].")
 @click.option("--dbar", "variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True,
-              help="Modified-distance (Δ̄) variant (algorithms.md §7).")
+              help="Modified-distance (Δ̄) variant (docs/annotation.md).")
 @click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
               default=None, hidden=True, help="The former name of --dbar.")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),

@@ -268,7 +268,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf,
     list plays that segment, and #autoplay after the page's address plays them all. In
     the review list a row is accepted, rejected, relabelled or moved by frames, and
     "Download truth" saves the accepted rows as a truth CSV for learn-mt, tune and
-    evaluate --truth (docs/report.md).
+    evaluate --truth (docs/annotation.md, "mtanno report").
 
     ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
     table below a folder, such as the per-document tables of `mtanno annotate

@@ -53,7 +53,7 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
 
     FEATURES are feature files (.parquet, from `mtanno features`) or folders searched
     recursively. Each file is one document; matches never cross documents. Hits are
-    found greedily by increasing cost Δ (algorithms.md §3.4–3.5) and ranked over all
+    found greedily by increasing cost Δ ([MR06] §5.4–5.5, docs/retrieval.md) and ranked over all
     documents. Output columns: doc, start, end (1-based inclusive 30 Hz frames),
     start_native, end_native (frames of the source motion file), cost, rank. With a
     folder of several templates (--mt MT/, as annotate takes) each class is retrieved and
