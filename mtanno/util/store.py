@@ -342,8 +342,7 @@ def _found_feature_files(inputs: Iterable[str | os.PathLike], failures: list[str
             problems += [MtannoError("not a regular file (a FIFO, device or broken link)",
                                      path=str(q)) for q in odd]
             if not found and not odd:
-                problems.append(MtannoError("no feature files (*.parquet) in this folder",
-                                            path=str(p)))
+                problems.append(_not_a_feature_folder(p))
             out.extend((q, q.relative_to(p)) for q in found)
         elif p.is_file():
             out.append((p, Path(p.name)))
@@ -360,6 +359,32 @@ def _found_feature_files(inputs: Iterable[str | os.PathLike], failures: list[str
     if failures is not None:
         failures.extend(str(e) for e in problems)
     return out
+
+
+#: What a folder given for feature files holds instead, by the schema its JSON files name
+#: (``"schema": "mtanno.template/1"``): the message and the parameter it belongs to.
+_OTHER_FOLDERS = (
+    (b'"mtanno.template/', "a folder of motion templates, not of feature files (give it to "
+     "{mt})", "mt"),
+    (b'"mtanno.keyframes/', "a folder of keyframe queries, not of feature files (give it to "
+     "{keyframes})", "keyframes"),
+)
+
+
+def _not_a_feature_folder(folder: Path) -> MtannoError:
+    """The error for a folder without feature files, saying what it holds instead when
+    that is something mtanno knows (templates, keyframe queries, motion files)."""
+    for q in sorted(folder.rglob("*"))[:1000]:
+        if q.suffix.lower() == ".json" and q.is_file():
+            with open(q, "rb") as f:
+                head = f.read(4096)
+            for mark, message, option in _OTHER_FOLDERS:
+                if mark in head:
+                    return MtannoError(message, path=str(folder), options=(option,))
+        elif q.suffix.lower() in _MOTION_SUFFIXES:
+            return MtannoError("a folder of motion files, not of feature files (make them "
+                               "with `mtanno features` first)", path=str(folder))
+    return MtannoError("no feature files (*.parquet) in this folder", path=str(folder))
 
 
 def feature_files(inputs: Iterable[str | os.PathLike], *,
