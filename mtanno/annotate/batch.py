@@ -13,10 +13,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mtanno.annotate.config import DEFAULT_DELTA, ClassConfig, check_tau, load_class_config
+from mtanno.annotate.config import ClassConfig, load_class_config
 from mtanno.annotate.label import ClassModel, annotate_document
 from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_DELTA, check_tau
 
 if TYPE_CHECKING:
     from mtanno.util.store import FeatureLayout
@@ -26,7 +27,7 @@ __all__ = ["AnnotationBatch", "AnnotationSetup", "annotate_files", "annotation_s
            "load_config_templates"]
 
 
-def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA,
+def load_class_models(mt_dir: str | os.PathLike, *, delta: float = ANNOTATION_DELTA,
                       classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
     """The templates of a folder (``*.json``; or one template file;
     :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
@@ -38,7 +39,7 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
                         where=f"the templates in {mt_dir}")
 
 
-def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
+def class_models(templates: dict, *, delta: float = ANNOTATION_DELTA,
                  where: str = "the templates") -> tuple[list[ClassModel], FeatureLayout]:
     """:class:`ClassModel` records of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
@@ -67,7 +68,7 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
 
 
 def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
-                          delta: float = DEFAULT_DELTA) -> list[ClassModel]:
+                          delta: float = ANNOTATION_DELTA) -> list[ClassModel]:
     """The further templates of ``config.templates`` (several templates per class) as
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
@@ -270,7 +271,7 @@ class AnnotationSetup:
     models: list[ClassModel]
     layout: FeatureLayout
     config: ClassConfig = field(default_factory=ClassConfig)
-    delta: float = DEFAULT_DELTA
+    delta: float = ANNOTATION_DELTA
     dbar_variant: str = "reference"
     match_variant: str = "reference"
     keyframes: dict = field(default_factory=dict)
@@ -353,7 +354,7 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     """The :class:`AnnotationSetup` of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`) and a class configuration, applied as
     ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
-    δ unless ``delta`` is given (else :data:`DEFAULT_DELTA`), its further templates, and
+    δ unless ``delta`` is given (else :data:`ANNOTATION_DELTA`), its further templates, and
     :meth:`ClassConfig.template_warnings` in ``warnings``, its tuned confidence
     (:func:`mtanno.annotate.confidence.load_confidence`). ``tau`` replaces its default τ
     (on a copy: the object passed is not changed); ``min_confidence`` its minimum
@@ -366,7 +367,7 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     if tau is not None:
         config.default_tau = check_tau(tau)
     if delta is None:
-        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+        delta = config.delta if config.delta is not None else ANNOTATION_DELTA
     models, layout = class_models(templates, delta=delta, where=where)
     config.check([m.name for m in models])
     warnings = config.template_warnings(models)
@@ -390,7 +391,7 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
     class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
     of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
     τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
-    :data:`DEFAULT_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
+    :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
     from mtanno.templates.model import load_template_folder
     from mtanno.util.store import sha256_file
 

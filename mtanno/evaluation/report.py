@@ -517,10 +517,11 @@ def _legend(ax, labels, colours) -> None:
 def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
                    tau: float | None, tau_per_class: dict[str, float],
                    delta: float | None) -> None:
-    from mtanno.annotate import DEFAULT_DELTA, class_deltas, class_models
+    from mtanno.annotate import class_deltas, class_models
     from mtanno.plot import label_colours, plot_delta
+    from mtanno.templates.params import ANNOTATION_DELTA
 
-    models, _ = class_models(templates, delta=DEFAULT_DELTA if delta is None else delta)
+    models, _ = class_models(templates, delta=ANNOTATION_DELTA if delta is None else delta)
     colours = label_colours(sorted(m.name for m in models))
     for d, X in features.items():
         ax = None
@@ -558,7 +559,6 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     (an error without it). Returns the result and the annotation's rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
-        DEFAULT_TAU,
         annotation_files,
         read_annotation_tables,
     )
@@ -567,6 +567,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     from mtanno.io import MOCAP_SUFFIXES
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.templates.params import ANNOTATION_TAU
     from mtanno.util.output import check_outputs
     from mtanno.util.store import document_files, read_features
     from mtanno.util.tables import provenance
@@ -608,7 +609,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures)
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
-        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
+        tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
     result = write_report(
         out_dir, truth, rows, frames=frames,
         templates=load_template_folder(mt_dir) if mt_dir else None,

@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from mtanno._version import __version__
-from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
+from mtanno.annotate import ClassConfig, class_config_text
 from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_TAU
 from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
@@ -183,7 +184,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                   unknown_weight=unknown_weight, log=log, columns=columns)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
-    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
+    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
     variants = {}
     if ablation:
         for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
@@ -453,10 +454,10 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
 
 
 def _deltas(methods: Sequence[str], templates) -> list[float]:
-    from mtanno.annotate import DEFAULT_DELTA
+    from mtanno.templates.params import ANNOTATION_DELTA
     from mtanno.tuning.search import DELTA_GRID
 
-    return [float(d) for d in DELTA_GRID] if "delta" in methods else [DEFAULT_DELTA]
+    return [float(d) for d in DELTA_GRID] if "delta" in methods else [ANNOTATION_DELTA]
 
 
 def _run_tasks(tasks: list, n_jobs: int, fn, *, scheduler: str | None = None,
@@ -576,7 +577,7 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         "folds (held-out performer: examples): "
         + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
         f"cross-validated, tuned:    {_fmt(ev)}",
-        f"cross-validated, reference (tau {DEFAULT_TAU}, no methods): {_fmt(result.reference)}",
+        f"cross-validated, reference (tau {ANNOTATION_TAU}, no methods): {_fmt(result.reference)}",
         "search:",
         *(f"  {s}" for s in result.steps),
         *_confidence_section(cfg, result, path),
