@@ -106,7 +106,7 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
     import warnings
 
     from mtanno.annotate import annotation_setup
-    from mtanno.util.store import document_files
+    from mtanno.features.inputs import document_files
 
     paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
     if isinstance(templates, (str, os.PathLike)):

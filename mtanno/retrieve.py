@@ -272,7 +272,7 @@ def _documents(paths: Sequence[str | os.PathLike], layout, batch: RetrievalBatch
     """Yield (document name, features) of each feature file that can be read and fits
     ``layout``; record its native frames and file in ``batch``, a failure in
     ``batch.failed``, and call ``progress`` once per file."""
-    from mtanno.util.store import check_layout, read_features
+    from mtanno.features.store import check_layout, read_features
 
     for p in paths:
         try:
@@ -294,8 +294,8 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
                    paths: Sequence[str | os.PathLike], *, layout, tau: float,
                    max_hits: int = DEFAULT_MAX_HITS, variant: str = "reference",
                    progress: Callable[[str, str | None], None] | None = None) -> RetrievalBatch:
-    """:func:`retrieve` over feature files: each is read (:func:`mtanno.util.store.read_features`)
-    and checked against the template's ``layout`` (:func:`mtanno.util.store.check_layout`); a
+    """:func:`retrieve` over feature files: each is read (:func:`mtanno.features.store.read_features`)
+    and checked against the template's ``layout`` (:func:`mtanno.features.store.check_layout`); a
     file that fails is recorded in ``failed`` and the others are still searched.
     ``progress`` is called once per file with its path and its failure (None on success)."""
     batch = RetrievalBatch(HitList())

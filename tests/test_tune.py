@@ -23,7 +23,7 @@ from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
-from mtanno.util.store import sha256_file
+from mtanno.util.tables import sha256_file
 
 
 def _sources(world):

@@ -20,7 +20,7 @@ from mtanno.errors import MtannoError
 from mtanno.templates.params import ANNOTATION_DELTA, check_tau
 
 if TYPE_CHECKING:
-    from mtanno.util.store import FeatureLayout
+    from mtanno.features.store import FeatureLayout
 
 __all__ = ["AnnotationBatch", "AnnotationSetup", "annotate_files", "annotation_setup",
            "class_models", "load_annotation_setup", "load_class_models",
@@ -45,8 +45,9 @@ def class_models(templates: dict, *, delta: float = ANNOTATION_DELTA,
     :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
     learned in memory), quantized with ``delta``, and the feature layout they share
     (``where`` names them in messages)."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import quantize
-    from mtanno.util.store import check_layout, sha256_file
+    from mtanno.util.tables import sha256_file
 
     if not templates:
         raise MtannoError("no class templates to annotate with")
@@ -72,8 +73,9 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
     """The further templates of ``config.templates`` (several templates per class) as
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.store import check_layout, sha256_file
+    from mtanno.util.tables import sha256_file
 
     out = []
     for cls, paths in config.template_paths().items():
@@ -144,8 +146,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     import time
 
     from mtanno.annotate.confidence import score_document, single_label_by_confidence
+    from mtanno.features.store import check_layout, read_features
     from mtanno.templates.match import pack_document
-    from mtanno.util.store import check_layout, read_features
 
     bank = confidence.bank if confidence is not None else None
     need_poses = bank is not None and bank.representation == "poses"
@@ -393,7 +395,7 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
     τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
     :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
     from mtanno.templates.model import load_template_folder
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     setup = annotation_setup(
         load_template_folder(mt_dir),

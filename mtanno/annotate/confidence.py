@@ -228,7 +228,7 @@ def load_confidence(config) -> ConfidenceModel | None:
     bank = bank_path = sha = None
     if "bank" in conf:
         from mtanno.annotate.verify import read_bank
-        from mtanno.util.store import sha256_file
+        from mtanno.util.tables import sha256_file
 
         base = Path(config.path).parent if config.path else Path(".")
         bank_path = str(base / conf["bank"])

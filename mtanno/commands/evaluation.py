@@ -13,9 +13,9 @@ from mtanno.commands._common import DELTA, TAU, ProgressBar, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
 from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
+from mtanno.features.inputs import document_files
 from mtanno.templates.model import template_files
 from mtanno.templates.params import RETRIEVAL_DELTA
-from mtanno.util.store import document_files
 
 
 def json_and_table_options(*, json_what: str, schema: str, table_what: str):

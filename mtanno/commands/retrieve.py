@@ -12,9 +12,9 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import DELTA, TAU, show_progress, user_errors
+from mtanno.features.inputs import feature_files
 from mtanno.retrieve import DEFAULT_MAX_HITS
 from mtanno.templates.params import RETRIEVAL_DELTA, RETRIEVAL_TAU
-from mtanno.util.store import feature_files
 
 
 @click.command("retrieve", epilog="Exit codes: 0 success, 1 some feature files failed (the "

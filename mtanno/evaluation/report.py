@@ -564,12 +564,13 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     )
     from mtanno.evaluation.player import load_motion_poses, motion_files
     from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.features.inputs import document_files
+    from mtanno.features.store import read_features
     from mtanno.io import MOCAP_SUFFIXES
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
     from mtanno.templates.params import ANNOTATION_TAU
     from mtanno.util.output import check_outputs
-    from mtanno.util.store import document_files, read_features
     from mtanno.util.tables import provenance
 
     require_matplotlib()

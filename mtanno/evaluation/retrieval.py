@@ -202,7 +202,7 @@ def evaluate_retrieval_files(models, layout, paths, truth: Sequence[Segment], *,
     naming ``truth_path``."""
     from mtanno.errors import MtannoError
     from mtanno.evaluation.truth import check_within
-    from mtanno.util.store import check_layout, read_features
+    from mtanno.features.store import check_layout, read_features
 
     documents, files, failed = [], [], []
     for p in paths:

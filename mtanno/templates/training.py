@@ -30,7 +30,9 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.evaluation.truth import read_truth
-from mtanno.util.store import FeatureLayout, feature_files, read_features, sha256_file
+from mtanno.features.inputs import feature_files
+from mtanno.features.store import FeatureLayout, read_features
+from mtanno.util.tables import sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
@@ -86,7 +88,7 @@ class TrainingExample:
     poses: np.ndarray | None = None
 
     def layout(self) -> FeatureLayout:
-        """The example's :class:`~mtanno.util.store.FeatureLayout` (named after its file)."""
+        """The example's :class:`~mtanno.features.store.FeatureLayout` (named after its file)."""
         return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
                              f"feature file {self.file}")
 
@@ -331,7 +333,7 @@ def check_consistent(examples: Sequence[TrainingExample], *,
     frame rate; otherwise an error names the first file that differs."""
     if not examples:
         return
-    from mtanno.util.store import check_layout, common_layout
+    from mtanno.features.store import check_layout, common_layout
 
     ref = like.layout() if like is not None else common_layout([e.layout() for e in examples])
     for ex in examples:

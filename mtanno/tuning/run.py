@@ -280,7 +280,7 @@ def _check_options(methods, documents, unknown_weight, verify) -> list[str]:
 def _read_document(path):
     """The features and poses (None without) of a whole training document (examples cut
     from annotated ones)."""
-    from mtanno.util.store import read_features
+    from mtanno.features.store import read_features
 
     ff = read_features(path, poses=True)
     return ff.X, ff.poses
@@ -305,7 +305,8 @@ def _background_inputs(background, layout, examples, *, poses: bool):
     file."""
     if not background:
         return [], []
-    from mtanno.util.store import check_layout, feature_files, read_features
+    from mtanno.features.inputs import feature_files
+    from mtanno.features.store import check_layout, read_features
 
     training = {e.sha256: e.file for e in examples}
     docs, records = [], []
@@ -346,9 +347,9 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     """The templates of ``mt_dir``, their feature layout, the training examples (each of
     that layout; every class must have some) and the keyframe queries of
     ``keyframes_dir`` (empty without)."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import load_template_folder
     from mtanno.templates.training import group_by_class, load_examples
-    from mtanno.util.store import check_layout
 
     templates = load_template_folder(mt_dir)
     classes = list(templates)
@@ -435,7 +436,7 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
     each with SHA-256) for the provenance, and the SHA-256 of each class's template (the
     configuration's ``[tuned_with]``)."""
     from mtanno.templates.model import template_files
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     shas = {i["path"]: i["sha256"] for i in inputs}
@@ -512,7 +513,7 @@ def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> lis
     it) and header lines on how well the confidence did out of fold."""
     from mtanno.annotate.verify import write_bank
     from mtanno.evaluation.calibration import auroc, expected_calibration_error
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     fit = result.confidence
     cfg.background = {r["path"]: r["sha256"] for r in result.background}
