@@ -14,8 +14,8 @@ from click.testing import CliRunner
 
 from mtanno.annotate import Annotation
 from mtanno.cli import main
-from mtanno.evaluation.truth import Segment
 from mtanno.features.store import write_features
+from mtanno.labels.segments import Segment
 
 matplotlib = pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
 matplotlib.use("Agg")

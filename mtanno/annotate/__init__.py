@@ -93,16 +93,15 @@ from mtanno.annotate.run import AnnotateRun, annotate_to
 from mtanno.annotate.tables import (
     ANNOTATION_COLUMNS,
     ANNOTATION_SUFFIXES,
-    Annotation,
     annotation_files,
     annotation_table,
     merge_annotation_tables,
     read_annotation_table,
     read_annotation_tables,
     read_annotations,
-    to_segments,
     write_annotations,
 )
+from mtanno.labels.segments import Annotation, to_segments
 from mtanno.util.lazy import submodule_getattr
 
 __getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

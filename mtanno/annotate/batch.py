@@ -15,8 +15,8 @@ import numpy as np
 
 from mtanno.annotate.config import ClassConfig, load_class_config
 from mtanno.annotate.label import ClassModel, annotate_document
-from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
 from mtanno.templates.params import ANNOTATION_DELTA, check_tau
 
 if TYPE_CHECKING:

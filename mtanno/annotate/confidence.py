@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtanno.annotate.calibration import uncalibrated_confidence
-from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
 
 __all__ = ["BANK_EVIDENCE", "EVIDENCE", "ConfidenceModel", "check_min_confidence",
            "confidence_record", "load_confidence", "score_document", "segment_evidence",

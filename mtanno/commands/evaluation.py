@@ -114,7 +114,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
         retrieval_report,
         retrieval_table,
     )
-    from mtanno.evaluation.truth import read_truth
+    from mtanno.labels.truth import read_truth
     from mtanno.util.output import check_outputs, write_stdout
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
@@ -203,7 +203,7 @@ def truth_group():
 @user_errors(2)
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
-    from mtanno.evaluation.truth import truth_from_mocap6, write_truth
+    from mtanno.labels.truth import truth_from_mocap6, write_truth
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format
 

@@ -1,10 +1,9 @@
 """The evaluation stage: annotations and retrieval measured against ground truth, the
 documents with exact truth to measure on, and the report a person reads.
 
-Modules:
+The truth it measures against is read by :mod:`mtanno.labels` (an input format, below
+every stage that reads it). Modules:
 
-* :mod:`~mtanno.evaluation.truth` — ground-truth segments (1-based frames at 30 Hz),
-  truth tables and the CMU mocap6 label converter;
 * :mod:`~mtanno.evaluation.metrics` — frame- and segment-level P/R/F of annotations
   ([MBS09] §7), per class, with support counts, in one report with the measures below;
 * :mod:`~mtanno.evaluation.segmentation` — the action-segmentation measures: frame
@@ -40,7 +39,6 @@ __getattr__, __all__ = lazy_exports(__name__, {
                   "top_k_recall"),
     "segmentation": ("OVERLAPS", "OverlapCounts", "SegmentationScores", "edit_score",
                      "levenshtein", "segmentation_scores"),
-    "truth": ("Segment", "check_within", "read_truth", "truth_table", "write_truth"),
 })
 
 

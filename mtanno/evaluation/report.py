@@ -40,10 +40,10 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
 from mtanno.evaluation.player import review_html
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 if TYPE_CHECKING:
-    from mtanno.annotate.tables import Annotation
+    from mtanno.labels.segments import Annotation
 
 NONE = "none"
 #: Title of a report page.
@@ -407,7 +407,7 @@ def _scores(w: _Writer, truth, annotation, docs, frames, prov) -> tuple[list[dic
     table's rows and the matrix's labels."""
     import pyarrow as pa
 
-    from mtanno.annotate.tables import to_segments
+    from mtanno.labels.segments import to_segments
     from mtanno.plot import plot_confusion
     from mtanno.util.tables import write_table
 
@@ -563,10 +563,10 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         read_annotation_tables,
     )
     from mtanno.evaluation.player import load_motion_poses, motion_files
-    from mtanno.evaluation.truth import check_within, read_truth
     from mtanno.features.inputs import document_files
     from mtanno.features.store import read_features
     from mtanno.io import MOCAP_SUFFIXES
+    from mtanno.labels.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
     from mtanno.templates.params import ANNOTATION_TAU

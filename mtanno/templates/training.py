@@ -8,7 +8,7 @@ Three ways to say which frames are an example of which class (issue 3, ``learn-m
   as ``hdm05_cut/clips.csv`` whose ``file`` is ``class/HDM_..._120.amc``; the feature file
   of an entry is ``FEATURES_DIR/<file with suffix .parquet>``, the path ``mtanno features``
   writes for that motion file (:func:`sources_from_manifest`);
-* annotated documents: a truth table (``mtanno.evaluation.truth.read_truth``: doc, start, end,
+* annotated documents: a truth table (``mtanno.labels.truth.read_truth``: doc, start, end,
   label at 30 Hz, 1-based inclusive) and the documents' feature files; every labelled
   segment is cut out as one example of its label (:func:`sources_from_truth`).
 
@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.truth import read_truth
 from mtanno.features.inputs import feature_files
 from mtanno.features.store import FeatureLayout, read_features
+from mtanno.labels.truth import read_truth
 from mtanno.util.tables import sha256_file
 
 __all__ = [
