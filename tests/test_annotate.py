@@ -188,10 +188,10 @@ def check_reference_dbar(seed: int) -> None:
 
 def check_dbar_strategies(seed: int) -> tuple[int, int]:
     """Δ̄ of real matcher outputs (starts mostly increasing, sometimes crossing) against the
-    naive reading, and each strategy of :mod:`mtanno.annotate._kernels` on its own: the divide and
+    naive reading, and each strategy of :mod:`mtanno.annotate._dbar_kernels` on its own: the divide and
     conquer either agrees with the naive Δ̄ or declines (−1), the sorted greedy always
     agrees. Returns (spans it solved, spans it declined)."""
-    from mtanno.annotate._kernels import _greedy_dbar, _split_dbar
+    from mtanno.annotate._dbar_kernels import _greedy_dbar, _split_dbar
     from mtanno.templates.match import PreparedTemplate
 
     rng = np.random.default_rng(seed)

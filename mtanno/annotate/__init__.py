@@ -15,7 +15,9 @@ Modules, in the order the data flows through them:
 * :mod:`~mtanno.annotate.folder` — resumable annotation into a folder (``--output-dir``);
 * :mod:`~mtanno.annotate.run` — the whole ``mtanno annotate`` run, from file names to
   files (:func:`annotate_to`);
-* :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private).
+* the stage's numba kernels (private), one module per family of kernels that call each
+  other: ``_dbar_kernels`` (the reference Δ̄), ``_label_kernels`` (labels and runs),
+  ``_decode_kernels`` (the segment decoder and its frame evidence).
 
 The confidence of every segment (its evidence, verification, calibration and the tuned
 model a configuration holds) is :mod:`mtanno.confidence`.

@@ -1,6 +1,6 @@
 """The modified distance Δ̄ of a class over a document ([MBS09] §4, algorithms.md §7 step 2):
 each match's cost spread over the frames it covers, in the reference implementation's
-greedy order (the kernels of :mod:`mtanno.annotate._kernels`) or as the paper writes it.
+greedy order (the kernels of :mod:`mtanno.annotate._dbar_kernels`) or as the paper writes it.
 
 Frames are 0-based.
 """
@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mtanno.annotate._kernels import reference_dbar_kernel
+from mtanno.annotate._dbar_kernels import reference_dbar_kernel
 from mtanno.errors import MtannoError
 from mtanno.templates.params import ANNOTATION_TAU, check_tau
 

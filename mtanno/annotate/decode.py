@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mtanno.annotate._kernels import (
+from mtanno.annotate._decode_kernels import (
     _best_column,
     _decode,
     _distinct_words,

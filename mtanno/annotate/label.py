@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mtanno.annotate._kernels import _label_runs
+from mtanno.annotate._label_kernels import _label_runs
 from mtanno.annotate.config import ClassConfig
 from mtanno.annotate.dbar import _reference_in_spans, _row_spans, modified_delta
 from mtanno.errors import MtannoError

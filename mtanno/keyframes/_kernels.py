@@ -25,7 +25,7 @@ def dilate(doc, start, end, lo, hi, out_doc, out_start, out_end):
     merged. Returns the number of intervals written. The input may overlap or touch too
     (sorted by (doc, start)): with lo = hi = 0 this is :func:`merge_sorted`."""
     cnt = 0
-    # numba twin of the run merge in annotate/_kernels.py _label_runs, which merges per
+    # numba twin of the run merge in annotate/_label_kernels.py _label_runs, which merges per
     # label and only where runs overlap: each kernel file calls its own kernels only
     # (numba's cache does not see changes to another file; util/_bits.py)
     for i in range(doc.shape[0]):

@@ -1,7 +1,7 @@
 """Bit kernels shared by the stages' numba kernels (private): :func:`popcount64`.
 
 One definition, imported by every kernel module that counts bits (templates.match,
-annotate._kernels, keyframes._kernels, align._kernels). numba's on-disk cache keys a
+annotate._decode_kernels, keyframes._kernels, align._kernels). numba's on-disk cache keys a
 kernel on its *own* file only: measured with numba 0.6x, a kernel in ``a.py`` calling an
 njit function of ``b.py`` keeps its cached machine code when only ``b.py`` changes. That
 matters to a developer who edits this file (clear the ``__pycache__`` folders, or touch the
