@@ -2,9 +2,12 @@
 §5–6) — the preselection stage in front of template matching.
 
 * :mod:`~mtanno.keyframes.model` — :class:`KeyframeQuery` (keyframes over one feature group
-  each, gap bounds, template positions, window extension), its JSON file
-  (:func:`load_keyframes`, :func:`save_keyframes`, schema ``mtanno.keyframes/1``) and
-  :func:`format_query` (``mtanno keyframes show``).
+  each, gap bounds, template positions, window extension), checked when made.
+* :mod:`~mtanno.keyframes.store` — its JSON file (:func:`load_keyframes`,
+  :func:`save_keyframes`, schema ``mtanno.keyframes/1``).
+* :mod:`~mtanno.keyframes.folders` — folders of query files (:func:`keyframe_files`,
+  :func:`load_keyframe_folder`, :func:`load_class_keyframes` for annotate and tune).
+* :mod:`~mtanno.keyframes.describe` — :func:`format_query` (``mtanno keyframes show``).
 * :mod:`~mtanno.keyframes.search` — all chains of a query at once, through an index
   (:func:`search_index`) or by a direct scan of feature matrices (:func:`search_documents`);
   :class:`KeyframeHits` and candidate windows for annotation (:func:`document_windows`,
@@ -26,18 +29,14 @@ __all__ = [
     "save_keyframes", "search_documents", "search_index", "stiffness_bounds",
 ]
 
+from mtanno.keyframes.describe import format_query
+from mtanno.keyframes.folders import keyframe_files, load_class_keyframes, load_keyframe_folder
 from mtanno.keyframes.model import (
     SCHEMA,
     Extension,
     Gap,
     Keyframe,
     KeyframeQuery,
-    format_query,
-    keyframe_files,
-    load_class_keyframes,
-    load_keyframe_folder,
-    load_keyframes,
-    save_keyframes,
     stiffness_bounds,
 )
 from mtanno.keyframes.search import (
@@ -50,6 +49,7 @@ from mtanno.keyframes.search import (
     search_documents,
     search_index,
 )
+from mtanno.keyframes.store import load_keyframes, save_keyframes
 from mtanno.util.lazy import submodule_getattr
 
 __getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

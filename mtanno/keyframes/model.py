@@ -1,4 +1,5 @@
-"""Keyframe queries: what they are, their JSON files, and how they read as a table.
+"""Keyframe queries: what they are, their gap bounds and window extension, checked
+when made.
 
 A keyframe query ([MBS09] §5; thesis ch. 4; algorithms.md §5) is a sequence of keyframes
 V_1 … V_n, each a fuzzy feature vector in {0, 1, *} over the features of ONE feature group
@@ -18,41 +19,24 @@ right (K = template length): [MBS09]'s annotation uses factor 2, offset 0; the r
 implementation's classification driver factor 3, offset 3. Explicit widths can be given
 instead.
 
-File format (``mtanno.keyframes/1``, ``docs/formats.md``)::
-
-    {"schema": "mtanno.keyframes/1", "class": "squat1Reps", "feature_set": "mr06-ak40",
-     "fps": 30.0, "template_length": 47,
-     "extension": {"factor": 2, "offset": 0},
-     "groups": {"mix": ["F27 name", …], "upper": [...]},
-     "keyframes": [
-       {"group": "mix", "position": 15, "vector": "1111*000000*1*"},
-       {"group": "mix", "position": 25, "vector": "…", "stiffness": 0.7},
-       {"group": "upper", "position": 32, "vector": "…", "gap": [5, 9]}],
-     "provenance": {...}}
-
-The gap to the previous keyframe is on each keyframe after the first: ``"stiffness"`` (a
-number or a fraction string such as ``"1/3"``) or ``"gap": [dmin, dmax]`` (``dmax`` null:
-no upper bound). Positions are 1-based template columns and may not decrease.
+The query's JSON file is :mod:`mtanno.keyframes.store`, folders of them
+:mod:`mtanno.keyframes.folders`, its text form :mod:`mtanno.keyframes.describe`.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
-from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
-from mtanno.errors import MtannoError, read_json
+from mtanno.errors import MtannoError
 
 __all__ = [
-    "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "format_query",
-    "keyframe_files", "load_class_keyframes", "load_keyframes", "load_keyframe_folder",
-    "save_keyframes", "stiffness_bounds", "tolerant_patterns",
+    "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "check_features_known",
+    "feature_groups_of", "stiffness_bounds", "tolerant_patterns",
 ]
 
 SCHEMA = "mtanno.keyframes/1"
@@ -389,274 +373,6 @@ def _line_of(text: str, key: str, nth: int = 0) -> int | None:
         if pos < 0:
             return None
     return text.count("\n", 0, pos) + 1
-
-
-# --------------------------------------------------------------------------- JSON I/O
-
-_KEYS = {"schema", "class", "feature_set", "fps", "template_length", "extension", "groups",
-         "keyframes", "provenance", "comment"}
-_KF_KEYS = {"group", "position", "vector", "mismatches", "stiffness", "gap", "comment"}
-
-
-def parse_keyframes(d: Any, *, text: str | None = None, path: str | None = None,
-                    ) -> KeyframeQuery:
-    """A :class:`KeyframeQuery` from a parsed JSON object (see the module docstring);
-    every problem is an :class:`MtannoError` naming ``path`` and, where known, the line."""
-    def bad(msg: str, key: str | None = None, nth: int = 0) -> MtannoError:
-        line = _line_of(text, key, nth) if text is not None and key else None
-        return MtannoError(msg, path=path, line=line)
-
-    if not isinstance(d, dict):
-        raise MtannoError("a keyframe file must hold one JSON object", path=path, line=1)
-    if d.get("schema") != SCHEMA:
-        raise bad(f"unsupported keyframe schema {d.get('schema')!r} (expected {SCHEMA!r})",
-                  "schema")
-    unknown = sorted(set(d) - _KEYS)
-    if unknown:
-        raise bad(f"unknown key '{unknown[0]}' (known: {', '.join(sorted(_KEYS))})",
-                  unknown[0])
-    missing = [k for k in ("class", "feature_set", "fps", "template_length", "extension",
-                           "groups", "keyframes") if k not in d]
-    if missing:
-        raise bad(f"missing field(s): {', '.join(missing)}")
-    groups = d["groups"]
-    if not isinstance(groups, dict) or not all(
-            isinstance(v, list) and all(isinstance(f, str) for f in v) for v in groups.values()):
-        raise bad("'groups' must map group names to lists of feature names", "groups")
-    ext = d["extension"]
-    if not isinstance(ext, dict) or not ext or set(ext) - {"factor", "offset", "left", "right"}:
-        raise bad("'extension' must be {\"factor\": F, \"offset\": O} or "
-                  "{\"left\": L, \"right\": R}", "extension")
-    try:
-        extension = (Extension(0, 0, ext.get("left"), ext.get("right"))
-                     if "left" in ext or "right" in ext
-                     else Extension(ext.get("factor", 2), ext.get("offset", 0)))
-    except MtannoError as exc:
-        raise bad(exc.message, "extension") from None
-    raw = d["keyframes"]
-    if not isinstance(raw, list):
-        raise bad("'keyframes' must be a list", "keyframes")
-    keyframes, gaps = [], []
-    for j, k in enumerate(raw, 1):
-        where = f"keyframe {j}"
-        if not isinstance(k, dict):
-            raise bad(f"{where} must be an object", "keyframes")
-        extra = sorted(set(k) - _KF_KEYS)
-        if extra:
-            raise bad(f"{where}: unknown key '{extra[0]}' (known: {', '.join(sorted(_KF_KEYS))})",
-                      "group", j - 1)
-        for key in ("group", "position", "vector"):
-            if key not in k:
-                raise bad(f"{where} lacks '{key}'", "group", j - 1)
-        if not isinstance(k["group"], str):
-            raise bad(f"{where}: group must be a name", "group", j - 1)
-        if not isinstance(k["vector"], str):
-            raise bad(f"{where}: vector must be a string of 0, 1 and *", "vector", j - 1)
-        vector = "".join(k["vector"].split())
-        keyframes.append(Keyframe(k["group"], vector, k["position"], k.get("mismatches", 0)))
-        has_s, has_g = "stiffness" in k, "gap" in k
-        if j == 1:
-            if has_s or has_g:
-                raise bad("keyframe 1 has no previous keyframe: no stiffness or gap allowed",
-                          "group", 0)
-            continue
-        if has_s == has_g:
-            raise bad(f"{where} needs either 'stiffness' or 'gap' (to keyframe {j - 1})",
-                      "group", j - 1)
-        try:
-            if has_s:
-                p0, p1 = keyframes[-2].position, keyframes[-1].position
-                if not all(isinstance(p, int) and not isinstance(p, bool) for p in (p0, p1)):
-                    raise MtannoError("position must be an integer")
-                if p1 < p0:
-                    raise MtannoError(f"position {p1} is before the previous keyframe's "
-                                      f"{p0} (positions may not decrease)")
-                s = k["stiffness"]
-                if not (_is_number(s) or isinstance(s, str)):
-                    raise MtannoError(f"stiffness must be a number in (0, 1], got {s!r}")
-                gaps.append(Gap.from_stiffness(p1 - p0, s))
-            else:
-                g = k["gap"]
-                if not (isinstance(g, list) and len(g) == 2):
-                    raise MtannoError("gap must be [dmin, dmax] (dmax null: unbounded)")
-                gaps.append(Gap(g[0], g[1]))
-        except MtannoError as exc:
-            raise bad(f"{where}: {exc.message}", "stiffness" if has_s else "gap",
-                      _count_before(raw, j - 1, "stiffness" if has_s else "gap")) from None
-    prov = d.get("provenance", {})
-    if not isinstance(prov, dict):
-        raise bad("'provenance' must be an object", "provenance")
-    fps = d["fps"]
-    fields = dict(class_name=d["class"], feature_set=d["feature_set"],
-                  groups={str(g): tuple(v) for g, v in groups.items()},
-                  keyframes=tuple(keyframes), gaps=tuple(gaps),
-                  template_length=d["template_length"], extension=extension, fps=fps,
-                  provenance=prov)
-    _validate(SimpleNamespace(**fields), text, path)  # with line numbers
-    return KeyframeQuery(**fields)
-
-
-def _count_before(raw: list, j: int, key: str) -> int:
-    return sum(1 for k in raw[:j] if isinstance(k, dict) and key in k)
-
-
-def load_keyframes(path: str | os.PathLike) -> KeyframeQuery:
-    """Read and validate a keyframe query file (``mtanno.keyframes/1``)."""
-    spath = str(path)
-    d, text = read_json(path, what="keyframe file")
-    return parse_keyframes(d, text=text, path=spath)
-
-
-def _load_folder(folder: str | os.PathLike) -> dict[str, tuple[Path, KeyframeQuery]]:
-    """Class name → (file, query) of every keyframe file of ``folder`` (or of one file), in
-    file order; two files of one class are an error."""
-    p = Path(folder)
-    if not p.exists():
-        raise MtannoError("keyframe folder or file not found", path=str(p))
-    paths = keyframe_files(p)
-    if not paths:
-        raise MtannoError("no keyframe files (*.json) in this folder", path=str(p))
-    out: dict[str, tuple[Path, KeyframeQuery]] = {}
-    for f in paths:
-        q = load_keyframes(f)
-        if q.class_name in out:
-            raise MtannoError(f"class '{q.class_name}' has two keyframe files: "
-                              f"{out[q.class_name][0]} and {f}")
-        out[q.class_name] = (f, q)
-    return out
-
-
-def load_keyframe_folder(folder: str | os.PathLike) -> dict[str, KeyframeQuery]:
-    """Class name → query of every ``*.json`` in ``folder`` (or of one file). Two files
-    of one class are an error."""
-    return {c: q for c, (_, q) in _load_folder(folder).items()}
-
-
-def keyframe_files(folder: str | os.PathLike) -> list[Path]:
-    """The keyframe files of a folder (``*.json``, sorted), or the one file given."""
-    p = Path(folder)
-    return sorted(p.glob("*.json")) if p.is_dir() else [p]
-
-
-def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
-                         feature_set: str, fps: float | None = None,
-                         ) -> tuple[dict[str, KeyframeQuery], list[dict], list[str], list[str]]:
-    """The keyframe queries of a folder for annotating ``classes``: (class → query for the
-    classes that have one; the files read with their SHA-256, for provenance; classes
-    without a query; queries of classes not among ``classes``). Queries must be for
-    ``feature_set`` and, when ``fps`` is given (the templates' frame rate), at that rate:
-    their gaps and extensions count frames at it."""
-    from mtanno.util.tables import sha256_file
-
-    queries, files = {}, []
-    for f, q in _load_folder(folder).values():
-        if q.feature_set != feature_set:
-            raise MtannoError(f"keyframes of class '{q.class_name}' are for feature set "
-                              f"'{q.feature_set}' but the templates use '{feature_set}'",
-                              path=str(f))
-        if fps is not None and float(q.fps) != float(fps):
-            raise MtannoError(f"keyframes of class '{q.class_name}' are at {q.fps:g} Hz but "
-                              f"the templates at {float(fps):g} Hz", path=str(f))
-        queries[q.class_name] = q
-        if q.class_name in classes:
-            files.append({"path": str(f), "sha256": sha256_file(f), "class": q.class_name})
-    missing = [c for c in classes if c not in queries]
-    extra = sorted(set(queries) - set(classes))
-    return {c: queries[c] for c in classes if c in queries}, files, missing, extra
-
-
-def dumps(q: KeyframeQuery) -> str:
-    """JSON text meant to be read and edited: one line per keyframe and per group."""
-    from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
-
-    layouts = {"keyframes": lambda v: json_list_lines(json_compact(k) for k in v),
-               "groups": lambda v: json_object_lines(v, level=1),
-               "provenance": _dumps_provenance}
-    return json_object_lines(q.to_dict(), layouts) + "\n"
-
-
-def _dumps_provenance(prov: dict) -> str:
-    """One line per provenance entry; a list of objects (the training clips) one line per
-    object."""
-    from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
-
-    if not prov:
-        return "{}"
-
-    def objects(v: list) -> str:
-        return json_list_lines((json_compact(x) for x in v), level=2)
-
-    return json_object_lines(prov, {k: objects for k, v in prov.items() if isinstance(v, list)
-                                    and v and all(isinstance(x, dict) for x in v)}, level=1)
-
-
-def save_keyframes(path: str | os.PathLike, q: KeyframeQuery) -> None:
-    """Write ``q`` as JSON to ``path`` atomically."""
-    from mtanno.util.output import atomic_path
-
-    _validate(q)
-    text = dumps(q)
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
-
-
-# --------------------------------------------------------------------------- display
-
-
-def format_query(q: KeyframeQuery, *, path: str | None = None) -> str:
-    """A readable description of a query: header, one row per keyframe (position, group,
-    gap to the previous one, vector), then a table with one row per feature fixed by some
-    keyframe and one column per keyframe (``1``, ``0`` or ``·`` for a wildcard)."""
-    left, right = q.widths()
-    head = [f"keyframes      {path}" if path else None,
-            f"class          {q.class_name}",
-            f"feature set    {q.feature_set}, {q.fps:g} Hz",
-            f"template       {q.template_length} columns",
-            f"keyframes      {q.n}",
-            f"windows        hits widened by {left} frames left, {right} right "
-            f"({_ext_text(q)})"]
-    prov = q.provenance
-    if prov.get("method"):
-        fit = prov.get("fitness") or {}
-        extra = ""
-        if fit:
-            extra = (f"; training P {fit.get('P', float('nan')):.3f} R "
-                     f"{fit.get('R', float('nan')):.3f} F{fit.get('beta', 2):g} "
-                     f"{fit.get('F', float('nan')):.3f}")
-        seed = f", seed {prov['seed']}" if "seed" in prov else ""
-        head.append(f"learned by     {prov['method']}{seed}{extra}")
-    out = [h for h in head if h is not None]
-    out.append("")
-    out.append("  #  pos  group    gap to previous    vector")
-    for j, kf in enumerate(q.keyframes):
-        gap = q.gaps[j - 1].text() if j else ""
-        tol = f"  (≤{kf.mismatches} mismatch{'es' if kf.mismatches > 1 else ''})" \
-            if kf.mismatches else ""
-        out.append(f"{j + 1:3d}  {kf.position:3d}  {kf.group:<7s}  {gap:<17s}  {kf.vector}{tol}")
-    rows = []
-    for g, feats in q.groups.items():
-        for k, name in enumerate(feats):
-            cells = []
-            for kf in q.keyframes:
-                c = kf.vector[k] if kf.group == g else " "
-                cells.append("·" if c == "*" else c)
-            if any(c in "01" for c in cells):
-                rows.append((f"{g}:{name}", cells))
-    if rows:
-        width = max(len(r[0]) for r in rows)
-        out.append("")
-        out.append(" " * (width + 2) + " ".join(f"{j + 1:>2d}" for j in range(q.n)))
-        for name, cells in rows:
-            out.append(f"{name:<{width}s}  " + " ".join(f"{c:>2s}" for c in cells))
-    return "\n".join(out)
-
-
-def _ext_text(q: KeyframeQuery) -> str:
-    e = q.extension
-    if e.left is not None:
-        return "explicit widths"
-    off = f" + {e.offset}" if e.offset else ""
-    return f"{e.factor}·(q1−1){off} and {e.factor}·(K−qn){off}"
 
 
 def feature_groups_of(feature_set: str) -> dict[str, tuple[str, ...]]:
