@@ -16,6 +16,8 @@ implementation (``../shared/data/reference/retrieval/README.md``; algorithms.md 
 ``"classification"`` (``…ForClassification``, used for annotation)
     Every minimum is recorded and blanks exactly its own frames [s, e]; no start check.
 
+:func:`retrieve_to` is the whole ``mtanno retrieve`` run, from file names to the hit table.
+
 Extraction stops after ``max_hits`` recorded hits; the result then says whether the cap cut
 off further hits (:attr:`HitList.truncated`). Frames are 0-based here (30 Hz frames); the
 command line writes them 1-based.
@@ -27,16 +29,17 @@ import math
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.templates.match import DEFAULT_STEP_WEIGHTS, DEFAULT_STEPS, PreparedTemplate
-from mtanno.templates.params import RETRIEVAL_DELTA, check_tau
+from mtanno.templates.params import RETRIEVAL_DELTA, RETRIEVAL_TAU, check_tau
 
 __all__ = ["DEFAULT_MAX_HITS", "HIT_MODES", "Hit", "HitList",
-           "RetrievalBatch", "extract_hits", "hit_table", "retrieve",
-           "retrieve_files", "retrieve_files_classes", "write_hits"]
+           "RetrievalBatch", "RetrieveRun", "extract_hits", "hit_table", "retrieve",
+           "retrieve_files", "retrieve_files_classes", "retrieve_to", "write_hits"]
 
 #: How hits are picked from Δ (:func:`extract_hits`).
 HIT_MODES = ("retrieval", "classification")
@@ -340,3 +343,80 @@ def retrieval_template(mt, *, delta: float | None = None):
     return quantize(mt, delta if delta is not None else (mt.delta if mt.delta is not None
                                                           else RETRIEVAL_DELTA))
 
+
+
+@dataclass
+class RetrieveRun:
+    """What :func:`retrieve_to` did: the classes retrieved, the hits written (all classes),
+    the documents searched, one message per feature file that could not be used
+    (``failed``) and per input that named none (``missing``), whether the hit cap cut hits
+    off, and τ."""
+
+    classes: list[str]
+    hits: int
+    documents: int
+    failed: list[str]
+    missing: list[str]
+    truncated: bool
+    tau: float
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every input was searched, else 1."""
+        return 1 if self.failed or self.missing else 0
+
+
+def retrieve_to(features: Sequence[str | os.PathLike], mt_path: str | os.PathLike,
+                output: str | os.PathLike = "-", *, tau: float = RETRIEVAL_TAU,
+                delta: float | None = None, max_hits: int = DEFAULT_MAX_HITS,
+                variant: str = "reference",
+                on_start: Callable[[list[str], int], None] | None = None,
+                progress: Callable[[str, str | None], None] | None = None) -> RetrieveRun:
+    """The whole ``mtanno retrieve`` run ([MR06] §5.4): the feature files ``features``
+    names (files, folders searched recursively) searched for the class of the template
+    ``mt_path`` (made a retrieval template with ``delta``, :func:`retrieval_template`) or,
+    for a folder of templates, for each of its classes (:func:`retrieve_files_classes`:
+    ranks and ``max_hits`` per class); the hits with cost ≤ ``tau`` written to ``output``
+    (suffix picks the format, ``-`` is CSV on standard output; docs/formats.md) with their
+    provenance (inputs, templates, τ, δ, variant). Every output is checked against the
+    inputs first.
+
+    ``on_start(missing, n)`` is called before the first of ``n`` feature files, with the
+    messages of the inputs that named no feature file; ``progress(path, error)`` after each
+    file (``error``: why it could not be used, None when it was searched)."""
+    from mtanno.features.inputs import feature_files
+    from mtanno.templates.model import load_template, load_template_folder, template_files
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import file_record, output_files, provenance, table_format
+
+    table_format(output)
+    tau = check_tau(tau)
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
+    files = feature_files(features, failures=missing)
+    check_outputs(output_files(output), [mt_path, *template_files(mt_path), *files],
+                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
+    found = (load_template_folder(mt_path) if Path(mt_path).is_dir() else
+             {"": load_template(mt_path)})
+    mts = {m.class_name: retrieval_template(m, delta=delta) for m in found.values()}
+    mt = next(iter(mts.values()))
+    several = len(mts) > 1
+    layout = mt.layout(f"template {mt.path}")
+    if on_start:
+        on_start(missing, len(files))
+    if several:
+        batch = retrieve_files_classes({c: (m.values, m.weights) for c, m in mts.items()},
+                                       files, layout=layout, tau=tau, max_hits=max_hits,
+                                       variant=variant, progress=progress)
+    else:
+        batch = retrieve_files(mt.values, mt.weights, files, layout=layout, tau=tau,
+                               max_hits=max_hits, variant=variant, progress=progress)
+    hits = batch.hits
+    deltas = sorted({m.delta for m in mts.values()})
+    write_hits(output, batch.by_class if several else hits, batch.native,
+               provenance=provenance(
+                   inputs=batch.files, templates=[{"class": c, **file_record(m.path)}
+                                                  for c, m in mts.items()],
+                   tau=tau, delta=deltas[0] if len(deltas) == 1 else deltas, variant=variant,
+                   max_hits=max_hits, feature_set=mt.feature_set, truncated=hits.truncated))
+    return RetrieveRun(list(mts), len(hits), len(files) - len(batch.failed), batch.failed,
+                       missing, hits.truncated, tau)

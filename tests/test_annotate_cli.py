@@ -116,6 +116,7 @@ def test_annotate_paper_variant_and_classes_config(pipeline):
     r = run("annotate", "--mt", d / "mt", d / "docfeats", "-o", d / "b.csv", "--classes", cfg,
             "--variant", "paper", "-q")
     assert r.exit_code == 0, r.output
+    assert r.output.count("--variant is the former name of --dbar") == 1
     import csv
 
     labels = {row["label"] for row in csv.DictReader((d / "b.csv").open())}

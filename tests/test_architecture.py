@@ -281,3 +281,139 @@ def test_architecture_doc_names_every_file_of_the_package():
     missing = [str(p.relative_to(PACKAGE.parent)) for p in sorted(PACKAGE.rglob("*"))
                if p.is_file() and "__pycache__" not in p.parts and p.name not in doc]
     assert not missing, f"not in docs/architecture.md: {missing}"
+
+
+# --------------------------------------------------------------- one API call per command
+
+#: Modules a command may call as often as it likes: the commands' own helpers, the one
+#: exception type, and the plumbing every stage shares (locks, outputs, tables).
+COMMAND_PLUMBING = ("mtanno.commands._common", "mtanno.errors", "mtanno.util", "mtanno._version")
+
+
+def _is_class(module: str, name: str, reexports: dict[tuple[str, str], str]) -> bool:
+    """Whether ``name`` imported from ``module`` is a class (its defining module holds a
+    top-level ``class name``): building a value (an options dataclass) is no API call."""
+    owner = _owner(module)
+    src = reexports.get((owner, name), owner)
+    if src not in MODULES:
+        return False
+    tree = ast.parse(MODULES[src].read_text(encoding="utf-8"))
+    return any(isinstance(n, ast.ClassDef) and n.name == name for n in tree.body)
+
+
+def _is_command(fn: ast.FunctionDef) -> bool:
+    """A Click command or group: a decorator ``@….command(…)``, ``@….group(…)`` or a
+    helper ending so (``@_update_command(…)``)."""
+    for d in fn.decorator_list:
+        f = d.func if isinstance(d, ast.Call) else d
+        name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+        if name.endswith(("command", "group")):
+            return True
+    return False
+
+
+def command_api_calls(source: str, module: str = "mtanno.commands.x",
+                      reexports: dict[tuple[str, str], str] | None = None,
+                      ) -> dict[str, set[str]]:
+    """Command function → the stage-API functions it calls (``module.name``).
+
+    The rule: a call counts when its callee is a name imported from a module of the
+    package — at the module's top or inside the function — other than
+    :data:`COMMAND_PLUMBING`, and that name is not a class (building an options value is
+    no call). Attribute calls on an imported module (``index.search(…)``) count the same
+    way; method calls on values (``report.table()``) do not. Calls inside the function's
+    nested functions (callbacks) count, and so do those of the functions of the same
+    module that it calls (``_write_hits``), followed transitively. Each API function
+    counts once however often it is called."""
+    reexports = _reexports() if reexports is None else reexports
+    tree = ast.parse(source)
+    local_defs = {n.name: n for n in tree.body if isinstance(n, ast.FunctionDef)}
+
+    def imports_of(node: ast.AST) -> dict[str, str]:
+        """Bound name → dotted origin (``mtanno.index.search`` or a module ``mtanno.index``)."""
+        out = {}
+        for imp in _imports(node) if not isinstance(node, ast.ImportFrom) else [node]:
+            if isinstance(imp, ast.Import):
+                out.update({(a.asname or a.name): a.name for a in imp.names})
+                continue
+            src = imp.module or "" if not imp.level else \
+                ".".join(module.split(".")[:-imp.level] + ([imp.module] if imp.module else []))
+            out.update({(a.asname or a.name): f"{src}.{a.name}" for a in imp.names})
+        return out
+
+    top = {}
+    for n in tree.body:
+        if isinstance(n, (ast.Import, ast.ImportFrom)):
+            top.update(imports_of(n))
+
+    def api_calls(fn: ast.FunctionDef, seen: set[str]) -> set[str]:
+        bound = {**top, **imports_of(fn)}
+        found: set[str] = set()
+        for node in ast.walk(fn):
+            if not isinstance(node, ast.Call):
+                continue
+            f = node.func
+            if isinstance(f, ast.Name) and f.id in local_defs and f.id not in bound:
+                if f.id not in seen:
+                    seen.add(f.id)
+                    found |= api_calls(local_defs[f.id], seen)
+                continue
+            if isinstance(f, ast.Name) and f.id in bound:
+                origin = bound[f.id]
+            elif (isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name)
+                  and f.value.id in bound and bound[f.value.id] in MODULES):
+                origin = f"{bound[f.value.id]}.{f.attr}"
+            else:
+                continue
+            src, _, name = origin.rpartition(".")
+            if not src.startswith("mtanno") or src.startswith(COMMAND_PLUMBING):
+                continue
+            if origin in MODULES or _is_class(src, name, reexports):
+                continue  # a module bound by name, or a value built
+            found.add(origin)
+        return found
+
+    return {fn.name: api_calls(fn, {fn.name}) for fn in tree.body
+            if isinstance(fn, ast.FunctionDef) and _is_command(fn)}
+
+
+def test_command_api_call_rule_catches_a_second_call():
+    """A hand-made command module: one API call passes; a second one, made directly, in a
+    callback, in a helper of the module or through an imported module, is caught; building
+    an options dataclass and the plumbing do not count."""
+    head = ("import click\n"
+            "from mtanno.commands._common import user_errors\n"
+            "from mtanno.util.output import check_outputs\n"
+            "from mtanno.keyframes.run import KeyframeOptions, learn_keyframes_to\n")
+    one = head + (
+        "@click.command('x')\n@user_errors(2)\ndef x_cmd(a):\n"
+        "    check_outputs([a], [])\n    check_outputs([a], [])\n"
+        "    learn_keyframes_to([a], a, a, options=KeyframeOptions(method='hard'))\n"
+        "    learn_keyframes_to([a], a, a)\n")
+    assert command_api_calls(one) == {"x_cmd": {"mtanno.keyframes.run.learn_keyframes_to"}}
+    direct = one + "    from mtanno.keyframes import load_keyframes\n    load_keyframes(a)\n"
+    callback = one + ("    def note(m):\n        from mtanno.index import search\n"
+                      "        search(m)\n")
+    helper = (one + "    _helper(a)\n\n"
+              "def _helper(a):\n    from mtanno.retrieve import retrieve_files\n"
+              "    return retrieve_files(a)\n")
+    module = one + "    from mtanno import index\n    index.open_index(a)\n"
+    group = head + ("@_update_command('add')\ndef add_cmd(a):\n"
+                    "    from mtanno.index import add_documents, open_index\n"
+                    "    open_index(a)\n    add_documents(a)\n")
+    for case in (direct, callback, helper, module, group):
+        (calls,) = command_api_calls(case).values()
+        assert len(calls) == 2, (case, calls)
+
+
+def test_one_api_call_per_command():
+    """Each command parses, makes one call of the stage API, prints one summary line
+    (docs/architecture.md): no command function calls two API functions
+    (:func:`command_api_calls` states the rule)."""
+    reexports = _reexports()
+    many = {}
+    for mod, path in MODULES.items():
+        if mod.startswith("mtanno.commands."):
+            calls = command_api_calls(path.read_text(encoding="utf-8"), mod, reexports)
+            many.update({f"{mod}.{c}": sorted(v) for c, v in calls.items() if len(v) > 1})
+    assert not many, f"commands calling more than one API function: {many}"

@@ -272,7 +272,7 @@ def test_a_missing_training_folder_beside_good_ones_is_reported_and_skipped(worl
 
 
 def test_an_interrupted_learn_mt_leaves_no_empty_folder(world, tmp_path, monkeypatch):
-    import mtanno.templates.learn as learn
+    import mtanno.templates.run as learn
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt

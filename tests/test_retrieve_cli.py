@@ -141,6 +141,10 @@ def test_paper_variant_option(setup, option):
     d, s = match_naive(mt.values, mt.weights, docs["C.parquet"], variant="paper")
     hits, _ = hits_naive(d, s, tau=0.2, mode="retrieval", max_hits=1000)
     assert [(x["start"] - 1, x["end"] - 1, x["cost"]) for x in parse_csv(r.stdout)] == hits
+    # the former name is read and says so, in one line (commands._common.former_name)
+    warnings = [line for line in r.stderr.splitlines() if "warning" in line]
+    assert warnings == ([] if option == "--match" else [
+        "mtanno: warning: --variant is the former name of --match (still read; write --match)"])
 
 
 def test_mismatching_feature_files_are_rejected_naming_both(setup):

@@ -73,6 +73,35 @@ def wait_option(fn):
                              "for it to finish instead of exiting with code 3.")(fn)
 
 
+def former_name(old: str, new: str, dest: str, **option):
+    """A former spelling of an option that is still read: ``old`` (hidden from ``--help``)
+    gives the command's parameter ``dest``, the one of option ``new``, its value (given
+    with ``new`` too, ``old`` wins, as it always did); using it writes one warning line
+    (:func:`warn_former_name`). ``option``: the option's type. Put it right below the
+    option ``new`` in the decorator stack. The one place for every renamed option."""
+    former = f"former_{dest}"
+
+    def deco(fn):
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            value = kwargs.pop(former)
+            if value is not None:
+                warn_former_name(old, new)
+                kwargs[dest] = value
+            return fn(*args, **kwargs)
+
+        return click.option(old, former, default=None, hidden=True,
+                            help=f"The former name of {new}.", **option)(wrapper)
+
+    return deco
+
+
+def warn_former_name(old: str, new: str) -> None:
+    """The one line saying that ``old`` is the former name of option ``new``."""
+    click.echo(f"mtanno: warning: {old} is the former name of {new} (still read; write {new})",
+               err=True)
+
+
 class Number(click.FloatRange):
     """A float option inside ``[min, max]`` that is a number: NaN is refused always (it
     passes every comparison, so a range alone lets it through), ±∞ unless ``allow_inf``.

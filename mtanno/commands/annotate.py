@@ -10,6 +10,7 @@ from mtanno.commands._common import (
     DELTA,
     TAU,
     Number,
+    former_name,
     scheduler_option,
     show_progress,
     user_errors,
@@ -48,8 +49,7 @@ from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 @click.option("--dbar", "variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True,
               help="Modified-distance (Δ̄) variant (docs/annotation.md).")
-@click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
-              default=None, hidden=True, help="The former name of --dbar.")
+@former_name("--variant", "--dbar", "variant", type=click.Choice(["reference", "paper"]))
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True, help="Matching cost variant (§3.4).")
 @click.option("--single-label", is_flag=True,
@@ -68,7 +68,7 @@ from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 @user_errors(2, flags={"outputs": "-o TABLE", "out_dir": "--output-dir OUT/",
                         "fmt": "--format"})
 def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
-                 delta, variant, former_variant, match_variant, single_label, min_confidence,
+                 delta, variant, match_variant, single_label, min_confidence,
                  jobs, quiet, wait, scheduler):
     """Label every frame of documents with motion classes ([MBS09] §4).
 
@@ -98,7 +98,6 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     input (nothing written), 3 OUT/ locked by another run, 130 interrupted (finished
     tables are complete and are skipped by the rerun).
     """
-    variant = former_variant or variant  # --variant: the former name of --dbar
     from tqdm import tqdm
 
     from mtanno.annotate.run import annotate_to

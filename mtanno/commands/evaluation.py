@@ -4,18 +4,16 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
-from mtanno.annotate import load_class_models
 from mtanno.commands._common import DELTA, TAU, ProgressBar, stack, user_errors
-from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
 from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
-from mtanno.features.inputs import document_files
-from mtanno.templates.model import template_files
 from mtanno.templates.params import RETRIEVAL_DELTA
+
+#: The flags of the API's names for the two further outputs (:func:`json_and_table_options`).
+REPORT_FLAGS = {"json_path": "--json", "table_path": "-o"}
 
 
 def json_and_table_options(*, json_what: str, schema: str, table_what: str):
@@ -45,7 +43,7 @@ def json_and_table_options(*, json_what: str, schema: str, table_what: str):
                    "the documents of ANNOTATIONS — with rows, or recorded in their "
                    "provenance as annotated without any — or those listed with --doc).")
 @click.option("--doc", "docs", multiple=True, help="Evaluate only these documents.")
-@user_errors(2)
+@user_errors(2, flags=REPORT_FLAGS)
 def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs):
     """Frame- and segment-level precision, recall and F-measure of annotation tables
     against ground truth, overall and per class, with support counts ([MBS09] §7), and the
@@ -59,33 +57,11 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     record their documents' lengths, a truth segment past the end of its document is an
     error.
     """
-    from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
-    from mtanno.evaluation.metrics import evaluate_files
-    from mtanno.util.output import check_outputs, write_stdout
-    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.evaluation.metrics import evaluate_to
 
-    if table_path is not None:
-        table_format(table_path)
-    scanned = {a: ANNOTATION_SUFFIXES for a in annotations if a != "-" and Path(a).is_dir()}
-    annotations = annotation_files(annotations)
-    inputs = [*annotations, truth_path]
-    if sum(str(i) == "-" for i in inputs) > 1:
-        raise MtannoError("standard input (-) can be read only once")
-    check_outputs([json_path, *output_files(table_path)], inputs, scanned=scanned)
-    if json_path == "-" and table_path == "-":
-        raise MtannoError("--json - and -o - would both write to standard output")
-    report = evaluate_files(annotations, truth_path, docs=docs, all_docs=all_docs)
-    for warning in report.warnings:
-        click.echo(f"mtanno: warning: {warning}", err=True)
-    if json_path != "-" and table_path != "-":
-        write_stdout(report.table() + "\n")  # a full device: one line saying so
-    prov = provenance(inputs=inputs, truth=str(truth_path))
-    if json_path:
-        write_json(json_path, {**report.as_dict(), "provenance": prov})
-    if table_path:
-        import pyarrow as pa
-
-        write_table(table_path, pa.Table.from_pylist(report.rows()), provenance=prov)
+    evaluate_to(annotations, truth_path, json_path=json_path, table_path=table_path, docs=docs,
+                all_docs=all_docs,
+                warn=lambda warning: click.echo(f"mtanno: warning: {warning}", err=True))
 
 
 @click.command("evaluate-retrieval")
@@ -102,49 +78,24 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
 @click.option("--class", "classes", multiple=True, help="Only these classes.")
 @json_and_table_options(json_what="the results", schema="mtanno.retrieval-evaluation/1",
                         table_what="the table, one row per class and tau")
-@user_errors(2)
+@user_errors(2, flags=REPORT_FLAGS)
 def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classes, json_path,
                            table_path):
     """Retrieval quality per class ([MR06] Tables 2 and 4): hits |H|, relevant hits |H+|,
     precision and recall for tau = 0.01 … 0.1, top-5/10/20 recall and the separation
     quotient, each template retrieved in all FEATURES documents. A feature file that
     cannot be used is reported and left out (exit code 1)."""
-    from mtanno.evaluation.retrieval import (
-        evaluate_retrieval_files,
-        retrieval_report,
-        retrieval_table,
-    )
-    from mtanno.labels.truth import read_truth
-    from mtanno.util.output import check_outputs, write_stdout
-    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.evaluation.retrieval import evaluate_retrieval_to
 
-    if table_path is not None:
-        table_format(table_path)
-    if json_path == "-" and table_path == "-":
-        raise MtannoError("--json - and -o - would both write to standard output")
-    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
-    paths = document_files(features, failures=missing)
-    check_outputs([json_path, *output_files(table_path)],
-                  [mt_dir, *template_files(mt_dir), truth_path, *paths],
-                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
-    models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
-    truth = read_truth(truth_path)
-    for message in missing:
-        click.echo(f"mtanno: {message}", err=True)
-    run = evaluate_retrieval_files(models, key, paths, truth, max_hits=max_hits,
-                                   truth_path=truth_path,
-                                   progress=lambda m: click.echo(f"mtanno: {m}", err=True))
-    results, files = run.results, run.files
-    if json_path != "-" and table_path != "-":
-        write_stdout(retrieval_report(results) + "\n")
-    prov = provenance(inputs=[*files, truth_path], templates=[m.record() for m in models],
-                      delta=delta, max_hits=max_hits, feature_set=key.feature_set)
-    if json_path:
-        write_json(json_path, {"schema": "mtanno.retrieval-evaluation/1",
-                               "classes": [r.as_dict() for r in results], "provenance": prov})
-    if table_path:
-        write_table(table_path, retrieval_table(results), provenance=prov)
-    sys.exit(1 if run.failed or missing else 0)
+    def start(missing: list[str]) -> None:
+        for message in missing:
+            click.echo(f"mtanno: {message}", err=True)
+
+    run = evaluate_retrieval_to(features, mt_dir, truth_path, delta=delta, max_hits=max_hits,
+                                classes=classes, json_path=json_path, table_path=table_path,
+                                on_start=start,
+                                progress=lambda m: click.echo(f"mtanno: {m}", err=True))
+    sys.exit(run.exit_code)
 
 
 @click.command("compose")
@@ -178,14 +129,12 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
     so the next clip starts where and facing how the previous one ended. Writes
     OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json.
     """
-    from mtanno.evaluation.compose import compose_documents, read_clips
+    from mtanno.evaluation.compose import compose_to
 
-    clips = read_clips(manifest, root=root, actor=actor, split=split)
     with ProgressBar("compose", "file", quiet=quiet) as bar:
-        docs, truth = compose_documents(clips, out_dir, n_docs=n_docs,
-                                        clips_per_doc=clips_per_doc, seed=seed, pause=pause,
-                                        asf=asf, shuffle=not in_order, inputs=[manifest],
-                                        progress=bar)
+        docs, truth = compose_to(manifest, out_dir, root=root, actor=actor, split=split,
+                                 n_docs=n_docs, clips_per_doc=clips_per_doc, seed=seed,
+                                 pause=pause, asf=asf, shuffle=not in_order, progress=bar)
     if not quiet:
         click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> "
                    f"{out_dir}", err=True)

@@ -5,13 +5,10 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import replace
-from pathlib import Path
 
 import click
 
 from mtanno.commands._common import NAMES, ProgressBar, stack, user_errors, wait_option, waiting_note
-from mtanno.errors import MtannoError
 from mtanno.index.query import QUERY_MODES
 
 
@@ -216,7 +213,7 @@ def info_cmd(index_dir, as_json, output):
               help="Hit table: .csv, .parquet or .jsonl (with provenance, docs/formats.md), "
                    "or - for CSV on standard output.")
 @click.option("-q", "--quiet", is_flag=True, help="No summary line on standard error.")
-@user_errors(2)
+@user_errors(2, flags={"query_file": "--query"})
 def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, windows, mode,
               mismatches, min_segment, rank_mt, top, output, quiet):
     """Find motions in INDEX ([MRC05] §5–6): by example, with a JSON query file, or with a
@@ -244,94 +241,30 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     after the motion (the first and last query segments) as the example has; span_start
     and span_end give the untrimmed hit.
     """
-    import time
+    from mtanno.keyframes.query import QueryOptions, query_to
 
-    from mtanno.index import load_query, open_index, search
-    from mtanno.index.example import DEFAULT_MIN_SEGMENT, example_file_query
-    from mtanno.index.query import warm_up
-    from mtanno.index.storage import index_files
-    from mtanno.util.output import check_outputs
-    from mtanno.util.tables import output_files, table_format
-
-    if sum(x is not None for x in (example, query_file, kf_file)) != 1:
-        raise MtannoError("give one of --example (with --features), --query or --keyframes")
-    if windows and kf_file is None:
-        raise MtannoError("--windows goes with --keyframes")
-    table_format(output)
-    index = open_index(index_dir)
-    inputs = [*index_files(index.root), example, query_file, kf_file, rank_mt]
-    check_outputs(output_files(output), [i for i in inputs if i is not None and Path(i).exists()])
+    options = QueryOptions(
+        example=example, frames=frames,
+        features=None if feature_list is None else feature_list.split(","),
+        query_file=query_file, keyframes=kf_file, windows=windows, mode=mode,
+        mismatches=mismatches, min_segment=min_segment, rank_mt=rank_mt, top=top)
+    run = query_to(index_dir, output, options=options)
+    if quiet:
+        return
+    if run.unfit:
+        click.echo(f"query: note: the template ({run.columns} columns) cannot fit "
+                   f"{run.unfit} of {run.hits} hits (too few frames for its steps); "
+                   "they have no mt_cost and are ranked last", err=True)
+    to = f" -> {output}" if output != "-" else ""
     if kf_file is not None:
-        if frames or feature_list or mode or mismatches is not None or min_segment:
-            raise MtannoError("--frames, --features, --mode, --mismatches and --min-segment "
-                              "do not go with --keyframes")
-        return _keyframe_query(index, kf_file, windows=windows, rank_mt=rank_mt, top=top,
-                               output=output, quiet=quiet)
-    if example is not None:
-        if not feature_list:
-            raise MtannoError("--example needs --features NAME,...")
-        query = example_file_query(index, example, feature_list.split(","), frames=frames,
-                                   mode=mode or "adaptive", mismatches=mismatches or 0,
-                                   min_segment=min_segment or DEFAULT_MIN_SEGMENT)
-    else:
-        if frames or feature_list:
-            raise MtannoError("--frames and --features go with --example, not --query")
-        query = load_query(query_file, index)
-        if mode is not None or mismatches is not None or min_segment is not None:
-            query = replace(query, mode=mode or query.mode,
-                            mismatches=query.mismatches if mismatches is None else mismatches,
-                            min_segment=min_segment or query.min_segment)
-    warm_up()  # load the compiled kernels first: the time printed is the query's own
-    t0 = time.perf_counter()
-    hits = search(index, query)
-    elapsed = time.perf_counter() - t0
-    _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top, quiet=quiet,
-                inputs=[i for i in (example, query_file) if i is not None and Path(i).is_file()],
-                mode=query.mode, mismatches=query.mismatches, min_segment=query.min_segment,
-                frames=frames, features=feature_list, example=example)
-    if not quiet:
-        segs = ", ".join(f"{p.group} {len(p.normalized().sets)}" for p in query.parts)
-        click.echo(f"query: {len(hits)} hits in {elapsed * 1000:.1f} ms ({query.mode}; query "
-                   f"segments: {segs})" + (f" -> {output}" if output != "-" else ""), err=True)
-
-
-def _write_hits(index, hits, *, output, rank_mt, top, quiet, inputs, **record) -> None:
-    """Rank the hits by the ``--rank-mt`` template (a note counts the hits it cannot fit)
-    and write them (:func:`mtanno.index.ranking.write_query_hits`)."""
-    from mtanno.index.ranking import rank_by_template_file, write_query_hits
-
-    if rank_mt is not None:
-        hits, columns = rank_by_template_file(index, hits, rank_mt)
-        if hits.unfit and not quiet:
-            click.echo(f"query: note: the template ({columns} columns) cannot fit "
-                       f"{hits.unfit} of {len(hits)} hits (too few frames for its steps); "
-                       "they have no mt_cost and are ranked last", err=True)
-    write_query_hits(output, index, hits, top=top, inputs=inputs, ranked_by=rank_mt, **record)
-
-
-def _keyframe_query(index, kf_file, *, windows, rank_mt, top, output, quiet):
-    """``query --keyframes``: search, optionally rank by a template, write the table."""
-    import time
-
-    from mtanno.keyframes import load_keyframes, search_index
-    from mtanno.keyframes.search import warm_up
-
-    q = load_keyframes(kf_file)
-    try:
-        warm_up()
-        t0 = time.perf_counter()
-        kh = search_index(index, q)
-        elapsed = time.perf_counter() - t0
-    except MtannoError as exc:
-        raise MtannoError(exc.message, path=kf_file) from None
-    hits = kh.as_hits(windows=windows)
-    _write_hits(index, hits, output=output, rank_mt=rank_mt, top=top, inputs=[kf_file],
-                keyframes=str(kf_file), windows=windows, quiet=quiet)
-    if not quiet:
         what = "candidate windows" if windows else "hits"
-        click.echo(f"query: {len(hits)} {what} in {elapsed * 1000:.2f} ms (keyframes: "
-                   f"{q.n} of class {q.class_name}; {kh.frames} frames in hits)"
-                   + (f" -> {output}" if output != "-" else ""), err=True)
+        click.echo(f"query: {run.hits} {what} in {run.seconds * 1000:.2f} ms (keyframes: "
+                   f"{run.keyframes} of class {run.class_name}; {run.frames} frames in hits)"
+                   + to, err=True)
+    else:
+        segs = ", ".join(f"{group} {n}" for group, n in run.segments)
+        click.echo(f"query: {run.hits} hits in {run.seconds * 1000:.1f} ms ({run.mode}; query "
+                   f"segments: {segs})" + to, err=True)
 
 
 COMMANDS = [index_group, query_cmd]

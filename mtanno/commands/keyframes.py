@@ -5,7 +5,6 @@ bad input."""
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import click
@@ -14,16 +13,15 @@ from mtanno.commands._common import (
     ARGUMENT_NAMES,
     EXIT_BAD_INPUT,
     EXIT_PER_CLASS,
-    lock_output,
     scheduler_option,
     show_progress,
     training_argument,
     training_options,
     user_errors,
     wait_option,
+    waiting_note,
 )
 from mtanno.errors import MtannoError
-from mtanno.templates.model import class_file
 
 
 @click.command("learn-keyframes", epilog=EXIT_PER_CLASS)
@@ -79,84 +77,47 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     """
     from tqdm import tqdm
 
-    from mtanno.keyframes import save_keyframes
     from mtanno.keyframes.ga import GAParams
-    from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
-    from mtanno.templates.model import load_template_folder
-    from mtanno.templates.training import (
-        collect_sources,
-        group_by_class,
-        load_examples,
-    )
-    from mtanno.util.output import check_outputs, output_folder
+    from mtanno.keyframes.run import KeyframeOptions, learn_keyframes_to
 
-    bad_inputs: list[MtannoError] = []  # training folders without examples: the others go on
-    sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
-                              split=split, truth=truth, failures=bad_inputs,
-                              note=None if quiet else lambda m: click.echo(f"learn-keyframes: {m}", err=True))
-    for exc in bad_inputs:
-        click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
-    groups = group_by_class(sources, classes=list(classes) or None)
-    templates = load_template_folder(mt_dir)
-    all_groups = group_by_class(sources)
-    examples = [ex for c in all_groups for ex in load_examples(all_groups[c])]
-    by_class: dict[str, list] = {}
-    for ex in examples:
-        by_class.setdefault(ex.class_name, []).append(ex)
-    mt0 = next(iter(templates.values()))
-    if examples[0].feature_names != list(mt0.feature_names):
-        raise MtannoError("training clips have other features than the templates "
-                          f"(feature set {examples[0].feature_set} vs {mt0.feature_set})",
-                          path=examples[0].file)
-    if method == "ga" and len(by_class) < 2:
-        raise MtannoError(f"the genetic algorithm needs training clips of at least two classes "
-                          f"(only {', '.join(by_class)} found): the other classes are its "
-                          "negatives")
-    ts = keyframe_training_set(examples)
-    params = GAParams(population=population, generations=generations)
-    out = Path(outdir)
-    todo = [c for c in groups if c in templates or classes]
-    check_outputs([out / f"{c}.json" for c in todo if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth,
-                   *(t.path for t in templates.values())],
-                  writable=False)  # a class whose file cannot be written fails alone
-    total = len(todo) * (runs if method == "ga" else 1)
-    bar = tqdm(total=total, unit="run" if method == "ga" else "class", desc="learn-keyframes",
-               disable=not show_progress(quiet))
-    # a run that writes nothing (every class failed, or interrupted) leaves no new folder
-    with output_folder(out), lock_output(out, wait=wait):
-        t0 = time.perf_counter()
-        written, failed = [], []
-        for cls in todo:
-            bar.set_postfix_str(cls)
-            try:
-                if cls not in templates:
-                    raise MtannoError(f"no template for class '{cls}' in {mt_dir}")
-                target = class_file(out, cls)
-                q = learn_keyframes(ts, cls, templates[cls], method=method, runs=runs, seed=seed,
-                                    jobs=jobs, scheduler=scheduler, params=params,
-                                columns=columns,
-                                    examples=by_class.get(cls),
-                                    progress=bar.update if method == "ga" else None)
-                save_keyframes(target, q)
-                written.append((cls, q))
-            except MtannoError as exc:
-                failed.append(cls)
-                bar.write(f"mtanno: class {cls}: {exc}", file=sys.stderr)
-            if method != "ga":
-                bar.update(1)
-    bar.close()
+    bar = None
+
+    def start(n: int, skipped: list[MtannoError]) -> None:
+        nonlocal bar
+        for exc in skipped:  # training folders without examples: the others go on
+            click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
+        bar = tqdm(total=n, unit="run" if method == "ga" else "class", desc="learn-keyframes",
+                   disable=not show_progress(quiet))
+
+    def progress(cls: str, steps: int, error: str | None) -> None:
+        bar.set_postfix_str(cls)
+        if error is not None:
+            bar.write(f"mtanno: class {cls}: {error}", file=sys.stderr)
+        bar.update(steps)
+
+    options = KeyframeOptions(method=method, classes=classes, runs=runs, seed=seed,
+                              ga=GAParams(population=population, generations=generations),
+                              columns=columns, jobs=jobs, scheduler=scheduler)
+    try:
+        run = learn_keyframes_to(
+            training, mt_dir, outdir, manifest=manifest, features_dir=features_dir, split=split,
+            truth=truth, options=options, wait=wait, on_wait=waiting_note(Path(outdir)),
+            on_start=start, progress=progress,
+            note=None if quiet else lambda m: click.echo(f"learn-keyframes: {m}", err=True))
+    finally:
+        if bar is not None:
+            bar.close()
     if not quiet:
-        for cls, q in written:
+        for cls, q in run.written:
             f = q.provenance["fitness"]
             kfs = f"{q.n} keyframe{'s' if q.n != 1 else ' '}"
             click.echo(f"  {cls:<32s} {kfs}  training P {f['P']:.3f} R {f['R']:.3f} "
                        f"F2 {f['F']:.3f}", err=True)
-        skipped = sorted(set(groups) - set(todo))
+        skipped = run.without_template
         note = f", {len(skipped)} without template skipped" if skipped else ""
-        click.echo(f"learn-keyframes: {len(written)} class(es) ({method}) -> {out}, "
-                   f"{len(failed)} failed{note}, {time.perf_counter() - t0:.1f} s", err=True)
-    sys.exit(1 if failed or bad_inputs else 0)
+        click.echo(f"learn-keyframes: {len(run.written)} class(es) ({method}) -> {Path(outdir)}, "
+                   f"{len(run.failed)} failed{note}, {run.seconds:.1f} s", err=True)
+    sys.exit(run.exit_code)
 
 
 @click.group("keyframes")

@@ -81,7 +81,7 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     """
     from tqdm import tqdm
 
-    from mtanno.templates.learn import learn_to_folder
+    from mtanno.templates.run import LearnOptions, learn_to_folder
 
     bar = None
 
@@ -100,7 +100,8 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     try:
         run = learn_to_folder(
             training, outdir, manifest=manifest, features_dir=features_dir, split=split,
-            truth=truth, classes=classes, hard=hard, iter_max=iterations, thresh=thresh,
+            truth=truth, options=LearnOptions(classes=classes, hard=hard, iter_max=iterations,
+                                              thresh=thresh),
             wait=wait, on_wait=waiting_note(outdir), on_start=start, progress=progress,
             note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     finally:

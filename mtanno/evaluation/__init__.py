@@ -14,7 +14,7 @@ every stage that reads it). Modules:
   from wrong labels and is calibrated: AUROC, expected calibration error, reliability
   table (issue 26);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
-  clips (``mtanno compose``);
+  clips (``mtanno compose``, :func:`compose_to`);
 * :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``);
 * :mod:`~mtanno.evaluation.player` — the report page's stick-figure players and its review
   list's controls (review to truth; the script ``player.js`` is package data).
@@ -31,10 +31,11 @@ from mtanno.util.lazy import lazy_exports
 __getattr__, __all__ = lazy_exports(__name__, {
     "calibration": ("RIGHT_IOU", "ReliabilityTable", "auroc", "expected_calibration_error",
                     "reliability_table", "rows_right", "segment_right"),
-    "metrics": ("EVALUATION_SCHEMA", "PRF", "Report", "evaluate_annotations", "frame_level",
-                "segment_level"),
+    "metrics": ("EVALUATION_SCHEMA", "PRF", "Report", "evaluate_annotations", "evaluate_files",
+                "evaluate_to", "frame_level", "segment_level"),
     "report": ("ReportResult", "confusion_matrix", "write_report"),
-    "retrieval": ("ClassRetrieval", "RetrievalRow", "TAU_GRID", "retrieval_evaluation",
+    "retrieval": ("ClassRetrieval", "RetrievalRow", "RetrievalRun", "TAU_GRID",
+                  "evaluate_retrieval_files", "evaluate_retrieval_to", "retrieval_evaluation",
                   "retrieval_report", "retrieval_rows", "retrieval_table", "separation_quotient",
                   "top_k_recall"),
     "segmentation": ("OVERLAPS", "OverlapCounts", "SegmentationScores", "edit_score",

@@ -246,3 +246,21 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
         tmp.write_text(json.dumps({"seed": seed, "pause": pause, "asf": str(asf_path),
                                    "documents": plan}, indent=1))
     return docs, truth
+
+
+def compose_to(manifest: str | os.PathLike, out_dir: str | os.PathLike, *,
+               root: str | os.PathLike | None = None, actor: str | None = None,
+               split: str | None = None, n_docs: int = DEFAULT_DOCS,
+               clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
+               asf: str | os.PathLike | None = None, shuffle: bool = True,
+               progress: Callable[[int, int], None] | None = None,
+               ) -> tuple[list[Path], list[Segment]]:
+    """The whole ``mtanno compose`` run: the clips of ``manifest`` (:func:`read_clips`:
+    ``root``, ``actor``, ``split``) composed into documents in ``out_dir``
+    (:func:`compose_documents`: ``n_docs``, ``clips_per_doc``, ``seed``, ``pause``, ``asf``,
+    ``shuffle``; the manifest is never an output). Returns the document paths and the
+    truth."""
+    clips = read_clips(manifest, root=root, actor=actor, split=split)
+    return compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
+                             seed=seed, pause=pause, asf=asf, shuffle=shuffle,
+                             inputs=[manifest], progress=progress)

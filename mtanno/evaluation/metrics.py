@@ -8,11 +8,13 @@ All frames are 1-based inclusive at 30 Hz in the tables (:class:`mtanno.labels.s
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from mtanno.errors import MtannoError
 from mtanno.evaluation.segmentation import (
     OVERLAPS,
     OverlapCounts,
@@ -332,3 +334,51 @@ def evaluate_files(annotations: Sequence[str], truth: str, *, docs: Sequence[str
     documents = documents_evaluated(truth_segments, output, frames, docs=docs,
                                     all_docs=all_docs)
     return evaluate_annotations(truth_segments, output, documents=documents, frames=frames)
+
+
+def check_one_stdout(json_path: str | None, table_path: str | None) -> None:
+    """The JSON and the table output of ``evaluate`` and ``evaluate-retrieval`` may not both
+    be standard output (``-``)."""
+    if json_path == "-" and table_path == "-":
+        raise MtannoError("{json_path} - and {table_path} - would both write to standard output",
+                          options=("json_path", "table_path"))
+
+
+def evaluate_to(annotations: Sequence[str], truth_path: str, *,
+                json_path: str | None = None, table_path: str | None = None,
+                docs: Sequence[str] = (), all_docs: bool = False,
+                warn: Callable[[str], None] | None = None) -> Report:
+    """The whole ``mtanno evaluate`` run ([MBS09] §7): :func:`evaluate_files` of the
+    annotation tables ``annotations`` names (files, folders of tables; ``-`` reads CSV from
+    standard input, once) against the truth table ``truth_path``; the report as text on
+    standard output unless ``json_path`` or ``table_path`` is ``-``, as JSON (schema
+    :data:`EVALUATION_SCHEMA`) to ``json_path`` and as the per-class table to
+    ``table_path``, each with its provenance. Every output is checked against the inputs
+    first; ``warn`` receives the report's warnings (labels only one side knows)."""
+    from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
+    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+
+    if table_path is not None:
+        table_format(table_path)
+    scanned = {a: ANNOTATION_SUFFIXES for a in annotations if a != "-" and Path(a).is_dir()}
+    annotations = annotation_files(annotations)
+    inputs = [*annotations, truth_path]
+    if sum(str(i) == "-" for i in inputs) > 1:
+        raise MtannoError("standard input (-) can be read only once")
+    check_outputs([json_path, *output_files(table_path)], inputs, scanned=scanned)
+    check_one_stdout(json_path, table_path)
+    report = evaluate_files(annotations, truth_path, docs=docs, all_docs=all_docs)
+    for warning in report.warnings:
+        if warn:
+            warn(warning)
+    if json_path != "-" and table_path != "-":
+        write_stdout(report.table() + "\n")  # a full device: one line saying so
+    prov = provenance(inputs=inputs, truth=str(truth_path))
+    if json_path:
+        write_json(json_path, {**report.as_dict(), "provenance": prov})
+    if table_path:
+        import pyarrow as pa
+
+        write_table(table_path, pa.Table.from_pylist(report.rows()), provenance=prov)
+    return report

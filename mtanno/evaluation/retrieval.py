@@ -1,18 +1,23 @@
 """Evaluation of retrieval against ground truth ([MR06] §5.4–5.5, algorithms.md §8): hits
 and relevant hits per τ, top-k recall, the separation quotient, per class.
 
+:func:`evaluate_retrieval_to` is the whole ``mtanno evaluate-retrieval`` run.
+
 Frames are 1-based inclusive at 30 Hz (:class:`mtanno.labels.segments.Segment`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from mtanno.evaluation.metrics import overlaps, ratio
 from mtanno.labels.segments import Segment
+from mtanno.templates.params import RETRIEVAL_DELTA
 
 #: Hit cap per class and document of the retrieval table (the reference driver's).
 DEFAULT_MAX_HITS = 2000
@@ -189,6 +194,12 @@ class RetrievalRun:
     results: list
     files: list[dict]
     failed: list[str]
+    missing: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every input was measured, else 1 (:func:`evaluate_retrieval_to`)."""
+        return 1 if self.failed or self.missing else 0
 
 
 def evaluate_retrieval_files(models, layout, paths, truth: Sequence[Segment], *,
@@ -220,3 +231,58 @@ def evaluate_retrieval_files(models, layout, paths, truth: Sequence[Segment], *,
     results = [retrieval_evaluation(m.name, m.values, m.weights, documents, truth,
                                     max_hits=max_hits) for m in models]
     return RetrievalRun(results, files, failed)
+
+
+def evaluate_retrieval_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
+                          truth_path: str, *, delta: float = RETRIEVAL_DELTA,
+                          max_hits: int = DEFAULT_MAX_HITS, classes: Sequence[str] = (),
+                          json_path: str | None = None, table_path: str | None = None,
+                          on_start: Callable[[list[str]], None] | None = None,
+                          progress: Callable[[str], None] | None = None) -> RetrievalRun:
+    """The whole ``mtanno evaluate-retrieval`` run ([MR06] Tables 2 and 4): the templates of
+    ``mt_dir`` (a folder or one template; only ``classes``, if given) quantized with
+    ``delta``, each retrieved in every feature file ``features`` names (files, folders
+    searched recursively) with at most ``max_hits`` hits per document
+    (:func:`evaluate_retrieval_files`), measured against the truth table ``truth_path``.
+    The table as text on standard output unless ``json_path`` or ``table_path`` is ``-``,
+    the results as JSON (schema ``mtanno.retrieval-evaluation/1``) to ``json_path`` and as
+    a table (one row per class and τ) to ``table_path``, each with its provenance. Every
+    output is checked against the inputs first.
+
+    ``on_start(missing)`` is called before the first document is read, with the messages
+    of the inputs that named no feature file; ``progress(message)`` with each feature file
+    that could not be used."""
+    from mtanno.annotate import load_class_models
+    from mtanno.evaluation.metrics import check_one_stdout
+    from mtanno.features.inputs import document_files
+    from mtanno.labels.truth import read_truth
+    from mtanno.templates.model import template_files
+    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+
+    if table_path is not None:
+        table_format(table_path)
+    check_one_stdout(json_path, table_path)
+    missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
+    paths = document_files(features, failures=missing)
+    check_outputs([json_path, *output_files(table_path)],
+                  [mt_dir, *template_files(mt_dir), truth_path, *paths],
+                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()})
+    models, key = load_class_models(mt_dir, delta=delta, classes=tuple(classes))
+    truth = read_truth(truth_path)
+    if on_start:
+        on_start(missing)
+    run = evaluate_retrieval_files(models, key, paths, truth, max_hits=max_hits,
+                                   truth_path=truth_path, progress=progress)
+    run.missing = missing
+    if json_path != "-" and table_path != "-":
+        write_stdout(retrieval_report(run.results) + "\n")
+    prov = provenance(inputs=[*run.files, truth_path], templates=[m.record() for m in models],
+                      delta=delta, max_hits=max_hits, feature_set=key.feature_set)
+    if json_path:
+        write_json(json_path, {"schema": "mtanno.retrieval-evaluation/1",
+                               "classes": [r.as_dict() for r in run.results],
+                               "provenance": prov})
+    if table_path:
+        write_table(table_path, retrieval_table(run.results), provenance=prov)
+    return run

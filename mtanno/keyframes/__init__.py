@@ -16,6 +16,12 @@
 * :mod:`~mtanno.keyframes.learn` — learning a query per class from positive and negative
   training clips: the genetic algorithm of [MBS09] §6 (``ga``), hard-template columns
   (``hard``, thesis) and [MR06]'s column heuristic (``heuristic``).
+* :mod:`~mtanno.keyframes.run` — the whole ``mtanno learn-keyframes`` run, from file names to
+  files (:func:`~mtanno.keyframes.run.learn_keyframes_to`, its options
+  :class:`~mtanno.keyframes.run.KeyframeOptions`).
+* :mod:`~mtanno.keyframes.query` — the whole ``mtanno query`` run (by example, query file or
+  keyframe query; :func:`~mtanno.keyframes.query.query_to`, :class:`~mtanno.keyframes.query.QueryOptions`):
+  here because keyframe queries rank above the index.
 * :mod:`~mtanno.keyframes.ga` and :mod:`~mtanno.keyframes.fitness` — the genetic algorithm
   and its fitness (hits and misses of a candidate query on the training clips).
 * ``_kernels`` — numba kernels on interval lists (private).

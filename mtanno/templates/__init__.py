@@ -8,6 +8,8 @@
   :func:`mtanno.templates.learn.learn` on matrices, :func:`learn_template` on training
   examples (the function ``learn`` is not re-exported here, so that
   ``mtanno.templates.learn`` stays the module).
+* :mod:`~mtanno.templates.run` — the whole ``mtanno learn-mt`` run, from file names to
+  files (:func:`learn_to_folder`, its options :class:`LearnOptions`).
 * :mod:`~mtanno.templates.dtw` — the DTW alignment and warping used by learning.
 * :mod:`~mtanno.templates.training` — gathering training examples from a folder tree, a
   manifest CSV or annotated documents.
@@ -29,13 +31,14 @@ Typical use by a later stage::
 """
 
 __all__ = [
-    "SCHEMA", "ExampleSource", "LearnResult", "LearnRun", "MotionTemplate", "TrainingExample",
+    "SCHEMA", "ExampleSource", "LearnOptions", "LearnResult", "LearnRun", "MotionTemplate",
+    "TrainingExample",
     "group_by_class", "learn_template", "learn_to_folder", "load_examples", "load_template", "mirror",
     "quantize", "save_template", "sources_from_manifest", "sources_from_tree",
     "sources_from_truth",
 ]
 
-from mtanno.templates.learn import LearnResult, LearnRun, learn_template, learn_to_folder
+from mtanno.templates.learn import LearnResult, learn_template
 from mtanno.templates.model import (
     SCHEMA,
     MotionTemplate,
@@ -44,6 +47,7 @@ from mtanno.templates.model import (
     quantize,
     save_template,
 )
+from mtanno.templates.run import LearnOptions, LearnRun, learn_to_folder
 from mtanno.templates.training import (
     ExampleSource,
     TrainingExample,
