@@ -10,7 +10,10 @@ every file.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -134,3 +137,65 @@ def text_timeline(X: np.ndarray, labels: Sequence[str], *, first_frame: int = 1,
         cells = np.where(counts == 0, OFF, np.where(counts == size, ON, MIXED))
         lines.append(f"{label:<{lw}}  " + "".join(cells.tolist()))
     return lines
+
+
+def describe_file(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
+                  skeleton: str | None = None, features: bool = False) -> list[str]:
+    """The lines ``mtanno info FILE`` prints: a feature file's metadata
+    (:func:`describe_feature_file`) or, with ``features``, its features as a table (id,
+    name, index group; :func:`feature_rows`); a motion file's rig, rate, length and joints
+    (:func:`describe_motion`; ``asf``, ``skeleton`` as :func:`mtanno.io.read_motion` takes
+    them)."""
+    from mtanno.features.store import read_features
+
+    path = Path(path)
+    parquet = path.suffix.lower() == ".parquet"
+    if features and not parquet:
+        raise MtannoError("{features} goes with a feature file (.parquet)", path=str(path),
+                          options=("features",))
+    if not parquet:
+        from mtanno.io import read_motion
+
+        return describe_motion(read_motion(path, asf=asf, skeleton=skeleton))
+    ff = read_features(path)
+    if not features:
+        return describe_feature_file(ff)
+    rows = feature_rows(ff)
+    width = max(len(r["name"]) for r in rows)
+    return [f"{'id':<4} {'name':<{width}}  group"] + [
+        f"{r['id']:<4} {r['name']:<{width}}  {r['group']}" for r in rows]
+
+
+@dataclass
+class Timeline:
+    """The text timeline ``mtanno show`` prints (:attr:`lines`: a header, then one row per
+    feature) and what a picture of it needs: the rows drawn (features × frames), their
+    labels, the first frame (1-based) and a title."""
+
+    lines: list[str]
+    X: np.ndarray
+    labels: list[str]
+    first_frame: int
+    title: str
+
+
+def feature_timeline(path: str | os.PathLike, *, frames: str | None = None,
+                     features: Sequence[str] | None = None,
+                     width: int = DEFAULT_WIDTH) -> Timeline:
+    """The :class:`Timeline` of feature file ``path``: frames ``"A:B"`` (1-based inclusive,
+    default all), only ``features`` (names, ids or aliases; default all), at most ``width``
+    columns (:func:`text_timeline`)."""
+    from mtanno.features.store import read_features
+    from mtanno.util.tables import parse_frame_range
+
+    ff = read_features(path)
+    a, b = parse_frame_range(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)
+    rows = select_features(ff, list(features)) if features else list(range(len(ff.names)))
+    info = feature_rows(ff)
+    labels = [f"{info[r]['id']} {info[r]['group']}:{info[r]['name']}" for r in rows]
+    X = ff.X[rows, a:b + 1]
+    block = -(-X.shape[1] // width)
+    head = (f"{ff.document}: frames {a + 1}-{b + 1} of {ff.X.shape[1]} at {ff.fps:g} Hz, "
+            f"{block} frame{'s' if block > 1 else ''} per column")
+    lines = [head, *text_timeline(X, labels, first_frame=a + 1, width=width)]
+    return Timeline(lines, X, labels, a + 1, f"{ff.document}, frames {a + 1}-{b + 1}")

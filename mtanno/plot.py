@@ -8,6 +8,9 @@ work the same in scripts, on servers and in notebooks; nothing calls ``plt.show`
 :func:`reliability_figure` is the one whole figure (a reliability diagram above its bin
 counts). :func:`save_figure` writes a figure atomically (PNG or SVG by the suffix). Frames
 on the axes are 1-based at 30 Hz, as in every file mtanno writes.
+
+:func:`plot_template_file` and :func:`show_to` are the runs of the two commands that draw
+a file (``mtanno mt plot``, ``mtanno show --plot``).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from mtanno.evaluation.calibration import ReliabilityTable
+    from mtanno.info import Timeline
     from mtanno.templates.model import MotionTemplate
 
 INSTALL_HINT = "plots need matplotlib: pip install 'mtanno[plot]' (or pip install matplotlib)"
@@ -207,3 +211,45 @@ def save_figure(ax_or_figure, path: str | os.PathLike, *, dpi: int = 110) -> Non
         raise MtannoError("a plot file must end in .png, .svg or .pdf", path=str(path))
     with atomic_path(path) as tmp:
         figure.savefig(tmp, format=fmt, dpi=dpi)
+
+
+# --------------------------------------------------------------- the commands that draw a file
+
+
+def plot_template_file(template: str | os.PathLike, output: str | os.PathLike, *,
+                       delta: float | None = None) -> MotionTemplate:
+    """The run of ``mtanno mt plot``: the template of file ``template`` (quantized with
+    ``delta`` first, if given) drawn by :func:`plot_template` into the picture ``output``
+    (checked against the input first); returns the template drawn."""
+    from mtanno.templates.model import load_template, quantize
+    from mtanno.util.output import check_outputs
+
+    require_matplotlib()
+    check_outputs([output], [template])
+    mt = load_template(template)
+    if delta is not None:
+        mt = quantize(mt, delta)
+    save_figure(plot_template(mt), output)
+    return mt
+
+
+def show_to(path: str | os.PathLike, *, frames: str | None = None,
+            features: Sequence[str] | None = None, width: int | None = None,
+            plot_path: str | os.PathLike | None = None) -> Timeline:
+    """The run of ``mtanno show``: the text timeline of feature file ``path``
+    (:func:`mtanno.info.feature_timeline`: ``frames``, ``features``, ``width``) and, with
+    ``plot_path``, the same drawn by :func:`plot_features` into that picture (matplotlib
+    and the output checked before the file is read)."""
+    from mtanno.info import DEFAULT_WIDTH, feature_timeline
+    from mtanno.util.output import check_outputs
+
+    if plot_path is not None:
+        require_matplotlib()
+        check_outputs([plot_path], [path])
+    tl = feature_timeline(path, frames=frames, features=features,
+                          width=DEFAULT_WIDTH if width is None else width)
+    if plot_path is not None:
+        ax = plot_features(tl.X, tl.labels, first_frame=tl.first_frame)
+        ax.set_title(tl.title)
+        save_figure(ax, plot_path)
+    return tl

@@ -9,7 +9,7 @@ adaptive segmentations, refined by DTW inside the area it spans (docs/align.md).
 * :mod:`~mtanno.align.dtw` — stage 2: DTW inside an :class:`Area` with the pose or the
   feature cost (:func:`warp_poses`, :func:`warp_codes`), :func:`path_agreement`.
 * :mod:`~mtanno.align.core` — :func:`align`, :func:`align_files`, :class:`Alignment` and
-  its table (:func:`write_alignment`).
+  its table (:func:`write_alignment`); :func:`align_to`, the whole ``mtanno align`` run.
 * :mod:`~mtanno.align.options` — the cost names and defaults (imports nothing heavy).
 * :mod:`~mtanno.align.plot` — the alignment drawn like [MRC05] Fig. 11 (needs matplotlib).
 * ``_kernels`` — numba kernels (private).
@@ -25,7 +25,8 @@ from mtanno.util.lazy import lazy_exports
 __getattr__, __all__ = lazy_exports(__name__, {
     "coarse": ("ALL", "POSE", "CoarseAlignment", "Segments", "coarse_alignment",
                "pose_features", "select_features"),
-    "core": ("Alignment", "align", "align_files", "alignment_table", "write_alignment"),
+    "core": ("Alignment", "align", "align_files", "align_to", "alignment_table",
+             "write_alignment"),
     "dtw": ("Area", "WarpingPath", "local_costs", "path_agreement", "warp_codes",
             "warp_poses"),
     "options": ("COSTS", "DEFAULT_BAND", "DEFAULT_COST"),

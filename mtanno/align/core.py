@@ -27,7 +27,7 @@ from mtanno.features import FEATURE_SET, FeatureSet
 from mtanno.features.store import check_layout
 from mtanno.index.core import frame_codes
 
-__all__ = ["Alignment", "align", "align_files", "alignment_table", "summary",
+__all__ = ["Alignment", "align", "align_files", "align_to", "alignment_table", "summary",
            "write_alignment"]
 
 
@@ -142,11 +142,15 @@ def align(a: Performance, b: Performance, *, features: Sequence[str] | None = No
 
 def align_files(path_a: str | os.PathLike, path_b: str | os.PathLike, *,
                 asf: str | os.PathLike | None = None, skeleton: str | os.PathLike | None = None,
-                feature_set: str | FeatureSet = FEATURE_SET, **options) -> Alignment:
+                feature_set: str | FeatureSet = FEATURE_SET,
+                features: Sequence[str] | None = None, group: str | None = None,
+                band: int = DEFAULT_BAND, cost: str = DEFAULT_COST,
+                full: bool = False) -> Alignment:
     """:func:`align` of two files: motion files (``.amc``, ``.bvh``; ``asf``, ``skeleton``
     and ``feature_set`` as in :func:`mtanno.align.poses.load_performance`) or feature files
-    (``.parquet``, feature cost only). ``options``: those of :func:`align`."""
-    if options.get("cost", DEFAULT_COST) == "positions":
+    (``.parquet``, feature cost only). ``features``, ``group``, ``band``, ``cost``,
+    ``full``: those of :func:`align`."""
+    if cost == "positions":
         for p in (path_a, path_b):
             if str(p).lower().endswith(".parquet"):
                 raise MtannoError("a feature file has features but no joint positions: the "
@@ -155,7 +159,7 @@ def align_files(path_a: str | os.PathLike, path_b: str | os.PathLike, *,
                                   options=("cost",))
     a = load_performance(path_a, asf=asf, skeleton=skeleton, feature_set=feature_set)
     b = load_performance(path_b, asf=asf, skeleton=skeleton, feature_set=feature_set)
-    return align(a, b, **options)
+    return align(a, b, features=features, group=group, band=band, cost=cost, full=full)
 
 
 def alignment_table(al: Alignment) -> pa.Table:
@@ -191,3 +195,34 @@ def write_alignment(path: str | os.PathLike, al: Alignment, *,
     from mtanno.util.tables import write_table
 
     write_table(path, alignment_table(al), provenance=provenance)
+
+
+def align_to(path_a: str | os.PathLike, path_b: str | os.PathLike,
+             output: str | os.PathLike = "-", *, plot_path: str | os.PathLike | None = None,
+             asf: str | os.PathLike | None = None, skeleton: str | os.PathLike | None = None,
+             feature_set: str | FeatureSet = FEATURE_SET,
+             features: Sequence[str] | None = None, group: str | None = None,
+             band: int = DEFAULT_BAND, cost: str = DEFAULT_COST, full: bool = False,
+             ) -> Alignment:
+    """The whole ``mtanno align`` run: :func:`align_files` of ``path_a`` and ``path_b``
+    (``asf``, ``skeleton``, ``feature_set``; the options of :func:`align`), its warping
+    path written to ``output`` (suffix picks the format, ``-`` is CSV on standard output)
+    with the inputs and :func:`summary` as provenance, and with ``plot_path`` drawn there
+    (:func:`mtanno.align.plot.save_alignment_plot`). The outputs (and the plot's format and
+    matplotlib) are checked before any work."""
+    from mtanno.align.plot import check_plot_path, save_alignment_plot
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import file_record, output_files, provenance, table_format
+
+    table_format(output)
+    if plot_path is not None:
+        check_plot_path(plot_path)
+    inputs = [path_a, path_b] + ([asf] if asf else [])
+    check_outputs(output_files(output) + ([plot_path] if plot_path else []), inputs)
+    al = align_files(path_a, path_b, asf=asf, skeleton=skeleton, feature_set=feature_set,
+                     features=features, group=group, band=band, cost=cost, full=full)
+    write_alignment(output, al, provenance=provenance(
+        inputs=[file_record(p) for p in inputs], group=group, **summary(al)))
+    if plot_path is not None:
+        save_alignment_plot(plot_path, al)
+    return al

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mtanno.align.core import Alignment
-from mtanno.align.dtw import WarpingPath
 from mtanno.errors import MtannoError
+
+if TYPE_CHECKING:  # type hints only: align.core calls this module (align_to)
+    from mtanno.align.core import Alignment
+    from mtanno.align.dtw import WarpingPath
 
 __all__ = ["PLOT_SUFFIXES", "check_plot_path", "plot_alignment", "require_matplotlib",
            "save_alignment_plot"]

@@ -67,27 +67,12 @@ def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plo
 
     Example: mtanno align walk1.bvh walk2.bvh -o path.csv --plot path.png
     """
-    from mtanno.align.core import align_files, summary, write_alignment
-    from mtanno.util.output import check_outputs
-    from mtanno.util.tables import file_record, output_files, provenance, table_format
+    from mtanno.align.core import align_to
 
-    table_format(output)
-    if plot_path is not None:
-        from mtanno.align.plot import check_plot_path
-
-        check_plot_path(plot_path)
-    inputs = [motion_a, motion_b] + ([asf] if asf else [])
-    check_outputs(output_files(output) + ([plot_path] if plot_path else []), inputs)
     names = None if features is None else [f.strip() for f in features.split(",") if f.strip()]
-    al = align_files(motion_a, motion_b, asf=asf, skeleton=skeleton, feature_set=feature_set,
-                     features=names, group=group, band=band, cost=cost, full=full)
-    facts = summary(al)
-    write_alignment(output, al, provenance=provenance(
-        inputs=[file_record(p) for p in inputs], group=group, **facts))
-    if plot_path is not None:
-        from mtanno.align.plot import save_alignment_plot
-
-        save_alignment_plot(plot_path, al)
+    al = align_to(motion_a, motion_b, output, plot_path=plot_path, asf=asf, skeleton=skeleton,
+                  feature_set=feature_set, features=names, group=group, band=band, cost=cost,
+                  full=full)
     if not quiet:
         area = "the full matrix" if full else f"{al.fraction:.1%} of the matrix (band {band})"
         click.echo(f"align: {al.a.name} ({al.a.frames} frames) ~ {al.b.name} ({al.b.frames} "

@@ -152,14 +152,9 @@ def truth_group():
 @user_errors(2)
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
-    from mtanno.labels.truth import truth_from_mocap6, write_truth
-    from mtanno.util.output import check_outputs
-    from mtanno.util.tables import output_files, provenance, table_format
+    from mtanno.labels.truth import mocap6_to
 
-    table_format(output)
-    check_outputs(output_files(output), [labels])
-    segs = truth_from_mocap6(labels)
-    write_truth(output, segs, provenance=provenance(inputs=[labels]))
+    segs = mocap6_to(labels, output)
     click.echo(f"truth: {len(segs)} segments -> {output}", err=True)
 
 

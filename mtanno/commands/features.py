@@ -8,7 +8,6 @@ input, 3 output folder locked by another run, 130 interrupted.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
@@ -19,7 +18,6 @@ from mtanno.commands._common import (
     wait_option,
     waiting_note,
 )
-from mtanno.errors import MtannoError
 
 
 @click.command("features")
@@ -127,31 +125,9 @@ def info_cmd(file, asf, skeleton, list_features):
     or a feature file (.parquet: its metadata; --features lists its features with ids and
     groups, the names `mtanno show` and `mtanno query --features` take). Exit code 2 for a
     file that cannot be read."""
-    path = Path(file)
-    if list_features and path.suffix.lower() != ".parquet":
-        raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
-    if path.suffix.lower() == ".parquet":
-        from mtanno.features.store import read_features
+    from mtanno.info import describe_file
 
-        ff = read_features(path)
-        if list_features:
-            from mtanno.info import feature_rows
-
-            rows = feature_rows(ff)
-            width = max(len(r["name"]) for r in rows)
-            click.echo(f"{'id':<4} {'name':<{width}}  group")
-            for r in rows:
-                click.echo(f"{r['id']:<4} {r['name']:<{width}}  {r['group']}")
-            return
-        from mtanno.info import describe_feature_file
-
-        for line in describe_feature_file(ff):
-            click.echo(line)
-        return
-    from mtanno.info import describe_motion
-    from mtanno.io import read_motion
-
-    for line in describe_motion(read_motion(path, asf=asf, skeleton=skeleton)):
+    for line in describe_file(file, asf=asf, skeleton=skeleton, features=list_features):
         click.echo(line)
 
 

@@ -134,46 +134,16 @@ def remove_cmd(index_dir, docs, quiet, wait):
 @user_errors(2)
 def info_cmd(index_dir, as_json, output):
     """Describe INDEX: documents, frames, and per group segments, lists and sizes."""
-    import pyarrow as pa
+    from mtanno.index.storage import index_info
 
-    from mtanno.index import open_index
-    from mtanno.index.storage import group_sizes, index_files, read_index_manifest
-    from mtanno.util.output import check_outputs
-    from mtanno.util.tables import output_files, provenance, table_format, write_table
-
+    info = index_info(index_dir, output)
     if output is not None:
-        table_format(output)
-    index = open_index(index_dir)
-    manifest = read_index_manifest(index.root)
-    total = sum(e["bytes"] for e in manifest["files"].values())
-    rows = group_sizes(index)
-    if output is not None:
-        check_outputs(output_files(output), index_files(index.root))
-        write_table(output, pa.Table.from_pylist(rows), provenance=provenance(
-            inputs=[index.root / "manifest.json"], index=str(index_dir),
-            generation=index.generation, feature_set=index.feature_set))
         return
     if as_json:
-        click.echo(json.dumps({"index": str(index_dir), "generation": index.generation,
-                               "feature_set": index.feature_set, "documents": len(index.documents),
-                               "frames": index.frames, "frame_rate": index.fps,
-                               "bytes": total, "mtanno_version": manifest.get("mtanno_version"),
-                               "groups": rows}, indent=1))
+        click.echo(json.dumps(info.as_dict(), indent=1))
         return
-    click.echo(f"index          {index_dir} (generation {index.generation}, "
-               f"mtanno {manifest.get('mtanno_version')})")
-    click.echo(f"feature set    {index.feature_set} v{index.feature_set_version}, "
-               f"{len(index.features)} features")
-    click.echo(f"documents      {len(index.documents)}")
-    click.echo(f"frames         {index.frames} at {index.fps:g} Hz "
-               f"({index.frames / index.fps / 60:.1f} min)")
-    click.echo(f"size           {total} bytes")
-    click.echo(f"{'group':<8} {'f':>3} {'segments':>9} {'seg/frame':>9} {'lists':>6} "
-               f"{'of':>8} {'bytes':>9} {'B/segment':>9}")
-    for r in rows:
-        click.echo(f"{r['group']:<8} {r['features']:>3} {r['segments']:>9} "
-                   f"{r['segments_per_frame']:>9.3f} {r['lists']:>6} {r['possible_lists']:>8} "
-                   f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}")
+    for line in info.lines():
+        click.echo(line)
 
 
 @click.command("query")

@@ -133,19 +133,12 @@ def keyframes_show_cmd(files):
     group, gap bounds to the previous keyframe in frames at 30 Hz, vector), then one row
     per feature a keyframe fixes and one column per keyframe (1, 0, or · for a wildcard).
     A folder shows every query in it."""
-    from mtanno.keyframes import format_query, keyframe_files, load_keyframes
+    from mtanno.keyframes.describe import format_query_files
 
-    first = True
-    for f in files:
-        paths = keyframe_files(f)
-        if not paths:
-            raise MtannoError("no keyframe files (*.json) in this folder", path=f)
-        for path in paths:
-            q = load_keyframes(path)
-            if not first:
-                click.echo("")
-            first = False
-            click.echo(format_query(q, path=str(path)))
+    for k, text in enumerate(format_query_files(files)):
+        if k:
+            click.echo("")
+        click.echo(text)
 
 
 COMMANDS = [learn_keyframes_cmd, keyframes_group]

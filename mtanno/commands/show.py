@@ -30,34 +30,13 @@ def show_cmd(file, frames, feature_list, width, plot_path):
     features that change there, then `mtanno query INDEX --example FILE --frames A:B
     --features NAME,...`.
     """
-    from mtanno.features.store import read_features
-    from mtanno.info import feature_rows, select_features, text_timeline
-    from mtanno.util.output import check_outputs
-    from mtanno.util.tables import parse_frame_range
+    from mtanno.plot import show_to
 
-    if plot_path is not None:
-        from mtanno.plot import require_matplotlib
-
-        require_matplotlib()
-        check_outputs([plot_path], [file])
-    ff = read_features(file)
-    a, b = parse_frame_range(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)
-    rows = select_features(ff, feature_list.split(",")) if feature_list else \
-        list(range(len(ff.names)))
-    info = feature_rows(ff)
-    labels = [f"{info[r]['id']} {info[r]['group']}:{info[r]['name']}" for r in rows]
-    X = ff.X[rows, a:b + 1]
-    block = -(-X.shape[1] // width)
-    click.echo(f"{ff.document}: frames {a + 1}-{b + 1} of {ff.X.shape[1]} at "
-               f"{ff.fps:g} Hz, {block} frame{'s' if block > 1 else ''} per column")
-    for line in text_timeline(X, labels, first_frame=a + 1, width=width):
+    timeline = show_to(file, frames=frames, width=width, plot_path=plot_path,
+                       features=feature_list.split(",") if feature_list else None)
+    for line in timeline.lines:
         click.echo(line)
     if plot_path is not None:
-        from mtanno.plot import plot_features, save_figure
-
-        ax = plot_features(X, labels, first_frame=a + 1)
-        ax.set_title(f"{ff.document}, frames {a + 1}-{b + 1}")
-        save_figure(ax, plot_path)
         click.echo(f"show: plot -> {plot_path}", err=True)
 
 

@@ -35,28 +35,10 @@ def guess_cmd(file: str, output: str, name: str | None, swap_sides: bool) -> Non
     similar conventions) and the tree, the sides checked against the pose, the heading
     axis from the hips. `--skeleton MAP.toml` reads it back to the same map, so the
     features are the same."""
-    from dataclasses import replace
-    from pathlib import Path
+    from mtanno.io.guess import guess_map_file
 
-    from mtanno._version import __version__
-    from mtanno.errors import MtannoError
-    from mtanno.io.bvh import read_bvh
-    from mtanno.io.guess import guess_map, map_toml
-    from mtanno.io.rigs import available_maps
-    from mtanno.util.output import check_outputs, write_text
-
-    if Path(file).suffix.lower() != ".bvh":
-        raise MtannoError("skeleton guess reads a BVH file (.bvh)", path=file)
-    check_outputs([output], [file])
-    rig, channels = read_bvh(file)
-    smap = guess_map(rig, channels, swap_sides=swap_sides)
-    fitting = next((m.name for m in available_maps() if m.fits(rig)), None)
-    if fitting is not None:
-        click.echo(f"skeleton guess: note: the map '{fitting}' fits this rig and is used "
-                   "instead of a generated one unless --skeleton says otherwise", err=True)
-    if name:
-        smap = replace(smap, name=name)
-    write_text(output, map_toml(smap, source=file, version=__version__))
+    smap = guess_map_file(file, output, name=name, swap_sides=swap_sides,
+                          note=lambda m: click.echo(f"skeleton guess: note: {m}", err=True))
     if output != "-":
         click.echo(f"skeleton guess: {smap.name} ({smap.description}) -> {output}", err=True)
 

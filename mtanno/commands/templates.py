@@ -143,12 +143,10 @@ def mt_show_cmd(template, delta, top, picture, files):
     with the most non-wildcard entries after quantization (those the matching relies
     on); --picture draws the quantized template.
     """
-    from mtanno.templates.describe import format_template
-    from mtanno.templates.model import load_template
+    from mtanno.templates.describe import format_template_file
 
-    mt = load_template(template)
-    click.echo(format_template(mt, path=template, delta=delta, top=top, picture=picture,
-                               files=files))
+    click.echo(format_template_file(template, delta=delta, top=top, picture=picture,
+                                    files=files))
 
 
 @mt_group.command("mirror", epilog=EXIT_BAD_INPUT)
@@ -166,12 +164,9 @@ def mt_mirror_cmd(template, output, name):
     swapped, so a template learned from left-handed examples finds the right-handed
     motion, without new training data.
     """
-    from mtanno.templates.model import load_template, mirror, save_template
-    from mtanno.util.output import check_outputs
+    from mtanno.templates.transform import mirror_file
 
-    check_outputs([output], [template])
-    mt = mirror(load_template(template), name=name)
-    save_template(output, mt)
+    mt = mirror_file(template, output, name=name)
     click.echo(f"mt mirror: {mt.class_name} -> {output}", err=True)
 
 
@@ -194,14 +189,9 @@ def mt_scale_cmd(template, factor, output):
     the template (`mtanno tune` makes such copies itself where cross-validation favours
     them).
     """
-    from mtanno.templates.model import load_template, save_template
-    from mtanno.templates.tempo import time_scaled
-    from mtanno.util.output import check_outputs
+    from mtanno.templates.transform import scale_file
 
-    check_outputs([output], [template])
-    mt = load_template(template)
-    copy = time_scaled(mt, factor)
-    save_template(output, copy)
+    mt, copy = scale_file(template, output, factor=factor)
     click.echo(f"mt scale: {mt.class_name}, {mt.length} -> {copy.length} columns "
                f"(factor {factor:g}) -> {output}", err=True)
 
@@ -220,12 +210,9 @@ def mt_quantize_cmd(template, delta, output):
 
     The output records δ; matching uses a quantized template as it is.
     """
-    from mtanno.templates.model import load_template, quantize, save_template
-    from mtanno.util.output import check_outputs
+    from mtanno.templates.transform import quantize_file
 
-    check_outputs([output], [template])
-    mt = quantize(load_template(template), delta)
-    save_template(output, mt)
+    mt = quantize_file(template, output, delta=delta)
     wild = int(np.sum(mt.values == 0.5))
     click.echo(f"mt quantize: {mt.class_name}, δ = {delta:g}, {wild} of {mt.values.size} "
                f"entries are wildcards -> {output}", err=True)
@@ -242,16 +229,9 @@ def mt_plot_cmd(template, output, delta):
     """Draw a motion template as a heat map ([MR06] Fig. 4): one row per feature, one
     column per template column, black 0, white 1, grey in between (wildcards 0.5).
     Needs matplotlib (pip install 'mtanno[plot]')."""
-    from mtanno.plot import plot_template, require_matplotlib, save_figure
-    from mtanno.templates.model import load_template, quantize
-    from mtanno.util.output import check_outputs
+    from mtanno.plot import plot_template_file
 
-    require_matplotlib()
-    check_outputs([output], [template])
-    mt = load_template(template)
-    if delta is not None:
-        mt = quantize(mt, delta)
-    save_figure(plot_template(mt), output)
+    mt = plot_template_file(template, output, delta=delta)
     click.echo(f"mt plot: {mt.class_name} -> {output}", err=True)
 
 

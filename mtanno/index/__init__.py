@@ -13,7 +13,7 @@
   (JSON query files).
 * :mod:`~mtanno.index.ranking`: :func:`rank_by_template` (:func:`rank_by_template_file` with
   a template file), :func:`write_query_hits` (the hit table).
-* :func:`group_sizes` (``index info``).
+* :func:`group_sizes` and :func:`~mtanno.index.storage.index_info` (``index info``).
 * :mod:`~mtanno.index.storage` — the index folder on disk: generations, segment files and
   ``manifest.json``, read and written atomically.
 * ``_kernels`` — numba kernels of segmentation and the inverted lists (private).

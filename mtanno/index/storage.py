@@ -27,6 +27,7 @@ import json
 import os
 import shutil
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -363,3 +364,63 @@ def group_sizes(index: Index) -> list[dict]:
                      "bytes_per_segment": size / g.n_segments if g.n_segments else 0.0,
                      "segments_per_frame": g.n_segments / index.frames if index.frames else 0.0})
     return rows
+
+
+@dataclass
+class IndexInfo:
+    """What ``mtanno index info`` shows of an index: its folder (as given), generation,
+    the mtanno version that wrote it, the index itself, its bytes on disk and per group
+    :func:`group_sizes`; as JSON (:meth:`as_dict`) or as text (:meth:`lines`)."""
+
+    path: str
+    index: Index
+    version: str | None
+    total: int
+    rows: list[dict]
+
+    def as_dict(self) -> dict:
+        index = self.index
+        return {"index": self.path, "generation": index.generation,
+                "feature_set": index.feature_set, "documents": len(index.documents),
+                "frames": index.frames, "frame_rate": index.fps, "bytes": self.total,
+                "mtanno_version": self.version, "groups": self.rows}
+
+    def lines(self) -> list[str]:
+        index = self.index
+        out = [f"index          {self.path} (generation {index.generation}, "
+               f"mtanno {self.version})",
+               f"feature set    {index.feature_set} v{index.feature_set_version}, "
+               f"{len(index.features)} features",
+               f"documents      {len(index.documents)}",
+               f"frames         {index.frames} at {index.fps:g} Hz "
+               f"({index.frames / index.fps / 60:.1f} min)",
+               f"size           {self.total} bytes",
+               f"{'group':<8} {'f':>3} {'segments':>9} {'seg/frame':>9} {'lists':>6} "
+               f"{'of':>8} {'bytes':>9} {'B/segment':>9}"]
+        out += [f"{r['group']:<8} {r['features']:>3} {r['segments']:>9} "
+                f"{r['segments_per_frame']:>9.3f} {r['lists']:>6} {r['possible_lists']:>8} "
+                f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}" for r in self.rows]
+        return out
+
+
+def index_info(index_dir: str | os.PathLike, output: str | os.PathLike | None = None,
+               ) -> IndexInfo:
+    """The run of ``mtanno index info``: the index of ``index_dir`` read and described
+    (:class:`IndexInfo`); with ``output`` its per-group table (:func:`group_sizes`) written
+    there (suffix picks the format, ``-`` is CSV on standard output) with its provenance,
+    the output checked against the index's files first."""
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format, write_table
+
+    if output is not None:
+        table_format(output)
+    index = read_index(index_dir)
+    manifest = read_index_manifest(index.root)
+    info = IndexInfo(str(index_dir), index, manifest.get("mtanno_version"),
+                     sum(e["bytes"] for e in manifest["files"].values()), group_sizes(index))
+    if output is not None:
+        check_outputs(output_files(output), index_files(index.root))
+        write_table(output, pa.Table.from_pylist(info.rows), provenance=provenance(
+            inputs=[index.root / "manifest.json"], index=str(index_dir),
+            generation=index.generation, feature_set=index.feature_set))
+    return info

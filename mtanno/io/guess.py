@@ -41,7 +41,7 @@ import json
 import math
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -50,7 +50,7 @@ from mtanno.errors import MtannoError
 from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap, available_maps, builtin_dir, select_map
 from mtanno.io.skeleton import Channels, Rig, forward_kinematics
 
-__all__ = ["choose_map", "guess_map", "map_toml", "classify_name"]
+__all__ = ["choose_map", "classify_name", "guess_map", "guess_map_file", "map_toml"]
 
 # Name parts -----------------------------------------------------------------------------
 _NAMESPACE = re.compile(r"^.*[:|]")           # mixamorig:, mixamorig1:, Character1:, DAG paths
@@ -478,3 +478,32 @@ def map_toml(smap: SkeletonMap, *, source: str = "", version: str = "") -> str:
     ]
     lines += [f"{k} = {s(smap.joints[k])}" for k in CANONICAL_JOINTS if k in smap.joints]
     return "\n".join(lines) + "\n"
+
+
+def guess_map_file(path: str | os.PathLike, output: str | os.PathLike, *,
+                   name: str | None = None, swap_sides: bool = False,
+                   note: Callable[[str], None] | None = None) -> SkeletonMap:
+    """The run of ``mtanno skeleton guess``: the map :func:`guess_map` makes for the rig of
+    BVH file ``path`` (named ``name``, if given), written as a map file (:func:`map_toml`)
+    to ``output`` (``-``: standard output), the output checked against the input first.
+    ``note`` receives one line when a map of the search path fits the rig already (it is
+    the one ``mtanno features`` uses). Returns the map written."""
+    from pathlib import Path
+
+    from mtanno._version import __version__
+    from mtanno.io.bvh import read_bvh
+    from mtanno.util.output import check_outputs, write_text
+
+    if Path(path).suffix.lower() != ".bvh":
+        raise MtannoError("skeleton guess reads a BVH file (.bvh)", path=str(path))
+    check_outputs([output], [path])
+    rig, channels = read_bvh(path)
+    smap = guess_map(rig, channels, swap_sides=swap_sides)
+    fitting = next((m.name for m in available_maps() if m.fits(rig)), None)
+    if fitting is not None and note:
+        note(f"the map '{fitting}' fits this rig and is used instead of a generated one "
+             "unless --skeleton says otherwise")
+    if name:
+        smap = replace(smap, name=name)
+    write_text(output, map_toml(smap, source=str(path), version=__version__))
+    return smap

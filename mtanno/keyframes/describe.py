@@ -5,9 +5,12 @@ keyframe fixes and one column per keyframe.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterable, Iterator
+
 from mtanno.keyframes.model import KeyframeQuery
 
-__all__ = ["format_query"]
+__all__ = ["format_query", "format_query_files"]
 
 
 def format_query(q: KeyframeQuery, *, path: str | None = None) -> str:
@@ -64,3 +67,19 @@ def _ext_text(q: KeyframeQuery) -> str:
         return "explicit widths"
     off = f" + {e.offset}" if e.offset else ""
     return f"{e.factor}·(q1−1){off} and {e.factor}·(K−qn){off}"
+
+
+def format_query_files(paths: Iterable[str | os.PathLike]) -> Iterator[str]:
+    """The text of ``mtanno keyframes show``: :func:`format_query` of every keyframe file
+    of ``paths`` (files, or folders: every ``*.json`` in them), one at a time as each is
+    read; a folder without keyframe files is an error."""
+    from mtanno.errors import MtannoError
+    from mtanno.keyframes.folders import keyframe_files
+    from mtanno.keyframes.store import load_keyframes
+
+    for f in paths:
+        files = keyframe_files(f)
+        if not files:
+            raise MtannoError("no keyframe files (*.json) in this folder", path=str(f))
+        for path in files:
+            yield format_query(load_keyframes(path), path=str(path))

@@ -13,7 +13,7 @@ from mtanno.util.lazy import lazy_exports
 
 __getattr__, __all__ = lazy_exports(__name__, {
     "segments": ("Annotation", "Segment", "by_document", "to_segments"),
-    "truth": ("MAX_FRAME", "check_within", "read_truth", "to_analysis_frame",
+    "truth": ("MAX_FRAME", "check_within", "mocap6_to", "read_truth", "to_analysis_frame",
               "truth_from_mocap6", "truth_table", "write_truth"),
 })
 

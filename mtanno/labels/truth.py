@@ -131,6 +131,21 @@ def truth_from_mocap6(path: str | os.PathLike) -> list[Segment]:
     return sorted(out)
 
 
+def mocap6_to(labels: str | os.PathLike, output: str | os.PathLike) -> list[Segment]:
+    """The run of ``mtanno truth mocap6``: :func:`truth_from_mocap6` of ``labels`` written
+    as a truth table to ``output`` (suffix picks the format, ``-`` is CSV on standard
+    output) with its provenance, the output checked against the input first; returns the
+    segments."""
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format
+
+    table_format(output)
+    check_outputs(output_files(output), [labels])
+    segs = truth_from_mocap6(labels)
+    write_truth(output, segs, provenance=provenance(inputs=[labels]))
+    return segs
+
+
 def check_within(segments: Iterable[Segment], frames: dict[str, int], *,
                  path: str | os.PathLike | None = None) -> None:
     """Every segment of a document whose length is known (``frames``: document → number

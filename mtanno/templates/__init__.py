@@ -19,6 +19,8 @@
 * :mod:`~mtanno.templates.params` — the published τ and δ of retrieval and annotation,
   one name each, and :func:`~mtanno.templates.params.check_tau`, the one rule for τ.
 * :mod:`~mtanno.templates.describe` — a template as text for a person (``mtanno mt show``).
+* :mod:`~mtanno.templates.transform` — a template file in, a template file out (the runs
+  of ``mt mirror``, ``mt scale``, ``mt quantize``).
 * :mod:`~mtanno.templates.tempo` — time-scaled copies of a template (faster or slower
   performers; ``mtanno mt scale``, and several templates per class in ``tune``).
 

@@ -10,7 +10,7 @@ from mtanno.templates.model import MotionTemplate, quantize, rank_features
 from mtanno.templates.params import RETRIEVAL_DELTA
 from mtanno.templates.tempo import matched_columns
 
-__all__ = ["format_template"]
+__all__ = ["format_template", "format_template_file"]
 
 #: Characters of ``--picture``: 1, 0 and wildcard entries of the quantized template.
 PICTURE = {0.0: ".", 1.0: "#", 0.5: "~"}
@@ -73,3 +73,12 @@ def format_template(mt: MotionTemplate, *, path: str | None = None, delta: float
         for r, name in enumerate(mt.feature_names):
             echo(f"  {name:<{width}} " + "".join(PICTURE[float(x)] for x in V[r]))
     return "\n".join(lines)
+
+
+def format_template_file(path: str, *, delta: float | None = None, top: int = TOP_FEATURES,
+                         picture: bool = False, files: bool = False) -> str:
+    """:func:`format_template` of the template file ``path``."""
+    from mtanno.templates.model import load_template
+
+    return format_template(load_template(path), path=path, delta=delta, top=top,
+                           picture=picture, files=files)
