@@ -26,13 +26,17 @@ few names and the tree:
   it), as the Bandai map's comment derives it;
 * the sides are checked against the pose: ``cross(up, forward)`` points to the subject's
   left (``up`` = pelvis → neck, ``forward`` = ankles → toes, right-handed coordinates),
-  so joints named left that lie on the right are an error (mirrored naming), for the legs
-  and for the arms separately.
+  so where joints named left lie on the right (mirrored naming), for the legs or for the
+  arms, the pose decides: those limbs' sides are swapped (``method="names"`` refuses
+  them instead).
 
-The result is an ordinary :class:`~mtanno.io.rigs.SkeletonMap`, so the pipeline does not
-change; :func:`map_toml` writes it as a map file (``mtanno skeleton guess``) that
-``--skeleton MAP.toml`` reads back to the same map. A map file that fits the rig always
-wins (:func:`choose_map`).
+Where the names do not place every joint (``Bone01``…, names in another script, two
+joints named like a knee), the map is made from the hierarchy and pose alone
+(:func:`mtanno.io.topology.hierarchy_map`); names come first because they are cheaper and
+say more (a face joint, a prop). The result is an ordinary
+:class:`~mtanno.io.rigs.SkeletonMap`, so the pipeline does not change; :func:`map_toml`
+writes it as a map file (``mtanno skeleton guess``) that ``--skeleton MAP.toml`` reads
+back to the same map. A map file that fits the rig always wins (:func:`choose_map`).
 """
 
 from __future__ import annotations

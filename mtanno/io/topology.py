@@ -254,23 +254,24 @@ class _Shape:
 
 def _find_shape(body: _Body) -> _Shape:
     """The (pelvis, shoulder branch) pair whose legs, arms, spine and head are longest."""
-    limb = [body.bones(j) >= _MIN_BONES if j else False for j in range(len(body.names))]
+    limb = [body.bones(j) >= _MIN_BONES for j in range(len(body.names))]
     forks = [j for j, ch in enumerate(body.children) if len(ch) >= 3]
     if not forks:
         raise HierarchyError("no joint has three branches (two legs and a spine)")
     best: _Shape | None = None
-    pelvis_found: int | None = None
+    pelvises = []  # joints with two legs and a third branch
     for p in forks:
+        kids = body.children[p]
+        if not any(_pair(body, [j for j in kids if j != s and limb[j]]) for s in kids):
+            continue
+        pelvises.append(p)
         for c in forks:
             if c == p or not body.is_below(c, p):
                 continue
             spine_child = body.path(p, c)[1]
-            legs = _pair(body, [j for j in body.children[p] if j != spine_child and limb[j]])
-            if legs is None:
-                continue
-            pelvis_found = p if pelvis_found is None else pelvis_found
+            legs = _pair(body, [j for j in kids if j != spine_child and limb[j]])
             arms = _pair(body, [j for j in body.children[c] if limb[j]])
-            if arms is None:
+            if legs is None or arms is None:
                 continue
             rest = [j for j in body.children[c] if j not in arms]
             if not rest:
@@ -285,12 +286,11 @@ def _find_shape(body: _Body) -> _Shape:
             if best is None or total > best.total:
                 best = _Shape(p, c, legs, arms, tip, total)
     if best is None:
-        if pelvis_found is None:
+        if not pelvises:
             raise HierarchyError("no joint has two legs (two chains of three or more bones "
-                                 "of about the same length) and a spine that branches "
-                                 "further up")
-        raise HierarchyError(f"no joint above the pelvis ({body.names[pelvis_found]}) "
-                             "where two arms and the neck branch off")
+                                 "of about the same length) and a spine")
+        raise HierarchyError(f"no joint above {body.names[pelvises[0]]} (where two legs and "
+                             "the spine would meet) where two arms and the neck branch off")
     return best
 
 
