@@ -93,7 +93,8 @@ def humanoid(*, hands: str = "none", clavicle: float = 12.0, extras: tuple[str, 
     """A humanoid standing at the origin facing +Z, its left on +X (Y up), in a T-pose
     (``pose="A"``: arms 45° down; ``"lying"``: on its back, head along -Z). ``hands``:
     ``none`` (the wrist's End Site), ``fingers`` (five, the middle one longest), ``thumb``
-    (a CMU-like hand: palm, fingers and a thumb from the wrist); ``extras``: ``twist``
+    (a CMU-like hand: palm, fingers and a thumb from the wrist), ``palm`` (fingers and
+    thumb branching off a palm joint); ``extras``: ``twist``
     (twist bones along the thigh and upper arm), ``face`` (eyes and jaw), ``tail``,
     ``ik`` (IK helpers under the reference node, as in the Unreal mannequin)."""
     def arm(s: str, x: float) -> Node:
@@ -107,6 +108,12 @@ def humanoid(*, hands: str = "none", clavicle: float = 12.0, extras: tuple[str, 
                                                         ("middle", 4.5), ("ring", 4.2),
                                                         ("pinky", 3.0)))]
             hand = [J(f"{s}wrist", (d[0] * 24, d[1] * 24, 0), *fingers)]
+        elif hands == "palm":  # fingers and thumb branch off a palm joint below the wrist
+            hand = [J(f"{s}wrist", (d[0] * 24, d[1] * 24, 0), J(f"{s}palm", (x * 5, 0, 0), *(
+                J(f"{s}{f}1", (x * 3, 0, 2.0 - k), J(f"{s}{f}2", (x * length, 0, 0),
+                                                   end=(x * 2, 0, 0)))
+                for k, (f, length) in enumerate((("thumb", 2.5), ("index", 4.0),
+                                                 ("middle", 4.5), ("pinky", 3.0))))))]
         elif hands == "thumb":
             hand = [J(f"{s}wrist", (d[0] * 24, d[1] * 24, 0),
                       J(f"{s}palm", (x * 8, 0, 0), J(f"{s}fingers", (x * 4, 0, 0),
@@ -263,6 +270,10 @@ def test_long_clavicle_wrist_where_the_thumb_branches(tmp_path):
     got, m = mapped(write_bvh(tmp_path / "h.bvh", root, names=names), names=names)
     assert got == {**EXPECTED, "lfingers": "lfingers_End", "rfingers": "rfingers_End"}
     assert "the wrist where the fingers branch off" in m.smap.how
+    root = humanoid(hands="palm", clavicle=30.0)   # fingers branch off a palm joint
+    names = bone_names(root)
+    got, m = mapped(write_bvh(tmp_path / "h.bvh", root, names=names), names=names)
+    assert got == {**EXPECTED, "lfingers": "lmiddle2_End", "rfingers": "rmiddle2_End"}
     root = humanoid(clavicle=30.0)          # no hand to go by: the two longest bones
     names = bone_names(root)
     got, m = mapped(write_bvh(tmp_path / "h.bvh", root, names=names), names=names)

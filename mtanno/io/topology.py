@@ -17,9 +17,10 @@ A humanoid's tree has a shape of its own, whatever its joints are called:
 * a **leg** breaks at its two longest consecutive bones, thigh and shin: hip, knee, ankle;
   toes = the chain's tip. An **arm** likewise (upper arm and forearm: shoulder, elbow,
   wrist), unless a hand is recognisable: then the wrist is the last joint where fingers
-  branch off (side chains that lie along the bone, twist bones, do not count), which
-  also holds where the clavicle is longer than the forearm (the CMU rigs); fingers = the
-  tip of the longest finger;
+  branch off (side chains that lie along the bone, twist bones, do not count), or above
+  it the end of the last two long bones (at least half the arm's longest) when the
+  fingers branch off a palm joint; this also holds where the clavicle is longer than the
+  forearm (the CMU rigs); fingers = the tip of the longest finger;
 * the **spine** is the path from the pelvis to the shoulder branch: belly = its first joint,
   chest = its last one that does not sit on the neck; neck = the first joint of the neck
   branch; head top = the tip highest along the spine (not an eye or the jaw); head = the
@@ -30,7 +31,8 @@ A humanoid's tree has a shape of its own, whatever its joints are called:
   = ankles → toes (toes point forward; where the feet give no direction, the bent knees
   do). So neither the children's order, nor bones that point along −X on one side
   (mirrored joint axes, as in the Bandai rig), nor a rest pose that is not a T-pose (the
-  Bandai rest pose lies every bone along its parent's X axis) changes the result; a rig
+  Bandai rest pose points most bones along X, the legs along the spine) changes the
+  result; a rig
   reflected in X is read as the mirror image it shows (its features are the original's
   with left and right swapped);
 * the **heading axis** (F40): the rest-pose vector from the right to the left hip in the
@@ -71,6 +73,7 @@ _UPRIGHT_REST = -0.5
 _UPRIGHT_POSE = -0.4
 _TWIST_SPAN = 0.1    # a twist bone projects onto its bone within [-0.1, 1.1] of its length
 _TWIST_OFF = 0.15    # ... and lies within 0.15 of the bone's length from its line
+_LONG = 0.5          # upper arm and forearm: at least half the arm's longest bone
 
 
 class HierarchyError(MtannoError):
@@ -323,12 +326,18 @@ def _arm(body: _Body, c: int) -> tuple[int, int, int, int, bool]:
     wrist was found where the fingers branch off (else at the two longest bones)."""
     nodes = body.chain(c)
     g = body.groups(nodes)
+    long = _LONG * max(body.seg[k[0]] for k in g)
     for w in range(len(g) - 2, 1, -1):  # the last joint where fingers branch off
         nxt = g[w + 1][0]
-        for j in g[w]:
-            on = nodes[nodes.index(j) + 1]
-            if any(s != on and not _twist_like(body, s, j, nxt) for s in body.children[j]):
+        if any(s != nodes[nodes.index(j) + 1] and not _twist_like(body, s, j, nxt)
+               for j in g[w] for s in body.children[j]):
+            # fingers may branch off a palm joint below the wrist: the wrist ends the
+            # last two long bones (upper arm, forearm) at or above the branch
+            w = next((k for k in range(w, 1, -1) if body.seg[g[k][0]] >= long
+                      and body.seg[g[k - 1][0]] >= long), 0)
+            if w:
                 return g[w - 2][0], g[w - 1][0], g[w][0], nodes[-1], True
+            break
     hip, knee, ankle, tip = _leg(body, c)
     return hip, knee, ankle, tip, False
 
