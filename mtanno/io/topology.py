@@ -56,7 +56,7 @@ from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap
 from mtanno.io.skeleton import Channels, Rig, forward_kinematics
 
 __all__ = ["hierarchy_map", "HierarchyError", "sample_positions", "rest_positions",
-           "heading_axis"]
+           "heading_axis", "side_score"]
 
 #: Frames of the motion the pose is read on (evenly spread over the clip).
 MAX_FRAMES = 64
@@ -428,7 +428,7 @@ def hierarchy_map(rig: Rig, channels: Channels | None = None, *,
         + (f" ({names_note})" if names_note else ""),
         f"pelvis {n[p]} where two legs and the spine meet, shoulder branch {n[c]} where "
         "two arms and the neck branch off",
-        f"hip, knee, ankle at each leg's two longest bones, {arms_how}",
+        "hip, knee, ankle at each leg's two longest bones", arms_how,
         f"sides from the pose on {where} ({by})",
         "heading axis from the hips"))
     joints = {k: n[j[k]] for k in CANONICAL_JOINTS}
