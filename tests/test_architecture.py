@@ -85,6 +85,11 @@ def _reexports() -> dict[tuple[str, str], str]:
                 if src in MODULES:
                     for a in node.names:
                         out[(mod, a.asname or a.name)] = src
+            elif (isinstance(node, ast.Assign) and isinstance(node.value, ast.Call)
+                  and getattr(node.value.func, "id", "") == "lazy_exports"):
+                # names attached on first use: lazy_exports(__name__, {module: names})
+                for module, names in ast.literal_eval(node.value.args[1]).items():
+                    out.update({(mod, name): f"{mod}.{module}" for name in names})
     return out
 
 
@@ -211,8 +216,9 @@ def test_package_docstring_lists_its_modules(package):
                     if p.is_dir() and (p / "__init__.py").exists())
     missing = [n for n in names if n not in doc]
     assert not missing, f"{path}: the docstring does not name {missing}"
-    assert any(isinstance(n, ast.Assign) and any(getattr(t, "id", None) == "__all__"
-                                                 for t in n.targets) for n in tree.body), \
+    targets = [t for n in tree.body if isinstance(n, ast.Assign) for t in n.targets]
+    targets += [e for t in targets if isinstance(t, ast.Tuple) for e in t.elts]
+    assert any(getattr(t, "id", None) == "__all__" for t in targets), \
         f"{path}: no __all__"
 
 
