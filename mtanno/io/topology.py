@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
@@ -247,12 +248,17 @@ def _highest_tip(body: _Body, c: int, up: np.ndarray) -> int:
     return max(tips, key=lambda j: (float(np.mean(np.sum(body.pos[:, j] * up, axis=1))), -j))
 
 
+@dataclass
 class _Shape:
-    """Pelvis, shoulder branch and the five branches of a humanoid's tree."""
+    """Pelvis, shoulder branch, the first joints of the legs and arms, the head top, and
+    the length of it all (the candidate with the longest wins)."""
 
-    def __init__(self, pelvis, chest, legs, arms, head_tip, total):
-        self.pelvis, self.chest, self.legs, self.arms = pelvis, chest, legs, arms
-        self.head_tip, self.total = head_tip, total
+    pelvis: int
+    chest: int
+    legs: tuple[int, int]
+    arms: tuple[int, int]
+    head_tip: int
+    total: float
 
 
 def _find_shape(body: _Body) -> _Shape:
