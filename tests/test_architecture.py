@@ -182,6 +182,58 @@ def test_no_upward_import():
     assert not up, f"modules importing a package they are part of: {up}"
 
 
+#: The layers, bottom to top: a module may import only from its own package and from the
+#: packages ranked below it (imports under ``if TYPE_CHECKING:`` excepted). Top-level
+#: modules (``mtanno/retrieve.py``) rank as packages of their own; ``mtanno`` (the
+#: package's ``__init__``, the lazy facade) is the top.
+RANKS = ["_version", "errors", "util", "io", "features", "labels", "info", "synthetic",
+         "templates", "retrieve", "index", "keyframes", "align", "annotate", "plot",
+         "evaluation", "tuning", "api", "commands", "cli", "__main__", "mtanno"]
+
+
+def layer(module: str) -> str:
+    """The package (or top-level module) of the rank table a module belongs to."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "mtanno"
+
+
+def upward_edges(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """(module, import) pairs where the import's layer ranks above the module's."""
+    rank = {name: i for i, name in enumerate(RANKS)}
+    return sorted((m, d) for m, deps in graph.items() for d in deps
+                  if layer(d) != layer(m) and rank[layer(d)] > rank[layer(m)])
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    out: dict[str, set[str]] = {}
+    for m, deps in graph.items():
+        out.setdefault(layer(m), set()).update(layer(d) for d in deps if layer(d) != layer(m))
+    return out
+
+
+def test_every_layer_has_a_rank():
+    layers = {layer(m) for m in MODULES}
+    assert layers <= set(RANKS), f"packages without a rank: {sorted(layers - set(RANKS))}"
+
+
+def test_imports_point_down_the_layers():
+    up = upward_edges(import_graph())
+    assert not up, f"imports of a higher layer: {up}"
+
+
+def test_no_package_cycle():
+    found = cycles(package_graph(import_graph()))
+    assert not found, f"package cycles: {found}"
+
+
+def test_the_layer_checks_catch_what_they_forbid():
+    graph = {"mtanno.util.store": {"mtanno.features.table"},
+             "mtanno.features.table": {"mtanno.util.output"}, "mtanno.util.output": set()}
+    assert upward_edges(graph) == [("mtanno.util.store", "mtanno.features.table")]
+    assert cycles(package_graph(graph)) == [["features", "util"]]
+    assert not upward_edges({"mtanno.annotate.run": {"mtanno.templates.match"}})
+
+
 def test_top_level_modules():
     top = sorted(p.name for p in PACKAGE.glob("*.py"))
     assert len(top) <= MAX_TOP_LEVEL, top
