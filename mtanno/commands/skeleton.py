@@ -23,8 +23,8 @@ def skeleton_group() -> None:
 @click.option("-o", "--output", default="-", show_default=True, metavar="MAP.toml",
               help="Where to write the map ('-': standard output).")
 @click.option("--name", default=None, metavar="NAME",
-              help="The map's name (default guessed-<convention>); --skeleton NAME finds "
-                   "it once it is on the map search path.")
+              help="The map's name (default guessed-<convention>, or guessed-hierarchy); "
+                   "--skeleton NAME finds it once it is on the map search path.")
 @click.option("--method", type=click.Choice(["auto", "names", "hierarchy"]), default="auto",
               show_default=True,
               help="How to place the joints: from the joint names and the tree (sides the "
