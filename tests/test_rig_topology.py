@@ -387,7 +387,8 @@ def test_not_humanoid_refused_in_one_line(tmp_path, kind):
         read_motion(path)
     msg = str(e.value)
     assert "\n" not in msg and msg.startswith(f"{path}: no skeleton map fits this BVH rig")
-    assert f"and from its hierarchy: {why}; pass skeleton= MAP.toml" in msg
+    assert f"cannot be mapped automatically: from its hierarchy, {why}; the joint " \
+        "names place " in msg and msg.endswith("; pass skeleton= MAP.toml (docs/formats.md)")
     for args in (["info", str(path)], ["skeleton", "guess", str(path)],
                  ["skeleton", "guess", "--method", "hierarchy", str(path)]):
         result = CliRunner().invoke(main, args)

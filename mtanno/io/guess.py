@@ -351,13 +351,14 @@ _ARM_KEYS = ("shoulder", "elbow", "wrist", "fingers")
 
 
 class _NamesFailed(Exception):
-    """The names do not place every canonical joint: ``detail`` lists what and why (for
-    the error), ``note`` says it in a few words (for the ``how`` of a map made from the
-    hierarchy instead)."""
+    """The names do not place every canonical joint: ``detail`` lists what and why (the
+    error of the names alone), ``note`` says it in a few words (the ``how`` of a map made
+    from the hierarchy instead, and the error where the hierarchy fails too and the names
+    placed few joints)."""
 
-    def __init__(self, detail: str, note: str):
+    def __init__(self, detail: str, note: str, missing: int):
         super().__init__(detail)
-        self.detail, self.note = detail, note
+        self.detail, self.note, self.missing = detail, note, missing
 
 
 def _names_map(rig: Rig, channels: Channels | None, *, swap_sides: bool,
@@ -379,7 +380,8 @@ def _names_map(rig: Rig, channels: Channels | None, *, swap_sides: bool,
         raise _NamesFailed(f"could not place {', '.join(missing)} ({detail})",
                            f"the joint names place none of the {len(CANONICAL_JOINTS)} joints"
                            if not placed else f"the joint names place {placed} of the "
-                           f"{len(CANONICAL_JOINTS)} joints: {next(iter(reasons))}")
+                           f"{len(CANONICAL_JOINTS)} joints: {next(iter(reasons))}",
+                           len(missing))
     j = out.joints
     if swap_sides:
         j = {_SWAP.get(k, k): v for k, v in j.items()}
@@ -461,9 +463,9 @@ def guess_map(rig: Rig, channels: Channels | None = None, *, swap_sides: bool = 
     try:
         return hierarchy_map(rig, channels, names_note=failed.note)
     except HierarchyError as exc:
-        raise MtannoError(f"{head}: the joint names {failed.detail}, and from its "
-                          f"hierarchy: {exc.reason}; {fix}", path=rig.source,
-                          options=("skeleton",)) from None
+        names = failed.note if failed.missing > 8 else f"the joint names {failed.detail}"
+        raise MtannoError(f"{head}: from its hierarchy, {exc.reason}; {names}; {fix}",
+                          path=rig.source, options=("skeleton",)) from None
 
 
 def choose_map(rig: Rig, skeleton: str | os.PathLike | None = None,
