@@ -486,13 +486,15 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
                     note: Callable[[str], None] | None = None,
                     on_start: Callable[[int], None] | None = None,
                     progress: Callable[[ClassLearned, str | None], None] | None = None,
-                    ) -> LearnRun:
+                    inside_input: bool = False) -> LearnRun:
     """The whole ``mtanno learn-mt`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them (``note`` receives its
     notes), grouped by class (only ``classes``, if given), every output checked against the
     inputs, and one template per class learned (:func:`learn_classes`) and written to
     ``outdir/CLASS.json`` under the folder's lock (:func:`mtanno.util.locks.folder_lock`;
-    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder). A class
+    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder; an
+    ``outdir`` that is or lies inside a folder of training files only with
+    ``inside_input``). A class
     that fails fails alone, as does a training folder that gives no example
     (:attr:`LearnRun.skipped`). ``on_start(n)`` is called
     before the first of ``n`` classes, ``progress(done, error)`` after each (``error``: why
@@ -500,7 +502,7 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     import time
 
     from mtanno.templates.model import class_file, save_template
-    from mtanno.templates.training import collect_sources, group_by_class
+    from mtanno.templates.training import collect_sources, group_by_class, input_folders
     from mtanno.util.locks import folder_lock
     from mtanno.util.output import check_outputs, output_folder
 
@@ -510,7 +512,8 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth],
+                  [*(s.path for s in sources), manifest, truth], folders={out: []},
+                  scanned=input_folders(training, features_dir), inside_input=inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     if on_start:
