@@ -378,6 +378,25 @@ def test_folder_named_like_a_motion_file(tmp_path):
     read_features(tmp_path / "out2" / "clip.parquet")
 
 
+@pytest.mark.parametrize("how", ["argument", "stdin"])
+def test_an_input_that_yields_nothing_is_a_failed_input(tmp_path, how):
+    """Issue 31 (7): beside a good input, an empty folder named like a motion file
+    (``empty.amc/``) or any empty folder was skipped without a word (exit 0). Each is a
+    failed input: one line naming it, counted in "failed", exit 1, the good one written."""
+    good = synthetic.write_pair(tmp_path / "in", "good", n_frames=24)
+    for name, what in (("empty.amc", "a folder (named like a motion file) holding no"),
+                       ("empty", "no .amc or .bvh files in this folder or below")):
+        empty = tmp_path / name
+        empty.mkdir()
+        out = tmp_path / f"out-{name}"
+        r = (cli("features", good, empty, "-o", out) if how == "argument" else
+             cli("features", "-", "-o", out, input=f"{good}\n{empty}\n"))
+        line = assert_one_line(r, empty, codes=(1,))
+        assert what in line and "1 written" in r.output and "1 failed" in r.output, r.output
+        read_features(out / "good.parquet")
+        assert sorted(p.name for p in out.iterdir()) == ["good.parquet"]
+
+
 # --------------------------------------------------------------------- batch inputs
 
 def test_missing_name_on_stdin_is_reported_and_the_batch_goes_on(tmp_path):
