@@ -107,7 +107,7 @@ def test_plan_mirrors_the_input_tree(archive, world, tmp_path):
     with pytest.raises(MtannoError, match="unknown table format 'xlsx'"):
         plan_folder([archive], tmp_path / "out", fmt="xlsx")
     # an output folder inside the input folder is judged with every other output, by
-    # annotate_to (tests/hostile/test_hostile_outputs.py::test_an_output_folder_inside_an_input_folder_is_refused)
+    # annotate_to (tests/hostile/test_hostile_outputs.py, "inside an input folder")
     assert plan_folder([archive], archive / "annotations", fmt="parquet")
 
 

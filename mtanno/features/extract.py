@@ -419,6 +419,11 @@ def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
     except OSError as exc:  # a file system error not caught where it happened
         return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0
     except Exception as exc:  # a bug, reported per file so the batch goes on
+        from mtanno.util.workers import interruption_in
+
+        found = interruption_in(exc)  # a signal Python wrapped: the run is interrupted
+        if found is not None:
+            raise found from None
         return "failed", f"{src}: internal error: {type(exc).__name__}: {exc}", 0
 
 

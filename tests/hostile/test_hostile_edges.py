@@ -245,6 +245,98 @@ def test_a_worker_forked_before_its_initializer_ignores_sigint_and_hangs_up_quie
     assert (r.returncode, r.stdout.split(), r.stderr) == (0, ["0", "0", "143"], ""), r.stderr
 
 
+#: The program, with a module imported late by the command (annotate --output-dir imports
+#: mtanno.annotate.folder once it runs) that first creates a class whose descriptor's
+#: ``__set_name__`` writes a mark and waits for the signal: held where a signal landed while
+#: Python 3.11 created an Enum of numba's late-imported typing modules.
+LATE_IMPORT = """if True:
+    import importlib.abc, signal, sys
+    mark = sys.argv.pop(1)
+
+    class Held:
+        def __set_name__(self, owner, name):
+            open(mark, "w").close()
+            while True:
+                signal.pause()
+
+    class Late(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path, target=None):
+            if name == "mtanno.annotate.folder":
+                sys.meta_path.remove(self)
+                type("Module", (), {"member": Held()})  # type creation: __set_name__
+            return None
+
+    sys.meta_path.insert(0, Late())
+    from mtanno.__main__ import main
+    sys.argv[0] = "mtanno"
+    main()
+"""
+
+
+@pytest.mark.parametrize("name,code", SIGS, ids=[s for s, _ in SIGS])
+def test_a_signal_during_a_late_import_is_one_line(world, tmp_path, name, code):
+    """Issue 31: SIGTERM while the command imported a module late (annotate --output-dir
+    --jobs 2, 1 run in 32) was a traceback, "RuntimeError: Error calling `__set_name__`",
+    and exit 1: Python 3.11 wraps an exception raised in ``__set_name__`` (the handler's
+    interruption) in a RuntimeError. Held inside ``__set_name__`` of that import: one line,
+    130 (129 for SIGHUP), no output and no temporary left."""
+    mark, out = tmp_path / "mark", tmp_path / "od"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", LATE_IMPORT, str(mark), "annotate", "--mt", str(world.mt),
+         str(world.docfeats), "--output-dir", str(out), "--jobs", "2", "-q"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for(mark.exists, proc, "the late import")
+    rc, err = _signalled(proc, getattr(signal, name))
+    assert (rc, err.splitlines()) == (code, [LINE.format(name)]), err
+    assert temporaries(tmp_path) == [] and not list(out.glob("*.csv"))
+
+
+def test_a_worker_stopped_during_a_late_import_exits_silently():
+    """The same in a worker: the wrapped interruption ends the task silently (143), as an
+    unwrapped one does; it was the task's RuntimeError, sent to the parent."""
+    code = """if True:
+        import os, signal, mtanno.util.workers as w
+
+        class Held:
+            def __set_name__(self, owner, name):
+                os.kill(os.getpid(), signal.SIGTERM)
+                for _ in range(1000):  # the handler runs here, inside __set_name__
+                    pass
+
+        def task():
+            try:
+                type("Module", (), {"member": Held()})
+                print("not interrupted", flush=True)
+            finally:
+                print("unwound", flush=True)
+
+        w._init_worker(os.getppid())
+        w._run_task(task, ())
+    """
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=HANG)
+    assert (r.returncode, r.stdout.split(), r.stderr) == (143, ["unwound"], ""), r.stderr
+
+
+def test_a_wrapped_interruption_is_not_a_failed_file(tmp_path, monkeypatch):
+    """A batch's per-file report of unexpected errors ("internal error", the batch goes on)
+    raises an interruption Python wrapped instead of reporting it as the file's failure."""
+    from mtanno.features import extract
+    from mtanno.util.workers import Interrupted, interruption_in
+
+    def wrapped(*args, **kwargs):
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted as exc:
+            raise RuntimeError("Error calling __set_name__") from exc
+
+    monkeypatch.setattr(extract, "extract_file", wrapped)
+    with pytest.raises(Interrupted):
+        extract._extract_one(tmp_path / "a.amc", tmp_path / "a.parquet", None, None, "ak40",
+                             "y")
+    assert interruption_in(ValueError("x")) is None
+
+
 def test_sighup_stops_a_command_like_sigint_with_exit_129(world, tmp_path):
     """SIGHUP (the terminal closed) was not handled: no cleanup, exit −1. Now: workers
     stopped, no temporary left, one line, exit 129."""
