@@ -13,10 +13,12 @@
 * :mod:`~mtanno.util.outcomes` — the record of a batch that goes on past failures;
 * :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
 * :mod:`~mtanno.util.units` — the units every stage shares (the 30 Hz analysis rate);
+* :mod:`~mtanno.util.pause` — the test hook that holds a process at a named point;
 * ``_bits`` — bit kernels the stages' numba kernels share (private).
 
 The modules are imported by name (``from mtanno.util.store import read_features``); this
 file imports none of them, so that loading one does not load the others.
 """
 
-__all__ = ["jitnote", "locks", "outcomes", "output", "store", "tables", "units", "workers"]
+__all__ = ["jitnote", "locks", "outcomes", "output", "pause", "store", "tables", "units",
+           "workers"]

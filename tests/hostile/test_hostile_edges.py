@@ -156,6 +156,74 @@ def test_a_signal_before_the_command_or_after_it_is_one_line(world, tmp_path, mo
     assert (rc, err.splitlines()) == (code, [LINE.format(name)]), err
 
 
+# --------------------------------------------------------------------- an index killed
+
+#: The points of an index write where a kill is tried (mtanno.index.storage).
+INDEX_WRITES = ["index-temporary", "index-table", "index-generation", "index-manifest",
+                "index-switched"]
+
+
+def _killed_at(moment: str, args, tmp_path) -> None:
+    """Run mtanno ARGS held at ``moment`` (the test hook) and kill it there (SIGKILL: no
+    cleanup of any kind, as a power cut)."""
+    mark = tmp_path / f"mark-{moment}"
+    env = {**os.environ, "MTANNO_TEST_PAUSE": f"{moment}:{mark}"}
+    proc = subprocess.Popen([*PROGRAM, *map(str, args)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    wait_for(mark.exists, proc, moment)
+    rc, _ = _signalled(proc, signal.SIGKILL)
+    assert rc == -signal.SIGKILL
+
+
+def _one_clean_generation(idx: Path) -> None:
+    """The index reads, and holds its manifest and one generation: no temporary, no
+    older generation, no lock left."""
+    r = _run(["index", "info", idx])
+    assert r.returncode == 0, r.stderr
+    names = sorted(p.name for p in idx.iterdir())
+    assert len(names) == 2 and names[1] == "manifest.json" and names[0].startswith("gen-"), \
+        names
+
+
+@pytest.mark.parametrize("moment", INDEX_WRITES)
+def test_an_index_killed_in_its_first_build_is_built_by_the_next_run(world, tmp_path, moment):
+    """Issue 31: a build killed while writing its first generation left a folder the rerun
+    refused ("directory is not empty and holds no index"), with the lock and `.tmp-gen-*`
+    left behind. Killed at each write point, the folder is either an index or reported as
+    a partial one (one line), and the rerun builds it and removes every leftover."""
+    idx = tmp_path / "idx"
+    args = ["index", world.docfeats, "-o", idx, "-q"]
+    _killed_at(moment, args, tmp_path)
+    r = _run(["index", "info", idx])
+    if moment == "index-switched":
+        assert r.returncode == 0, r.stderr
+    else:
+        _one_line(r, 2, "partially written index")
+    r = _run(args)
+    assert r.returncode == 0, r.stderr
+    _one_clean_generation(idx)
+
+
+@pytest.mark.parametrize("moment", INDEX_WRITES)
+def test_an_index_update_killed_at_any_write_leaves_a_readable_index(world, tmp_path,
+                                                                      moment):
+    """An update killed at each write point leaves the index as it was or as it was to
+    become (SQLite's standard), never a broken one, and the next update cleans up."""
+    idx, part = tmp_path / "idx", tmp_path / "part"
+    part.mkdir()
+    world.copy(world.doc_files[0], part / world.doc_files[0].name)
+    assert _run(["index", part, "-o", idx, "-q"]).returncode == 0
+    args = ["index", "add", idx, world.docfeats, "-q"]
+    _killed_at(moment, args, tmp_path)
+    r = _run(["index", "info", idx])
+    assert r.returncode == 0, r.stderr
+    r = _run(args)
+    assert r.returncode == 0, r.stderr
+    _one_clean_generation(idx)
+    info = _run(["index", "info", idx]).stdout.splitlines()
+    assert f"documents      {len(world.doc_files)}" in info, info
+
+
 def _loaded(pid: int, library: str) -> bool:
     try:
         return library in Path(f"/proc/{pid}/maps").read_text()
