@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import os
 import re
-from pathlib import Path
+import sys
 
 
 class MtannoError(Exception):
@@ -72,15 +72,56 @@ def interrupted_line(name: str) -> str:
             "were not written")
 
 
-def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
-    """The bytes of an input file; a missing or unreadable file is a :class:`MtannoError`
-    naming it (``what`` names the kind of file in the message)."""
+def _kind(mode: int) -> str:
+    import stat
+
+    return ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else
+            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+
+
+def open_input(path: str | os.PathLike, *, what: str = "file"):
+    """An input file opened for reading (binary), the one way mtanno opens a file it reads:
+    what is not a regular file is refused before a byte is read, in one
+    :class:`MtannoError` naming it (``what`` names the kind of file): a FIFO (opening one
+    waits for a writer, reading it for the writer's end), a device (``/dev/zero`` never
+    ends), a socket. The file is opened without waiting (``O_NONBLOCK``, so a FIFO cannot
+    hold the open) and checked with ``fstat`` on the descriptor (what was opened, not what
+    the name pointed to a moment before). A missing or unreadable file is refused too."""
+    import stat
+
+    flags = (os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+             | getattr(os, "O_BINARY", 0))
     try:
-        return Path(path).read_bytes()
+        fd = os.open(path, flags)
     except FileNotFoundError:
         raise MtannoError(f"{what} not found", path=str(path)) from None
     except OSError as exc:
         raise MtannoError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise MtannoError(f"cannot read {what}: Is a directory", path=str(path))
+        if not stat.S_ISREG(mode):
+            raise MtannoError(f"{what} is not a regular file ({_kind(mode)}): not read",
+                              path=str(path))
+        if flags & getattr(os, "O_NONBLOCK", 0):
+            os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
+    """The bytes of an input file (:func:`open_input`: a regular file, never a FIFO or a
+    device); a missing or unreadable file is a :class:`MtannoError` naming it (``what``
+    names the kind of file in the message)."""
+    with open_input(path, what=what) as fh:
+        try:
+            return fh.read()
+        except OSError as exc:
+            raise MtannoError(f"cannot read {what}: {exc.strerror or exc}",
+                              path=str(path)) from None
 
 
 def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
@@ -94,6 +135,35 @@ def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
         raise MtannoError("binary data (NUL byte) in a text file", path=str(path),
                           line=raw[:nul].count(b"\n") + 1)
     return raw
+
+
+# --------------------------------------------------------------------------- TOML files
+
+
+def read_toml(path: str | os.PathLike, *, what: str = "file") -> tuple[dict, str]:
+    """(value, text) of a TOML file (skeleton maps, class configurations), read as
+    :func:`read_input` reads (a regular file) and parsed so that any input is one
+    :class:`MtannoError` naming the file: not UTF-8, malformed (tomllib's message, with its
+    line), or nested so deeply that the parser, which recurses, cannot follow (arrays or
+    inline tables thousands deep: "nested too deeply", never a RecursionError)."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    spath = str(path)
+    raw = read_input(path, what=what)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise MtannoError(f"not a valid TOML {what}: not UTF-8 text", path=spath) from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as exc:
+        raise MtannoError(f"not a valid TOML {what}: {exc}", path=spath) from None
+    except RecursionError:  # tomllib recurses once per level of nesting
+        raise MtannoError(f"not a valid TOML {what}: nested too deeply (arrays or tables "
+                          "inside each other thousands of levels deep)", path=spath) from None
 
 
 # --------------------------------------------------------------------------- JSON files

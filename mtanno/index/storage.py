@@ -39,7 +39,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno._version import __version__
-from mtanno.errors import JSONError, MtannoError, read_json
+from mtanno.errors import JSONError, MtannoError, read_input, read_json
 from mtanno.index.core import Document, GroupIndex, Index
 from mtanno.util.output import current_umask
 from mtanno.util.pause import pause_at
@@ -189,11 +189,12 @@ def read_index_manifest(root: Path) -> dict:
 
 def _read_verified(gen_dir: Path, name: str, entry: dict) -> pa.Table:
     path = gen_dir / name
+    if not path.exists() and not path.is_symlink():
+        raise CorruptIndex("corrupt or partially written index: file missing", path=str(path))
     try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise CorruptIndex("corrupt or partially written index: file missing",
-                           path=str(path)) from None
+        data = read_input(path, what="index file")  # a regular file: a FIFO would block
+    except MtannoError as exc:
+        raise CorruptIndex(f"corrupt index: {exc.message}", path=str(path)) from None
     if len(data) != entry.get("bytes") or hashlib.sha256(data).hexdigest() != entry.get("sha256"):
         raise CorruptIndex("corrupt index: file size or checksum differs from manifest.json",
                            path=str(path))

@@ -37,7 +37,7 @@ from typing import Any
 
 import pyarrow as pa
 
-from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_json
+from mtanno.errors import JSONError, MtannoError, open_input, parse_json, read_input, read_json
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
@@ -433,10 +433,11 @@ def table_provenance(path: str | os.PathLike) -> dict | None:
     import pyarrow.parquet as pq
 
     try:
-        with open(path, "rb") as fh:  # a file object: pyarrow cannot open non-UTF-8 names
+        # a file object: pyarrow cannot open non-UTF-8 names (and a FIFO would block)
+        with open_input(path) as fh:
             raw = (pq.read_schema(fh).metadata or {}).get(_META_KEY)
         prov = parse_json(raw) if raw else None
-    except (OSError, ValueError, TypeError, pa.ArrowException, JSONError):
+    except (OSError, ValueError, TypeError, pa.ArrowException, MtannoError):
         return None
     return prov if isinstance(prov, dict) else None
 

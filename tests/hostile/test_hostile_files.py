@@ -482,3 +482,152 @@ def test_a_deeply_nested_class_configuration_is_one_line(world, tmp_path):
             tmp_path / "a.csv")
     assert "nested too deeply" in _checked(r, bad, checksums(bad, world.root), [bad, world.root])
     assert not (tmp_path / "a.csv").exists()
+
+
+# --------------------------------------------------------------------- 6. maps, banks, FIFOs
+
+
+#: TOML nested far deeper than tomllib's recursion allows: arrays, and inline tables.
+DEEP_TOML = {"arrays": "name = 'x'\ndetect = " + "[" * 10000 + "]" * 10000 + "\n",
+             "tables": "name = 'x'\nheading = " + "{ a = " * 10000 + "1" + " }" * 10000 + "\n"}
+
+
+def _cmu_bvh(path: Path, rename=lambda name: name) -> Path:
+    """A one-frame BVH of the CMU layout, its joints renamed by ``rename``."""
+    import re
+
+    from test_bvh import CGSPEED_LIKE
+
+    text = re.sub(r"(ROOT|JOINT) (\S+)", lambda m: f"{m.group(1)} {rename(m.group(2))}",
+                  CGSPEED_LIKE)
+    path.write_text(text + " ".join(["0"] * 96) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("nesting", list(DEEP_TOML))
+@pytest.mark.parametrize("command", ["info --skeleton", "features --skeleton",
+                                     "info, a map on the search path",
+                                     "skeleton guess, a map on the search path"])
+def test_a_deeply_nested_skeleton_map_is_one_line(tmp_path, monkeypatch, command, nesting):
+    """Issue 31: a skeleton map nested 10 000 deep ended in "internal error:
+    RecursionError" naming the motion file (features) or a traceback (info, skeleton
+    guess). Now one line naming the map: "nested too deeply"."""
+    from mtanno import synthetic
+
+    amc = synthetic.write_pair(tmp_path / "in", "walk", n_frames=24)
+    bvh = _cmu_bvh(tmp_path / "in" / "c.bvh")
+    bad = tmp_path / "maps" / "deep.toml"
+    bad.parent.mkdir()
+    bad.write_text(DEEP_TOML[nesting])
+    before = checksums(tmp_path)
+    if "search path" in command:
+        monkeypatch.setenv("MTANNO_SKELETON_PATH", str(bad.parent))
+    if command == "info --skeleton":
+        r = cli("info", amc, "--skeleton", bad)
+    elif command == "features --skeleton":
+        r = cli("features", amc, "-o", tmp_path / "out", "--skeleton", bad)
+    elif command.startswith("info"):
+        r = cli("info", amc)
+    else:
+        r = cli("skeleton", "guess", bvh, "-o", tmp_path / "m.toml")
+    line = _checked(r, bad, before, [tmp_path], codes=(1,) if "features" in command else (2,))
+    assert "nested too deeply" in line, line
+    assert not (tmp_path / "out").exists() and not (tmp_path / "m.toml").exists()
+
+
+def test_a_deeply_nested_bank_metadata_is_one_line(tmp_path):
+    """The verification bank's metadata (JSON in the Parquet file) was read with plain
+    json.loads: nested thousands deep, a RecursionError. It goes through the one bounded
+    JSON reader now: one error naming the bank."""
+    from mtanno.annotate.verify import build_bank, read_bank, write_bank
+
+    rng = np.random.default_rng(0)
+    bank = build_bank([("kick", "a", rng.random((12, 6)).astype(np.float32))],
+                      representation="features")
+    path = tmp_path / "b.verify.parquet"
+    write_bank(path, bank)
+    assert read_bank(path).labels == ["kick"]
+    table = pq.read_table(path)
+    pq.write_table(table.replace_schema_metadata({b"mtanno": DEEP.encode()}), path)
+    with pytest.raises(MtannoError, match="nested too deeply") as e:
+        read_bank(path)
+    assert str(e.value).startswith(f"{path}: verification bank metadata is malformed")
+
+
+def _hang_safe(args, env=None):
+    """Run mtanno ARGS as a process (a reader that blocked on a FIFO would hang this
+    process, not the suite: the run is bounded by a generous timeout)."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import sys; from mtanno.cli import main; sys.exit(main(prog_name='mtanno'))"
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, **(env or {})})
+
+
+READERS = ["skeleton guess", "features --skeleton", "info --skeleton", "a map on the search path",
+           "info --asf", "annotate --classes", "evaluate --truth", "mt show"]
+
+
+@pytest.mark.parametrize("what", ["FIFO", "/dev/zero"])
+@pytest.mark.parametrize("reader", READERS)
+def test_a_fifo_or_a_device_where_a_file_is_expected_is_refused(world, tmp_path, reader, what):
+    """Issue 31: a FIFO (or /dev/zero) where a file is expected hung skeleton guess,
+    features --skeleton and every command reading a map on the search path. Every reader
+    opens its file through one helper (mtanno.errors.open_input), which refuses what is not
+    a regular file before reading a byte: one line naming it, no hang."""
+    import os
+
+    from mtanno import synthetic
+
+    if what == "FIFO" and not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs here")
+    if what == "/dev/zero" and not Path("/dev/zero").exists():
+        pytest.skip("no /dev/zero here")
+    amc = synthetic.write_pair(tmp_path / "in", "walk", n_frames=24)
+    suffix = {"skeleton guess": ".bvh", "info --asf": ".asf", "evaluate --truth": ".csv",
+              "mt show": ".json"}.get(reader, ".toml")
+    bad = tmp_path / "bad" / f"x{suffix}"
+    bad.parent.mkdir()
+    if what == "FIFO":
+        os.mkfifo(bad)
+    else:
+        bad.symlink_to("/dev/zero")
+    env = {"MTANNO_SKELETON_PATH": str(bad.parent)} if "search path" in reader else None
+    args = {"skeleton guess": ["skeleton", "guess", bad],
+            "features --skeleton": ["features", amc, "-o", tmp_path / "out", "--skeleton",
+                                    bad],
+            "info --skeleton": ["info", amc, "--skeleton", bad],
+            "a map on the search path": ["info", amc],
+            "info --asf": ["info", amc, "--asf", bad],
+            "annotate --classes": ["annotate", "--mt", world.mt, world.doc_files[0],
+                                   "--classes", bad, "-o", tmp_path / "a.csv"],
+            "evaluate --truth": ["evaluate", world.annotation, "--truth", bad],
+            "mt show": ["mt", "show", bad]}[reader]
+    r = _hang_safe(args, env)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == (1 if reader.startswith("features") else 2), r.stderr
+    assert "Traceback" not in r.stderr and len([x for x in lines if x.startswith("mtanno:")]) \
+        == 1, r.stderr
+    line = next(x for x in lines if x.startswith("mtanno:"))
+    assert str(bad) in line and "not a regular file" in line, line
+    assert not (tmp_path / "out").exists() and not (tmp_path / "a.csv").exists()
+
+
+def test_skeleton_guess_writes_names_beyond_the_bmp_its_reader_reads(tmp_path):
+    """Issue 31: joint names with characters beyond U+FFFF (emoji) were written as JSON's
+    surrogate-pair escapes, which TOML (and so --skeleton) refuses; now as themselves, and
+    the map reads back to the one the features use."""
+    from mtanno.io import read_motion
+    from mtanno.io.rigs import load_map
+
+    src = _cmu_bvh(tmp_path / "e.bvh", lambda name: f"{name}\U0001F600\x7f")
+    out = tmp_path / "map.toml"
+    r = cli("skeleton", "guess", src, "-o", out)
+    assert r.exit_code == 0, r.output
+    smap = load_map(out)
+    assert smap.joints["root"] == "Hips\U0001F600\x7f"
+    assert smap.digest == read_motion(src).smap.digest
+    r = cli("info", src, "--skeleton", out)
+    assert r.exit_code == 0, r.output
