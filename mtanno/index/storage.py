@@ -80,15 +80,31 @@ def _write_table(table: pa.Table, path: Path) -> dict:
     return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
+def _text_column(values: list[str]) -> pa.Array:
+    """A string column; or, when a value holds bytes of a file name that are not UTF-8
+    (``os.fsdecode``'s surrogate escapes, which no Parquet string can hold), a binary
+    column of the exact bytes (:func:`_texts` reads either back)."""
+    try:
+        return pa.array(values, pa.string())
+    except (UnicodeEncodeError, pa.ArrowException):
+        return pa.array([v.encode("utf-8", "surrogateescape") for v in values], pa.binary())
+
+
+def _texts(column) -> list[str]:
+    """The values of a column :func:`_text_column` wrote, as the names they were."""
+    return [v.decode("utf-8", "surrogateescape") if isinstance(v, bytes) else v
+            for v in column.to_pylist()]
+
+
 def _tables(index: Index) -> dict[str, pa.Table]:
     docs = index.documents
     tables = {
         "documents.parquet": pa.table({
             "doc": pa.array(np.arange(1, len(docs) + 1, dtype=np.int32)),
-            "name": pa.array([d.name for d in docs], pa.string()),
+            "name": _text_column([d.name for d in docs]),
             "sha256": pa.array([d.sha256 for d in docs], pa.string()),
             "frames": pa.array([d.frames for d in docs], pa.int32()),
-            "path": pa.array([d.path for d in docs], pa.string()),
+            "path": _text_column([d.path for d in docs]),
         }),
         "groups.parquet": pa.table({
             "group": pa.array(list(index.groups), pa.string()),
@@ -239,8 +255,8 @@ def _read_generation(root: Path, gen_dir: Path, manifest: dict) -> Index:
     t = {n: _read_verified(gen_dir, n, files[n]) for n in need}
     dt = t["documents.parquet"]
     docs = [Document(n, h, int(f), p) for n, h, f, p in zip(
-        dt.column("name").to_pylist(), dt.column("sha256").to_pylist(),
-        dt.column("frames").to_pylist(), dt.column("path").to_pylist())]
+        _texts(dt.column("name")), dt.column("sha256").to_pylist(),
+        dt.column("frames").to_pylist(), _texts(dt.column("path")))]
     if [d["name"] for d in manifest["documents"]] != [d.name for d in docs]:
         raise CorruptIndex("corrupt index: documents.parquet and manifest.json disagree",
                            path=where)

@@ -410,6 +410,33 @@ def test_tables_of_documents_named_by_non_utf8_file_names(world, tmp_path, case)
         assert r.exit_code == 0, r.output
 
 
+def test_an_index_of_documents_named_by_non_utf8_file_names(world, tmp_path):
+    """Issue 31: index build and add crashed on a feature file whose name is not UTF-8
+    (UnicodeEncodeError writing documents.parquet). The name and path are kept exactly
+    (as bytes where no Parquet string can hold them): the index reads back, the document
+    is found by its name, in query hits as \\xNN, and removed by its name."""
+    from mtanno.index import open_index
+    from mtanno.util.tables import read_table
+
+    _non_utf8_folder(world, tmp_path / "in")
+    name = os.fsdecode(b"caf\xe9")
+    r = cli("index", tmp_path / "in", "-o", tmp_path / "idx", "-q")
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    docs = {d.name: d for d in open_index(tmp_path / "idx").documents}
+    assert name in docs and os.fsencode(docs[name].path).endswith(b"/caf\xe9.parquet")
+    world.copy(world.index, tmp_path / "idx2")
+    r = cli("index", "add", tmp_path / "idx2", tmp_path / "in", "-q")
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    assert name in [d.name for d in open_index(tmp_path / "idx2").documents]
+    r = cli("query", tmp_path / "idx2", "--example", name, "--features", "rknee_bent", "-o",
+            tmp_path / "h.csv", "-q")
+    assert r.exit_code == 0, r.output
+    assert "caf\\xe9" in {row["doc"] for row in read_table(tmp_path / "h.csv").rows}
+    r = cli("index", "remove", tmp_path / "idx2", name)
+    assert r.exit_code == 0, r.output
+    assert name not in [d.name for d in open_index(tmp_path / "idx2").documents]
+
+
 def test_json_of_non_utf8_names_is_valid_utf8(tmp_path):
     """tables.dumps, used for every sidecar and JSON output: a lone surrogate becomes its
     JSON escape, so the file is UTF-8 and reads back as the same string."""
