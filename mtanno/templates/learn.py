@@ -360,20 +360,21 @@ def learn(examples: Sequence[np.ndarray], *, hard: bool = False, iter_max: int =
         vals, wts, off = _pack(U, w)
         maxlen = int(np.diff(off).max())
         buf = _buffers(p, maxlen, vals.shape[1])
-        cost = np.empty((N, N))
-        _all_references(vals, wts, off, hard, buf["num"], buf["den"], cost, buf["D"],
+        # per reference k the largest and the summed cost of the examples against it,
+        # normalised by the weight of its new template: N values, not an N × N matrix
+        cmax, csum, scale = np.empty(N), np.empty(N), np.empty(N)
+        _all_references(vals, wts, off, hard, buf["num"], buf["den"], cmax, csum, buf["D"],
                         buf["pi"], buf["pj"], buf["S"], buf["wd"])
-        Vcost = np.empty((N, N))
         U_new, w_new = [], []
         for k in range(N):
             a, b = off[k], off[k + 1]
             T, Tw = _finish(buf["num"][:, a:b], buf["den"][a:b], N, hard)
-            Vcost[:, k] = cost[k] / _sum_lr(Tw)
+            scale[k] = _sum_lr(Tw)
             U_new.append(T)
             w_new.append(Tw)
-        emax = float(Vcost.max())
+        emax = float((cmax / scale).max())
         cost_max.append(emax)
-        cost_mean.append(float(Vcost.mean()))
+        cost_mean.append(float((csum / scale).sum() / (N * N)))
         U, w = U_new, w_new
     return LearnResult(values=U[0], weights=w[0], iterations=it, cost_max=cost_max,
                        cost_mean=cost_mean)
