@@ -9,6 +9,7 @@ files that fail.
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -354,7 +355,10 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
     from mtanno.features.poses import pose_metadata
     from mtanno.io.rigs import select_map
 
-    meta = _stored_meta(job.dst) if job.dst.is_file() else None
+    try:  # (a name too long for the file system is no output: written, and failing, later)
+        meta = _stored_meta(job.dst) if stat.S_ISREG(os.stat(job.dst).st_mode) else None
+    except OSError:
+        meta = None
     if meta is None:
         return False
     fs = _feature_set(feature_set)

@@ -3,8 +3,9 @@
 Every file mtanno writes goes through :func:`atomic_path`, so a command that fails, is
 interrupted or is killed never leaves half a file under the output's name:
 
-* the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``,
-  and renamed over the target (``os.replace``, atomic on POSIX) only when complete;
+* the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``
+  (NAME cut short where the whole would not fit in a folder entry), and renamed over the
+  target (``os.replace``, atomic on POSIX) only when complete;
 * the temporary file is removed when writing fails or is interrupted (Ctrl-C, SIGTERM: see
   :mod:`mtanno.util.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
   the next write into the same folder removes the temporary files of writers that are no
@@ -42,6 +43,9 @@ __all__ = ["EXIT_CLOSED_OUTPUT", "atomic_path", "check_outputs", "current_umask"
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
+#: Longest name of a folder entry (bytes) on the file systems mtanno writes to (POSIX
+#: NAME_MAX of ext4, XFS, btrfs, tmpfs, NFS).
+_NAME_MAX = 255
 
 
 def _host_tag() -> str:
@@ -186,7 +190,13 @@ def _temporary(target: Path, mode: int, made: list[str]) -> int:
     covers this call removes the file even when an interruption (SIGINT, SIGTERM) is raised
     the moment ``open`` returns."""
     remove_stale_temporaries(target.parent)
-    prefix = os.path.join(str(target.parent), f".{target.name}.{_HOST}-{os.getpid()}.")
+    tail = f".{_HOST}-{os.getpid()}."
+    # the name cut so that the temporary's fits in a folder entry (NAME_MAX) wherever the
+    # target's own does: an output named near the limit is still written
+    room = _NAME_MAX - len(os.fsencode(tail)) - 1 - 8 - len(TMP_SUFFIX)
+    name = os.fsencode(target.name)
+    name = os.fsdecode(name[:room]) if len(name) > room else target.name
+    prefix = os.path.join(str(target.parent), f".{name}{tail}")
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) \
         | getattr(os, "O_BINARY", 0)
     made_folder = False
