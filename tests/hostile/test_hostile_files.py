@@ -370,6 +370,50 @@ def test_template_features_outside_their_feature_set(world, tmp_path, command):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("command", ["mt quantize", "mt mirror", "mt show", "mt scale",
+                                     "retrieve", "annotate"])
+def test_a_template_whose_feature_set_is_misnamed(world, tmp_path, command):
+    """Issue 31: `feature_set = "bogus"` over the 40 annotation features was written by
+    `mt quantize` (and refused by `mt mirror` without naming the file): no feature file
+    would ever match it. A set that is none of mtanno's, over features all of one of
+    mtanno's sets, is refused by the template reader for every command, at its line."""
+    d = json.loads(world.template.read_text())
+    d["feature_set"] = "bogus"
+    mts = world.copy(world.mt, tmp_path / "mts")
+    bad = mts / "squat.json"
+    bad.write_text(json.dumps(d, indent=1))
+    out = tmp_path / "out"
+    before = checksums(mts, world.root)
+    args = {"mt quantize": ["mt", "quantize", bad, "--delta", "0.1", "-o", out / "q.json"],
+            "mt mirror": ["mt", "mirror", bad, "-o", out / "m.json"],
+            "mt show": ["mt", "show", bad],
+            "mt scale": ["mt", "scale", bad, "--factor", "0.6", "-o", out / "s.json"],
+            "retrieve": ["retrieve", "--mt", bad, world.doc_files[0], "-o", out / "h.csv"],
+            "annotate": ["annotate", "--mt", mts, world.doc_files[0], "-o", out / "a.csv"],
+            }[command]
+    line = _checked(cli(*args), bad, before, [mts, world.root])
+    set_line = next(k for k, x in enumerate(bad.read_text().splitlines(), 1)
+                    if '"feature_set"' in x)
+    assert line.startswith(f"mtanno: {bad}:{set_line}: feature set 'bogus' is none of "), line
+    assert not out.exists()
+
+
+def test_mirroring_a_template_of_a_set_of_ones_own_names_the_file(world, tmp_path):
+    """A template of a feature set of the user's own (its features none of mtanno's) is
+    read and quantized; `mt mirror` has no mirror table for it and says so naming the
+    file (it named none)."""
+    d = json.loads(world.template.read_text())
+    d["feature_set"] = "lab-set"
+    d["feature_names"] = [f"f{i}" for i in range(len(d["feature_names"]))]
+    bad = tmp_path / "lab.json"
+    bad.write_text(json.dumps(d, indent=1))
+    assert cli("mt", "quantize", bad, "--delta", "0.1", "-o", tmp_path / "q.json").exit_code == 0
+    line = _checked(cli("mt", "mirror", bad, "-o", tmp_path / "m.json"), bad, checksums(bad),
+                    [bad])
+    assert line.startswith(f"mtanno: {bad}: no mirror table for feature set 'lab-set'"), line
+    assert not (tmp_path / "m.json").exists()
+
+
 # --------------------------------------------------------------------- 6. index --groups
 
 
