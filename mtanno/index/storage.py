@@ -191,6 +191,11 @@ def read_index_manifest(root: Path) -> dict:
             or fr == float("inf"):
         raise CorruptIndex(f"corrupt index: 'frame_rate' in manifest.json must be a positive "
                            f"number, got {fr!r}", path=str(path))
+    from mtanno.features.compute import feature_set_mismatch
+
+    wrong = feature_set_mismatch(manifest["feature_set"], manifest["features"])
+    if wrong is not None:  # (a manifest edited or copied from another index)
+        raise CorruptIndex(f"corrupt index: manifest.json: {wrong}", path=str(path))
     d = manifest["directory"]
     if "/" in d or "\\" in d or d in (".", "..") or not d.startswith(_GEN_PREFIX):
         raise CorruptIndex(f"corrupt index: 'directory' in manifest.json is {d!r}",

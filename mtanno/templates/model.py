@@ -261,26 +261,16 @@ def check_feature_names(mt: MotionTemplate, path: str | None = None,
     mtanno's whose features all belong to one of them is a wrong name (``feature_set =
     "bogus"`` over the 40 annotation features), refused (``set_line``: the line that
     names it), since no feature file of those features would ever match it."""
-    from mtanno.features import FEATURE_SETS, get_feature_set
+    from mtanno.features import get_feature_set
+    from mtanno.features.compute import feature_set_mismatch
 
-    try:
-        fs = get_feature_set(mt.feature_set)
-    except MtannoError:
-        names = set(mt.feature_names)
-        same = next((f.name for f in FEATURE_SETS.values() if names <= set(f.names)), None)
-        if same is not None:
-            raise MtannoError(f"feature set {mt.feature_set!r} is none of mtanno's "
-                              f"({', '.join(FEATURE_SETS)}), yet every feature of the "
-                              f"template is one of {same}: feature_set must name the set "
-                              "its features come from", path=path,
-                              line=set_line) from None
-        return
-    known = set(fs.names)
-    unknown = [n for n in mt.feature_names if n not in known]
-    if unknown:
-        more = " …" if len(unknown) > 3 else ""
-        raise MtannoError(f"feature(s) not in the {mt.feature_set} feature set: "
-                          f"{', '.join(unknown[:3])}{more}", path=path, line=line)
+    wrong = feature_set_mismatch(mt.feature_set, mt.feature_names)
+    if wrong is not None:
+        try:  # a set of mtanno's: a feature is wrong; else the set's name is
+            get_feature_set(mt.feature_set)
+        except MtannoError:
+            line = set_line
+        raise MtannoError(wrong, path=path, line=line)
 
 
 # --------------------------------------------------------------------------- JSON I/O

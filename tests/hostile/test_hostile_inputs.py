@@ -236,7 +236,7 @@ def test_broken_class_configuration(world, tmp_path, kind):
 
 
 @pytest.mark.parametrize("kind", list(INDEXES))
-@pytest.mark.parametrize("command", ["index info", "query", "index add"])
+@pytest.mark.parametrize("command", ["index info", "query", "index add", "index remove"])
 def test_corrupt_index(world, tmp_path, kind, command):
     c = Case(world, tmp_path, INDEXES[kind])
     root = tmp_path / "in" / "idx"
@@ -244,6 +244,7 @@ def test_corrupt_index(world, tmp_path, kind, command):
         "index info": ["index", "info", root],
         "query": ["query", root, "--example", c.good, "--features", "rknee_bent"],
         "index add": ["index", "add", root, c.good],
+        "index remove": ["index", "remove", root, world.doc_files[1].stem],
     }[command]
     c.check(cli(*args), codes=(2,), named=root)
 
