@@ -79,37 +79,52 @@ def _kind(mode: int) -> str:
             "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
 
 
-def open_input(path: str | os.PathLike, *, what: str = "file"):
-    """An input file opened for reading (binary), the one way mtanno opens a file it reads:
-    what is not a regular file is refused before a byte is read, in one
-    :class:`MtannoError` naming it (``what`` names the kind of file): a FIFO (opening one
-    waits for a writer, reading it for the writer's end), a device (``/dev/zero`` never
-    ends), a socket. The file is opened without waiting (``O_NONBLOCK``, so a FIFO cannot
-    hold the open) and checked with ``fstat`` on the descriptor (what was opened, not what
-    the name pointed to a moment before). A missing or unreadable file is refused too."""
+class NotRegularFile(OSError):
+    """What :func:`open_regular` refuses to read: a FIFO, a device, a socket."""
+
+
+def open_regular(path: str | os.PathLike):
+    """A regular file opened for reading (binary), the one way mtanno opens a file it
+    reads; anything else is refused before a byte is read: a FIFO (opening one waits for a
+    writer, reading it for the writer's end), a device (``/dev/zero`` never ends), a
+    socket (:class:`NotRegularFile`), a folder (:class:`IsADirectoryError`). The file is
+    opened without waiting (``O_NONBLOCK``, so a FIFO cannot hold the open) and checked
+    with ``fstat`` on the descriptor (what was opened, not what the name pointed to a
+    moment before). Errors are :class:`OSError` (for callers that treat an unreadable file
+    as absent); :func:`open_input` makes them one :class:`MtannoError`."""
+    import errno
     import stat
 
-    flags = (os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-             | getattr(os, "O_BINARY", 0))
-    try:
-        fd = os.open(path, flags)
-    except FileNotFoundError:
-        raise MtannoError(f"{what} not found", path=str(path)) from None
-    except OSError as exc:
-        raise MtannoError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from None
+    nonblock = getattr(os, "O_NONBLOCK", 0)
+    fd = os.open(path, os.O_RDONLY | nonblock | getattr(os, "O_CLOEXEC", 0)
+                 | getattr(os, "O_BINARY", 0))
     try:
         mode = os.fstat(fd).st_mode
         if stat.S_ISDIR(mode):
-            raise MtannoError(f"cannot read {what}: Is a directory", path=str(path))
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
         if not stat.S_ISREG(mode):
-            raise MtannoError(f"{what} is not a regular file ({_kind(mode)}): not read",
-                              path=str(path))
-        if flags & getattr(os, "O_NONBLOCK", 0):
+            raise NotRegularFile(errno.EINVAL, f"not a regular file ({_kind(mode)}): not read",
+                                 str(path))
+        if nonblock:
             os.set_blocking(fd, True)
         return os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)
         raise
+
+
+def open_input(path: str | os.PathLike, *, what: str = "file"):
+    """:func:`open_regular`, its refusals one :class:`MtannoError` naming the file
+    (``what`` names the kind of file): missing, unreadable, a folder, or not a regular
+    file (a FIFO, a device: "is not a regular file (a FIFO): not read")."""
+    try:
+        return open_regular(path)
+    except FileNotFoundError:
+        raise MtannoError(f"{what} not found", path=str(path)) from None
+    except NotRegularFile as exc:
+        raise MtannoError(f"{what} is {exc.strerror}", path=str(path)) from None
+    except OSError as exc:
+        raise MtannoError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from None
 
 
 def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:

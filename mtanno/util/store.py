@@ -24,7 +24,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno.errors import JSONError, MtannoError, open_input, parse_json, read_input
+from mtanno.errors import JSONError, MtannoError, open_regular, parse_json, read_input
 from mtanno.util import _parquet
 from mtanno.util._poseblock import (
     POSE_PREFIX,
@@ -49,7 +49,7 @@ META_KEY = b"mtanno"
 def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
     """Hex SHA-256 of a file's bytes."""
     h = hashlib.sha256()
-    with open_input(path) as fh:  # a regular file: a FIFO would block
+    with open_regular(path) as fh:  # a regular file: a FIFO would block (OSError else)
         while block := fh.read(chunk):
             h.update(block)
     return h.hexdigest()

@@ -37,7 +37,7 @@ from typing import Any
 
 import pyarrow as pa
 
-from mtanno.errors import JSONError, MtannoError, open_input, parse_json, read_input, read_json
+from mtanno.errors import JSONError, MtannoError, open_regular, parse_json, read_input, read_json
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
@@ -434,10 +434,10 @@ def table_provenance(path: str | os.PathLike) -> dict | None:
 
     try:
         # a file object: pyarrow cannot open non-UTF-8 names (and a FIFO would block)
-        with open_input(path) as fh:
+        with open_regular(path) as fh:
             raw = (pq.read_schema(fh).metadata or {}).get(_META_KEY)
         prov = parse_json(raw) if raw else None
-    except (OSError, ValueError, TypeError, pa.ArrowException, MtannoError):
+    except (OSError, ValueError, TypeError, pa.ArrowException, JSONError):
         return None
     return prov if isinstance(prov, dict) else None
 

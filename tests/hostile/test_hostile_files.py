@@ -619,7 +619,7 @@ READERS = ["skeleton guess", "features --skeleton", "info --skeleton", "a map on
 def test_a_fifo_or_a_device_where_a_file_is_expected_is_refused(world, tmp_path, reader, what):
     """Issue 31: a FIFO (or /dev/zero) where a file is expected hung skeleton guess,
     features --skeleton and every command reading a map on the search path. Every reader
-    opens its file through one helper (mtanno.errors.open_input), which refuses what is not
+    opens its file through one helper (mtanno.errors.open_regular), which refuses what is not
     a regular file before reading a byte: one line naming it, no hang."""
     import os
 

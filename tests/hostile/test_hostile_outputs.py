@@ -507,20 +507,31 @@ def test_an_output_on_a_full_device_names_it(world, tmp_path, case):
 @needs_full
 def test_standard_output_on_a_full_device_says_so(world, tmp_path):
     """`-o -` (and the printed report) on a full device: one line saying it is standard
-    output, exit code 2."""
+    output, exit code 2. Issue 31: what commands print with click (info, show, mt show,
+    index info, keyframes show, --help, --version) said "No space left on device" naming
+    nothing, and a help text was a traceback."""
     import subprocess
     import sys
 
     cmd = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
            "sys.argv[0] = 'mtanno'; main()"]
+    kf = tmp_path / "kf"
+    assert cli("learn-keyframes", "--mt", world.mt, "--manifest", world.manifest,
+               "--features-dir", world.feats, "--method", "hard", "-o", kf,
+               "-q").exit_code == 0
     for args in (["evaluate", world.annotation, "--truth", world.truth, "-o", "-"],
-                 ["evaluate", world.annotation, "--truth", world.truth]):
+                 ["evaluate", world.annotation, "--truth", world.truth],
+                 ["info", world.doc_files[0]], ["show", world.doc_files[0]],
+                 ["mt", "show", world.template], ["index", "info", world.index],
+                 ["keyframes", "show", next(kf.glob("*.json"))], ["--help"],
+                 ["features", "--help"], ["--version"]):
         with open(FULL, "w") as full:
             p = subprocess.run([*cmd, *map(str, args)], stdout=full, stderr=subprocess.PIPE,
                                text=True)
         lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
         assert p.returncode == 2 and lines == [
-            "mtanno: cannot write to standard output: No space left on device"], p.stderr
+            "mtanno: cannot write to standard output: No space left on device"], (args,
+                                                                                  p.stderr)
 
 
 def test_a_write_that_fails_in_place_or_to_stdout_names_it(tmp_path, monkeypatch):
