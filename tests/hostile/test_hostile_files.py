@@ -19,10 +19,10 @@ import pytest
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
+from mtanno.features.store import read_features
 from mtanno.index import open_index
 from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, load_keyframes, save_keyframes
 from mtanno.keyframes.model import feature_groups_of
-from mtanno.util.store import read_features
 from mtanno.util.tables import read_table
 
 #: JSON text nested far deeper than any parser's recursion allows.
@@ -583,7 +583,7 @@ def test_a_deeply_nested_bank_metadata_is_one_line(tmp_path):
     """The verification bank's metadata (JSON in the Parquet file) was read with plain
     json.loads: nested thousands deep, a RecursionError. It goes through the one bounded
     JSON reader now: one error naming the bank."""
-    from mtanno.annotate.verify import build_bank, read_bank, write_bank
+    from mtanno.confidence.verify import build_bank, read_bank, write_bank
 
     rng = np.random.default_rng(0)
     bank = build_bank([("kick", "a", rng.random((12, 6)).astype(np.float32))],
