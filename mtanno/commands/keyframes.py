@@ -123,8 +123,7 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     check_outputs([out / f"{c}.json" for c in todo if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth,
                    *(t.path for t in templates.values())], folders={out: []},
-                  scanned={**({mt_dir: ()} if Path(mt_dir).is_dir() else {}),
-                           **input_folders(training, features_dir)},
+                  scanned=input_folders(training, features_dir, also=[mt_dir]),
                   inside_input=inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     total = len(todo) * (runs if method == "ga" else 1)

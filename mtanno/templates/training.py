@@ -224,14 +224,17 @@ def sources_from_truth(truth: str | os.PathLike, features: Iterable[str | os.Pat
 
 
 def input_folders(training: Sequence[str | os.PathLike] = (),
-                  features_dir: str | os.PathLike | None = None,
+                  features_dir: str | os.PathLike | None = None, *,
+                  also: Sequence[str | os.PathLike | None] = (),
                   ) -> dict[str | os.PathLike, tuple[str, ...]]:
     """The folders training examples are read from (``TRAINING`` folders,
-    ``features_dir``), each with the suffix read there, as
+    ``features_dir``), each with the suffix read there, and the folders of ``also`` (the
+    templates' or keyframe queries' folder: no suffix, nothing in them is scanned), as
     :func:`mtanno.util.output.check_outputs` takes them (``scanned``): no output folder
-    among the training data unless the user says so."""
-    return {f: (".parquet",) for f in [*training, features_dir]
-            if f is not None and Path(f).is_dir()}
+    among the inputs unless the user says so."""
+    return {**{f: () for f in also if f is not None and Path(f).is_dir()},
+            **{f: (".parquet",) for f in [*training, features_dir]
+               if f is not None and Path(f).is_dir()}}
 
 
 def collect_sources(training: Sequence[str | os.PathLike] = (), *,

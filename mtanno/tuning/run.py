@@ -242,8 +242,7 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
     planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
-    scanned = {**{f: () for f in (mt_dir, keyframes_dir) if f and Path(f).is_dir()},
-               **input_folders(training, features_dir)}
+    scanned = input_folders(training, features_dir, also=[mt_dir, keyframes_dir])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
                             *(s.path for s in sources), *options.get("background", ()),
                             *(keyframe_files(keyframes_dir) if keyframes_dir else [])],

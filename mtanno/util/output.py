@@ -38,8 +38,8 @@ from typing import NoReturn
 from mtanno.errors import MtannoError
 
 __all__ = ["EXIT_CLOSED_OUTPUT", "atomic_path", "check_outputs", "current_umask", "end_closed_output",
-           "guarded_stdout", "make_folder", "output_closed", "remove_stale_temporaries",
-           "write_bytes", "write_error", "write_stdout", "write_text"]
+           "make_folder", "output_closed", "remove_stale_temporaries", "write_bytes",
+           "write_error", "write_stdout", "write_text"]
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
@@ -355,63 +355,6 @@ def write_stdout(text: str) -> None:
         raise
     except OSError as exc:
         raise MtannoError(f"cannot write to standard output: {exc.strerror or exc}") from None
-
-
-class _GuardedStdout:
-    """Standard output as :func:`guarded_stdout` hands it out: every attribute is the
-    stream's own, but a failed ``write`` or ``flush`` (a full device, an I/O error) is one
-    :class:`MtannoError` that says it was standard output. A closed pipe stays a
-    :class:`BrokenPipeError` (the command's edge ends quietly then)."""
-
-    def __init__(self, stream):
-        self._stream = stream
-
-    def _failed(self, exc: OSError) -> MtannoError:
-        return MtannoError(f"cannot write to standard output: {exc.strerror or exc}")
-
-    def write(self, text):
-        try:
-            return self._stream.write(text)
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            raise self._failed(exc) from None
-
-    def writelines(self, lines) -> None:
-        for line in lines:
-            self.write(line)
-
-    def flush(self) -> None:
-        try:
-            self._stream.flush()
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            raise self._failed(exc) from None
-
-    def __getattr__(self, name):
-        return getattr(self._stream, name)
-
-
-@contextlib.contextmanager
-def guarded_stdout() -> Iterator[None]:
-    """While inside, what is printed to standard output (``click.echo``, ``print``: help
-    texts, ``info``, ``show``, ``index info``) and fails on the device is one
-    :class:`MtannoError`, "cannot write to standard output: No space left on device",
-    as :func:`write_stdout` says it, instead of an error naming nothing (the command line
-    runs every command inside)."""
-    import sys
-
-    real = sys.stdout
-    if real is None or isinstance(real, _GuardedStdout):
-        yield
-        return
-    sys.stdout = _GuardedStdout(real)
-    try:
-        yield
-    finally:
-        if isinstance(sys.stdout, _GuardedStdout):
-            sys.stdout = real
 
 
 def write_text(target: str | os.PathLike, text: str) -> None:

@@ -320,17 +320,16 @@ def test_a_worker_forked_before_its_initializer_ignores_sigint_and_hangs_up_quie
 
 #: The program, with a module imported late by the command (annotate --output-dir imports
 #: mtanno.annotate.folder once it runs) that first creates a class whose descriptor's
-#: ``__set_name__`` writes a mark and waits for the signal: held where a signal landed while
-#: Python 3.11 created an Enum of numba's late-imported typing modules.
+#: ``__set_name__`` is held by the MTANNO_TEST_PAUSE hook (moment ``late-import``) until
+#: the signal: where a signal landed while Python 3.11 created an Enum of numba's
+#: late-imported typing modules.
 LATE_IMPORT = """if True:
-    import importlib.abc, signal, sys
-    mark = sys.argv.pop(1)
+    import importlib.abc, sys
+    from mtanno.util.pause import pause_at
 
     class Held:
         def __set_name__(self, owner, name):
-            open(mark, "w").close()
-            while True:
-                signal.pause()
+            pause_at("late-import")
 
     class Late(importlib.abc.MetaPathFinder):
         def find_spec(self, name, path, target=None):
@@ -354,9 +353,10 @@ def test_a_signal_during_a_late_import_is_one_line(world, tmp_path, name, code):
     interruption) in a RuntimeError. Held inside ``__set_name__`` of that import: one line,
     130 (129 for SIGHUP), no output and no temporary left."""
     mark, out = tmp_path / "mark", tmp_path / "od"
+    env = {**os.environ, "MTANNO_TEST_PAUSE": f"late-import:{mark}"}
     proc = subprocess.Popen(
-        [sys.executable, "-c", LATE_IMPORT, str(mark), "annotate", "--mt", str(world.mt),
-         str(world.docfeats), "--output-dir", str(out), "--jobs", "2", "-q"],
+        [sys.executable, "-c", LATE_IMPORT, "annotate", "--mt", str(world.mt),
+         str(world.docfeats), "--output-dir", str(out), "--jobs", "2", "-q"], env=env,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for(mark.exists, proc, "the late import")
     rc, err = _signalled(proc, getattr(signal, name))
