@@ -2,7 +2,7 @@
 
 The package reads the pipeline left to right: :mod:`mtanno.io` (mocap files to joint
 positions), :mod:`mtanno.features` (40 boolean relational features at 30 Hz, stored as
-Parquet feature files by :mod:`mtanno.util.store`), :mod:`mtanno.templates` (motion
+Parquet feature files by :mod:`mtanno.features.store`), :mod:`mtanno.templates` (motion
 templates), :mod:`mtanno.index` (relational index and queries), :mod:`mtanno.keyframes`,
 :mod:`mtanno.annotate`, :mod:`mtanno.tuning` and :mod:`mtanno.evaluation`;
 :mod:`mtanno.align` and :mod:`mtanno.retrieve` beside them, the plumbing in

@@ -26,7 +26,7 @@ from world import cli, temporaries, wait_for
 from mtanno.annotate import annotation_files, load_annotation_setup
 from mtanno.annotate.folder import DocJob, annotate_folder, plan_folder, recipe, up_to_date
 from mtanno.errors import MtannoError
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 from mtanno.util.tables import provenance_as_read
 
 #: The function each document goes through (held before a given document).

@@ -7,10 +7,10 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+from mtanno.features.store import read_features
 from mtanno.templates.training import collect_sources, group_by_class, load_examples
 from mtanno.tuning.cv import _documents
 from mtanno.tuning.search import Params
-from mtanno.util.store import read_features
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "ceiling_tune.py"
 

@@ -17,13 +17,13 @@ from world import assert_one_line, cli
 from mtanno.annotate import ClassConfig, label_document, load_class_config
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import evaluate_annotations
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 from mtanno.templates.training import collect_sources
 from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
-from mtanno.util.store import sha256_file
+from mtanno.util.tables import sha256_file
 
 
 def _sources(world):

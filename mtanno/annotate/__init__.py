@@ -4,7 +4,7 @@
 Modules, in the order the data flows through them:
 
 * :mod:`~mtanno.annotate.config` — class configurations (per-class τ, superclasses, the
-  decoder's options; TOML), :data:`DEFAULT_TAU`, :data:`DEFAULT_DELTA`, :func:`check_tau`;
+  decoder's options; TOML);
 * :mod:`~mtanno.annotate.dbar` — the modified distance Δ̄ of a class (§7 step 2);
 * :mod:`~mtanno.annotate.label` — one document's labels and segments (§7 steps 3–4;
   :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
@@ -30,11 +30,11 @@ The public names of these modules are importable from ``mtanno.annotate`` itself
 
 __all__ = [
     "ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "AnnotateRun", "CALIBRATION_FOLDS",
-    "CALIBRATION_L2", "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION", "DEFAULT_DELTA",
-    "DEFAULT_TAU", "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
+    "CALIBRATION_L2", "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION",
+    "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
     "AnnotationSetup", "CalibrationResult", "Calibrator", "ClassConfig", "ClassModel",
     "IsotonicModel", "LogisticModel", "Windows", "annotate_document", "annotate_files",
-    "annotate_to", "annotation_files", "annotation_setup", "annotation_table", "check_tau",
+    "annotate_to", "annotation_files", "annotation_setup", "annotation_table",
     "class_config_text", "class_deltas", "class_models", "evidence_covered", "fit_calibrated",
     "fit_isotonic", "fit_logistic", "label_document", "label_frames", "load_annotation_setup",
     "load_class_config", "load_class_models", "load_config_templates", "merge_annotation_tables",
@@ -71,10 +71,7 @@ from mtanno.annotate.calibration import (
 )
 from mtanno.annotate.config import (
     DECODER_KEYS,
-    DEFAULT_DELTA,
-    DEFAULT_TAU,
     ClassConfig,
-    check_tau,
     class_config_text,
     load_class_config,
     write_class_config,
@@ -96,16 +93,15 @@ from mtanno.annotate.run import AnnotateRun, annotate_to
 from mtanno.annotate.tables import (
     ANNOTATION_COLUMNS,
     ANNOTATION_SUFFIXES,
-    Annotation,
     annotation_files,
     annotation_table,
     merge_annotation_tables,
     read_annotation_table,
     read_annotation_tables,
     read_annotations,
-    to_segments,
     write_annotations,
 )
+from mtanno.labels.segments import Annotation, to_segments
 from mtanno.util.lazy import submodule_getattr
 
 __getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -13,20 +13,21 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mtanno.annotate.config import DEFAULT_DELTA, ClassConfig, check_tau, load_class_config
+from mtanno.annotate.config import ClassConfig, load_class_config
 from mtanno.annotate.label import ClassModel, annotate_document
-from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
+from mtanno.templates.params import ANNOTATION_DELTA, check_tau
 
 if TYPE_CHECKING:
-    from mtanno.util.store import FeatureLayout
+    from mtanno.features.store import FeatureLayout
 
 __all__ = ["AnnotationBatch", "AnnotationSetup", "annotate_files", "annotation_setup",
            "class_models", "load_annotation_setup", "load_class_models",
            "load_config_templates"]
 
 
-def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA,
+def load_class_models(mt_dir: str | os.PathLike, *, delta: float = ANNOTATION_DELTA,
                       classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
     """The templates of a folder (``*.json``; or one template file;
     :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
@@ -38,14 +39,15 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
                         where=f"the templates in {mt_dir}")
 
 
-def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
+def class_models(templates: dict, *, delta: float = ANNOTATION_DELTA,
                  where: str = "the templates") -> tuple[list[ClassModel], FeatureLayout]:
     """:class:`ClassModel` records of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
     learned in memory), quantized with ``delta``, and the feature layout they share
     (``where`` names them in messages)."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import quantize
-    from mtanno.util.store import check_layout, sha256_file
+    from mtanno.util.tables import sha256_file
 
     if not templates:
         raise MtannoError("no class templates to annotate with")
@@ -67,12 +69,13 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
 
 
 def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
-                          delta: float = DEFAULT_DELTA) -> list[ClassModel]:
+                          delta: float = ANNOTATION_DELTA) -> list[ClassModel]:
     """The further templates of ``config.templates`` (several templates per class) as
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.store import check_layout, sha256_file
+    from mtanno.util.tables import sha256_file
 
     out = []
     for cls, paths in config.template_paths().items():
@@ -143,8 +146,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     import time
 
     from mtanno.annotate.confidence import score_document, single_label_by_confidence
+    from mtanno.features.store import check_layout, read_features
     from mtanno.templates.match import pack_document
-    from mtanno.util.store import check_layout, read_features
 
     bank = confidence.bank if confidence is not None else None
     need_poses = bank is not None and bank.representation == "poses"
@@ -270,7 +273,7 @@ class AnnotationSetup:
     models: list[ClassModel]
     layout: FeatureLayout
     config: ClassConfig = field(default_factory=ClassConfig)
-    delta: float = DEFAULT_DELTA
+    delta: float = ANNOTATION_DELTA
     dbar_variant: str = "reference"
     match_variant: str = "reference"
     keyframes: dict = field(default_factory=dict)
@@ -353,7 +356,7 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     """The :class:`AnnotationSetup` of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`) and a class configuration, applied as
     ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
-    δ unless ``delta`` is given (else :data:`DEFAULT_DELTA`), its further templates, and
+    δ unless ``delta`` is given (else :data:`ANNOTATION_DELTA`), its further templates, and
     :meth:`ClassConfig.template_warnings` in ``warnings``, its tuned confidence
     (:func:`mtanno.annotate.confidence.load_confidence`). ``tau`` replaces its default τ
     (on a copy: the object passed is not changed); ``min_confidence`` its minimum
@@ -366,7 +369,7 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     if tau is not None:
         config.default_tau = check_tau(tau)
     if delta is None:
-        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+        delta = config.delta if config.delta is not None else ANNOTATION_DELTA
     models, layout = class_models(templates, delta=delta, where=where)
     config.check([m.name for m in models])
     warnings = config.template_warnings(models)
@@ -390,9 +393,9 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
     class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
     of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
     τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
-    :data:`DEFAULT_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
+    :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
     from mtanno.templates.model import load_template_folder
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     setup = annotation_setup(
         load_template_folder(mt_dir),

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtanno.annotate.calibration import uncalibrated_confidence
-from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
 
 __all__ = ["BANK_EVIDENCE", "EVIDENCE", "ConfidenceModel", "check_min_confidence",
            "confidence_record", "load_confidence", "score_document", "segment_evidence",
@@ -228,7 +228,7 @@ def load_confidence(config) -> ConfidenceModel | None:
     bank = bank_path = sha = None
     if "bank" in conf:
         from mtanno.annotate.verify import read_bank
-        from mtanno.util.store import sha256_file
+        from mtanno.util.tables import sha256_file
 
         base = Path(config.path).parent if config.path else Path(".")
         bank_path = str(base / conf["bank"])

@@ -2,8 +2,8 @@
 ([MBS09] §4 thresholds; the issue-10 methods of ``docs/annotation.md``), read from and
 written to TOML (``mtanno annotate --classes``, ``mtanno tune``).
 
-:data:`DEFAULT_TAU` and :data:`DEFAULT_DELTA` are the published method's τ and δ;
-:func:`check_tau` is the one rule for a τ given anywhere (a number ≥ 0; ∞ allowed).
+:data:`~mtanno.templates.params.ANNOTATION_TAU` is the τ of every class a configuration
+does not name; :func:`~mtanno.templates.params.check_tau` checks every τ it holds.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mtanno.errors import MtannoError, read_input
+from mtanno.templates.params import ANNOTATION_TAU, check_tau
 
 if TYPE_CHECKING:
     from mtanno.annotate.label import ClassModel
@@ -27,16 +28,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["CONFIDENCE_KEYS", "DECODER_KEYS", "DEFAULT_DELTA", "DEFAULT_TAU", "ClassConfig", "check_tau",
+__all__ = ["CONFIDENCE_KEYS", "DECODER_KEYS", "ClassConfig",
            "class_config_text", "load_class_config", "write_class_config"]
 
 
-#: Annotation threshold τ of [MBS09] (used for every class without its own τ).
-DEFAULT_TAU = 0.13
-
-
-#: Quantization δ of the templates for annotation ([MBS09]).
-DEFAULT_DELTA = 0.05
 
 
 @dataclass
@@ -76,7 +71,7 @@ class ClassConfig:
     :mod:`mtanno.annotate.calibration`); empty: the uncalibrated confidence.
     """
 
-    default_tau: float = DEFAULT_TAU
+    default_tau: float = ANNOTATION_TAU
     tau: dict[str, float] = field(default_factory=dict)
     superclasses: dict[str, list[str]] = field(default_factory=dict)
     path: str | None = None
@@ -178,21 +173,6 @@ class ClassConfig:
         return {c: [base / f for f in files] for c, files in self.templates.items()}
 
 
-def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
-    """τ as a float; NaN, a negative value or a non-number is an :class:`MtannoError`
-    (∞ is allowed: every match counts). The one rule for τ wherever it is given: the
-    annotation, retrieval (:func:`mtanno.retrieve.extract_hits`), class configurations and
-    the commands' ``--tau``."""
-    try:
-        value = float(tau)
-    except (TypeError, ValueError):
-        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}", path=path) from None
-    if not value >= 0:
-        nan = " (NaN)" if value != value else ""
-        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}{nan}", path=path)
-    return value
-
-
 #: Keys of the ``[decoder]`` section of a class configuration and their types.
 DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": float,
                 "segment_cost": float, "delta": float}
@@ -280,7 +260,7 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
             raise bad(section, key, exc.message) from None
 
     taus = dict(data.get("tau", {}))
-    cfg.default_tau = number("tau", "default", taus.pop("default", DEFAULT_TAU),
+    cfg.default_tau = number("tau", "default", taus.pop("default", ANNOTATION_TAU),
                              what="[tau] default")
     cfg.tau = {str(k): number("tau", k, v, what=f"[tau] {k}") for k, v in taus.items()}
     for k, v in data.get("superclasses", {}).items():

@@ -131,7 +131,7 @@ def info_cmd(file, asf, skeleton, list_features):
     if list_features and path.suffix.lower() != ".parquet":
         raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
-        from mtanno.util.store import read_features
+        from mtanno.features.store import read_features
 
         ff = read_features(path)
         if list_features:

@@ -24,9 +24,9 @@ from mtanno.commands._common import (
     wait_option,
     waiting_note,
 )
-from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.describe import TOP_FEATURES
 from mtanno.templates.learn import ITER_MAX, ITER_THRESH
+from mtanno.templates.params import RETRIEVAL_DELTA
 
 
 @click.command("learn-mt", epilog=EXIT_PER_CLASS)

@@ -19,10 +19,11 @@ from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.features.compute import FeatureSet, compute_features, get_feature_set
 from mtanno.features.hysteresis import ANALYSIS_FPS
+from mtanno.features.store import write_features
 from mtanno.features.table import FEATURE_SET
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
-from mtanno.util.store import sha256_file, write_features
+from mtanno.util.tables import sha256_file
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,
@@ -328,7 +329,7 @@ def _stored_meta(path: Path) -> dict | None:
     import pyarrow.parquet as pq
 
     from mtanno.errors import parse_json
-    from mtanno.util.store import META_KEY
+    from mtanno.features.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mtanno.annotate.confidence import BANK_EVIDENCE, EVIDENCE, segment_evidence
-from mtanno.annotate.tables import Annotation
 from mtanno.evaluation.calibration import segment_right
+from mtanno.labels.segments import Annotation
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
 __all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "ConfidenceFit", "bank_of",

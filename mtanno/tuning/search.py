@@ -52,9 +52,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
+from mtanno.annotate import ClassConfig, label_document
 from mtanno.annotate.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 from mtanno.templates.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
@@ -97,7 +98,7 @@ class Params:
     template groups (1: the class's template only) and the tempo factors of its
     time-scaled templates."""
 
-    delta: float = DEFAULT_DELTA
+    delta: float = ANNOTATION_DELTA
     resolve: bool = False
     refine: bool = False
     slack: int = DEFAULT_SLACK
@@ -120,7 +121,7 @@ class Params:
         left to ``[tau] default``)."""
         taus = list(self.tau.values())
         default = default_tau if default_tau is not None else \
-            (max(set(taus), key=taus.count) if taus else DEFAULT_TAU)
+            (max(set(taus), key=taus.count) if taus else ANNOTATION_TAU)
         return ClassConfig(default_tau=default,
                            tau={c: t for c, t in self.tau.items() if t != default},
                            resolve=self.resolve, refine=self.refine, slack=self.slack,
@@ -465,7 +466,7 @@ class Tuner:
     def _with_tau(self, p: Params, tau: float) -> Params:
         return p.copy(tau={c: tau for c in self.classes}, reject={})
 
-    def search(self, *, delta: float = DEFAULT_DELTA, methods: Sequence[str] | None = None,
+    def search(self, *, delta: float = ANNOTATION_DELTA, methods: Sequence[str] | None = None,
                ) -> tuple[Params, Evaluation, list[str]]:
         """The coordinate search of the module docstring over ``methods`` (default: the
         tuner's); returns the best parameters, their evaluation and a log of the steps
@@ -481,8 +482,8 @@ class Tuner:
         base = Params(delta=delta, resolve="resolve" in on, refine="refine" in on,
                       slack=DEFAULT_SLACK, groups={c: 1 for c in self.classes})
         ref_ev = self.evaluate(self._with_tau(base.copy(resolve=False, refine=False),
-                                              DEFAULT_TAU))
-        note(f"reference (tau {DEFAULT_TAU}, delta {delta})", ref_ev)
+                                              ANNOTATION_TAU))
+        note(f"reference (tau {ANNOTATION_TAU}, delta {delta})", ref_ev)
         # 1. one τ, per δ and decoder
         deltas = [float(d) for d in DELTA_GRID] if "delta" in on else [float(delta)]
         decoders = [True, False] if "resolve" in on else [False]

@@ -25,7 +25,7 @@ from held import held_pids, start_held
 from world import build_world, children, temporaries
 
 from mtanno import synthetic
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
