@@ -99,7 +99,7 @@ def prepare(out: Path):
 def in_process(out: Path, doc: Path, config: Path) -> tuple[float, float]:
     """(median seconds of matching and labels, of the confidence) of the document."""
     from mtanno.annotate import annotate_document, load_annotation_setup
-    from mtanno.annotate.confidence import score_document
+    from mtanno.confidence.score import score_document
     from mtanno.features.store import read_features
 
     ff = read_features(doc, poses=True)

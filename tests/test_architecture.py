@@ -187,7 +187,7 @@ def test_no_upward_import():
 #: modules (``mtanno/retrieve.py``) rank as packages of their own; ``mtanno`` (the
 #: package's ``__init__``, the lazy facade) is the top.
 RANKS = ["_version", "errors", "util", "io", "features", "labels", "info", "synthetic",
-         "templates", "retrieve", "index", "keyframes", "align", "annotate", "plot",
+         "templates", "retrieve", "index", "keyframes", "confidence", "align", "annotate", "plot",
          "evaluation", "tuning", "api", "commands", "cli", "__main__", "mtanno"]
 
 

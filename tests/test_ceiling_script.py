@@ -34,6 +34,6 @@ def test_ceiling_scores_the_annotated_documents(world):
     truth_frames = sum(e.X.shape[1] for e in held)
     assert ev.counts.frame_support == truth_frames
     assert ev.counts.seg_support == len(held)
-    reference = tuner.evaluate(tuner._with_tau(Params(), 0.13))
+    reference = tuner.evaluate(tuner.with_tau(Params(), 0.13))
     assert ev.J >= reference.J
     assert ev.J == tuner.evaluate(params).J

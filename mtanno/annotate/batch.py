@@ -91,7 +91,7 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
             check_layout(mt.layout(f"template {path}"), layout, path=str(path))
             q = quantize(mt, delta)
             model = ClassModel(cls, q.values, q.weights, path=str(path),
-                               sha256=sha256_file(path))
+                               sha256=sha256_file(path), extra=True)
             try:
                 model.matcher("reference")
             except MtannoError as exc:
@@ -141,11 +141,11 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                    single_label=False, confidence=None, min_confidence=None):
     """One document of a batch: (document, rows, native frames, sha256, seconds) or the
     message of its failure (a worker sends it back as text). Every row gets its
-    confidence (:func:`mtanno.annotate.confidence.score_document`); rows below the
+    confidence (:func:`mtanno.confidence.score.score_document`); rows below the
     minimum confidence (``min_confidence``, else the tuned one) are dropped."""
     import time
 
-    from mtanno.annotate.confidence import score_document, single_label_by_confidence
+    from mtanno.confidence.score import score_document, single_label_by_confidence
     from mtanno.features.store import check_layout, read_features
     from mtanno.templates.match import pack_document
 
@@ -233,7 +233,7 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     failure message (None on success). ``single_label`` resolves overlapping segments
     (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
     documents instead of local processes (:class:`mtanno.util.workers.DaskPool`, same results).
-    ``confidence``: the tuned :class:`mtanno.annotate.confidence.ConfidenceModel` (None: the
+    ``confidence``: the tuned :class:`mtanno.confidence.model.ConfidenceModel` (None: the
     uncalibrated confidence); ``min_confidence`` drops rows below it (None: the tuned
     minimum, 0 without one). Rows are sorted by document, start, end and label."""
     batch = AnnotationBatch()
@@ -308,7 +308,7 @@ class AnnotationSetup:
         class), superclasses, δ, the configuration's methods, the configuration file and its
         SHA-256, variants, feature set, keyframe files, single label, the confidence
         (calibrated or not, evidence, minimum, bank) and the background tune saw."""
-        from mtanno.annotate.confidence import confidence_record
+        from mtanno.confidence.model import confidence_record
         from mtanno.util.tables import provenance
 
         cfg = self.config
@@ -358,12 +358,12 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
     δ unless ``delta`` is given (else :data:`ANNOTATION_DELTA`), its further templates, and
     :meth:`ClassConfig.template_warnings` in ``warnings``, its tuned confidence
-    (:func:`mtanno.annotate.confidence.load_confidence`). ``tau`` replaces its default τ
+    (its verification bank read and checked). ``tau`` replaces its default τ
     (on a copy: the object passed is not changed); ``min_confidence`` its minimum
     confidence of an output row (a number in [0, 1])."""
     from dataclasses import replace
 
-    from mtanno.annotate.confidence import check_min_confidence, load_confidence
+    from mtanno.confidence.model import check_min_confidence
 
     config = replace(config) if config is not None else ClassConfig()
     if tau is not None:
@@ -378,8 +378,16 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
         min_confidence = check_min_confidence(min_confidence, what="min_confidence")
     return AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
                            single_label=single_label, config_sha256=config_sha256,
-                           warnings=warnings, confidence=load_confidence(config),
+                           warnings=warnings, confidence=_loaded(config.confidence),
                            min_confidence=min_confidence)
+
+
+def _loaded(confidence):
+    """The configuration's tuned confidence with its bank read (so that a missing or
+    changed bank file is refused before any document is annotated)."""
+    if confidence is not None:
+        _ = confidence.bank
+    return confidence
 
 
 def load_annotation_setup(mt_dir: str | os.PathLike, *,

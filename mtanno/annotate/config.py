@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from mtanno.confidence.model import ConfidenceModel, is_sha256
 from mtanno.errors import MtannoError, read_input
 from mtanno.templates.params import ANNOTATION_TAU, check_tau
 
@@ -28,7 +29,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["CONFIDENCE_KEYS", "DECODER_KEYS", "ClassConfig",
+__all__ = ["DECODER_KEYS", "ClassConfig",
            "class_config_text", "load_class_config", "write_class_config"]
 
 
@@ -64,11 +65,9 @@ class ClassConfig:
     to ``annotate`` are other ones. ``background``: the background motions tune saw
     (``tune --background``; file → SHA-256), for the record.
 
-    ``confidence`` (issue 26; written by ``mtanno tune``): the ``[confidence]`` table —
-    ``evidence`` (names of :data:`mtanno.annotate.confidence.EVIDENCE`), ``min_confidence``
-    (rows below it are not output), ``bank`` and ``bank_sha256`` (the verification bank
-    file, relative to the configuration) and ``calibrator`` (the fitted calibrator,
-    :mod:`mtanno.annotate.calibration`); empty: the uncalibrated confidence.
+    ``confidence`` (issue 26; written by ``mtanno tune``): the ``[confidence]`` table as a
+    :class:`mtanno.confidence.model.ConfidenceModel` (evidence, calibrator, minimum
+    confidence, verification bank); None: the uncalibrated confidence.
     """
 
     default_tau: float = ANNOTATION_TAU
@@ -86,7 +85,7 @@ class ClassConfig:
     templates: dict[str, list[str]] = field(default_factory=dict)
     tuned_with: dict[str, str] = field(default_factory=dict)
     background: dict[str, str] = field(default_factory=dict)
-    confidence: dict = field(default_factory=dict)
+    confidence: ConfidenceModel | None = None
     lines: dict[tuple[str, str], int] = field(default_factory=dict, repr=False, compare=False)
 
     def tau_for(self, name: str) -> float:
@@ -180,9 +179,6 @@ DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": f
 
 _SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates", "tuned_with",
              "background", "confidence")
-#: Keys of the ``[confidence]`` section (issue 26) and their types.
-CONFIDENCE_KEYS = {"evidence": list, "min_confidence": float, "bank": str,
-                   "bank_sha256": str, "calibrator": dict}
 
 
 def _key_lines(text: str) -> dict[tuple[str, str], int]:
@@ -279,48 +275,17 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     return cfg
 
 
-def _is_sha256(v) -> bool:
-    return isinstance(v, str) and len(v) == 64 and all(ch in "0123456789abcdef" for ch in v)
-
-
 def _read_confidence(cfg: ClassConfig, data: dict, bad) -> None:
-    """``[background]`` (file → SHA-256) and ``[confidence]`` (keys of
-    :data:`CONFIDENCE_KEYS`, checked here; the calibrator's numbers are checked where it
-    is built, :func:`mtanno.annotate.batch.load_confidence`) into ``cfg``."""
-    from mtanno.annotate.confidence import EVIDENCE
-
+    """``[background]`` (file → SHA-256) and ``[confidence]``
+    (:meth:`ConfidenceModel.from_table`) into ``cfg``."""
     for k, v in data.get("background", {}).items():
-        if not _is_sha256(v):
+        if not is_sha256(v):
             raise bad("background", k, f"[background] {k} must be the SHA-256 (64 lower-case "
                                        f"hex digits) of the background file, got {v!r}")
     cfg.background = {str(k): str(v) for k, v in data.get("background", {}).items()}
-    conf = data.get("confidence", {})
-    for k, v in conf.items():
-        kind = CONFIDENCE_KEYS.get(k)
-        if kind is None:
-            raise bad("confidence", k, f"unknown key {k!r} in [confidence] (known: "
-                                       f"{', '.join(CONFIDENCE_KEYS)})")
-        ok = (isinstance(v, (int, float)) and not isinstance(v, bool)) if kind is float \
-            else isinstance(v, kind)
-        if not ok:
-            raise bad("confidence", k, f"[confidence] {k} has the wrong type: {v!r}")
-    if not conf:
-        return
-    ev = conf.get("evidence", [])
-    if not ev or not all(isinstance(e, str) and e in EVIDENCE for e in ev):
-        raise bad("confidence", "evidence", f"[confidence] evidence must list names of "
-                                            f"{', '.join(EVIDENCE)}, got {ev!r}")
-    m = conf.get("min_confidence", 0.0)
-    if not 0.0 <= m <= 1.0:
-        raise bad("confidence", "min_confidence", f"[confidence] min_confidence must be in "
-                                                  f"[0, 1], got {m!r}")
-    if "calibrator" not in conf:
-        raise bad("", "confidence", "[confidence] needs a [confidence.calibrator] table")
-    if ("bank" in conf) != ("bank_sha256" in conf) or (
-            "bank_sha256" in conf and not _is_sha256(conf["bank_sha256"])):
-        raise bad("confidence", "bank", "[confidence] bank and bank_sha256 (64 lower-case hex "
-                                        "digits) go together")
-    cfg.confidence = dict(conf)
+    if data.get("confidence"):
+        cfg.confidence = ConfidenceModel.from_table(data["confidence"], path=cfg.path,
+                                                    line_of=cfg.line_of)
 
 
 def _read_decoder(cfg: ClassConfig, section: dict, bad) -> None:
@@ -359,7 +324,7 @@ def _read_templates(cfg: ClassConfig, data: dict, bad) -> None:
                                       "template files")
     cfg.templates = {str(k): list(v) for k, v in data.get("templates", {}).items()}
     for k, v in data.get("tuned_with", {}).items():
-        if not _is_sha256(v):
+        if not is_sha256(v):
             raise bad("tuned_with", k, f"[tuned_with] {k} must be the SHA-256 (64 lower-case "
                                        f"hex digits) of the template file tune used, got {v!r}")
     cfg.tuned_with = {str(k): str(v) for k, v in data.get("tuned_with", {}).items()}
@@ -417,8 +382,8 @@ def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
             if isinstance(v, dict):
                 tables(f"{name}.{_toml_key(k)}", v)
 
-    if cfg.confidence:
-        tables("confidence", cfg.confidence)
+    if cfg.confidence is not None:
+        tables("confidence", cfg.confidence.to_table())
     return "\n".join(out) + "\n"
 
 

@@ -114,6 +114,9 @@ class ClassModel:
     weights: np.ndarray
     path: str | None = None
     sha256: str | None = None
+    #: a further template of the class (a configuration's ``[templates]``), not the base
+    #: template of the template folder
+    extra: bool = False
     _prepared: dict = field(default_factory=dict, repr=False, compare=False)
 
     def record(self) -> dict:

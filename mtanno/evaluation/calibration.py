@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtanno.annotate.calibration import check_labels
+from mtanno.confidence.calibration import check_labels
 from mtanno.errors import MtannoError
 
 __all__ = ["DEFAULT_BINS", "RIGHT_IOU", "ReliabilityTable", "auroc",

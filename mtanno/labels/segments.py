@@ -41,7 +41,7 @@ class Segment:
 class Annotation(NamedTuple):
     """One segment of an annotation: 0-based inclusive frames at 30 Hz. ``cost``: the
     match's distance Δ at the segment's end; ``confidence``: the probability that the
-    label is right (:mod:`mtanno.annotate.confidence`), NaN until the annotation gives it."""
+    label is right (:mod:`mtanno.confidence`), NaN until the annotation gives it."""
 
     doc: str
     start: int

@@ -184,7 +184,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                   unknown_weight=unknown_weight, log=log, columns=columns)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
-    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
+    reference = tuner.evaluate(tuner.with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
     variants = {}
     if ablation:
         for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
@@ -327,7 +327,7 @@ def _background_inputs(background, layout, examples, *, poses: bool):
 def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
                       unknown_weight, seed, log):
     """The confidence fitted on the folds and the verification bank of everything."""
-    from mtanno.annotate.verify import sequence
+    from mtanno.confidence.verify import sequence
     from mtanno.tuning.confidence import bank_of, learn_confidence
 
     seqs = None
@@ -511,7 +511,8 @@ def bank_path_of(config_path: str | os.PathLike) -> Path:
 def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> list[str]:
     """``[confidence]`` and ``[background]`` of the configuration (the bank written beside
     it) and header lines on how well the confidence did out of fold."""
-    from mtanno.annotate.verify import write_bank
+    from mtanno.confidence.model import ConfidenceModel
+    from mtanno.confidence.verify import write_bank
     from mtanno.evaluation.calibration import auroc, expected_calibration_error
     from mtanno.util.tables import sha256_file
 
@@ -519,14 +520,13 @@ def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> lis
     cfg.background = {r["path"]: r["sha256"] for r in result.background}
     if fit is None:
         return []
-    conf: dict = {"evidence": list(fit.evidence), "min_confidence": fit.min_confidence}
+    bank_file = sha = None
     if result.bank is not None:
         bpath = bank_path_of(path)
         write_bank(bpath, result.bank)
-        conf["bank"] = bpath.name
-        conf["bank_sha256"] = sha256_file(bpath)
-    conf["calibrator"] = fit.calibrator.to_dict()
-    cfg.confidence = conf
+        bank_file, sha = bpath.name, sha256_file(bpath)
+    cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
+                                     bank_file, sha, str(path.parent))
     kinds = np.array(fit.kinds)
     lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
              f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "

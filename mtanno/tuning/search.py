@@ -350,7 +350,7 @@ class Tuner:
         return ([(1, 0)] + ([(n, i) for i in range(n)] if n > 1 else [])
                 + [(0, f) for f in params.scales.get(c, ())])
 
-    def _arrays(self, fd: _FoldData, params: Params):
+    def decoder_arrays(self, fd: _FoldData, params: Params):
         """Δ/τ (ρ applied), starts and frame evidence per class of the fold (segment
         decoder), as :func:`mtanno.annotate.label_document` builds them."""
         L = fd.n_frames
@@ -367,11 +367,11 @@ class Tuner:
                     np.minimum(ev[p], e, out=ev[p])
         return mat, st, ev
 
-    def _segments(self, fd: _FoldData, params: Params, classes: Sequence[str], arrays=None):
+    def fold_segments(self, fd: _FoldData, params: Params, classes: Sequence[str], arrays=None):
         """Output segments (label id, first, last) of one fold with ``classes`` only
-        (``arrays``: :meth:`_arrays` of the fold, for the segment decoder)."""
+        (``arrays``: :meth:`decoder_arrays` of the fold, for the segment decoder)."""
         if params.resolve:
-            mat, st, ev = arrays if arrays is not None else self._arrays(fd, params)
+            mat, st, ev = arrays if arrays is not None else self.decoder_arrays(fd, params)
             rows = [fd.classes.index(c) for c in classes]
             if len(rows) < len(fd.classes):
                 mat, st = mat[rows], st[rows]
@@ -416,8 +416,8 @@ class Tuner:
         per: dict[str, Counts] = {}
         per_unk: dict[str, tuple[int, int]] = {}
         for fd in self.folds:
-            arrays = self._arrays(fd, params) if params.resolve else None
-            segs = self._segments(fd, params, fd.classes, arrays)
+            arrays = self.decoder_arrays(fd, params) if params.resolve else None
+            segs = self.fold_segments(fd, params, fd.classes, arrays)
             total += _count(fd.truth, segs, len(self.names), fd.n_frames, fd.ignore)
             if per_class:
                 for c in self.classes:
@@ -437,8 +437,8 @@ class Tuner:
                 for c, sub in fd.hidden.items():
                     rest = [x for x in fd.classes if x != c]
                     sub_arrays = arrays if sub is fd else (
-                        self._arrays(sub, params) if params.resolve else None)
-                    hit, n = _covered_fraction(sub.truth_by_class[c], self._segments(
+                        self.decoder_arrays(sub, params) if params.resolve else None)
+                    hit, n = _covered_fraction(sub.truth_by_class[c], self.fold_segments(
                         sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
                     unk[0] += hit
                     unk[1] += n
@@ -463,7 +463,7 @@ class Tuner:
             return None, None
         return best, best_ev
 
-    def _with_tau(self, p: Params, tau: float) -> Params:
+    def with_tau(self, p: Params, tau: float) -> Params:
         return p.copy(tau={c: tau for c in self.classes}, reject={})
 
     def search(self, *, delta: float = ANNOTATION_DELTA, methods: Sequence[str] | None = None,
@@ -481,7 +481,7 @@ class Tuner:
 
         base = Params(delta=delta, resolve="resolve" in on, refine="refine" in on,
                       slack=DEFAULT_SLACK, groups={c: 1 for c in self.classes})
-        ref_ev = self.evaluate(self._with_tau(base.copy(resolve=False, refine=False),
+        ref_ev = self.evaluate(self.with_tau(base.copy(resolve=False, refine=False),
                                               ANNOTATION_TAU))
         note(f"reference (tau {ANNOTATION_TAU}, delta {delta})", ref_ev)
         # 1. one τ, per δ and decoder
@@ -491,7 +491,7 @@ class Tuner:
         for dl in deltas:
             for res in decoders:
                 p0 = base.copy(delta=dl, resolve=res, refine=base.refine)
-                cand, ev = self._best([self._with_tau(p0, t) for t in TAU_GRID])
+                cand, ev = self._best([self.with_tau(p0, t) for t in TAU_GRID])
                 if cur_ev is None or ev.J > cur_ev.J:
                     cur, cur_ev = cand, ev
         note(f"one tau {cur.tau[self.classes[0]]:g}, delta {cur.delta:g}, "
@@ -507,7 +507,7 @@ class Tuner:
                     "extension over unclaimed frames" if cur.refine else "off")
             note(f"refine: {what}", cur_ev)
         if "segments" in on and cur.resolve:
-            got, ev = self._best([self._with_tau(cur.copy(segment_cost=lam), t)
+            got, ev = self._best([self.with_tau(cur.copy(segment_cost=lam), t)
                                   for lam in SEGMENT_COSTS[1:] for t in TAU_GRID], cur_ev, EPS)
             if got is not None:
                 cur, cur_ev = got, ev
