@@ -179,8 +179,8 @@ def _killed_at(moment: str, args, tmp_path) -> None:
 def _one_clean_generation(idx: Path) -> None:
     """The index reads, and holds its manifest and one generation: no temporary, no
     older generation, no lock left."""
-    r = _run(["index", "info", idx])
-    assert r.returncode == 0, r.stderr
+    r = cli("index", "info", idx)
+    assert r.exit_code == 0, r.output
     names = sorted(p.name for p in idx.iterdir())
     assert len(names) == 2 and names[1] == "manifest.json" and names[0].startswith("gen-"), \
         names
@@ -195,13 +195,13 @@ def test_an_index_killed_in_its_first_build_is_built_by_the_next_run(world, tmp_
     idx = tmp_path / "idx"
     args = ["index", world.docfeats, "-o", idx, "-q"]
     _killed_at(moment, args, tmp_path)
-    r = _run(["index", "info", idx])
+    r = cli("index", "info", idx)
     if moment == "index-switched":
-        assert r.returncode == 0, r.stderr
+        assert r.exit_code == 0, r.output
     else:
-        _one_line(r, 2, "partially written index")
-    r = _run(args)
-    assert r.returncode == 0, r.stderr
+        assert r.exit_code == 2 and "partially written index" in r.output, r.output
+    r = cli(*args)  # the next run (in this process: only the killed one must be a process)
+    assert r.exit_code == 0, r.output
     _one_clean_generation(idx)
 
 
@@ -213,15 +213,15 @@ def test_an_index_update_killed_at_any_write_leaves_a_readable_index(world, tmp_
     idx, part = tmp_path / "idx", tmp_path / "part"
     part.mkdir()
     world.copy(world.doc_files[0], part / world.doc_files[0].name)
-    assert _run(["index", part, "-o", idx, "-q"]).returncode == 0
+    assert cli("index", part, "-o", idx, "-q").exit_code == 0
     args = ["index", "add", idx, world.docfeats, "-q"]
     _killed_at(moment, args, tmp_path)
-    r = _run(["index", "info", idx])
-    assert r.returncode == 0, r.stderr
-    r = _run(args)
-    assert r.returncode == 0, r.stderr
+    r = cli("index", "info", idx)
+    assert r.exit_code == 0, r.output
+    r = cli(*args)
+    assert r.exit_code == 0, r.output
     _one_clean_generation(idx)
-    info = _run(["index", "info", idx]).stdout.splitlines()
+    info = cli("index", "info", idx).output.splitlines()
     assert f"documents      {len(world.doc_files)}" in info, info
 
 
