@@ -506,7 +506,7 @@ MAX_JOB_LINES = 500
 #: The modules over MAX_JOB_LINES lines, each with its one job (reviewed). Those marked
 #: "two jobs" are to be split when their owners are free (see each note).
 LONG_MODULES = {
-    "mtanno.annotate.label": "one document's labels and segments (MBS09 §4; algorithms.md "
+    "mtanno.annotate.label": "one document's labels and segments (MBS09 §4; docs/method.md "
                              "§7 steps 3-4): class models, Δ̄ labels and runs or the decoder, "
                              "single-label resolution",
     "mtanno.confidence.calibration": "calibrating the evidence of segments: logistic (Platt) "

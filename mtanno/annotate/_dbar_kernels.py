@@ -1,4 +1,4 @@
-"""The numba kernels of the reference modified distance Δ̄ ([MBS09] §4, algorithms.md §7
+"""The numba kernels of the reference modified distance Δ̄ ([MBS09] §4, docs/method.md §7
 step 2; private, wrapped by :func:`mtanno.annotate.dbar.modified_delta`, which validates its
 input, and tested against a slow reference in ``tests/naive*.py``).
 

@@ -1,4 +1,4 @@
-"""The numba kernels of labels and extended runs of a Δ̄ matrix ([MBS09] §4, algorithms.md
+"""The numba kernels of labels and extended runs of a Δ̄ matrix ([MBS09] §4, docs/method.md
 §7 steps 3–4; private, wrapped by :func:`mtanno.annotate.label.segments_from_labels`, which
 validates its input, and tested against a slow reference in ``tests/naive*.py``). Frames are
 0-based.
@@ -15,7 +15,7 @@ import numpy as np
 
 @numba.njit(cache=True)
 def _extend(dbar, s, t, lo, hi):
-    """Walk outward from [s, t] while Δ̄ does not rise (algorithms.md §7 step 4), inside
+    """Walk outward from [s, t] while Δ̄ does not rise (docs/method.md §7 step 4), inside
     frames lo … hi (where the row holds Δ̄: outside, it would be ∞ and stop the walk)."""
     r = s
     while r > lo and dbar[r - 1] <= dbar[r]:

@@ -134,7 +134,7 @@ def remove_cmd(index_dir, docs, quiet, wait):
 @user_errors(2)
 def info_cmd(index_dir, as_json, output):
     """Describe INDEX: documents, frames, and per group segments, lists and sizes."""
-    from mtanno.index.storage import index_info
+    from mtanno.index.build import index_info
 
     info = index_info(index_dir, output)
     if output is not None:

@@ -13,6 +13,7 @@ from mtanno.commands._common import (
     ARGUMENT_NAMES,
     EXIT_BAD_INPUT,
     EXIT_PER_CLASS,
+    inside_input_option,
     scheduler_option,
     show_progress,
     training_argument,
@@ -56,12 +57,13 @@ from mtanno.errors import MtannoError
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class with a template.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2)
 def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split, truth, method,
                         runs, seed, jobs, generations, population, columns, classes, quiet,
-                        wait, scheduler):
+                        inside_input, wait, scheduler):
     """Learn a keyframe query per class ([MBS09] §6): a few key poses, each over one feature
     group, with gap bounds, that the class's training clips share and other classes' clips
     lack. `mtanno annotate --keyframes` matches templates only where they occur.
@@ -70,7 +72,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     feature files, or CLASS/ folders); every class's clips are the negatives of the
     others. Writes OUTDIR/CLASS.json (schema mtanno.keyframes/1: keyframes, gap bounds,
     template length, window extension, and how they were learned, with P/R/F2 on the
-    training clips); see `mtanno keyframes show`.
+    training clips); see `mtanno keyframes show`. OUTDIR may not be, or lie inside, a
+    folder of training clips or --mt unless --inside-input says so.
 
     Example: mtanno learn-keyframes --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o kf/ --jobs 2
@@ -97,7 +100,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
 
     options = KeyframeOptions(method=method, classes=classes, runs=runs, seed=seed,
                               ga=GAParams(population=population, generations=generations),
-                              columns=columns, jobs=jobs, scheduler=scheduler)
+                              columns=columns, jobs=jobs, scheduler=scheduler,
+                              inside_input=inside_input)
     try:
         run = learn_keyframes_to(
             training, mt_dir, outdir, manifest=manifest, features_dir=features_dir, split=split,

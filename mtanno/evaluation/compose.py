@@ -8,7 +8,7 @@ starts where the previous clip's root ended. The root height is kept. Optional p
 repeat the last pose for a number of native frames and are left unlabelled.
 
 The ground truth lists every clip as a segment of 30 Hz frames: exactly the analysis frames
-(features.md §6) whose native frame belongs to the clip.
+(docs/method/features.md §6) whose native frame belongs to the clip.
 """
 
 from __future__ import annotations
@@ -167,6 +167,7 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
                       asf: str | os.PathLike | None = None, prefix: str | None = None,
                       shuffle: bool = True, inputs: Sequence[str | os.PathLike] = (),
                       progress: Callable[[int, int], None] | None = None,
+                      inside_input: bool = False,
                       ) -> tuple[list[Path], list[Segment]]:
     """Write ``n_docs`` composed AMC documents, their ASF and ``truth.csv`` into ``out_dir``.
 
@@ -175,8 +176,10 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     frames of stillness separate the clips. ``shuffle=False`` keeps the clips in the given
     order (the first ``clips_per_doc`` of them). Returns the document paths and the truth.
     Every clip is read and checked before anything is written; no output may be one of the
-    clips, the ASF or the further ``inputs`` (the manifest, say). ``progress(done, total)``
-    is called after each clip read and each document written.
+    clips, the ASF or the further ``inputs`` (the manifest, say), and ``out_dir`` may be, or
+    lie inside, a folder holding clips only with ``inside_input``: composed documents among
+    the clips would be read as clips by the next ``features`` run over it.
+    ``progress(done, total)`` is called after each clip read and each document written.
     """
     if not clips:
         raise MtannoError("no clips to compose")
@@ -198,7 +201,9 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     planned = [out_dir / f"{prefix}_doc{d:02d}.amc" for d in range(1, n_docs + 1)]
     planned += [out_dir / asf_path.name, out_dir / "truth.csv", out_dir / "truth.csv.meta.json",
                 out_dir / "compose.json"]
-    check_outputs(planned, [asf_path, *(c.path for c in clips), *inputs])
+    check_outputs(planned, [asf_path, *(c.path for c in clips), *inputs],
+                  folders={out_dir: []}, scanned={c.path.parent: () for c in clips},
+                  inside_input=inside_input)
     rng = random.Random(seed)
     loaded = {}
     step = _steps(progress, len(clips) + n_docs)
@@ -248,19 +253,33 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     return docs, truth
 
 
+@dataclass(frozen=True)
+class ComposeOptions:
+    """How :func:`compose_to` composes (the defaults are the command's; those of
+    :func:`compose_documents`): ``n_docs`` documents of ``clips_per_doc`` clips each
+    (default: all), drawn in an order seeded by ``seed`` (``shuffle=False``: the given
+    order), ``pause`` native frames of stillness between clips."""
+
+    n_docs: int = DEFAULT_DOCS
+    clips_per_doc: int | None = None
+    seed: int = 0
+    pause: int = 0
+    shuffle: bool = True
+
+
 def compose_to(manifest: str | os.PathLike, out_dir: str | os.PathLike, *,
                root: str | os.PathLike | None = None, actor: str | None = None,
-               split: str | None = None, n_docs: int = DEFAULT_DOCS,
-               clips_per_doc: int | None = None, seed: int = 0, pause: int = 0,
-               asf: str | os.PathLike | None = None, shuffle: bool = True,
+               split: str | None = None, asf: str | os.PathLike | None = None,
+               options: ComposeOptions | None = None, inside_input: bool = False,
                progress: Callable[[int, int], None] | None = None,
                ) -> tuple[list[Path], list[Segment]]:
     """The whole ``mtanno compose`` run: the clips of ``manifest`` (:func:`read_clips`:
-    ``root``, ``actor``, ``split``) composed into documents in ``out_dir``
-    (:func:`compose_documents`: ``n_docs``, ``clips_per_doc``, ``seed``, ``pause``, ``asf``,
-    ``shuffle``; the manifest is never an output). Returns the document paths and the
+    ``root``, ``actor``, ``split``) composed into documents in ``out_dir`` as ``options``
+    say (:class:`ComposeOptions`, :func:`compose_documents`: ``asf``, ``inside_input``,
+    ``progress``; the manifest is never an output). Returns the document paths and the
     truth."""
+    o = options or ComposeOptions()
     clips = read_clips(manifest, root=root, actor=actor, split=split)
-    return compose_documents(clips, out_dir, n_docs=n_docs, clips_per_doc=clips_per_doc,
-                             seed=seed, pause=pause, asf=asf, shuffle=shuffle,
-                             inputs=[manifest], progress=progress)
+    return compose_documents(clips, out_dir, n_docs=o.n_docs, clips_per_doc=o.clips_per_doc,
+                             seed=o.seed, pause=o.pause, asf=asf, shuffle=o.shuffle,
+                             inputs=[manifest], progress=progress, inside_input=inside_input)

@@ -1,4 +1,4 @@
-"""Relational index and queries ([MRC05] §4–6, algorithms.md §4): the Python API behind
+"""Relational index and queries ([MRC05] §4–6, docs/method.md §4): the Python API behind
 ``mtanno index`` and ``mtanno query``.
 
 * :func:`build_index`, :func:`open_index`, :func:`add_documents`, :func:`remove_documents`
@@ -13,7 +13,7 @@
   (JSON query files).
 * :mod:`~mtanno.index.ranking`: :func:`rank_by_template` (:func:`rank_by_template_file` with
   a template file), :func:`write_query_hits` (the hit table).
-* :func:`group_sizes` and :func:`~mtanno.index.storage.index_info` (``index info``).
+* :func:`group_sizes` and :func:`~mtanno.index.build.index_info` (``index info``).
 * :mod:`~mtanno.index.storage` — the index folder on disk: generations, segment files and
   ``manifest.json``, read and written atomically.
 * ``_kernels`` — numba kernels of segmentation and the inverted lists (private).

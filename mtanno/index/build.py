@@ -29,7 +29,10 @@ from mtanno.index.core import (
 )
 from mtanno.index.storage import (
     is_index_dir,
+    only_leftovers,
     read_index,
+    read_index_manifest,
+    remove_leftovers,
     write_index,
     write_lock,
 )
@@ -106,15 +109,16 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
 
 def _check_target(root: Path, paths: Sequence[Path], folders: Sequence[str | os.PathLike] = (),
                   ) -> None:
-    """An index is written into a new or empty folder, or over an index; never into a
-    folder holding anything else, nor where an input file is, nor inside a folder of
-    feature files it reads (``folders``: the next build would read the index's Parquet
-    files as feature files); and only where it can be written."""
+    """An index is written into a new or empty folder, or over an index, or over what a
+    first build killed before its manifest left (:func:`mtanno.index.storage.only_leftovers`:
+    rebuilt and cleaned); never into a folder holding anything else, nor where an input file
+    is, nor inside a folder of feature files it reads (``folders``: the next build would
+    read the index's Parquet files as feature files); and only where it can be written."""
     from mtanno.util.output import check_outputs
 
     if root.exists() and not root.is_dir():
         raise MtannoError("index path exists and is not a directory", path=str(root))
-    if root.is_dir() and any(p.name != ".lock" for p in root.iterdir()) and not is_index_dir(root):
+    if root.is_dir() and not is_index_dir(root) and not only_leftovers(root):
         raise MtannoError("directory is not empty and holds no index; choose a new directory",
                           path=str(root))
     check_outputs([], paths, folders={root: None}, scanned={f: (".parquet",) for f in folders})
@@ -178,7 +182,8 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
                 fresh.append(d)
             else:
                 report.unchanged.append(d.name)
-        if not fresh:
+        if not fresh:  # nothing to write: what a killed update left is removed all the same
+            remove_leftovers(root, read_index_manifest(root)["directory"])
             return index, report
         entries.update(_entries(fresh, gs))
         new = assemble(index.feature_set, index.feature_set_version, index.features, index.fps,
@@ -210,3 +215,67 @@ def remove_documents(index_dir: str | os.PathLike, names: Iterable[str], *,
                        gs, entries)
         report = UpdateReport(removed=sorted(set(wanted)))
         return write_index(new, root), report
+
+
+@dataclass
+class IndexInfo:
+    """What ``mtanno index info`` shows of an index: its folder (as given), generation,
+    the mtanno version that wrote it, the index itself, its bytes on disk and per group
+    :func:`group_sizes`; as JSON (:meth:`as_dict`) or as text (:meth:`lines`)."""
+
+    path: str
+    index: Index
+    version: str | None
+    total: int
+    rows: list[dict]
+
+    def as_dict(self) -> dict:
+        index = self.index
+        return {"index": self.path, "generation": index.generation,
+                "feature_set": index.feature_set, "documents": len(index.documents),
+                "frames": index.frames, "frame_rate": index.fps, "bytes": self.total,
+                "mtanno_version": self.version, "groups": self.rows}
+
+    def lines(self) -> list[str]:
+        index = self.index
+        out = [f"index          {self.path} (generation {index.generation}, "
+               f"mtanno {self.version})",
+               f"feature set    {index.feature_set} v{index.feature_set_version}, "
+               f"{len(index.features)} features",
+               f"documents      {len(index.documents)}",
+               f"frames         {index.frames} at {index.fps:g} Hz "
+               f"({index.frames / index.fps / 60:.1f} min)",
+               f"size           {self.total} bytes",
+               f"{'group':<8} {'f':>3} {'segments':>9} {'seg/frame':>9} {'lists':>6} "
+               f"{'of':>8} {'bytes':>9} {'B/segment':>9}"]
+        out += [f"{r['group']:<8} {r['features']:>3} {r['segments']:>9} "
+                f"{r['segments_per_frame']:>9.3f} {r['lists']:>6} {r['possible_lists']:>8} "
+                f"{r['bytes']:>9} {r['bytes_per_segment']:>9.2f}" for r in self.rows]
+        return out
+
+
+def index_info(index_dir: str | os.PathLike, output: str | os.PathLike | None = None,
+               ) -> IndexInfo:
+    """The run of ``mtanno index info``: the index of ``index_dir`` read and described
+    (:class:`IndexInfo`); with ``output`` its per-group table (:func:`group_sizes`) written
+    there (suffix picks the format, ``-`` is CSV on standard output) with its provenance,
+    the output checked against the index's files first."""
+    from mtanno.util.output import check_outputs
+    from mtanno.util.tables import output_files, provenance, table_format, write_table
+
+    if output is not None:
+        table_format(output)
+    import pyarrow as pa
+
+    from mtanno.index.storage import group_sizes, index_files
+
+    index = read_index(index_dir)
+    manifest = read_index_manifest(index.root)
+    info = IndexInfo(str(index_dir), index, manifest.get("mtanno_version"),
+                     sum(e["bytes"] for e in manifest["files"].values()), group_sizes(index))
+    if output is not None:
+        check_outputs(output_files(output), index_files(index.root))
+        write_table(output, pa.Table.from_pylist(info.rows), provenance=provenance(
+            inputs=[index.root / "manifest.json"], index=str(index_dir),
+            generation=index.generation, feature_set=index.feature_set))
+    return info

@@ -1,5 +1,5 @@
 """The whole ``mtanno learn-keyframes`` run, from file names to files ([MBS09] §6,
-algorithms.md §6): the training clips of every class read once (each class's clips are the
+docs/method.md §6): the training clips of every class read once (each class's clips are the
 negatives of the others), checked against the templates, and one keyframe query per class
 learned (:func:`mtanno.keyframes.learn.learn_keyframes`) and written to ``OUT/CLASS.json``
 under the output folder's lock. A class that fails fails alone.
@@ -36,7 +36,8 @@ class KeyframeOptions:
     parameters of one run (:class:`~mtanno.keyframes.ga.GAParams`); ``columns``: the
     template columns ``hard`` and ``heuristic`` take; ``jobs``, ``scheduler``: worker
     processes (or a dask.distributed address, ``local:N``) the GA runs are spread over —
-    the result does not depend on them."""
+    the result does not depend on them; ``inside_input``: the output folder may be, or lie
+    inside, a folder of training clips or of the templates."""
 
     method: str = "ga"
     classes: tuple[str, ...] = ()
@@ -46,6 +47,7 @@ class KeyframeOptions:
     columns: int = DEFAULT_COLUMNS
     jobs: int = 1
     scheduler: str | None = None
+    inside_input: bool = False
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -111,7 +113,12 @@ def learn_keyframes_to(training: Sequence[str | os.PathLike], mt_dir: str | os.P
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
     from mtanno.keyframes.store import save_keyframes
     from mtanno.templates.model import class_file, load_template_folder
-    from mtanno.templates.training import collect_sources, group_by_class, load_examples
+    from mtanno.templates.training import (
+        collect_sources,
+        group_by_class,
+        input_folders,
+        load_examples,
+    )
     from mtanno.util.locks import folder_lock
     from mtanno.util.output import check_outputs, output_folder
 
@@ -142,7 +149,9 @@ def learn_keyframes_to(training: Sequence[str | os.PathLike], mt_dir: str | os.P
     run.without_template = sorted(set(groups) - set(todo))
     check_outputs([out / f"{c}.json" for c in todo if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth,
-                   *(t.path for t in templates.values())],
+                   *(t.path for t in templates.values())], folders={out: []},
+                  scanned=input_folders(training, features_dir, also=[mt_dir]),
+                  inside_input=options.inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     ga = method == "ga"
     if on_start:

@@ -23,16 +23,18 @@ __all__ = ["LearnOptions", "LearnRun", "learn_to_folder"]
 
 @dataclass(frozen=True)
 class LearnOptions:
-    """What :func:`learn_to_folder` learns (the defaults are the command's): only
-    ``classes``, if given (each must have examples); hard templates (thesis §3.3) with
-    ``hard``, else soft ones ([MR06] §4.1); at most ``iter_max`` iterations, fewer when the
-    largest normalised alignment cost falls to ``thresh``
-    (:func:`mtanno.templates.learn.learn`)."""
+    """What :func:`learn_to_folder` learns and where it may write (the defaults are the
+    command's): only ``classes``, if given (each must have examples); hard templates (thesis
+    §3.3) with ``hard``, else soft ones ([MR06] §4.1); at most ``iter_max`` iterations,
+    fewer when the largest normalised alignment cost falls to ``thresh``
+    (:func:`mtanno.templates.learn.learn`); ``inside_input``: the output folder may be, or
+    lie inside, a folder of training files."""
 
     classes: tuple[str, ...] = ()
     hard: bool = False
     iter_max: int = ITER_MAX
     thresh: float = ITER_THRESH
+    inside_input: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "classes", tuple(self.classes))
@@ -72,13 +74,15 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     grouped by class, every output checked against the inputs, and one template per class
     learned as ``options`` say (:class:`LearnOptions`, :func:`learn_classes`) and written to
     ``outdir/CLASS.json`` under the folder's lock (:func:`mtanno.util.locks.folder_lock`;
-    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder). A class
+    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder; an
+    ``outdir`` that is or lies inside a folder of training files only with
+    ``options.inside_input``). A class
     that fails fails alone, as does a training folder that gives no example
     (:attr:`LearnRun.skipped`). ``on_start(n)`` is called
     before the first of ``n`` classes, ``progress(done, error)`` after each (``error``: why
     it failed, None when it was written)."""
     from mtanno.templates.model import class_file, save_template
-    from mtanno.templates.training import collect_sources, group_by_class
+    from mtanno.templates.training import collect_sources, group_by_class, input_folders
     from mtanno.util.locks import folder_lock
     from mtanno.util.output import check_outputs, output_folder
 
@@ -89,7 +93,9 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     groups = group_by_class(sources, classes=list(options.classes) or None)
     out = Path(outdir)
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth],
+                  [*(s.path for s in sources), manifest, truth], folders={out: []},
+                  scanned=input_folders(training, features_dir),
+                  inside_input=options.inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     if on_start:
