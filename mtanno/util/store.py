@@ -503,22 +503,12 @@ def _column(table: pa.Table, name: str, kind: str, spath: str, note: str = "",
     return col
 
 
-#: Suffixes of the motion files ``mtanno features`` reads (:data:`mtanno.io.MOCAP_SUFFIXES`).
-_MOTION_SUFFIXES = (".amc", ".bvh")
-#: How the first line of a BVH or an AMC file (after ``#`` comments) begins.
-_MOTION_HEADS = (b"HIERARCHY", b":FULLY-SPECIFIED", b":DEGREES", b":RADIANS")
-
-
 def _is_motion_file(path: str, data) -> bool:
     """True if a file that is no Parquet file is a motion file (by its suffix, or by its
-    first line: BVH's ``HIERARCHY``, AMC's ``:FULLY-SPECIFIED``/``:DEGREES``)."""
-    if Path(path).suffix.lower() in _MOTION_SUFFIXES:
-        return True
-    for line in bytes(memoryview(data)[:4096]).splitlines():
-        line = line.strip()
-        if line and not line.startswith(b"#"):
-            return line.upper().startswith(_MOTION_HEADS)
-    return False
+    first bytes: :func:`mtanno.io.formats.looks_like_motion`)."""
+    from mtanno.io.formats import looks_like_motion
+
+    return looks_like_motion(path, bytes(memoryview(data)[:4096]))
 
 
 def read_features(path: str | os.PathLike, *, sha256: bool = False,
