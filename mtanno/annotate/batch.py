@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mtanno.annotate.config import DEFAULT_DELTA, ClassConfig, check_tau, load_class_config
-from mtanno.annotate.label import ClassModel, annotate_document
+from mtanno.annotate.label import ClassModel, annotate_document, valid_windows
 from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
 
@@ -166,6 +166,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                       feature_set=layout.feature_set, packed=packed)
             except MtannoError as exc:
                 raise MtannoError(exc.message, path=ff.path) from None
+        # frames without evidence (a marker file's lost joints) are never labelled
+        windows = valid_windows(windows, [m.name for m in models], ff.valid)
         # a tuned confidence decides overlaps itself (the reference path's single label)
         by_confidence = single_label and confidence is not None and not config.resolve
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,

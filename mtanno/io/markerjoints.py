@@ -18,7 +18,13 @@ The steps, for one file (every step vectorised over frames):
    offset; the chord function of Plug-in Gait (Vicon Plug-in Gait reference guide;
    Davis et al. 1991): the joint centre J at distance d from a lateral marker M such that
    the angle at J between M and the next joint centre P is a right angle, in the plane of
-   M, P and a reference point R; and the hip-joint centre regression of Harrington et al.
+   M, P and a reference point R; the centre of a hinge joint (the elbow) from a marker on
+   its axis (the lateral epicondyle): the point J at distance d from the marker M whose
+   axis J → M is perpendicular to both limbs (to P − J and Q − J, P and Q the joint
+   centres on either side), of the two mirror solutions the one that bends the limb
+   forward (for the left side (P − J) × (Q − J) points from J to M, for the right side
+   away from it) — exact for any flexion, where the chord function's plane is only right
+   for a straight limb; and the hip-joint centre regression of Harrington et al.
    (2007, "Prediction of the hip joint centre in adults, children, and patients with
    cerebral palsy based on magnetic resonance imaging", J. Biomech. 40(3):595–602, the
    pelvis width and depth equations): in the pelvis frame (origin the mid-point of the
@@ -180,6 +186,29 @@ def _chord(M, P, R, d: float, toward: bool) -> np.ndarray:
     return M + d * (c * a + (s if toward else -s) * q)
 
 
+def _axis(M, P, Q, d: float, side: str) -> np.ndarray:
+    """The centre of a hinge joint from a marker on its axis (module docstring, step 4):
+    J = M − d·u with u·(P − M) = u·(Q − M) = −d and |u| = 1."""
+    a, b = P - M, Q - M
+    aa, bb, ab = _dot(a, a), _dot(b, b), _dot(a, b)
+    det = aa * bb - ab * ab
+    with np.errstate(invalid="ignore", divide="ignore"):
+        alpha = -d * (bb - ab) / det
+        beta = -d * (aa - ab) / det
+        u0 = alpha * a + beta * b
+        c = np.cross(a, b)
+        t = np.sqrt(np.clip(1.0 - _dot(u0, u0), 0.0, None)) / np.linalg.norm(c, axis=-1,
+                                                                             keepdims=True)
+    sign = 1.0 if side == "left" else -1.0
+    best = None
+    for s in (1.0, -1.0):
+        u = _unit(u0 + s * t * c)
+        J = M - d * u
+        bend = _dot(np.cross(P - J, Q - J), u) * sign
+        best = J if best is None else np.where(bend >= 0, J, best)
+    return best
+
+
 def _hip(LA, RA, LP, RP, pw: float, pd: float, side: str) -> np.ndarray:
     """Harrington et al. (2007) hip-joint centre (module docstring, step 4)."""
     origin = (LA + RA) / 2
@@ -209,6 +238,8 @@ def _evaluate(name: str, r: Recipe, P: dict[str, np.ndarray], sizes: dict[str, f
         return i[0] + d * _unit(i[2] - i[1])
     if r.kind == "chord":
         return _chord(i[0], i[1], i[2], d, r.side == "toward")
+    if r.kind == "axis":
+        return _axis(i[0], i[1], i[2], d, r.side)
     pw = _median_distance(i[0], i[1])
     pd = _median_distance((i[0] + i[1]) / 2, (i[2] + i[3]) / 2)
     return _hip(*i, pw, pd, r.side)

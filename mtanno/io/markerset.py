@@ -47,6 +47,7 @@ KINDS: dict[str, tuple[str, ...]] = {
     "extend": ("extend", "by"),
     "offset": ("offset", "toward", "by", "times"),
     "chord": ("chord", "hinge", "away", "toward", "by", "times"),
+    "axis": ("axis", "between", "side", "by", "times"),
     "hip": ("hip", "side", "asis", "psis"),
 }
 #: Hip-joint regressions ``hip = ...`` names.
@@ -57,10 +58,10 @@ HIP_METHODS = ("harrington2007",)
 class Recipe:
     """How one point is made: ``kind`` (a key of :data:`KINDS`), ``inputs`` (the names of
     the markers or points it reads, in the kind's order: mean → all; extend → A, B;
-    offset → A, from, to; chord → marker, hinge, reference; hip → left ASIS, right ASIS,
-    left PSIS, right PSIS) and its numbers: ``by`` (mm, a factor for extend, or a size
-    name in ``size``), ``times``, ``side`` ("away"/"toward" for chord, "left"/"right" for
-    hip)."""
+    offset → A, from, to; chord → marker, hinge, reference; axis → marker, proximal
+    joint, distal joint; hip → left ASIS, right ASIS, left PSIS, right PSIS) and its
+    numbers: ``by`` (mm, a factor for extend, or a size name in ``size``), ``times``,
+    ``side`` ("away"/"toward" for chord, "left"/"right" for axis and hip)."""
 
     kind: str
     inputs: tuple[str, ...]
@@ -83,6 +84,9 @@ class Recipe:
         if self.kind == "chord":
             return (f"{amount} medial of {i[0]} (chord with {i[1]}, {self.side} "
                     f"{i[2]})")
+        if self.kind == "axis":
+            return (f"{amount} medial of {i[0]} along the hinge axis of {i[1]} – joint – "
+                    f"{i[2]} ({self.side} side)")
         return (f"{self.side} hip centre, Harrington 2007 from ASIS {i[0]}, {i[1]} and "
                 f"PSIS {i[2]}, {i[3]}")
 
@@ -226,11 +230,11 @@ def _recipe(name: str, spec, path: str) -> Recipe:
                           f"{', '.join(stray)}", path=path)
     by, size = 0.0, None
     if "by" in spec:
-        if isinstance(spec["by"], str) and kind in ("offset", "chord"):
+        if isinstance(spec["by"], str) and kind in ("offset", "chord", "axis"):
             size = spec["by"]
         else:
             by = _number(spec["by"], f"{where} by", path)
-    elif kind in ("extend", "offset", "chord"):
+    elif kind in ("extend", "offset", "chord", "axis"):
         raise MtannoError(f"{where}: {kind} needs by = …", path=path)
     times = _number(spec.get("times", 1.0), f"{where} times", path)
     if kind == "mean":
@@ -258,6 +262,14 @@ def _recipe(name: str, spec, path: str) -> Recipe:
         names = (_names(spec["chord"], where, path)[0], _names(spec["hinge"], where, path)[0],
                  _names(spec[sides[0]], where, path)[0])
         return Recipe(kind, names, by=by, size=size, times=times, side=sides[0])
+    if kind == "axis":
+        pair = _names(spec.get("between", ()) or [""], f"{where} between", path)
+        if len(pair) != 2 or spec.get("side") not in ("left", "right"):
+            raise MtannoError(f"{where}: axis needs between = [PROXIMAL, DISTAL] (the joint "
+                              "centres on either side) and side = \"left\" or \"right\"",
+                              path=path)
+        return Recipe(kind, (_names(spec["axis"], where, path)[0], *pair), by=by, size=size,
+                      times=times, side=spec["side"])
     if spec["hip"] not in HIP_METHODS:
         raise MtannoError(f"{where}: unknown hip method {spec['hip']!r} (known: "
                           f"{', '.join(HIP_METHODS)})", path=path)

@@ -8,7 +8,10 @@ came from (source path and SHA-256, frame rates, frame mapping, skeleton map, fe
 mtanno version). Optionally (``mtanno features --poses``) a pose block follows: float32
 columns ``pose.<joint>.<x|y|z>`` holding the normalised canonical joint positions of every
 row (:mod:`mtanno.features.poses`, in leg lengths), described by the metadata's ``poses``
-entry; readers skip it unless asked (``read_features(..., poses=True)``).
+entry; readers skip it unless asked (``read_features(..., poses=True)``). The metadata's
+optional ``invalid`` entry lists the rows that carry no evidence (a marker file's frames
+whose joints could not be computed) as [first, last] pairs, 1-based inclusive; a file
+without it has every row valid (:attr:`FeatureFile.valid`).
 """
 
 from __future__ import annotations
@@ -92,6 +95,15 @@ class FeatureFile:
         """True if the file has a pose block (read or not; its metadata says so and its
         columns were checked when the file was read)."""
         return isinstance(self.meta.get("poses"), dict)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(frames,) bool: the rows that carry evidence (all, unless the metadata's
+        ``invalid`` runs say otherwise; checked when the file was read)."""
+        out = np.ones(self.X.shape[1], dtype=bool)
+        for a, b in self.meta.get("invalid") or ():
+            out[a - 1:b] = False
+        return out
 
     @property
     def document(self) -> str:
@@ -455,6 +467,7 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
             and all(isinstance(i, str) and i for i in ids) and len(set(ids)) == len(ids)):
         raise bad(f"feature_ids in the mtanno metadata must list one distinct id per feature "
                   f"column ({len(names)})")
+    _check_invalid(meta, rows, bad)
     groups = meta.get("groups") or {}
     columns = set(names)
     for g, members in groups.items():
@@ -478,6 +491,23 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
         if "groups" in meta and meta["groups"] != want:
             raise bad(f"groups in the mtanno metadata differ from those of {fs.name} "
                       f"({', '.join(want)})")
+
+
+def _check_invalid(meta: dict, rows: int, bad) -> None:
+    """``invalid`` (optional): [first, last] row pairs, 1-based inclusive, ascending and
+    disjoint, within the file's rows."""
+    if "invalid" not in meta:
+        return
+    runs = meta["invalid"]
+    if not (isinstance(runs, list) and all(
+            isinstance(r, list) and len(r) == 2 and all(_is_int(x) for x in r) for r in runs)):
+        raise bad("invalid in the mtanno metadata must be a list of [first, last] row pairs")
+    last = 0
+    for a, b in runs:
+        if not last < a <= b <= rows:
+            raise bad(f"invalid in the mtanno metadata: rows {a}-{b} are not ascending, "
+                      f"disjoint rows within 1..{rows}")
+        last = b
 
 
 def _rows(mask: np.ndarray) -> str:
