@@ -7,9 +7,9 @@ Y up, Z forward; right-side markers mirror the left ones), each marker fixed to 
 (it moves with that bone's global rotation), independent of the recipes that read them:
 
 * pelvis: the hip joint centres placed from the ASIS by Bell et al. (1990) — inter-ASIS
-  width PW = hip distance / 0.72 (at least 22 cm), the hips 0.30·PW below and 0.19·PW behind the ASIS
-  mid-point — the PSIS 0.7·PW behind the ASIS, 2 cm higher, 9 cm apart (the recipes use
-  Harrington et al. 2007, a different regression);
+  width PW = hip distance / 0.72, the hips 0.30·PW below and 0.19·PW behind the ASIS
+  mid-point, in the root's axes — the PSIS 0.7·PW behind the ASIS, 9 cm apart (the
+  recipes use Harrington et al. 2007, a different regression);
 * knee and ankle markers lateral of the joint centre on the flexion axis (5.5 and 4.2 cm:
   half a joint width plus the marker radius), thigh and shank markers laterally on the
   lower third of the segment (7 and 5 cm out);
@@ -22,9 +22,10 @@ Y up, Z forward; right-side markers mirror the left ones), each marker fixed to 
 * head markers on a band at mid-head, 8.5 cm in front and 9 cm behind, 5 cm to each side;
 * acromion markers 4.5 cm above the shoulder joint centre, elbow markers 3.8 cm out on
   the elbow's flexion axis on the lateral side (the side (shoulder − elbow) × (wrist −
-  elbow) points to on the left arm, in the motion's own flexed frames), wrist-bar markers 7 cm either side of the wrist (1 cm on the
-  back of the wrist), hand markers on the back of the hand at the knuckles, upper-arm and
-  forearm markers 4–4.5 cm off the bone.
+  elbow) points to on the left arm, in the motion's own flexed frames), wrist-bar markers
+  7 cm either side of the wrist (1 cm on the back of the wrist), hand markers on the back
+  of the hand just short of the knuckles (radial side), upper-arm and forearm markers
+  4–4.5 cm off the bone.
 """
 
 from __future__ import annotations
@@ -87,10 +88,10 @@ def _specs(rig: Rig) -> dict[str, tuple[str, float, np.ndarray]]:
     out: dict[str, tuple[str, float, np.ndarray]] = {}
     # pelvis, on the root: Bell et al. (1990) placement from the hip joint centres
     hl, hr = off[ix("lhipjoint")], off[ix("rhipjoint")]
-    pw = max(np.linalg.norm(hl - hr) / 0.72, 22.0)  # (some ASF hips are closer than any adult's)
+    pw = np.linalg.norm(hl - hr) / 0.72
     mid_asis = (hl + hr) / 2 + 0.30 * pw * Y + 0.19 * pw * Z
     out["LFWT"] = ("root", 0.0, mid_asis + pw / 2 * X)
-    out["LBWT"] = ("root", 0.0, mid_asis - 0.7 * pw * Z + 2 * Y + 4.5 * X)
+    out["LBWT"] = ("root", 0.0, mid_asis - 0.7 * pw * Z + 4.5 * X)
     # legs: lateral on the flexion axis of knee and ankle (the femur's axis rotation)
     femur = _unit(off[ix("lfemur")])
     lat = _perp(rig.pre[ix("ltibia")] @ X, femur)
