@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mtanno.annotate.config import DEFAULT_DELTA, ClassConfig, check_tau, load_class_config
-from mtanno.annotate.label import ClassModel, annotate_document, valid_windows
+from mtanno.annotate.label import ClassModel, annotate_document, valid_rows, valid_windows
 from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
 
@@ -180,6 +180,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                   models=models, config=config, confidence=confidence)
         except MtannoError as exc:
             raise MtannoError(exc.message, path=exc.path or ff.path) from None
+        rows = valid_rows(rows, ff.valid)
         if by_confidence:
             rows = single_label_by_confidence(rows)
         least = min_confidence if min_confidence is not None else (

@@ -23,7 +23,7 @@ from mtanno.errors import MtannoError
 
 __all__ = ["ClassModel", "Windows", "annotate_document", "class_deltas", "evidence_covered",
            "label_document", "label_frames", "merged_spans", "segments_from_labels",
-           "single_label_segments", "valid_windows"]
+           "single_label_segments", "valid_rows", "valid_windows"]
 
 
 #: Candidate windows per class (keyframe preselection): a list of (first, last) frames,
@@ -248,6 +248,25 @@ def valid_windows(windows: Windows | None, names: Sequence[str], valid: np.ndarr
             else:
                 j += 1
         out[name] = (np.array(firsts, np.int64), np.array(lasts, np.int64))
+    return out
+
+
+def valid_rows(rows: Sequence[Annotation], valid: np.ndarray) -> list[Annotation]:
+    """``rows`` cut to the valid frames: a row keeps its valid runs (the boundary
+    refinement and run extension may reach a few frames past a window). With
+    :func:`valid_windows` this makes sure no label covers an invalid frame."""
+    valid = np.asarray(valid, dtype=bool)
+    if valid.all():
+        return list(rows)
+    out = []
+    for r in rows:
+        part = valid[r.start:r.end + 1]
+        if part.all():
+            out.append(r)
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[False, part, False].astype(np.int8)))
+        out += [r._replace(start=r.start + int(a), end=r.start + int(b) - 1)
+                for a, b in zip(edges[::2], edges[1::2])]
     return out
 
 

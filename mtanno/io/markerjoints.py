@@ -137,11 +137,9 @@ def fill_gaps(points: dict[str, np.ndarray], segments: dict[str, tuple[str, ...]
                 continue
             ends = [f for f in (a - 1, b + 1) if 0 <= f < n]
             need = np.r_[ends, np.arange(a, b + 1)]
-            for seg in (s for s in segments.values() if m in s):
-                partners = [q for q in seg if q != m and q in orig and ok[q][need].all()]
-                if partners:
-                    break
-            else:
+            partners = max(([q for q in seg if q != m and q in orig and ok[q][need].all()]
+                            for seg in segments.values() if m in seg), key=len, default=[])
+            if not partners:
                 continue
             _fill_run(v, [orig[q] for q in partners[:3]], a, b, ends)
             filled[m] = filled.get(m, 0) + b - a + 1
