@@ -24,13 +24,20 @@ def write_c3d(path: str | Path, labels, points: np.ndarray, *, fps: float = 120.
         p[:, :3] = np.where(missing[f][:, None], 0.0, points[f])
         p[missing[f], 3] = -1.0
         frames.append((p, np.empty((0, 0), np.float32)))
-    w.add_frames(frames)
+    w._frames.extend(frames)  # (add_frames refuses frames of no markers)
     # labels packed by bytes (the package pads by characters, which breaks labels in
     # other scripts): each label's UTF-8 bytes padded with blanks to the longest
-    raw = [str(x).encode("utf-8") for x in labels]
-    width = max([len(b) for b in raw] + [1])
-    text = "".join(x + " " * (width - len(b)) for x, b in zip(map(str, labels), raw))
-    w.point_group.add_str("LABELS", "Point labels.", text, width, len(raw))
+    # (at most 255 labels a parameter: LABELS, LABELS2, LABELS3, … as the standard has it)
+    labels = [str(x) for x in labels]
+    for k in range(0, max(len(labels), 1), 255):
+        chunk = labels[k:k + 255]
+        raw = [x.encode("utf-8") for x in chunk]
+        width = max([len(b) for b in raw] + [1])
+        text = "".join(x + " " * (width - len(b)) for x, b in zip(chunk, raw))
+        name = "LABELS" if k == 0 else f"LABELS{k // 255 + 1}"
+        w.point_group.add_str(name, "Point labels.", text, width, len(raw))
+    w.point_group.add_str("DESCRIPTIONS", "", " ", 1, 1)  # (one per marker would not fit
+    # the parameter section of a file of tens of thousands of markers)
     if y_screen is not None:
         w.point_group.add_str("Y_SCREEN", "", y_screen, len(y_screen))
     path = Path(path)

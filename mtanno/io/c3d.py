@@ -40,6 +40,9 @@ UNITS_MM = {"mm": 1.0, "millimeter": 1.0, "millimetre": 1.0, "cm": 10.0, "dm": 1
             "m": 1000.0, "meter": 1000.0, "metre": 1000.0, "in": 25.4, "inch": 25.4}
 #: A marker farther than this from the origin (mm, 1 km) is taken as missing.
 MAX_MM = 1e6
+#: Most markers a file may have: the c3d package counts a frame's bytes in 16 bits (4 words
+#: of 4 bytes per marker), which overflows beyond this many (real captures have < 300).
+MAX_MARKERS = 4095
 #: Most values (frames × markers × 3) one file may give: 2 GB of float64.
 MAX_VALUES = 250_000_000
 
@@ -147,6 +150,10 @@ def read_c3d(path: str | Path, *, sha256: bool = False) -> MarkerData:
     if not (np.isfinite(fps) and fps_in_range(fps)):
         raise MtannoError(f"frame rate {fps:g} (POINT:RATE) is out of range", path=spath)
     n_frames = last - first + 1
+    if n_markers > MAX_MARKERS:
+        raise MtannoError(f"the file declares {n_markers} markers; mtanno reads C3D files of "
+                          f"at most {MAX_MARKERS} (the c3d package's frame arithmetic is 16-bit "
+                          f"beyond that)", path=spath)
     if n_markers < 0 or n_frames < 0 or analog < 0:
         raise MtannoError(f"the file declares {n_markers} markers and {n_frames} frames",
                           path=spath)
@@ -205,6 +212,9 @@ def c3d_motion(path: Path, options: ReadOptions) -> Motion:
     from mtanno.io.markerset import canonical_rig, choose_set
 
     md = read_c3d(path, sha256=options.sha256)
+    if not md.labels:
+        raise MtannoError("the file holds no markers (POINT:USED is 0): no joints to compute",
+                          path=str(path))
     up = options.up or md.up
     mset = choose_set(md.labels, options.markers, source=str(path))
     joints, heading, valid, report = marker_joints(mset, md.labels, md.points, md.fps,
