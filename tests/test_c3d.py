@@ -349,3 +349,17 @@ def test_annotation_never_labels_an_invalid_stretch(world, tmp_path):
         assert masked, "the rest of the document is still labelled"
         for r in masked:
             assert r.end < gap[0] or r.start > gap[1], (r, gap)
+
+
+def test_the_report_players_read_c3d_through_the_format_table(tmp_path, synth):
+    from mtanno.evaluation.player import load_motion_poses, motion_files
+
+    f = make(tmp_path, synth)
+    files = motion_files([tmp_path])
+    assert files == {"take": f}
+    poses = load_motion_poses(files, ["take"])["take"]
+    ff_out = tmp_path / "feats"
+    assert cli("features", f, "-o", ff_out, "--poses").exit_code == 0
+    block = read_features(ff_out / "take.parquet", poses=True).poses
+    assert poses.shape == block.shape == (60, 22, 3)
+    assert np.allclose(poses, block, atol=1e-5)
