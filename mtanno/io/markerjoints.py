@@ -124,14 +124,16 @@ def fill_gaps(points: dict[str, np.ndarray], segments: dict[str, tuple[str, ...]
     """Fill, in place, every run of missing (NaN) frames of at most ``max_frames`` frames
     of each marker of ``points`` (name → frames × 3) from a segment it belongs to (module
     docstring, step 2); partners are markers present (in the input, not filled) over the
-    run and at its ends. Returns marker → frames filled."""
-    orig = {m: v.copy() for m, v in points.items()}
+    run and at its ends (their present frames are never changed, so they are read in
+    place). A marker that is filled is copied first. Returns marker → frames filled."""
+    orig = dict(points)
     ok = {m: np.isfinite(v).all(axis=1) for m, v in orig.items()}
     n = next(iter(orig.values())).shape[0] if orig else 0
     filled: dict[str, int] = {}
-    for m, v in points.items():
+    for m in list(points):
         if ok[m].all() or not ok[m].any():
             continue  # nothing to fill, or nothing to fill from
+        v = points[m] = points[m].copy()
         for a, b in missing_runs(~ok[m]):
             if b - a + 1 > max_frames:
                 continue
@@ -288,11 +290,13 @@ def marker_joints(mset: MarkerSet, labels, points: np.ndarray, fps: float, *,
     if n == 0:
         raise MtannoError("the file has no frames", path=source)
     nan = np.full((n, 3), np.nan)
-    P: dict[str, np.ndarray] = {m: (points[:, columns[m]].copy() if m in columns else nan)
-                                for m in mset.markers}
-    report.filled = fill_gaps(P, mset.segments, int(round(mset.max_gap * fps)))
-    report.lost = {m: int((~np.isfinite(v).all(axis=1)).sum()) for m, v in P.items()
-                   if not np.isfinite(v).all()}
+    P: dict[str, np.ndarray] = {m: (points[:, columns[m]] if m in columns else nan)
+                                for m in mset.markers}  # (views: filling copies first)
+    if len(columns) < len(mset.markers) or not np.isfinite(points[:, list(columns.values())]
+                                                           ).all():
+        report.filled = fill_gaps(P, mset.segments, int(round(mset.max_gap * fps)))
+        report.lost = {m: int((~np.isfinite(v).all(axis=1)).sum()) for m, v in P.items()
+                       if not np.isfinite(v).all()}
     sizes = {}
     for name, s in mset.sizes.items():
         A = np.mean([P[x] for x in s.a], axis=0)
