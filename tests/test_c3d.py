@@ -12,13 +12,13 @@ from world import cli
 from mtanno import synthetic
 from mtanno.errors import MtannoError
 from mtanno.features.extract import analysis_validity, invalid_runs
+from mtanno.features.store import read_features, write_features
 from mtanno.io import canonical_positions, read_channels, read_motion
 from mtanno.io.c3d import read_c3d
 from mtanno.io.formats import FORMATS, expected, format_of, looks_like_motion
 from mtanno.io.markerjoints import fill_gaps, missing_runs
 from mtanno.io.markerset import choose_set, load_set, marker_name
 from mtanno.io.rigs import CANONICAL_JOINTS
-from mtanno.util.store import read_features, write_features
 
 J = {j: k for k, j in enumerate(CANONICAL_JOINTS)}
 

@@ -12,10 +12,10 @@ from virtual_markers import place_markers
 from world import cli
 
 from mtanno.features.extract import extract_file
+from mtanno.features.store import read_features
 from mtanno.io import canonical_positions, read_channels, read_motion
 from mtanno.io.c3d import read_c3d
 from mtanno.io.markerset import marker_name
-from mtanno.util.store import read_features
 
 pytestmark = pytest.mark.realdata
 C3D = DATA / "c3d"

@@ -108,7 +108,10 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
 
     def progress(outcome):
         bar.update(1)
-        if outcome.message and (outcome.status == "failed" or not quiet):
+        if outcome.status == "failed":
+            why = outcome.error.for_command() if outcome.error else outcome.message
+            bar.write(f"mtanno: {why}", file=sys.stderr)
+        elif outcome.message and not quiet:  # a note: the invalid share of a written file
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
     try:
@@ -149,7 +152,7 @@ def info_cmd(file, asf, skeleton, markers, up, list_features):
     if list_features and path.suffix.lower() != ".parquet":
         raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
-        from mtanno.util.store import read_features
+        from mtanno.features.store import read_features
 
         ff = read_features(path)
         if list_features:

@@ -19,11 +19,12 @@ from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.features.compute import FeatureSet, compute_features, get_feature_set
 from mtanno.features.hysteresis import ANALYSIS_FPS
+from mtanno.features.store import write_features
 from mtanno.features.table import FEATURE_SET
 from mtanno.io import canonical_positions, find_asf, read_motion
 from mtanno.io.formats import expected, format_of, is_motion_path
 from mtanno.io.skeleton import Motion, to_y_up
-from mtanno.util.store import sha256_file, write_features
+from mtanno.util.tables import sha256_file
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,
@@ -223,6 +224,17 @@ class Outcome:
     message: str = ""
     frames: int = 0
     invalid: int = 0
+    #: the failure as raised, when it was an :class:`MtannoError` (a command shows its
+    #: options as flags: :meth:`MtannoError.for_command`)
+    error: MtannoError | None = None
+
+    @classmethod
+    def of(cls, job: Job, status: str, message: str | MtannoError, frames: int,
+           invalid: int = 0) -> Outcome:
+        """The outcome of a job run by :func:`_extract_one`."""
+        if isinstance(message, MtannoError):
+            return cls(job, status, str(message), frames, invalid, message)
+        return cls(job, status, message, frames, invalid)
 
 
 @dataclass
@@ -356,7 +368,7 @@ def _stored_meta(path: Path) -> dict | None:
     import pyarrow.parquet as pq
 
     from mtanno.errors import parse_json
-    from mtanno.util.store import META_KEY
+    from mtanno.features.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
@@ -438,8 +450,8 @@ def _guessed_digest(src: Path) -> str:
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
              up: str | None = None, poses: bool = False, markers: str | None = None,
              ) -> Outcome:
-    return Outcome(job, *_extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
-                                      up, poses, markers))
+    return Outcome.of(job, *_extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
+                                         up, poses, markers))
 
 
 def _invalid_note(src: Path, meta: dict, frames: int) -> tuple[str, int]:
@@ -457,16 +469,17 @@ def _invalid_note(src: Path, meta: dict, frames: int) -> tuple[str, int]:
 
 def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
                  feature_set: str, up: str | None, poses: bool = False,
-                 markers: str | None = None) -> tuple[str, str, int, int]:
+                 markers: str | None = None) -> tuple[str, str | MtannoError, int, int]:
     """One document: (status, message, analysis frames, invalid frames); every error is
-    caught and reported for this file alone, so the batch goes on."""
+    caught and reported for this file alone, so the batch goes on (an
+    :class:`MtannoError` as it was raised)."""
     try:
         X, meta = extract_file(src, dst, asf=asf, skeleton=skeleton, feature_set=feature_set,
                                up=up, poses=poses, markers=markers)
         note, invalid = _invalid_note(src, meta, int(X.shape[1]))
         return "written", note, int(X.shape[1]), invalid
     except MtannoError as exc:
-        return "failed", str(exc), 0, 0
+        return "failed", exc, 0, 0
     except OSError as exc:  # a file system error not caught where it happened
         return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0, 0
     except Exception as exc:  # a bug, reported per file so the batch goes on
@@ -560,7 +573,7 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
                   markers) for a, b in chunks]
         for (a, b), results in zip(chunks, pool.map(_run_chunk, tasks)):
             for j, result in zip(todo[a:b], results):
-                record(Outcome(j, *result))
+                record(Outcome.of(j, *result))
     return summary
 
 
