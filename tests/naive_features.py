@@ -251,7 +251,8 @@ def _interval(V, spec, unit):
 def features_numpy(joints, heading, fps, features=None):
     """(features × frames) uint8 features computed with the numpy measures above (default
     table: the 40 annotation features)."""
-    from mtanno.features import FEATURES, hysteresis
+    from mtanno.features import FEATURES
+    from mtanno.features.hysteresis import hysteresis
     from mtanno.features.measures import body_units
 
     features = FEATURES if features is None else features

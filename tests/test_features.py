@@ -19,10 +19,9 @@ from mtanno.features import (
     analysis_frames,
     compute_features_native,
     feature_index,
-    hysteresis,
     mirror_permutation,
 )
-from mtanno.features.hysteresis import _hysteresis_kernel
+from mtanno.features.hysteresis import _hysteresis_kernel, hysteresis
 from mtanno.features.measures import window_samples
 from mtanno.io import canonical_positions, read_motion
 

@@ -12,12 +12,7 @@ from naive_features import features_numpy
 from mtanno import synthetic
 from mtanno.cli import main
 from mtanno.errors import MtannoError
-from mtanno.features import (
-    FEATURE_SETS,
-    compute_features,
-    compute_features_native,
-    get_feature_set,
-)
+from mtanno.features import FEATURE_SETS, compute_features, compute_features_native, get_feature_set
 from mtanno.features.store import read_features
 from mtanno.features.table31 import FEATURES31, FEATURES31_REFERENCE, Feature31
 from mtanno.io import canonical_positions, read_motion

@@ -12,10 +12,11 @@ parser, private), ``_limits`` (the bounds on every number a header declares, pri
 :mod:`~mtanno.io.skeleton` (rig graph and forward kinematics, vectorised over frames),
 :mod:`~mtanno.io.rigs` (skeleton map files: rig nodes → the 22 canonical joints),
 :mod:`~mtanno.io.guess` (skeleton maps made from joint names and the tree, for BVH rigs no
-map file fits), :mod:`~mtanno.io.c3d` (C3D marker files, read with the ``c3d`` package),
-:mod:`~mtanno.io.markerset` (marker sets: which markers make which joint; recognition,
-``markers guess``) and :mod:`~mtanno.io.markerjoints` (markers → joints: gap filling, the
-joint recipes, per-frame validity).
+map file fits), :mod:`~mtanno.io.topology` (made from the hierarchy and pose alone, where
+the names say nothing), :mod:`~mtanno.io.c3d` (C3D marker files, read with the ``c3d``
+package), :mod:`~mtanno.io.markerset` (marker sets: which markers make which joint;
+recognition, ``markers guess``) and :mod:`~mtanno.io.markerjoints` (markers → joints: gap
+filling, the joint recipes, per-frame validity).
 """
 
 from __future__ import annotations

@@ -117,7 +117,8 @@ def bvh_channels(path: Path, *, asf: str | os.PathLike | None = None,
 def rig_motion(path: Path, options: ReadOptions) -> Motion:
     """A rig format's motion (:data:`mtanno.io.formats.FORMATS`): channels, the skeleton
     map (``options.skeleton``, else the first map file that fits, else for a BVH rig one
-    made from its joint names and tree: :func:`mtanno.io.guess.choose_map`), forward
+    made from its joint names and tree, or from its hierarchy and pose:
+    :func:`mtanno.io.guess.choose_map`), forward
     kinematics, and the result turned so that Y is up (``options.up``, default "y")."""
     rig, ch = format_of(path).load("channels")(path, asf=options.asf, sha256=options.sha256)
     smap = choose_map(rig, options.skeleton, ch)

@@ -330,6 +330,45 @@ def test_skeleton_map_bad_heading(tmp_path, heading):
     assert "heading" in msg
 
 
+# --------------------------------------------------------------------- rigs that are not humanoid
+
+@pytest.mark.parametrize("kind", ["quadruped", "chain", "hand", "legs-only", "short-spine"])
+def test_rig_that_is_not_humanoid(tmp_path, kind):
+    """A BVH rig whose names say nothing and whose hierarchy is not a humanoid's (issue 31,
+    finding 5): one line naming the file and saying why, in a batch that goes on, in
+    ``info`` and in ``skeleton guess`` (which writes nothing)."""
+    from test_rig_topology import NOT_HUMANOID, not_humanoid_file
+
+    src, _ = batch(tmp_path, "placeholder.bvh", "")
+    (src / "placeholder.bvh").unlink()
+    bad = not_humanoid_file(src, kind)
+    why = NOT_HUMANOID[kind][1]
+    for msg in (check_batch(tmp_path, src, bad), check_info(bad)):
+        assert f"mapped automatically: from its hierarchy, {why}; the joint names " in msg
+        assert msg.endswith("; pass --skeleton MAP.toml (docs/formats.md)")
+    out = tmp_path / "map.toml"
+    msg = assert_one_line(no_runtime_warning("skeleton", "guess", bad, "-o", out), bad,
+                          codes=(2,))
+    assert why in msg and not out.exists() and temporaries(tmp_path) == []
+
+
+def test_bvh_with_two_roots(tmp_path):
+    """Two skeletons in one file (two ROOT blocks): one line at the second ROOT."""
+    from test_rig_topology import humanoid, write_bvh
+
+    one = write_bvh(tmp_path / "one.bvh", humanoid()).read_text()
+    head, motion = one.split("MOTION\n")
+    rows = motion.splitlines()
+    text = (head + head.replace("HIERARCHY\n", "") + "MOTION\n" + "\n".join(
+        rows[:2] + [f"{r} {r}" for r in rows[2:]]) + "\n")
+    src, bad = batch(tmp_path, "two.bvh", text)
+    line = head.count("\n") + 1
+    for msg in (check_batch(tmp_path, src, bad, line=line), check_info(bad, line=line)):
+        assert "a second ROOT: only one skeleton per file is supported" in msg
+    msg = assert_one_line(no_runtime_warning("skeleton", "guess", bad), bad, codes=(2,))
+    assert "a second ROOT" in msg
+
+
 # --------------------------------------------------------------------- messages name the file
 
 def test_motion_without_frames_is_named_in_a_batch(tmp_path):
