@@ -130,8 +130,11 @@ def read_c3d(path: str | Path, *, sha256: bool = False) -> MarkerData:
     if len(data) < 512 or data[1] != 0x50:
         raise MtannoError("not a C3D file (its header does not begin with the C3D "
                           "identifier 0x50)", path=spath)
-    import c3d
-
+    try:
+        import c3d
+    except ImportError:  # (a dependency; missing only from an install without its deps)
+        raise MtannoError("reading C3D files needs the c3d package: pip install c3d",
+                          path=spath) from None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
