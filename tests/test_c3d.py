@@ -363,3 +363,13 @@ def test_the_report_players_read_c3d_through_the_format_table(tmp_path, synth):
     block = read_features(ff_out / "take.parquet", poses=True).poses
     assert poses.shape == block.shape == (60, 22, 3)
     assert np.allclose(poses, block, atol=1e-5)
+
+
+def test_without_the_c3d_package_a_c3d_file_says_how_to_install_it(tmp_path, synth,
+                                                                     monkeypatch):
+    import sys
+
+    f = make(tmp_path, synth)
+    monkeypatch.setitem(sys.modules, "c3d", None)  # import c3d raises ImportError
+    with pytest.raises(MtannoError, match="needs the c3d package: pip install c3d"):
+        read_c3d(f)
