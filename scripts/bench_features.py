@@ -13,7 +13,7 @@ also timed on the original files.
 Every figure is the median over ``--repeats`` passes after one warm-up pass (which loads
 the numba kernels from their cache); the warm-up pass is reported as "cold". Run:
 
-    .venv/bin/python scripts/bench_features.py [--repeats 5] [--quick] [--whole-only]
+    .venv/bin/python scripts/bench_features.py [--repeats 5] [--quick] [--whole-only] [--c3d]
 """
 
 from __future__ import annotations
@@ -272,6 +272,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="a few files only (smoke run)")
+    ap.add_argument("--c3d", action="store_true",
+                    help="the AMC and C3D paths only (all HDM05 clips, the real takes)")
     ap.add_argument("--whole-only", action="store_true",
                     help="only the whole-command figure (issue 12)")
     ap.add_argument("--tree", type=Path, help="the tripled HDM05 tree (whole command)")
@@ -298,6 +300,13 @@ def main() -> int:
                         args.repeats, one_pass_c3d)
     takes = sorted((SHARED_DATA / "c3d").glob("*.c3d"))
     real = bench_mtanno("mtanno real C3D takes 120 Hz", takes, args.repeats, one_pass_c3d)
+    c3d_line = (f"C3D read + markers → joints + features: {vc3d['total']:,.0f} native frames/s "
+                f"on the HDM05 clips as C3D = {vc3d['total'] / asf['total']:.0%} of the AMC path "
+                f"(goal >= 50 %); real takes {real['total']:,.0f} frames/s = "
+                f"{real['total'] / asf['total']:.0%}")
+    if args.c3d:
+        print(f"\n{c3d_line}")
+        return 0
     bvh = bench_mtanno("mtanno Bandai set1 BVH 30 Hz", set1, args.repeats)
     rewritten = pybvh_files(set1)
     same = bench_mtanno("mtanno Bandai set1, pybvh rewrite", rewritten, args.repeats)
@@ -305,9 +314,7 @@ def main() -> int:
     print()
     print(f"ASF/AMC parse + kinematics + features: {asf['total']:,.0f} native frames/s per core "
           f"(target >= 100,000; the original system: ~2,000)")
-    print(f"C3D read + markers → joints + features: {vc3d['total']:,.0f} native frames/s on the "
-          f"HDM05 clips as C3D = {vc3d['total'] / asf['total']:.0%} of the AMC path (goal >= 50 %); "
-          f"real takes {real['total']:,.0f} frames/s = {real['total'] / asf['total']:.0%}")
+    print(c3d_line)
     print(f"BVH read + positions, same files: mtanno {same['parse_fk']:,.0f} vs pybvh "
           f"{peer:,.0f} frames/s = {same['parse_fk'] / peer:.1f}x (target >= 2x); "
           f"mtanno on the original 6-channel files: {bvh['parse_fk']:,.0f} frames/s")
