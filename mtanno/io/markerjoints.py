@@ -303,7 +303,7 @@ def marker_joints(mset: MarkerSet, labels, points: np.ndarray, fps: float, *,
     report = MarkerReport(set_name=mset.name, set_how=mset.how,
                           markers={m: labels[k] for m, k in columns.items()},
                           ignored=[x for x in labels if x not in used_labels],
-                          subject=subject, feeds=mset.feeds(), n_frames=n)
+                          subject=subject, feeds=mset.feeds, n_frames=n)
     if n == 0:
         raise MtannoError("the file has no frames", path=source)
     nan = np.full((n, 3), np.nan)

@@ -157,6 +157,7 @@ class MarkerSet:
         """Canonical joint → its recipe as text."""
         return {j: self.points[j].text() for j in CANONICAL_JOINTS}
 
+    @functools.cached_property
     def feeds(self) -> dict[str, list[str]]:
         """Marker → the canonical joints whose position it enters (directly or through
         other points), in canonical order."""
@@ -432,27 +433,47 @@ def choose_set(labels, override: str | os.PathLike | None = None, *,
     """The marker set for a file with these labels: ``override`` (a file or a built-in
     name), else the first built-in set whose ``detect`` markers the file all has (subject
     prefixes ignored). When none fits, one :class:`MtannoError` names the joints that
-    cannot be computed and how to give a set."""
-    have = _present(labels)
-    if override is not None:
-        m = _find(override, source)
-        return replace(m, how=f"given ({m.path})")
+    cannot be computed and how to give a set. (A batch asks once per file: the answer for
+    the same labels is remembered, a given set file per modification time.)"""
+    try:
+        if override is not None:
+            try:
+                stamp = os.stat(override).st_mtime_ns
+            except OSError:
+                stamp = None  # a built-in name (or a missing file: _find says so)
+            return _given(str(override), stamp)
+        return _recognised(tuple(sorted(_present(labels))))
+    except MtannoError as exc:
+        if exc.path is not None or source is None:
+            raise
+        raise MtannoError(exc.template, path=source, options=exc.options) from None
+
+
+@functools.lru_cache(maxsize=16)
+def _given(override: str, stamp: int | None) -> MarkerSet:
+    m = _find(override)
+    return replace(m, how=f"given ({m.path})")
+
+
+@functools.lru_cache(maxsize=64)
+def _recognised(names: tuple[str, ...]) -> MarkerSet:
+    have = set(names)
     sets = available_sets()
     for m in sets:
         if all(d in have for d in m.detect):
             return replace(m, how=f"recognised: the file has all {len(m.detect)} markers it "
                                   f"detects by")
     best = max(sets, key=lambda m: sum(m.label_of(x) in have for x in m.markers))
+    shown = ", ".join(sorted(have)[:6]) + (" …" if len(have) > 6 else "") if have else "none"
     lacking = [x for x in best.markers if best.label_of(x) not in have]
     joints = [j for j in CANONICAL_JOINTS
               if any(best.label_of(x) in lacking for x in best._markers_of(j))]
-    shown = ", ".join(sorted(have)[:6]) + (" …" if len(have) > 6 else "") if have else "none"
     raise MtannoError(f"no marker set fits these markers (labels: {shown}); joints "
                       f"{', '.join(joints)} cannot be computed (the nearest set, "
                       f"'{best.name}', lacks {', '.join(lacking[:8])}"
                       f"{' …' if len(lacking) > 8 else ''}); write a map with `mtanno markers "
                       f"guess FILE.c3d -o MAP.toml`, edit it and pass {{markers}} MAP.toml",
-                      path=source, options=("markers",))
+                      options=("markers",))
 
 
 #: Other names of the same anatomical markers (Plug-in Gait, Vicon, CMU), for the guess.
