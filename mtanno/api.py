@@ -37,7 +37,7 @@ def read_motion(path: PathLike, *, asf: PathLike | None = None,
                 skeleton: PathLike | None = None, markers: PathLike | None = None,
                 up: str | None = None) -> Motion:
     """A motion file (ASF/AMC, BVH or C3D) with world positions of every node, Y up
-    (:func:`mtanno.io.read_motion`; algorithms.md §1). An AMC file's ASF is found beside
+    (:func:`mtanno.io.read_motion`; docs/method.md §1). An AMC file's ASF is found beside
     it unless ``asf`` is given; a C3D file's joints come from the marker set ``markers``
     (default: the built-in set that fits); ``up``: the file's up axis ("y" or "z"; default
     Y for ASF/AMC and BVH, the file's for C3D)."""

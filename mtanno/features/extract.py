@@ -70,7 +70,7 @@ def _motion_features(motion: Motion, fs: FeatureSet, up: str,
 def analysis_validity(valid: np.ndarray | None, keep: np.ndarray, fps: float) -> np.ndarray:
     """Validity of the analysis frames (kept native frames ``keep``, 0-based) of a motion
     whose native frames are ``valid`` (None: all valid): a frame is valid when no native
-    frame within the longest velocity window (250 ms, features.md §3) of it is invalid, so
+    frame within the longest velocity window (250 ms, docs/method/features.md §3) of it is invalid, so
     that no valid frame's features read interpolated joints."""
     if valid is None:
         return np.ones(keep.shape[0], dtype=bool)

@@ -1,4 +1,4 @@
-"""Mocap readers: motion files → world joint positions (algorithms.md §1).
+"""Mocap readers: motion files → world joint positions (docs/method.md §1).
 
 :func:`read_motion` is the entry point: it finds the file's format in the format table
 (:mod:`~mtanno.io.formats`: suffix → reader) and returns a

@@ -7,7 +7,7 @@ their format is read, so ``import mtanno.io`` stays light.
 
 A reader is called as ``reader(path, options)`` with a :class:`ReadOptions` and returns a
 :class:`~mtanno.io.skeleton.Motion` whose positions are world coordinates with **Y up**
-(the features' convention, algorithms.md §1): a reader turns Z-up data itself
+(the features' convention, docs/method.md §1): a reader turns Z-up data itself
 (:func:`~mtanno.io.skeleton.to_y_up`) and records the file's up axis in ``Motion.up``.
 Options a format does not use are ignored (a batch may mix formats).
 """
