@@ -68,7 +68,7 @@ def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plo
     Example: mtanno align walk1.bvh walk2.bvh -o path.csv --plot path.png
     """
     from mtanno.align.core import align_files, summary, write_alignment
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)

@@ -33,7 +33,8 @@ def guess_cmd(file: str, output: str) -> None:
     from mtanno.io.c3d import read_c3d
     from mtanno.io.formats import format_of
     from mtanno.io.markerset import guess_toml
-    from mtanno.util.output import check_outputs, write_text
+    from mtanno.util.output import write_text
+    from mtanno.util.preflight import check_outputs
 
     if format_of(file).suffix != ".c3d":
         raise MtannoError("markers guess reads a C3D file (.c3d)", path=file)

@@ -327,7 +327,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     ``listed`` are more inputs, read from a list (``features -``), whose failures are
     always failed jobs. Raises :class:`MtannoError` for two inputs with the same output,
     an output that is one of the inputs, and, unless ``inside_input``, an ``outdir`` that
-    is or lies inside an input folder (:func:`mtanno.util.output.check_outputs`).
+    is or lies inside an input folder (:func:`mtanno.util.preflight.check_outputs`).
     """
     outdir = Path(outdir)
     inputs, listed = list(inputs), list(listed)
@@ -363,7 +363,7 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     # one job per output (a file given twice, or as a file and in its folder); failed
     # jobs write nothing, so one per input
     unique = list({(j.dst, j.error and str(j.src)): j for j in jobs}.values())
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     good = [j for j in unique if not j.error]
     check_outputs([j.dst for j in good],
