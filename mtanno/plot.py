@@ -222,7 +222,7 @@ def plot_template_file(template: str | os.PathLike, output: str | os.PathLike, *
     ``delta`` first, if given) drawn by :func:`plot_template` into the picture ``output``
     (checked against the input first); returns the template drawn."""
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     require_matplotlib()
     check_outputs([output], [template])
@@ -241,7 +241,7 @@ def show_to(path: str | os.PathLike, *, frames: str | None = None,
     ``plot_path``, the same drawn by :func:`plot_features` into that picture (matplotlib
     and the output checked before the file is read)."""
     from mtanno.info import DEFAULT_WIDTH, feature_timeline
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     if plot_path is not None:
         require_matplotlib()

@@ -386,7 +386,7 @@ def retrieve_to(features: Sequence[str | os.PathLike], mt_path: str | os.PathLik
     file (``error``: why it could not be used, None when it was searched)."""
     from mtanno.features.inputs import feature_files
     from mtanno.templates.model import load_template, load_template_folder, template_files
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)

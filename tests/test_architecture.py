@@ -383,7 +383,7 @@ def test_command_api_call_rule_catches_a_second_call():
     an options dataclass and the plumbing do not count."""
     head = ("import click\n"
             "from mtanno.commands._common import user_errors\n"
-            "from mtanno.util.output import check_outputs\n"
+            "from mtanno.util.preflight import check_outputs\n"
             "from mtanno.keyframes.run import KeyframeOptions, learn_keyframes_to\n")
     one = head + (
         "@click.command('x')\n@user_errors(2)\ndef x_cmd(a):\n"
@@ -517,6 +517,8 @@ LONG_MODULES = {
     "mtanno.features.store": "the feature file (Parquet): its one validating reader, writer, "
                              "layout and compatibility check",
     "mtanno.io.bvh": "reading BVH files (hierarchy and motion), bounded and checked",
+    "mtanno.io.markerset": "marker sets: their TOML files (built-in and the user's), checked, "
+                           "chosen for a file's labels, and guessed from them",
     "mtanno.io.guess": "skeleton maps made from a BVH rig's joint names and tree "
                        "(and the skeleton guess run that writes one)",
     "mtanno.keyframes.search": "searching keyframe queries (through an index or a scan) and "
@@ -529,8 +531,6 @@ LONG_MODULES = {
                          "configuration it writes; another branch changes it now",
     "mtanno.tuning.search": "the per-fold, per-class search of tune: templates, Δ on held-out "
                             "documents, objective, coordinate search",
-    "mtanno.util.output": "two jobs: writing outputs atomically, and checking outputs against "
-                          "the inputs (check_outputs); another branch changes it now",
     "mtanno.util.tables": "three jobs: tables by suffix, provenance, and small readers (clip "
                           "manifest, frame ranges)",
 }

@@ -26,6 +26,7 @@ from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_SET, FeatureSet
 from mtanno.features.store import check_layout
 from mtanno.index.core import frame_codes
+from mtanno.io.formats import expected
 
 __all__ = ["Alignment", "align", "align_files", "align_to", "alignment_table", "summary",
            "write_alignment"]
@@ -113,7 +114,7 @@ def align(a: Performance, b: Performance, *, features: Sequence[str] | None = No
         for p in (a, b):
             if p.joints is None:
                 raise MtannoError("a feature file has features but no joint positions: the "
-                                  "positions cost needs the motion file (.amc, .bvh); use "
+                                  f"positions cost needs the motion file ({expected()}); use "
                                   "{cost} features for feature files", path=p.where,
                                   options=("cost",))
     for p in (a, b):
@@ -146,15 +147,15 @@ def align_files(path_a: str | os.PathLike, path_b: str | os.PathLike, *,
                 features: Sequence[str] | None = None, group: str | None = None,
                 band: int = DEFAULT_BAND, cost: str = DEFAULT_COST,
                 full: bool = False) -> Alignment:
-    """:func:`align` of two files: motion files (``.amc``, ``.bvh``; ``asf``, ``skeleton``
-    and ``feature_set`` as in :func:`mtanno.align.poses.load_performance`) or feature files
-    (``.parquet``, feature cost only). ``features``, ``group``, ``band``, ``cost``,
+    """:func:`align` of two files: motion files (``.amc``, ``.bvh``, ``.c3d``; ``asf``,
+    ``skeleton`` and ``feature_set`` as in :func:`mtanno.align.poses.load_performance`) or
+    feature files (``.parquet``, feature cost only). ``features``, ``group``, ``band``, ``cost``,
     ``full``: those of :func:`align`."""
     if cost == "positions":
         for p in (path_a, path_b):
             if str(p).lower().endswith(".parquet"):
                 raise MtannoError("a feature file has features but no joint positions: the "
-                                  "positions cost needs the motion file (.amc, .bvh); use "
+                                  f"positions cost needs the motion file ({expected()}); use "
                                   "{cost} features for feature files", path=str(p),
                                   options=("cost",))
     a = load_performance(path_a, asf=asf, skeleton=skeleton, feature_set=feature_set)
@@ -211,7 +212,7 @@ def align_to(path_a: str | os.PathLike, path_b: str | os.PathLike,
     (:func:`mtanno.align.plot.save_alignment_plot`). The outputs (and the plot's format and
     matplotlib) are checked before any work."""
     from mtanno.align.plot import check_plot_path, save_alignment_plot
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)

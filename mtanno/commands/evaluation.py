@@ -181,7 +181,7 @@ def truth_mocap6(labels, output):
                    "curves; files with poses (features --poses) give the players. "
                    "Repeatable.")
 @click.option("--motions", "motions", multiple=True, type=click.Path(), metavar="PATH",
-              help="Motion files (.amc, .bvh) or folders of them, matched to the documents "
+              help="Motion files (.amc, .bvh, .c3d) or folders of them, matched to the documents "
                    "by file name: a stick-figure player per document (instead of the poses "
                    "of --features). Repeatable.")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,

@@ -356,7 +356,8 @@ def evaluate_to(annotations: Sequence[str], truth_path: str, *,
     ``table_path``, each with its provenance. Every output is checked against the inputs
     first; ``warn`` receives the report's warnings (labels only one side knows)."""
     from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
-    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.output import write_stdout
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:

@@ -257,7 +257,8 @@ def evaluate_retrieval_to(features: Sequence[str | os.PathLike], mt_dir: str | o
     from mtanno.features.inputs import document_files
     from mtanno.labels.truth import read_truth
     from mtanno.templates.model import template_files
-    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.output import write_stdout
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:

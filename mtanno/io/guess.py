@@ -535,7 +535,8 @@ def guess_map_file(path: str | os.PathLike, output: str | os.PathLike, *,
 
     from mtanno._version import __version__
     from mtanno.io.bvh import read_bvh
-    from mtanno.util.output import check_outputs, write_text
+    from mtanno.util.output import write_text
+    from mtanno.util.preflight import check_outputs
 
     if Path(path).suffix.lower() != ".bvh":
         raise MtannoError("skeleton guess reads a BVH file (.bvh)", path=str(path))

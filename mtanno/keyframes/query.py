@@ -77,7 +77,7 @@ def query_to(index_dir: PathLike, output: PathLike = "-", *,
     :attr:`QueryRun.seconds` is the search's own time."""
     from mtanno.index import open_index
     from mtanno.index.storage import index_files
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, table_format
 
     o = options or QueryOptions()

@@ -120,7 +120,8 @@ def learn_keyframes_to(training: Sequence[str | os.PathLike], mt_dir: str | os.P
         load_examples,
     )
     from mtanno.util.locks import folder_lock
-    from mtanno.util.output import check_outputs, output_folder
+    from mtanno.util.output import output_folder
+    from mtanno.util.preflight import check_outputs
 
     options = options or KeyframeOptions()
     method, classes = options.method, options.classes

@@ -136,7 +136,7 @@ def mocap6_to(labels: str | os.PathLike, output: str | os.PathLike) -> list[Segm
     as a truth table to ``output`` (suffix picks the format, ``-`` is CSV on standard
     output) with its provenance, the output checked against the input first; returns the
     segments."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format
 
     table_format(output)

@@ -18,7 +18,7 @@ PathLike = str | os.PathLike
 
 def _load(template: PathLike, output: PathLike) -> MotionTemplate:
     from mtanno.templates.model import load_template
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     return load_template(template)
