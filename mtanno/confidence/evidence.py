@@ -145,15 +145,17 @@ BANK_EVIDENCE = tuple(n for n in EVIDENCE if n in _BANK)
 
 
 def verification_query(X: np.ndarray, poses: np.ndarray | None,
-                       representation: str) -> Callable[[Annotation], np.ndarray]:
+                       representation: str, invariance: tuple[str, ...] = ()
+                       ) -> Callable[[Annotation], np.ndarray]:
     """The verification sequence of a row's frames of a document (features ``X``, poses or
-    None), in the bank's ``representation``: the one closure tune and annotate use."""
+    None), in the bank's ``representation`` and ``invariance``: the one closure tune and
+    annotate use."""
     from mtanno.confidence.verify import sequence
 
     def query(r: Annotation) -> np.ndarray:
         return sequence(X=X[:, r.start:r.end + 1] if representation == "features" else None,
                         poses=poses[r.start:r.end + 1] if representation == "poses" else None,
-                        representation=representation)
+                        representation=representation, invariance=invariance)
 
     return query
 
@@ -192,5 +194,6 @@ def document_evidence(rows: Sequence[Annotation], facts: LabelFacts, *, X: np.nd
                       names: Sequence[str] = EVIDENCE) -> np.ndarray:
     """:func:`segment_evidence` of rows of one document (features ``X``, poses or None;
     rows' frames index them), verified against ``bank`` (None: no bank evidence)."""
-    query = verification_query(X, poses, bank.representation) if bank is not None else None
+    query = verification_query(X, poses, bank.representation, bank.invariance) \
+        if bank is not None else None
     return segment_evidence(rows, facts, bank=bank, query=query, names=names)

@@ -12,6 +12,7 @@ The table, as ``mtanno tune`` writes it::
     min_confidence = 0.3
     bank = "tuned.verify.parquet"
     bank_sha256 = "…"
+    invariance = ["retarget"]     # what the verification is blind to (when any)
 
     [confidence.calibrator]
     …
@@ -34,7 +35,7 @@ __all__ = ["CONFIDENCE_KEYS", "ConfidenceModel", "check_min_confidence", "confid
 
 #: Keys of the ``[confidence]`` table and their types.
 CONFIDENCE_KEYS = {"evidence": list, "min_confidence": float, "bank": str, "bank_sha256": str,
-                   "calibrator": dict}
+                   "invariance": list, "calibrator": dict}
 
 
 def check_min_confidence(value, *, what: str = "min confidence") -> float:
@@ -67,6 +68,9 @@ class ConfidenceModel:
     bank_file: str | None = None
     bank_sha256: str | None = None
     base: str | None = None
+    #: what the bank's verification is blind to (:data:`mtanno.confidence.verify.
+    #: INVARIANCES`), as the bank records it
+    invariance: tuple[str, ...] = ()
     config_path: str | None = field(default=None, repr=False)
     bank_line: int | None = field(default=None, repr=False)
     _bank: object = field(default=None, repr=False, compare=False)
@@ -106,6 +110,15 @@ class ConfidenceModel:
             raise bad("bank", "[confidence] bank and bank_sha256 (64 lower-case hex digits) "
                               "go together")
         names = tuple(names)
+        invariance = table.get("invariance", [])
+        from mtanno.confidence.verify import INVARIANCES
+
+        if not all(isinstance(v, str) and v in INVARIANCES for v in invariance) \
+                or len(set(invariance)) != len(invariance):
+            raise bad("invariance", f"[confidence] invariance must list distinct names of "
+                                    f"{', '.join(INVARIANCES)}, got {invariance!r}")
+        if invariance and "bank" not in table:
+            raise bad("invariance", "[confidence] invariance needs a verification bank")
         if "bank" not in table and any(n in BANK_EVIDENCE for n in names):
             raise bad("evidence", f"[confidence] evidence "
                                   f"{', '.join(n for n in names if n in BANK_EVIDENCE)} needs "
@@ -121,7 +134,9 @@ class ConfidenceModel:
                               f"calibrator was fitted on ({list(have)})", path=path, line=line)
         return cls(names, calibrator, float(least), table.get("bank"),
                    table.get("bank_sha256"),
-                   str(Path(path).parent) if path else None, path, line_of("confidence", "bank"))
+                   str(Path(path).parent) if path else None,
+                   tuple(v for v in INVARIANCES if v in invariance), path,
+                   line_of("confidence", "bank"))
 
     def to_table(self) -> dict:
         """The ``[confidence]`` table (what :meth:`from_table` reads)."""
@@ -129,6 +144,8 @@ class ConfidenceModel:
         if self.bank_file is not None:
             out["bank"] = self.bank_file
             out["bank_sha256"] = self.bank_sha256
+        if self.invariance:
+            out["invariance"] = list(self.invariance)
         out["calibrator"] = self.calibrator.to_dict()
         return out
 
@@ -155,7 +172,12 @@ class ConfidenceModel:
                 raise MtannoError(f"[confidence] bank {path} is not the file tune wrote (its "
                                   "SHA-256 differs from bank_sha256); run mtanno tune again",
                                   **where)
-            self._bank = read_bank(path)
+            bank = read_bank(path)
+            if tuple(bank.invariance) != tuple(self.invariance):
+                raise MtannoError(f"[confidence] invariance {list(self.invariance)} is not "
+                                  f"the bank's ({list(bank.invariance)}); run mtanno tune "
+                                  "again", **where)
+            self._bank = bank
         return self._bank
 
     def probabilities(self, E: np.ndarray) -> np.ndarray:
@@ -174,6 +196,7 @@ def confidence_record(model: ConfidenceModel | None, min_confidence: float | Non
         least = model.min_confidence if min_confidence is None else min_confidence
         if model.bank_file is not None:
             out["bank"] = {"path": model.bank_path, "sha256": model.bank_sha256,
-                           "representation": model.bank.representation}
+                           "representation": model.bank.representation,
+                           "invariance": list(model.invariance)}
     out["min_confidence"] = least
     return out

@@ -21,7 +21,7 @@ verified against its own motion.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +54,7 @@ class ConfidenceFit:
     kinds: list[str]
     table: list[dict] = field(default_factory=list)
     representation: str | None = None
+    invariance: tuple[str, ...] = ()
 
 
 @dataclass
@@ -72,26 +73,34 @@ class _Run:
 
 def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=None,
                      representation: str | None, unknown_weight: float, seed: int = 0,
-                     log: Callable[[str], None] | None = None) -> ConfidenceFit:
+                     log: Callable[[str], None] | None = None,
+                     invariance: tuple[str, ...] = (),
+                     evidence: Sequence[str] | None = None) -> ConfidenceFit:
     """Fit the confidence of ``params`` on ``tuner``'s folds (module docstring).
 
     ``folds``: the :class:`mtanno.tuning.cv.Fold` records the tuner was built from (same
     order); ``templates``: class → template (their lengths); ``background_seqs``: the
     verification sequence of every background document (indexed as
     :attr:`mtanno.tuning.cv.Fold.background`); ``representation``: what the bank holds
-    (None: no bank, evidence ``cost`` and ``length`` only)."""
+    (None: no bank, evidence ``cost`` and ``length`` only); ``invariance``: what the
+    verification is blind to (:data:`mtanno.confidence.verify.INVARIANCES`; the background
+    sequences must have been made with it); ``evidence``: the kinds the calibrator may use
+    (None: every kind the inputs allow)."""
     from mtanno.confidence.calibration import fit_calibrated
 
     names = tuple(n for n in EVIDENCE if (representation is not None or n not in BANK_EVIDENCE)
                   and (n != "background" or background_seqs))
     if not params.resolve:
         names = tuple(n for n in names if n != "cost")
+    if evidence is not None:
+        names = tuple(n for n in names if n in evidence)
     taus = dict(params.tau)
     facts = label_facts({c: mt.values.shape[1] for c, mt in templates.items()},
                         tau_for=lambda c: taus.get(c, math.nan))
     rows_E, right, kinds, groups, runs, owners = [], [], [], [], [], []
     for j, (f, fd) in enumerate(zip(folds, tuner.folds)):
-        bank = _fold_bank(f, background_seqs, representation) if representation else None
+        bank = _fold_bank(f, background_seqs, representation, invariance) \
+            if representation else None
         for run in _runs(tuner, fd, params, j):
             runs.append(run)
             E, ok, kind, doc = _run_evidence(run, f, fd, tuner, bank, names, facts)
@@ -114,26 +123,29 @@ def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=N
                 f"unknown {t['U']:.3f} background labelled {t['background']:.3f} "
                 f"J {t['J']:.4f}")
     return ConfidenceFit(names, fit.calibrator, float(best["min_confidence"]), fit.oof, y,
-                         kinds, table, representation)
+                         kinds, table, representation, tuple(invariance))
 
 
-def bank_of(examples, background_seqs, representation: str):
+def bank_of(examples, background_seqs, representation: str, invariance: tuple[str, ...] = ()):
     """The verification bank of training ``examples`` (their performer, else their
-    document, as the performer) and the background sequences ``background_seqs``."""
+    document, as the performer) and the background sequences ``background_seqs``, blind to
+    ``invariance``."""
     from mtanno.confidence.verify import build_bank, sequence
 
     items = [(e.class_name, str(e.performer if e.performer is not None else e.document),
-              sequence(X=e.X, poses=e.poses, representation=representation))
+              sequence(X=e.X, poses=e.poses, representation=representation,
+                       invariance=invariance))
              for e in examples]
-    return build_bank(items, list(background_seqs or []), representation=representation)
+    return build_bank(items, list(background_seqs or []), representation=representation,
+                      invariance=invariance)
 
 
-def _fold_bank(fold, background_seqs, representation):
+def _fold_bank(fold, background_seqs, representation, invariance=()):
     """The verification bank of one fold: its training examples and the background
     documents not held out in it."""
     held = set(fold.background)
     return bank_of(fold.train, [s for k, s in enumerate(background_seqs or [])
-                                if k not in held], representation)
+                                if k not in held], representation, invariance)
 
 
 def _runs(tuner, fd, params, j: int):

@@ -125,7 +125,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
          log: Callable[[str], None] | None = None, scheduler: str | None = None,
          background: Sequence[str | os.PathLike] = (), verify: str = "auto",
-         confidence: bool = True) -> TuneResult:
+         confidence: bool = True, invariance: Sequence[str] = (),
+         evidence: Sequence[str] | None = None) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
     collect_sources`): see :mod:`mtanno.tuning.search` for the search and
@@ -152,10 +153,20 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     (:mod:`mtanno.tuning.confidence`), verifying segments against the examples by
     ``verify``: ``"poses"``, ``"features"``, ``"none"`` (no verification: the evidence of
     cost and length only) or ``"auto"`` (poses when every training and background file has
-    them, else features).
+    them, else features). ``invariance`` (issue 35): what the pose verification is blind
+    to (:data:`mtanno.confidence.verify.INVARIANCES`; needs verification by poses);
+    ``evidence``: the kinds of evidence the confidence may use (:data:`mtanno.confidence.
+    evidence.EVIDENCE`; None: all that the inputs allow).
     """
     t0 = time.perf_counter()
     methods = _check_options(methods, documents, unknown_weight, verify)
+    if evidence is not None:
+        from mtanno.confidence.evidence import EVIDENCE
+
+        unknown = [e for e in evidence if e not in EVIDENCE]
+        if unknown or not evidence:
+            raise MtannoError(f"{{evidence}} must name some of {', '.join(EVIDENCE)}, got "
+                              f"{', '.join(evidence) or 'none'}", options=("evidence",))
     templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir,
                                                         poses=verify in ("auto", "poses"))
     bg_docs, bg_records = _background_inputs(background, layout, examples,
@@ -171,6 +182,13 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             raise MtannoError("{verify} poses needs poses in every held-out document (run "
                               "mtanno features --poses)", options=("verify",))
         representation = "features"  # auto: a document without poses
+    if invariance and confidence:
+        from mtanno.confidence.verify import check_invariance
+
+        try:
+            invariance = check_invariance(invariance, representation)
+        except MtannoError as exc:
+            raise MtannoError(f"{{invariance}}: {exc.message}", options=("invariance",)) from None
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
@@ -198,7 +216,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     fit = bank = None
     if confidence:
         fit, bank = _learn_confidence(tuner, params, folds, templates, examples, bg_docs,
-                                      representation, unknown_weight, seed, log)
+                                      representation, unknown_weight, seed, log,
+                                      tuple(invariance), evidence)
     inputs, shas = _input_records(mt_dir, templates, keyframes_dir, examples)
     folds_held = {f.name: len(f.held_examples) for f in folds}
     seconds = time.perf_counter() - t0
@@ -325,21 +344,24 @@ def _background_inputs(background, layout, examples, *, poses: bool):
 
 
 def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
-                      unknown_weight, seed, log):
+                      unknown_weight, seed, log, invariance=(), evidence=None):
     """The confidence fitted on the folds and the verification bank of everything."""
     from mtanno.confidence.verify import sequence
     from mtanno.tuning.confidence import bank_of, learn_confidence
 
     seqs = None
     if representation is not None:
-        seqs = [sequence(X=X, poses=P, representation=representation) for _, X, P in bg_docs]
+        seqs = [sequence(X=X, poses=P, representation=representation, invariance=invariance)
+                for _, X, P in bg_docs]
     if log:
-        log(f"confidence: verifying by {representation or 'nothing'}; "
-            f"{len(bg_docs)} background documents")
+        log(f"confidence: verifying by {representation or 'nothing'}"
+            + (f" ({', '.join(invariance)})" if invariance else "")
+            + f"; {len(bg_docs)} background documents")
     fit = learn_confidence(tuner, params, folds, templates=templates, background_seqs=seqs,
                            representation=representation, unknown_weight=unknown_weight,
-                           seed=seed, log=log)
-    bank = bank_of(examples, seqs, representation) if representation is not None else None
+                           seed=seed, log=log, invariance=invariance, evidence=evidence)
+    bank = bank_of(examples, seqs, representation, invariance) \
+        if representation is not None else None
     return fit, bank
 
 
@@ -526,10 +548,12 @@ def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> lis
         write_bank(bpath, result.bank)
         bank_file, sha = bpath.name, sha256_file(bpath)
     cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
-                                     bank_file, sha, str(path.parent))
+                                     bank_file, sha, str(path.parent),
+                                     tuple(fit.invariance) if bank_file else ())
     kinds = np.array(fit.kinds)
+    blind = f" blind to {', '.join(fit.invariance)}" if fit.invariance else ""
     lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
-             f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "
+             f"{fit.representation or 'nothing'}{blind}), out of fold on {len(fit.right)} held-out "
              f"segments ({int((kinds == 'known').sum())} of known classes, "
              f"{int((kinds == 'unknown').sum())} over a class left out, "
              f"{int((kinds == 'background').sum())} on background): AUROC "
