@@ -20,7 +20,7 @@ evaluate`.
   "none" are left unlabelled (no row). Without it every frame gets a class.
 
     scripts/baseline_knn.py (--manifest CSV --features-dir DIR [--split S] |
-                             --truth TRUTH.csv --train FEATS...) [--none FEATS...]
+                             --truth TRUTH.csv --train FEATS...) [--none FEATS ...]
                             DOCS... -o OUT.csv
 """
 
@@ -153,8 +153,9 @@ def main(argv=None) -> int:
     ap.add_argument("--truth")
     ap.add_argument("--train", action="append", default=[],
                     help="with --truth: the training documents' feature files or folders")
-    ap.add_argument("--none", nargs="+", default=[], metavar="FEATS",
-                    help="background feature files or folders: training frames of 'none'")
+    ap.add_argument("--none", action="append", default=[], metavar="FEATS",
+                    help="background feature file or folder (repeatable): training frames "
+                         "of 'none'")
     ap.add_argument("-k", type=int, default=K)
     a = ap.parse_args(argv)
     try:

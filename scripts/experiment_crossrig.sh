@@ -79,6 +79,8 @@ declare -A BGSET=([bg_cmu]=cmu_bg [bg_bandai]=b1_bg)
 # configuration name → tune options (besides the training data and background);
 # "relative": only the evidence that compares distances (no absolute verification cost)
 RELATIVE="--evidence cost --evidence length --evidence margin --evidence background"
+# "classifier": the default evidence and the frame classifier's agreement (issue 35, part 3)
+ALL="$RELATIVE --evidence verify"
 options() {
   case $1 in
     today|today_cmu_all) echo "" ;;
@@ -88,6 +90,9 @@ options() {
     relative) echo "$RELATIVE" ;;
     relative_mirror) echo "$RELATIVE --invariance mirror" ;;
     relative_retarget) echo "$RELATIVE --invariance retarget" ;;
+    classifier) echo "$ALL --evidence classifier" ;;
+    relative_classifier) echo "$RELATIVE --evidence classifier" ;;
+    classifier_mirror) echo "$ALL --evidence classifier --invariance mirror" ;;
     *) echo "experiment_crossrig: unknown configuration $1" >&2; return 2 ;;
   esac
 }
