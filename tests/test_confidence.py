@@ -75,7 +75,7 @@ def test_label_facts_of_superclasses_use_the_median_base_template():
 
 
 def test_the_evidence_registry_is_ordered_and_extensible():
-    assert EVIDENCE == ("cost", "length", "verify", "margin", "background")
+    assert EVIDENCE == ("cost", "length", "verify", "margin", "background", "classifier")
     import mtanno.confidence.evidence as ev
 
     @register_evidence("frames")
