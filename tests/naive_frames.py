@@ -34,3 +34,11 @@ def vote(query: np.ndarray, train: np.ndarray, labels, allowed, k: int) -> int:
         if votes[c] > votes[best] or (votes[c] == votes[best] and dsum[c] < dsum[best]):
             best = c
     return best
+
+
+def neighbours(query: np.ndarray, train: np.ndarray, labels, allowed, k: int) -> list[int]:
+    """The labels of the k nearest allowed training vectors (the earlier first among equal
+    distances), −1 for each missing one."""
+    cand = sorted((int(np.sum(query != train[j])), j) for j in range(len(train))
+                  if allowed[labels[j]])[:k]
+    return [labels[j] for _, j in cand] + [-1] * (k - len(cand))

@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from naive_frames import unpack, vote, window
+from naive_frames import neighbours, unpack, vote, window
 from nojit import run_without_jit
 
 from mtanno.confidence.frames import (
     BACKGROUND_LABEL,
     FRAME_HALF,
     FRAME_K,
+    FRAME_SAMPLES,
     FRAME_STEP,
     build_frame_bank,
     pack_windows,
@@ -24,7 +25,7 @@ from mtanno.errors import MtannoError
 
 
 def check_against_naive(seed: int) -> None:
-    from mtanno.confidence._frame_kernels import _vote
+    from mtanno.confidence._frame_kernels import _neighbours, _vote
 
     rng = np.random.default_rng(seed)
     X = (rng.random((5, 40)) < 0.4).astype(np.uint8)
@@ -44,6 +45,10 @@ def check_against_naive(seed: int) -> None:
         want = [vote(window(X, int(t), FRAME_HALF), dense, labels.tolist(), allowed, FRAME_K)
                 for t in frames]
         assert out.tolist() == want
+        near = np.empty((len(frames), FRAME_K), np.int64)
+        _neighbours(packed, train, labels.astype(np.int64), allowed, FRAME_K, near)
+        assert near.tolist() == [neighbours(window(X, int(t), FRAME_HALF), dense,
+                                            labels.tolist(), allowed, FRAME_K) for t in frames]
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -86,6 +91,8 @@ def test_agreement_of_hand_made_segments():
     assert bank.agreement(doc, 55, 95, {"wave"}) == 1.0
     assert bank.agreement(doc, 55, 95, {"walk"}) == 0.0  # a wave labelled walk
     assert bank.agreement(doc, 105, 145, {"walk"}) == 0.0  # background labelled walk
+    half = bank.agreement(doc, 25, 74, {"walk"})  # half walk, half wave: a soft vote
+    assert 0.3 <= half <= 0.7
     assert set(bank.votes(doc, np.arange(105, 145, 8))) == {BACKGROUND_LABEL}
     # a class the classifier must not know votes for the next nearest
     assert "wave" not in bank.votes(doc, np.arange(55, 95, 8), exclude={"wave"})
@@ -96,8 +103,9 @@ def test_agreement_of_hand_made_segments():
 
 def test_sample_frames_spread_and_short_segments():
     assert sample_frames(10, 12).tolist() == [10, 11, 12]
+    assert FRAME_SAMPLES > 3
     s = sample_frames(0, 99)
-    assert s[0] == 0 and s[-1] == 99 and len(s) == 8 and np.all(np.diff(s) > 0)
+    assert s[0] == 0 and s[-1] == 99 and len(s) == FRAME_SAMPLES and np.all(np.diff(s) > 0)
     with pytest.raises(MtannoError, match="before it starts"):
         sample_frames(5, 4)
 

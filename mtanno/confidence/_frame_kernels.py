@@ -40,6 +40,39 @@ def _popcount(x):
 
 
 @numba.njit(cache=True)
+def _neighbours(queries, train, labels, allowed, k, out):
+    """The labels of the ``k`` nearest training windows of every query whose label is
+    ``allowed`` (Hamming distance; the earlier training window first among equals), into
+    ``out`` (queries × k; −1 where fewer are allowed)."""
+    n, words = queries.shape
+    m = train.shape[0]
+    best_d = np.empty(k, np.int64)
+    best_i = np.empty(k, np.int64)
+    for q in range(n):
+        best_d[:] = 1 << 40
+        best_i[:] = -1
+        for j in range(m):
+            if not allowed[labels[j]]:
+                continue
+            d = 0
+            limit = best_d[k - 1]
+            for w in range(words):
+                d += _popcount(queries[q, w] ^ train[j, w])
+                if d > limit:
+                    break
+            if d < limit:
+                p = k - 1
+                while p > 0 and best_d[p - 1] > d:
+                    best_d[p] = best_d[p - 1]
+                    best_i[p] = best_i[p - 1]
+                    p -= 1
+                best_d[p] = d
+                best_i[p] = j
+        for r in range(k):
+            out[q, r] = labels[best_i[r]] if best_i[r] >= 0 else -1
+
+
+@numba.njit(cache=True)
 def _vote(queries, train, labels, allowed, k, n_labels, out):
     """Label of every query window: the majority among its ``k`` nearest training
     windows whose label is ``allowed`` (Hamming distance; the earlier training window

@@ -9,9 +9,9 @@ classifier errs differently (issue 35: it labels Bandai's runs as jogs): the k n
 training windows of a frame — the 40 boolean features of the frames within ±0.5 s
 (:data:`FRAME_HALF`), Hamming distance, majority of :data:`FRAME_K` (the k-NN peer of
 ``scripts/baseline_knn.py``, issue 10) — with the background motions' frames as a class of
-their own ("none"). The evidence ``classifier`` of a segment is the share of
-:data:`FRAME_SAMPLES` of its frames, evenly spread, whose vote is the segment's label (one
-of its member classes).
+their own ("none"). The evidence ``classifier`` of a segment is its soft vote: over
+:data:`FRAME_SAMPLES` of its frames, evenly spread, the share of their nearest training
+windows whose label is the segment's (one of its member classes).
 
 The training windows (every :data:`FRAME_STEP`-th frame of every training example, inside
 the example, and of every background document) are the :class:`FrameBank`, written by
@@ -45,7 +45,7 @@ FRAME_HALF = 15
 #: Neighbours that vote.
 FRAME_K = 5
 #: Frames of a segment that are classified (evenly spread; all of a shorter segment).
-FRAME_SAMPLES = 8
+FRAME_SAMPLES = 12
 #: Every how many frames of a training example or background document a window is kept.
 FRAME_STEP = 2
 #: The label of background windows.
@@ -107,9 +107,7 @@ class FrameBank:
         out; None where no training window is left."""
         from mtanno.confidence._frame_kernels import _vote
 
-        if np.asarray(X).shape[0] != self.n_features:
-            raise MtannoError(f"the frame bank has {self.n_features} features per frame, the "
-                              f"document {np.asarray(X).shape[0]}", path=self.path)
+        self._check(X)
         queries = pack_windows(X, frames)
         allowed = np.array([n not in exclude for n in self.names], dtype=np.bool_)
         out = np.empty(queries.shape[0], dtype=np.int64)
@@ -119,10 +117,25 @@ class FrameBank:
 
     def agreement(self, X: np.ndarray, start: int, end: int, members: Collection[str], *,
                   exclude: Collection[str] = ()) -> float:
-        """The share of the segment ``start`` … ``end``'s sampled frames
-        (:func:`sample_frames`) that the classifier labels with one of ``members``."""
-        v = self.votes(X, sample_frames(start, end), exclude=exclude)
-        return sum(x in members for x in v) / len(v)
+        """The share of the nearest training windows of the segment ``start`` … ``end``'s
+        sampled frames (:func:`sample_frames`; :data:`FRAME_K` each, those of the classes
+        ``exclude`` left out) whose label is one of ``members``: the classifier's soft
+        vote for the segment's label."""
+        from mtanno.confidence._frame_kernels import _neighbours
+
+        self._check(X)
+        queries = pack_windows(X, sample_frames(start, end))
+        allowed = np.array([n not in exclude for n in self.names], dtype=np.bool_)
+        near = np.empty((queries.shape[0], FRAME_K), dtype=np.int64)
+        _neighbours(queries, self.windows, self.labels.astype(np.int64), allowed, FRAME_K,
+                    near)
+        hit = np.array([n in members for n in self.names] + [False])
+        return float(hit[near].mean())  # −1 (no neighbour) indexes the False at the end
+
+    def _check(self, X) -> None:
+        if np.asarray(X).shape[0] != self.n_features:
+            raise MtannoError(f"the frame bank has {self.n_features} features per frame, the "
+                              f"document {np.asarray(X).shape[0]}", path=self.path)
 
     def metadata(self) -> dict:
         return {"format": FRAME_BANK_FORMAT, "version": 1, "half": FRAME_HALF, "k": FRAME_K,
