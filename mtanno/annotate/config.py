@@ -47,8 +47,8 @@ class ClassConfig:
     * ``resolve`` — overlap resolution: the segment decoder (:mod:`mtanno.annotate.decode`) picks
       one least-cost partition into matches instead of Δ̄ labels and extension;
     * ``refine`` — boundary refinement: with ``resolve`` a segment may start up to
-      ``slack`` frames from its match's start; without, the extension of §7 step 4 walks
-      only over frames no other class labels;
+      ``slack`` frames from its match's start; without, the extension of docs/method.md
+      §7 step 4 walks only over frames no other class labels;
     * ``reject`` — rejection ceilings ρ per label (``default_reject`` for the others):
       matches with Δ above it are never taken (segment decoder) or picked (Δ̄);
     * ``frame_weight`` — tie-breaking by frame-wise evidence (segment decoder);

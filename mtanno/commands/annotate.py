@@ -1,4 +1,4 @@
-"""Command: annotate ([MBS09] §4–5, algorithms.md §7)."""
+"""Command: annotate ([MBS09] §4–5, docs/method.md §7)."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 @click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
               default=None, hidden=True, help="The former name of --dbar.")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
-              default="reference", show_default=True, help="Matching cost variant (§3.4).")
+              default="reference", show_default=True, help="Matching cost variant (docs/method.md §3.4).")
 @click.option("--single-label", is_flag=True,
               help="One label per frame: where segments overlap, each frame keeps the class "
                    "with the smallest modified distance (with a tuned confidence: the more "

@@ -1,5 +1,5 @@
 """Commands of the evaluation stage: evaluate, evaluate-retrieval, compose, truth and report
-(algorithms.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
+(docs/method.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
 
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ starts where the previous clip's root ended. The root height is kept. Optional p
 repeat the last pose for a number of native frames and are left unlabelled.
 
 The ground truth lists every clip as a segment of 30 Hz frames: exactly the analysis frames
-(features.md §6) whose native frame belongs to the clip.
+(docs/method/features.md §6) whose native frame belongs to the clip.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ documents' feature files) :func:`write_report` writes into one folder:
   truth × annotation, with a "none" row and column (frames without a label);
 * ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
 * with templates and features: ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4)
-  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4);
+  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, docs/method.md §3.4);
 * on the page, with the documents' poses, a stick-figure player per document, and always
   the review list with the controls that turn it into a truth CSV
   (:mod:`mtanno.evaluation.player`).

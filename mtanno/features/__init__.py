@@ -1,4 +1,4 @@
-"""Relational features: joint positions → boolean features per frame (algorithms.md §2).
+"""Relational features: joint positions → boolean features per frame (docs/method.md §2).
 
 :func:`compute_features` evaluates every row of a feature table at the native frame rate
 (velocities and hysteresis included) and reduces the result to the 30 Hz analysis rate.

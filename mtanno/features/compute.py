@@ -1,4 +1,4 @@
-"""Feature sets and their evaluation (algorithms.md §2): :class:`FeatureSet` (a feature
+"""Feature sets and their evaluation (docs/method.md §2): :class:`FeatureSet` (a feature
 table compiled once for the kernel), the named sets (:data:`FEATURE_SETS`,
 :func:`get_feature_set`), and :func:`compute_features` / :func:`compute_features_native`
 — joint positions (canonical joints, in the motion's length unit, at its native rate) to
@@ -59,7 +59,7 @@ MEASURE_JOINTS = {
 
 @dataclass(frozen=True)
 class FeatureSet:
-    """A named feature table with its index groups (algorithms.md §2, [MRC05] §5.3).
+    """A named feature table with its index groups (docs/method.md §2, [MRC05] §5.3).
 
     Attributes
     ----------
@@ -213,7 +213,8 @@ def _compiled(features: tuple[Feature, ...]) -> _Compiled:
 
 def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float, *,
                             features: tuple[Feature, ...] = FEATURES) -> np.ndarray:
-    """(features × native frames) uint8 feature matrix at the native rate (features.md §4–5).
+    """(features × native frames) uint8 feature matrix at the native rate
+    (docs/method/features.md §4–5).
 
     Parameters
     ----------

@@ -32,7 +32,7 @@ EXTRACTOR_VERSION = 1
 
 
 #: The world axes a motion file may have pointing up (``features --up``); features are
-#: defined for Y up (algorithms.md §1), Z-up data is turned first.
+#: defined for Y up (docs/method.md §1), Z-up data is turned first.
 UP_AXES = ("y", "z")
 
 

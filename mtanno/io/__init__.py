@@ -1,4 +1,4 @@
-"""Mocap readers: ASF/AMC and BVH files → world joint positions (algorithms.md §1).
+"""Mocap readers: ASF/AMC and BVH files → world joint positions (docs/method.md §1).
 
 :func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
 forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.

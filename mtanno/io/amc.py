@@ -1,8 +1,8 @@
 """AMC motion reader (Acclaim motion capture data).
 
-Spec: ``algorithms.md`` §1, ``features.md`` §1.1 and §1.3. Each frame is a frame number
-followed by one line per bone: the bone name and its values in the order of the bone's ASF
-``dof`` line (the root's in the order of ``:root order``). The rate is
+Spec: ``docs/method.md`` §1, ``docs/method/features.md`` §1.1 and §1.3. Each frame is a
+frame number followed by one line per bone: the bone name and its values in the order of
+the bone's ASF ``dof`` line (the root's in the order of ``:root order``). The rate is
 ``:SAMPLES-PER-SECOND`` when the header has it, else 120 frames/s.
 
 Parsing splits the whole file into tokens once and checks the layout of every frame against

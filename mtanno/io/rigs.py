@@ -1,7 +1,7 @@
 """Skeleton maps: which node of a rig is which canonical joint.
 
-Spec: ``algorithms.md`` §1 (canonical joints) and ``features.md`` §1.5. A skeleton map is a
-TOML file (see ``mtanno/skeletons/*.toml`` and ``docs/formats.md``)::
+Spec: ``docs/method.md`` §1 (canonical joints) and ``docs/method/features.md`` §1.5. A
+skeleton map is a TOML file (see ``mtanno/skeletons/*.toml`` and ``docs/formats.md``)::
 
     name = "cmu-asf"
     description = "..."
@@ -40,7 +40,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-#: The canonical joints features use, in this order (algorithms.md §1).
+#: The canonical joints features use, in this order (docs/method.md §1).
 CANONICAL_JOINTS: tuple[str, ...] = (
     "root", "lhip", "rhip", "lknee", "rknee", "lankle", "rankle", "ltoes", "rtoes", "belly",
     "chest", "neck", "head", "headtop", "lshoulder", "rshoulder", "lelbow", "relbow", "lwrist",

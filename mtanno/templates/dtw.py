@@ -1,16 +1,16 @@
 """Classical DTW between weighted templates, and the warping of one template onto another.
 
-This is the alignment step of motion-template learning ([MR06] §4.1; the exact variant of the
-reference implementation is ``features.md`` Appendix A, ``warp``). A *template* here is a
-(features × columns) float64 matrix with one positive weight per column; a training clip
-is a 0/1 matrix at 30 Hz with all weights 1, so "columns" are frames at 30 Hz.
+This is the alignment step of motion-template learning ([MR06] §4.1; the exact variant of
+the reference implementation is ``docs/method/features.md`` §A, ``warp``). A *template*
+here is a (features × columns) float64 matrix with one positive weight per column; a
+training clip is a 0/1 matrix at 30 Hz with all weights 1, so "columns" are frames at 30 Hz.
 
 * Soft local cost ([MR06] §4.1): ``c(i,j) = (Σ_k |V(k,i) − W(k,j)|) / f · (Vw(i) + Ww(j)) / 2``,
   summed term by term in feature order — the rounding of this sum decides DTW ties, and
   the golden templates depend on it.
 * Hard local cost (thesis §3.3.1, eq. 3.2–3.3): ``Σ_k d(V(k,i), W(k,j))`` with ``d = 0`` when
   either entry is the wildcard 0.5, else ``|x − y|``; multiplied by the same weight factor
-  (it is the same learning loop, algorithms.md §3.2).
+  (it is the same learning loop, docs/method.md §3.2).
 * Steps (1,0), (0,1), (1,1); ``D(1,1) = C(1,1)``; first row and column accumulated one step
   at a time. Backtracking from the last cell prefers the diagonal, then the reference's
   horizontal step (the other template advances), then the vertical one; a later choice
@@ -265,7 +265,7 @@ def _backtrack(D, n, m, transposed, pi, pj):
 @numba.njit(cache=True)
 def _warp(vals, wts, nr, o0, pr, po, L, hard, S, wd):
     """Warp template O (columns ``o0 …`` of ``vals``) onto a reference of ``nr`` columns
-    along the path ``(pr[t], po[t])`` (features.md App. A ``warp``).
+    along the path ``(pr[t], po[t])`` (docs/method/features.md §A ``warp``).
 
     Writes ``Wwarp`` into ``S[:, :nr]`` — per reference column b the weighted mean
     ``Σ Ww(j)·W(:,j) / Σ Ww(j)`` of the O columns j matched to b (sums in path order), or
@@ -449,7 +449,8 @@ def dtw(V: np.ndarray, W: np.ndarray, *, weights_v: np.ndarray | None = None,
 def warp(V: np.ndarray, W: np.ndarray, *, weights_v: np.ndarray | None = None,
          weights_w: np.ndarray | None = None,
          hard: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
-    """Warp template ``W`` onto the length of reference ``V`` (features.md App. A ``warp``).
+    """Warp template ``W`` onto the length of reference ``V`` (docs/method/features.md §A,
+    ``warp``).
 
     Returns ``(Wwarp, Wwt, cost)``: the warped (features × n) matrix (weighted mean of the
     W columns matched to each V column, or their hard sum when ``hard``), the warped

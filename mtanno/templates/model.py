@@ -3,7 +3,7 @@
 An MT of a motion class ([MR06] §4) is a (features × K) matrix with entries in [0, 1] and one
 weight per column; columns are time steps at the 30 Hz analysis rate, and the weights sum
 to about the mean length of the training examples in frames. A *quantized* MT
-(algorithms.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
+(docs/method.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
 ignores wildcard entries.
 
 JSON file (``docs/templates.md`` has the full schema), schema ``mtanno.template/1``: one
@@ -391,7 +391,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
 
 
 def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
-    """Quantized copy of ``mt`` (algorithms.md §3.3; [MR06] §5.2): entries ≤ δ become 0,
+    """Quantized copy of ``mt`` (docs/method.md §3.3; [MR06] §5.2): entries ≤ δ become 0,
     entries ≥ 1 − δ become 1, the rest the wildcard 0.5.
 
     Both comparisons are inclusive and tested in that order, so δ = 0 keeps exactly the
