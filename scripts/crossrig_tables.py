@@ -24,7 +24,9 @@ keys on the rig instead of the motion shows as lost recall:
   seeds); confidence AUROC and ECE (10 bins) on the mm rows alone and with the rows of the
   other rig's sets (foreign rows all wrong, known rows right when they overlap the clip
   with IoU ≥ 0.5 under the set's class). Writes ``RUN/figures.json``, prints one line.
-* ``table OUT/runs [--rows NAME...]``: Markdown tables per rig, a row per configuration.
+  ``--min M`` applies minimum M instead (``RUN/figures_minM.json``: e.g. 0, every row).
+* ``table OUT/runs [--rows NAME...]``: Markdown tables per rig, a row per configuration
+  (``NAME, min M`` for the figures at another minimum).
 """
 
 from __future__ import annotations
@@ -119,7 +121,7 @@ def _share(rows, frames: dict[str, int], label: str | None) -> tuple[float, floa
     return (hit / total if total else math.nan), (right / total if total else math.nan)
 
 
-def measure(run: Path, sets_file: Path, mm: list[str]) -> int:
+def measure(run: Path, sets_file: Path, mm: list[str], least: float | None = None) -> int:
     from mtanno.annotate import read_annotation_tables
     from mtanno.evaluation import (
         auroc,
@@ -130,9 +132,11 @@ def measure(run: Path, sets_file: Path, mm: list[str]) -> int:
     from mtanno.labels.segments import Segment, to_segments
     from mtanno.labels.truth import read_truth
 
+    least_given = least
     sets = json.loads(sets_file.read_text())
     config = run / "tuned.toml"  # none: a peer without confidence, every row kept
-    least = _min_confidence(config) if config.is_file() else 0.0
+    if least is None:
+        least = _min_confidence(config) if config.is_file() else 0.0
     out: dict = {"min_confidence": least, "sets": {}, "mm": {}}
     conf_rows: dict[str, tuple[list, list]] = {}  # set → (probabilities, right)
     for name, s in sets.items():
@@ -181,7 +185,8 @@ def measure(run: Path, sets_file: Path, mm: list[str]) -> int:
             out["mm"][f"auroc_{scope}"] = auroc(P, Y)
             out["mm"][f"ece_{scope}"] = expected_calibration_error(P, Y)
             out["mm"][f"rows_{scope}"] = int(len(P))
-    (run / "figures.json").write_text(json.dumps(out, indent=1))
+    (run / ("figures.json" if least_given is None else f"figures_min{least:g}.json")
+     ).write_text(json.dumps(out, indent=1))
     parts = [f"{n} {v['labelled']:.3f}" + (f" ({v['right']:.3f} {v['label'][:4]})"
                                             if v["label"] else "")
              for n, v in out["sets"].items()]
@@ -199,37 +204,49 @@ def _f(v, digits=3) -> str:
     return "–" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{digits}f}"
 
 
+def _pooled(sets: dict, names: list[str]) -> tuple[float, float]:
+    """(share labelled, share labelled with the sets' class) over the sets' frames."""
+    n = sum(sets[k]["frames"] for k in names)
+    lab = sum(sets[k]["labelled"] * sets[k]["frames"] for k in names)
+    right = sum((sets[k]["right"] or 0.0) * sets[k]["frames"] for k in names)
+    return (lab / n, right / n) if n else (math.nan, math.nan)
+
+
 def table(runs: Path, names: list[str] | None) -> int:
+    """Markdown tables per rig (module docstring): per configuration the share of the
+    foreign sets' frames labelled (pooled, then per set), of each known class's frames
+    labelled (pooled; in brackets: labelled with that class) and the mm figures."""
     found = {}
-    for p in sorted(runs.glob("*/*/figures.json")):
-        found.setdefault(p.parent.parent.name, {})[p.parent.name] = json.loads(p.read_text())
+    for p in sorted(runs.glob("*/*/figures*.json")):
+        name = p.parent.parent.name + p.stem[len("figures"):].replace("_min", ", min ")
+        found.setdefault(name, {})[p.parent.name] = json.loads(p.read_text())
     order = names or sorted(found)
     for side, rig, title in (("bg_cmu", "bandai", "Bandai (background: CMU 02)"),
                              ("bg_bandai", "cmu", "CMU 02 (background: Bandai set 1)")):
-        cols = None
-        lines = []
+        lines, cols = [], None
         for name in order:
             fig = found.get(name, {}).get(side)
             if fig is None:
                 continue
             sets = {k: v for k, v in fig["sets"].items() if v["rig"] == rig}
+            foreign = [k for k, v in sets.items() if v["kind"] == "foreign"]
+            labels = sorted({v["label"] for v in sets.values() if v["label"]})
             if cols is None:
-                cols = list(sets)
-                head = ["configuration", "min"] + [
-                    f"{k} labelled" + (f" ({sets[k]['label'][:4]})" if sets[k]["label"] else "")
-                    for k in cols] + ["mm F1", "mm F2", "mm Acc", "mm Edit", "mm F1@50",
-                                      "ECE mm", "ECE mm+foreign"]
+                cols = (foreign, labels)
+                head = (["configuration", "min", "foreign, all"]
+                        + [f"{k}" for k in foreign] * (len(foreign) > 1)
+                        + [f"≈ {lab[:4]} (as {lab[:4]})" for lab in labels]
+                        + ["mm F1", "mm F2", "mm Acc", "mm Edit", "mm F1@50", "ECE mm",
+                           "ECE mm+foreign"])
                 lines.append("| " + " | ".join(head) + " |")
                 lines.append("|" + "---|" * len(head))
-            cells = [name, f"{fig['min_confidence']:g}"]
-            for k in cols:
-                v = sets.get(k)
-                if v is None:
-                    cells.append("–")
-                elif v["label"]:
-                    cells.append(f"{_f(v['labelled'])} ({_f(v['right'])})")
-                else:
-                    cells.append(_f(v["labelled"]))
+            cells = [name, f"{fig['min_confidence']:g}" if fig["min_confidence"] else "–",
+                     _f(_pooled(sets, cols[0])[0])]
+            if len(cols[0]) > 1:
+                cells += [_f(sets[k]["labelled"]) for k in cols[0]]
+            for lab in cols[1]:
+                a, b = _pooled(sets, [k for k, v in sets.items() if v["label"] == lab])
+                cells.append(f"{_f(a)} ({_f(b)})")
             m = fig.get("mm") or {}
             cells += [_f(m.get(k)) for k in ("F1", "F2", "Acc", "Edit", "F1@50", "ece",
                                               "ece_foreign")]
@@ -250,6 +267,9 @@ def main(argv=None) -> int:
     b.add_argument("run", type=Path)
     b.add_argument("--sets", type=Path, required=True)
     b.add_argument("--mm", action="append", default=[], metavar="SEED=TRUTH")
+    b.add_argument("--min", type=float, default=None,
+                   help="this minimum confidence instead of the configuration's (writes "
+                        "RUN/figures_minM.json)")
     c = sub.add_parser("table")
     c.add_argument("runs", type=Path)
     c.add_argument("--rows", nargs="*")
@@ -257,7 +277,7 @@ def main(argv=None) -> int:
     if args.what == "sets":
         return make_sets(args.feat, args.out)
     if args.what == "measure":
-        return measure(args.run, args.sets, args.mm)
+        return measure(args.run, args.sets, args.mm, args.min)
     return table(args.runs, args.rows)
 
 
