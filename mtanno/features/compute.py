@@ -131,6 +131,32 @@ def get_feature_set(name: str) -> FeatureSet:
     return FEATURE_SETS[key]
 
 
+def feature_set_mismatch(name: str, feature_names) -> str | None:
+    """What is wrong with a file that says its features ``feature_names`` are of the set
+    ``name`` (a template, an index manifest), or None: a set of mtanno's whose table lacks
+    some of them, or a name that is none of mtanno's sets over features that all belong to
+    one of them (``"bogus"`` over the 40 annotation features: no feature file of those
+    features would ever match). A set of the user's own, over features of its own, is
+    fine."""
+    names = list(feature_names)
+    try:
+        fs = get_feature_set(name)
+    except MtannoError:
+        have = set(names)
+        same = next((f.name for f in FEATURE_SETS.values() if have <= set(f.names)), None)
+        if same is None:
+            return None
+        return (f"feature set {name!r} is none of mtanno's ({', '.join(FEATURE_SETS)}), yet "
+                f"every feature is one of {same}: the set must be named as the one its "
+                "features come from")
+    known = set(fs.names)
+    stray = [n for n in names if n not in known]
+    if not stray:
+        return None
+    more = " …" if len(stray) > 3 else ""
+    return f"feature(s) not in the {fs.name} feature set: {', '.join(stray[:3])}{more}"
+
+
 class _Compiled:
     """A feature table as the kernel's arrays: measure code, joint indices (−1 padded),
     measure parameters (NaN padded), velocity window, and both tests as interval bounds

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-from pathlib import Path
 
 import numpy as np
 
@@ -96,7 +95,7 @@ def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
     rewrite AMC files (:mod:`mtanno.evaluation.compose`); checks the file like :func:`read_amc`."""
     spath = str(path)
     read_amc(path, skel)  # validates, with path:line errors
-    raw = Path(path).read_bytes()
+    raw = read_text_input(path)
     body_at, header_lines, fps = _header(raw, spath)
     lines = raw.decode("latin-1").splitlines()
     first = _first_layout(raw[body_at:], skel)

@@ -491,7 +491,9 @@ def map_toml(smap: SkeletonMap, *, source: str = "", version: str = "") -> str:
     the same map (name, format, detect nodes, heading and joints), with comments saying
     where it came from and how it was made."""
     def s(x: str) -> str:
-        return json.dumps(x)  # a JSON string is a TOML basic string
+        # a JSON string is a TOML basic string, if characters beyond U+FFFF stay as they
+        # are (JSON's surrogate-pair escapes are no TOML) and DEL is escaped (TOML's rule)
+        return json.dumps(x, ensure_ascii=False).replace("\x7f", "\\u007f")
 
     def lst(xs) -> str:
         return "[" + ", ".join(s(x) for x in xs) + "]"

@@ -25,20 +25,14 @@ from __future__ import annotations
 
 import functools
 import os
-import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_toml
 from mtanno.io.skeleton import Rig
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 #: The canonical joints features use, in this order (docs/method.md §1).
 CANONICAL_JOINTS: tuple[str, ...] = (
@@ -135,12 +129,7 @@ class SkeletonMap:
 def load_map(path: str | os.PathLike) -> SkeletonMap:
     """Read one skeleton map file, checking its fields."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MtannoError("skeleton map file not found", path=str(path)) from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise MtannoError(f"not a valid TOML skeleton map: {exc}", path=str(path)) from None
+    data, _ = read_toml(path, what="skeleton map")
     try:
         joints = data["joints"]
         fmt = data["format"]

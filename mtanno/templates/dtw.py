@@ -338,8 +338,10 @@ def _init_sums(vals, wts, hard, num, den):
 
 
 @numba.njit(cache=True)
-def _all_references(vals, wts, off, hard, num, den, cost, D, pi, pj, S, wd):
-    """One learning iteration's sums for every reference at once.
+def _all_references(vals, wts, off, hard, num, den, cmax, csum, D, pi, pj, S, wd):
+    """One learning iteration's sums for every reference at once, and per reference the
+    largest and the summed DTW cost of the examples against it (``cmax``, ``csum``: N
+    values each, so memory grows with N, not N², for classes of many short examples).
 
     Each unordered pair (a, b) is aligned once: the local cost is symmetric bit for bit,
     so the accumulated-cost matrix of (b, a) is the transpose of that of (a, b); only
@@ -349,8 +351,10 @@ def _all_references(vals, wts, off, hard, num, den, cost, D, pi, pj, S, wd):
     tabs = _cost_tables(vals, off)
     scratch = _scratch(vals.shape[0], D.shape[1])
     _init_sums(vals, wts, hard, num, den)
+    for a in range(N):  # the cost of a reference against itself: 0
+        cmax[a] = 0.0
+        csum[a] = 0.0
     for a in range(N):
-        cost[a, a] = 0.0
         a0 = off[a]
         n = off[a + 1] - a0
         for b in range(a + 1, N):
@@ -358,8 +362,10 @@ def _all_references(vals, wts, off, hard, num, den, cost, D, pi, pj, S, wd):
             m = off[b + 1] - b0
             _accumulated_cost(vals, wts, tabs, a0, n, b0, m, b, hard, D, scratch)
             c = D[n - 1, m - 1]
-            cost[a, b] = c
-            cost[b, a] = c
+            cmax[a] = max(cmax[a], c)
+            cmax[b] = max(cmax[b], c)
+            csum[a] += c
+            csum[b] += c
             L = _backtrack(D, n, m, False, pi, pj)
             _warp(vals, wts, n, b0, pi, pj, L, hard, S, wd)
             _accumulate(num, den, a0, n, S, wd, hard)

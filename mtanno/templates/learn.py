@@ -362,20 +362,21 @@ def learn(examples: Sequence[np.ndarray], *, hard: bool = False, iter_max: int =
         vals, wts, off = _pack(U, w)
         maxlen = int(np.diff(off).max())
         buf = _buffers(p, maxlen, vals.shape[1])
-        cost = np.empty((N, N))
-        _all_references(vals, wts, off, hard, buf["num"], buf["den"], cost, buf["D"],
+        # per reference k the largest and the summed cost of the examples against it,
+        # normalised by the weight of its new template: N values, not an N × N matrix
+        cmax, csum, scale = np.empty(N), np.empty(N), np.empty(N)
+        _all_references(vals, wts, off, hard, buf["num"], buf["den"], cmax, csum, buf["D"],
                         buf["pi"], buf["pj"], buf["S"], buf["wd"])
-        Vcost = np.empty((N, N))
         U_new, w_new = [], []
         for k in range(N):
             a, b = off[k], off[k + 1]
             T, Tw = _finish(buf["num"][:, a:b], buf["den"][a:b], N, hard)
-            Vcost[:, k] = cost[k] / _sum_lr(Tw)
+            scale[k] = _sum_lr(Tw)
             U_new.append(T)
             w_new.append(Tw)
-        emax = float(Vcost.max())
+        emax = float((cmax / scale).max())
         cost_max.append(emax)
-        cost_mean.append(float(Vcost.mean()))
+        cost_mean.append(float((csum / scale).sum() / (N * N)))
         U, w = U_new, w_new
     return LearnResult(values=U[0], weights=w[0], iterations=it, cost_max=cost_max,
                        cost_mean=cost_mean)
@@ -488,13 +489,15 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
                     note: Callable[[str], None] | None = None,
                     on_start: Callable[[int], None] | None = None,
                     progress: Callable[[ClassLearned, str | None], None] | None = None,
-                    ) -> LearnRun:
+                    inside_input: bool = False) -> LearnRun:
     """The whole ``mtanno learn-mt`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them (``note`` receives its
     notes), grouped by class (only ``classes``, if given), every output checked against the
     inputs, and one template per class learned (:func:`learn_classes`) and written to
     ``outdir/CLASS.json`` under the folder's lock (:func:`mtanno.util.locks.folder_lock`;
-    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder). A class
+    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder; an
+    ``outdir`` that is or lies inside a folder of training files only with
+    ``inside_input``). A class
     that fails fails alone, as does a training folder that gives no example
     (:attr:`LearnRun.skipped`). ``on_start(n)`` is called
     before the first of ``n`` classes, ``progress(done, error)`` after each (``error``: why
@@ -502,7 +505,7 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     import time
 
     from mtanno.templates.model import class_file, save_template
-    from mtanno.templates.training import collect_sources, group_by_class
+    from mtanno.templates.training import collect_sources, group_by_class, input_folders
     from mtanno.util.locks import folder_lock
     from mtanno.util.output import check_outputs, output_folder
 
@@ -512,7 +515,8 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth],
+                  [*(s.path for s in sources), manifest, truth], folders={out: []},
+                  scanned=input_folders(training, features_dir), inside_input=inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     if on_start:

@@ -417,6 +417,46 @@ def test_folder_named_like_a_motion_file(tmp_path):
     read_features(tmp_path / "out2" / "clip.parquet")
 
 
+@pytest.mark.parametrize("how", ["argument", "stdin"])
+def test_an_input_that_yields_nothing_is_a_failed_input(tmp_path, how):
+    """Issue 31 (7): beside a good input, an empty folder named like a motion file
+    (``empty.amc/``) or any empty folder was skipped without a word (exit 0). Each is a
+    failed input: one line naming it, counted in "failed", exit 1, the good one written."""
+    good = synthetic.write_pair(tmp_path / "in", "good", n_frames=24)
+    for name, what in (("empty.amc", "a folder (named like a motion file) holding no"),
+                       ("empty", "no .amc or .bvh files in this folder or below")):
+        empty = tmp_path / name
+        empty.mkdir()
+        out = tmp_path / f"out-{name}"
+        r = (cli("features", good, empty, "-o", out) if how == "argument" else
+             cli("features", "-", "-o", out, input=f"{good}\n{empty}\n"))
+        line = assert_one_line(r, empty, codes=(1,))
+        assert what in line and "1 written" in r.output and "1 failed" in r.output, r.output
+        read_features(out / "good.parquet")
+        assert sorted(p.name for p in out.iterdir()) == ["good.parquet"]
+
+
+def test_an_output_name_too_long_fails_alone(tmp_path):
+    """Issue 31: one motion file whose output name is longer than a folder entry may be
+    (NAME_MAX, 255 bytes: ``<250 characters>.parquet``) stopped the whole features batch
+    (exit 2, nothing written). It is one failed input now, the others written; and a name
+    just short enough is written, although its temporary name is longer (cut to fit)."""
+    src = tmp_path / "in"
+    synthetic.write_pair(src, "good", n_frames=24)
+    too_long, near = src / ("a" * 250 + ".amc"), src / ("b" * 240 + ".amc")
+    for p in (too_long, near):
+        p.write_text(synthetic.amc_text(24, 1))
+    out = tmp_path / "out"
+    for _ in range(2):  # the rerun: the others up to date, the long one fails again
+        r = cli("features", src, "-o", out)
+        line = assert_one_line(r, out / ("a" * 250 + ".parquet"), codes=(1,))
+        assert "File name too long" in line, line
+        assert "1 failed" in r.output
+    read_features(out / "good.parquet")
+    read_features(out / ("b" * 240 + ".parquet"))
+    assert "2 up to date" in r.output and temporaries(out) == []
+
+
 # --------------------------------------------------------------------- batch inputs
 
 def test_missing_name_on_stdin_is_reported_and_the_batch_goes_on(tmp_path):
