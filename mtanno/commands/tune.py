@@ -72,8 +72,10 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
                    "proportions), mirror (a segment also verified mirrored, left and right "
                    "swapped). Recorded in the bank and [confidence].")
 @click.option("--evidence", "evidence", multiple=True, type=click.Choice(EVIDENCE),
-              help="The evidence the confidence may use (repeatable; default: every kind the "
-                   "inputs allow; docs/annotation.md, Confidence). Recorded in [confidence].")
+              help="The evidence the confidence may use (repeatable; default: cost, length, "
+                   "verify, margin, background, as far as the inputs allow; classifier adds a "
+                   "frame classifier, CONFIG.frames.parquet; docs/annotation.md, Confidence). "
+                   "Recorded in [confidence].")
 @click.option("--confidence/--no-confidence", default=True, show_default=True,
               help="Learn the confidence of each segment and the minimum confidence of an "
                    "output row ([confidence], bank CONFIG.verify.parquet beside CONFIG).")
