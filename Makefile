@@ -39,6 +39,7 @@ experiment-review: $(BIN)/mtanno  ## the Bandai set-2 review loop: K = 0, 1, 2 r
 bench: $(BIN)/mtanno  ## speed figures (see docs/benchmarks.md); installs the peers first
 	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python scripts/bench_features.py
+	$(BIN)/python scripts/bench_c3d_readers.py
 	$(BIN)/python scripts/bench_learn.py
 	$(BIN)/python scripts/bench_match.py
 	$(BIN)/python scripts/bench_annotate.py

@@ -136,7 +136,7 @@ def test_extract_to_is_the_features_command(world, tmp_path):
     with pytest.raises(mtanno.MtannoError, match=r"output folder name \(outdir=\) is empty"):
         extract_to([clip], " ")
     (tmp_path / "empty").mkdir()
-    with pytest.raises(mtanno.MtannoError, match="no .amc or .bvh files"):
+    with pytest.raises(mtanno.MtannoError, match=r"no \.amc, \.bvh or \.c3d files"):
         extract_to([tmp_path / "empty"], tmp_path / "new" / "out")
     bad = tmp_path / "bad.amc"
     bad.write_text("not a motion\n")

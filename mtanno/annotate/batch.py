@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mtanno.annotate.config import ClassConfig, load_class_config
-from mtanno.annotate.label import ClassModel, annotate_document
+from mtanno.annotate.label import ClassModel, annotate_document, valid_rows, valid_windows
 from mtanno.errors import MtannoError
 from mtanno.labels.segments import Annotation
 from mtanno.templates.params import ANNOTATION_DELTA, check_tau
@@ -169,6 +169,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                       feature_set=layout.feature_set, packed=packed)
             except MtannoError as exc:
                 raise MtannoError(exc.message, path=ff.path) from None
+        # frames without evidence (a marker file's lost joints) are never labelled
+        windows = valid_windows(windows, [m.name for m in models], ff.valid)
         # a tuned confidence decides overlaps itself (the reference path's single label)
         by_confidence = single_label and confidence is not None and not config.resolve
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
@@ -181,6 +183,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                   models=models, config=config, confidence=confidence)
         except MtannoError as exc:
             raise MtannoError(exc.message, path=exc.path or ff.path) from None
+        rows = valid_rows(rows, ff.valid)
         if by_confidence:
             rows = single_label_by_confidence(rows)
         least = min_confidence if min_confidence is not None else (

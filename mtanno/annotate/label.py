@@ -23,7 +23,7 @@ from mtanno.labels.segments import Annotation
 
 __all__ = ["ClassModel", "Windows", "annotate_document", "class_deltas", "evidence_covered",
            "label_document", "label_frames", "merged_spans", "segments_from_labels",
-           "single_label_segments"]
+           "single_label_segments", "valid_rows", "valid_windows"]
 
 
 #: Candidate windows per class (keyframe preselection): a list of (first, last) frames,
@@ -218,6 +218,60 @@ def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
     first[1:] = a[1:] > reach[:-1]  # a window that starts after every earlier one ended
     last = np.append(first[1:], True)
     return a[first], reach[last]
+
+
+def valid_windows(windows: Windows | None, names: Sequence[str], valid: np.ndarray,
+                  ) -> Windows | None:
+    """``windows`` restricted to the valid frames (``valid``: (frames,) bool, a feature
+    file's :attr:`~mtanno.features.store.FeatureFile.valid`), for every class of ``names``: a
+    class without windows gets the valid stretches, one with windows their intersection.
+    Windows are matched as separate documents (:func:`class_deltas`), so no match, and no
+    label, spans or touches an invalid frame. All frames valid: ``windows`` unchanged."""
+    valid = np.asarray(valid, dtype=bool)
+    if valid.all():
+        return windows
+    L = valid.shape[0]
+    edges = np.flatnonzero(np.diff(np.r_[False, valid, False].astype(np.int8)))
+    vf, vl = edges[::2].astype(np.int64), edges[1::2].astype(np.int64) - 1
+    spans = _class_spans(windows, L)
+    out: Windows = {}
+    for name in dict.fromkeys(names):
+        if name not in spans:
+            out[name] = (vf, vl)
+            continue
+        wf, wl = spans[name]
+        firsts, lasts = [], []
+        i = j = 0
+        while i < wf.size and j < vf.size:  # two sorted disjoint span lists
+            a, b = max(wf[i], vf[j]), min(wl[i], vl[j])
+            if a <= b:
+                firsts.append(a)
+                lasts.append(b)
+            if wl[i] < vl[j]:
+                i += 1
+            else:
+                j += 1
+        out[name] = (np.array(firsts, np.int64), np.array(lasts, np.int64))
+    return out
+
+
+def valid_rows(rows: Sequence[Annotation], valid: np.ndarray) -> list[Annotation]:
+    """``rows`` cut to the valid frames: a row keeps its valid runs (the boundary
+    refinement and run extension may reach a few frames past a window). With
+    :func:`valid_windows` this makes sure no label covers an invalid frame."""
+    valid = np.asarray(valid, dtype=bool)
+    if valid.all():
+        return list(rows)
+    out = []
+    for r in rows:
+        part = valid[r.start:r.end + 1]
+        if part.all():
+            out.append(r)
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[False, part, False].astype(np.int8)))
+        out += [r._replace(start=r.start + int(a), end=r.start + int(b) - 1)
+                for a, b in zip(edges[::2], edges[1::2])]
+    return out
 
 
 def evidence_covered(classes: Sequence[ClassModel]) -> set[int]:

@@ -64,7 +64,7 @@ def _check_options(outputs, out_dir, fmt, force, wait) -> None:
 
 def _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir, config_path,
                    kf_dir, inside_input) -> list:
-    """Every output against the inputs (:func:`mtanno.util.output.check_outputs`); returns
+    """Every output against the inputs (:func:`mtanno.util.preflight.check_outputs`); returns
     the files the run writes. A document's table that cannot be written fails alone: only
     the ``outputs`` are tried first; no output where the features are read from (Parquet
     tables of ``out_dir`` inside a folder of feature files), no ``out_dir`` that is or lies
@@ -74,7 +74,7 @@ def _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir, confi
     from mtanno.annotate.tables import ANNOTATION_SUFFIXES
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.model import template_files
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files
 
     tables = [f for out in outputs for f in output_files(out)]
@@ -134,7 +134,7 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
                                   tau=tau, delta=delta, dbar_variant=dbar_variant,
                                   match_variant=match_variant, single_label=single_label,
                                   min_confidence=min_confidence)
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs(written, setup.files(), writable=False)  # the configuration's templates
     if on_start:

@@ -75,7 +75,7 @@ def wait_option(fn):
 
 def inside_input_option(fn):
     """``--inside-input``: allow an output folder that is, or lies inside, an input folder
-    (refused otherwise: :func:`mtanno.util.output.check_outputs`, ``inside_input``)."""
+    (refused otherwise: :func:`mtanno.util.preflight.check_outputs`, ``inside_input``)."""
     return click.option("--inside-input", "inside_input", is_flag=True,
                         help="Allow the output folder to be, or lie inside, an input folder "
                              "(refused otherwise, so that outputs never land among the input "

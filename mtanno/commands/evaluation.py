@@ -61,7 +61,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     """
     from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
     from mtanno.evaluation.metrics import evaluate_files
-    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.output import write_stdout
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
@@ -115,7 +116,8 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
         retrieval_table,
     )
     from mtanno.labels.truth import read_truth
-    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.output import write_stdout
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
@@ -207,7 +209,7 @@ def truth_group():
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
     from mtanno.labels.truth import truth_from_mocap6, write_truth
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format
 
     table_format(output)
@@ -235,7 +237,7 @@ def truth_mocap6(labels, output):
                    "curves; files with poses (features --poses) give the players. "
                    "Repeatable.")
 @click.option("--motions", "motions", multiple=True, type=click.Path(), metavar="PATH",
-              help="Motion files (.amc, .bvh) or folders of them, matched to the documents "
+              help="Motion files (.amc, .bvh, .c3d) or folders of them, matched to the documents "
                    "by file name: a stick-figure player per document (instead of the poses "
                    "of --features). Repeatable.")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,

@@ -86,13 +86,9 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     from mtanno.keyframes.ga import GAParams
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
     from mtanno.templates.model import load_template_folder
-    from mtanno.templates.training import (
-        collect_sources,
-        group_by_class,
-        input_folders,
-        load_examples,
-    )
-    from mtanno.util.output import check_outputs, output_folder
+    from mtanno.templates.training import collect_sources, group_by_class, input_folders, load_examples
+    from mtanno.util.output import output_folder
+    from mtanno.util.preflight import check_outputs
 
     bad_inputs: list[MtannoError] = []  # training folders without examples: the others go on
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,

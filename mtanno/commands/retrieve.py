@@ -77,7 +77,7 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
     )
     from mtanno.templates.model import load_template, load_template_folder, template_files
     from mtanno.templates.params import check_tau
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)

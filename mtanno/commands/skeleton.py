@@ -54,7 +54,8 @@ def guess_cmd(file: str, output: str, name: str | None, method: str,
     from mtanno.io.bvh import read_bvh
     from mtanno.io.guess import guess_map, map_toml
     from mtanno.io.rigs import available_maps
-    from mtanno.util.output import check_outputs, write_text
+    from mtanno.util.output import write_text
+    from mtanno.util.preflight import check_outputs
 
     if Path(file).suffix.lower() != ".bvh":
         raise MtannoError("skeleton guess reads a BVH file (.bvh)", path=file)

@@ -170,7 +170,7 @@ def mt_mirror_cmd(template, output, name):
     motion, without new training data.
     """
     from mtanno.templates.model import load_template, mirror, save_template
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     mt = mirror(load_template(template), name=name)
@@ -199,7 +199,7 @@ def mt_scale_cmd(template, factor, output):
     """
     from mtanno.templates.model import load_template, save_template
     from mtanno.templates.tempo import time_scaled
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     mt = load_template(template)
@@ -224,7 +224,7 @@ def mt_quantize_cmd(template, delta, output):
     The output records δ; matching uses a quantized template as it is.
     """
     from mtanno.templates.model import load_template, quantize, save_template
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     mt = quantize(load_template(template), delta)
@@ -247,7 +247,7 @@ def mt_plot_cmd(template, output, delta):
     Needs matplotlib (pip install 'mtanno[plot]')."""
     from mtanno.plot import plot_template, require_matplotlib, save_figure
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     require_matplotlib()
     check_outputs([output], [template])

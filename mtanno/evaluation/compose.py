@@ -184,7 +184,8 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     if not clips:
         raise MtannoError("no clips to compose")
     from mtanno.io import find_asf
-    from mtanno.util.output import check_outputs, make_folder
+    from mtanno.util.output import make_folder
+    from mtanno.util.preflight import check_outputs
 
     # everything is read and checked before the first byte is written: a bad clip leaves
     # no partial output folder

@@ -50,7 +50,7 @@ NONE = "none"
 REPORT_TITLE = "mtanno annotation report"
 FORMATS = ("png", "svg")
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
-#: after documents and classes), for :func:`mtanno.util.output.check_outputs`.
+#: after documents and classes), for :func:`mtanno.util.preflight.check_outputs`.
 REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
                 "per_class.tex", "confusion.csv", "confusion.csv.meta.json", "summary.csv",
                 "summary.csv.meta.json", "summary.md", "review.csv", "review.csv.meta.json",
@@ -570,7 +570,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
     from mtanno.templates.params import ANNOTATION_TAU
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import provenance
 
     require_matplotlib()

@@ -11,7 +11,10 @@ came from (source path and SHA-256, frame rates, frame mapping, skeleton map, fe
 mtanno version). Optionally (``mtanno features --poses``) a pose block follows: float32
 columns ``pose.<joint>.<x|y|z>`` holding the normalised canonical joint positions of every
 row (:mod:`mtanno.features.poses`, in leg lengths), described by the metadata's ``poses``
-entry; readers skip it unless asked (``read_features(..., poses=True)``).
+entry; readers skip it unless asked (``read_features(..., poses=True)``). The metadata's
+optional ``invalid`` entry lists the rows that carry no evidence (a marker file's frames
+whose joints could not be computed) as [first, last] pairs, 1-based inclusive; a file
+without it has every row valid (:attr:`FeatureFile.valid`).
 """
 
 from __future__ import annotations
@@ -85,6 +88,15 @@ class FeatureFile:
         """True if the file has a pose block (read or not; its metadata says so and its
         columns were checked when the file was read)."""
         return isinstance(self.meta.get("poses"), dict)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(frames,) bool: the rows that carry evidence (all, unless the metadata's
+        ``invalid`` runs say otherwise; checked when the file was read)."""
+        out = np.ones(self.X.shape[1], dtype=bool)
+        for a, b in self.meta.get("invalid") or ():
+            out[a - 1:b] = False
+        return out
 
     @property
     def document(self) -> str:
@@ -369,6 +381,7 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
             and all(isinstance(i, str) and i for i in ids) and len(set(ids)) == len(ids)):
         raise bad(f"feature_ids in the mtanno metadata must list one distinct id per feature "
                   f"column ({len(names)})")
+    _check_invalid(meta, rows, bad)
     groups = meta.get("groups") or {}
     columns = set(names)
     for g, members in groups.items():
@@ -394,6 +407,23 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
                       f"({', '.join(want)})")
 
 
+def _check_invalid(meta: dict, rows: int, bad) -> None:
+    """``invalid`` (optional): [first, last] row pairs, 1-based inclusive, ascending and
+    disjoint, within the file's rows."""
+    if "invalid" not in meta:
+        return
+    runs = meta["invalid"]
+    if not (isinstance(runs, list) and all(
+            isinstance(r, list) and len(r) == 2 and all(_is_int(x) for x in r) for r in runs)):
+        raise bad("invalid in the mtanno metadata must be a list of [first, last] row pairs")
+    last = 0
+    for a, b in runs:
+        if not last < a <= b <= rows:
+            raise bad(f"invalid in the mtanno metadata: rows {a}-{b} are not ascending, "
+                      f"disjoint rows within 1..{rows}")
+        last = b
+
+
 def _rows(mask: np.ndarray) -> str:
     rows = np.flatnonzero(mask)[:3] + 1
     more = " …" if mask.sum() > 3 else ""
@@ -417,22 +447,12 @@ def _column(table: pa.Table, name: str, kind: str, spath: str, note: str = "",
     return col
 
 
-#: How the first line of a BVH or an AMC file (after ``#`` comments) begins.
-_MOTION_HEADS = (b"HIERARCHY", b":FULLY-SPECIFIED", b":DEGREES", b":RADIANS")
-
-
 def _is_motion_file(path: str, data) -> bool:
     """True if a file that is no Parquet file is a motion file (by its suffix, or by its
-    first line: BVH's ``HIERARCHY``, AMC's ``:FULLY-SPECIFIED``/``:DEGREES``)."""
-    from mtanno.io import MOCAP_SUFFIXES  # (on this error path only: io loads numba)
+    first bytes: :func:`mtanno.io.formats.looks_like_motion`)."""
+    from mtanno.io.formats import looks_like_motion  # (on this error path only)
 
-    if Path(path).suffix.lower() in MOCAP_SUFFIXES:
-        return True
-    for line in bytes(memoryview(data)[:4096]).splitlines():
-        line = line.strip()
-        if line and not line.startswith(b"#"):
-            return line.upper().startswith(_MOTION_HEADS)
-    return False
+    return looks_like_motion(path, bytes(memoryview(data)[:4096]))
 
 
 def read_features(path: str | os.PathLike, *, sha256: bool = False,

@@ -114,7 +114,7 @@ def _check_target(root: Path, paths: Sequence[Path], folders: Sequence[str | os.
     rebuilt and cleaned); never into a folder holding anything else, nor where an input file
     is, nor inside a folder of feature files it reads (``folders``: the next build would
     read the index's Parquet files as feature files); and only where it can be written."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     if root.exists() and not root.is_dir():
         raise MtannoError("index path exists and is not a directory", path=str(root))
@@ -153,7 +153,7 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     cannot be read or does not have the index's features is left out and its message
     appended there; without, it is raised. ``progress(done, total)``: after each file read."""
     from mtanno.features.store import FeatureLayout
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     root = Path(index_dir)
     feature_files = list(feature_files)

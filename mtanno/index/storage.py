@@ -370,7 +370,7 @@ def remove_leftovers(root: Path, keep: str) -> None:
 
 def index_files(root: str | os.PathLike) -> list[Path]:
     """The files of the index in ``root`` as it is now (manifest and current generation),
-    for :func:`mtanno.util.output.check_outputs`; empty when there is no readable manifest."""
+    for :func:`mtanno.util.preflight.check_outputs`; empty when there is no readable manifest."""
     root = Path(root)
     try:
         manifest = read_index_manifest(root)

@@ -507,7 +507,8 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     from mtanno.templates.model import class_file, save_template
     from mtanno.templates.training import collect_sources, group_by_class, input_folders
     from mtanno.util.locks import folder_lock
-    from mtanno.util.output import check_outputs, output_folder
+    from mtanno.util.output import output_folder
+    from mtanno.util.preflight import check_outputs
 
     run = LearnRun()
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,

@@ -230,7 +230,7 @@ def input_folders(training: Sequence[str | os.PathLike] = (),
     """The folders training examples are read from (``TRAINING`` folders,
     ``features_dir``), each with the suffix read there, and the folders of ``also`` (the
     templates' or keyframe queries' folder: no suffix, nothing in them is scanned), as
-    :func:`mtanno.util.output.check_outputs` takes them (``scanned``): no output folder
+    :func:`mtanno.util.preflight.check_outputs` takes them (``scanned``): no output folder
     among the inputs unless the user says so."""
     return {**{f: () for f in also if f is not None and Path(f).is_dir()},
             **{f: (".parquet",) for f in [*training, features_dir]

@@ -232,7 +232,7 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
                failures: list[MtannoError] | None = None, **options) -> TuneResult:
     """The whole ``mtanno tune`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them, every output checked
-    against the inputs before any work (:func:`mtanno.util.output.check_outputs`),
+    against the inputs before any work (:func:`mtanno.util.preflight.check_outputs`),
     :func:`tune` (``options`` are its keyword options), and the configuration written to
     ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
     ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
@@ -243,7 +243,8 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.model import template_files
     from mtanno.templates.training import collect_sources, input_folders
-    from mtanno.util.output import check_outputs, make_folder
+    from mtanno.util.output import make_folder
+    from mtanno.util.preflight import check_outputs
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth, note=log, failures=failures)

@@ -1,7 +1,7 @@
 """Plumbing shared by every stage and command (no algorithms here):
 
-* :mod:`~mtanno.util.output` — atomic writes, the umask, temporaries of dead writers,
-  outputs checked against inputs;
+* :mod:`~mtanno.util.output` — atomic writes, the umask, temporaries of dead writers;
+* :mod:`~mtanno.util.preflight` — outputs checked against inputs before any work;
 * :mod:`~mtanno.util.locks` — the writer lock of an output folder (cron safety);
 * :mod:`~mtanno.util.tables` — the one I/O convention of every table (CSV, Parquet, JSON
   Lines by suffix; provenance with content hashes; ``-`` for standard input and output);
@@ -23,7 +23,7 @@ loading one does not load the others.
 
 from mtanno.util.lazy import submodule_getattr
 
-__all__ = ["jitnote", "lazy", "locks", "outcomes", "output", "pause", "stdout", "tables",
+__all__ = ["jitnote", "lazy", "locks", "outcomes", "output", "preflight", "pause", "stdout", "tables",
            "units", "workers"]
 
 

@@ -104,7 +104,7 @@ def sidecar_path(path: str | os.PathLike) -> Path | None:
 
 def output_files(path: str | os.PathLike | None) -> list[str]:
     """Every file that writing the table ``path`` creates (the table and its sidecar), for
-    :func:`mtanno.util.output.check_outputs`."""
+    :func:`mtanno.util.preflight.check_outputs`."""
     if path is None or str(path) == "-":
         return []
     side = sidecar_path(path)

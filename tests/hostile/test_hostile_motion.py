@@ -424,7 +424,7 @@ def test_an_input_that_yields_nothing_is_a_failed_input(tmp_path, how):
     failed input: one line naming it, counted in "failed", exit 1, the good one written."""
     good = synthetic.write_pair(tmp_path / "in", "good", n_frames=24)
     for name, what in (("empty.amc", "a folder (named like a motion file) holding no"),
-                       ("empty", "no .amc or .bvh files in this folder or below")):
+                       ("empty", "no .amc, .bvh or .c3d files in this folder or below")):
         empty = tmp_path / name
         empty.mkdir()
         out = tmp_path / f"out-{name}"
@@ -507,11 +507,11 @@ def test_empty_output_name_is_refused(tmp_path, monkeypatch):
 
 
 def test_unknown_file_type_is_exit_2_in_features_as_in_info(tmp_path):
-    c3d = tmp_path / "take.c3d"
+    c3d = tmp_path / "take.fbx"
     c3d.write_bytes(b"\x02\x50" + bytes(510))
     for args in (["info", c3d], ["features", c3d, "-o", tmp_path / "out"]):
         line = assert_one_line(cli(*args), c3d, codes=(2,))
-        assert "unknown motion file type '.c3d'" in line
+        assert "unknown motion file type '.fbx'" in line
     assert not (tmp_path / "out").exists()
 
 

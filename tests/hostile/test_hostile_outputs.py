@@ -101,9 +101,9 @@ def test_no_output_replaces_an_inputs_sidecar(world, tmp_path, case):
 
 
 def test_check_outputs_counts_input_sidecars_and_folder_names(tmp_path):
-    """The one place (mtanno.util.output.check_outputs): inputs' sidecars, names and patterns
+    """The one place (mtanno.util.preflight.check_outputs): inputs' sidecars, names and patterns
     written inside output folders, and folders the command owns."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     (tmp_path / "rep").mkdir()
     ann = tmp_path / "rep" / "timeline_d1.png"
@@ -273,7 +273,7 @@ def test_inside_input_never_lets_the_next_run_read_an_output(world, tmp_path):
 
 def test_check_outputs_inside_input(tmp_path):
     """The API's words: inside_input=; None (an index's folder) leaves the rule out."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     data = tmp_path / "data"
     data.mkdir()
@@ -344,7 +344,7 @@ def test_a_command_that_fails_on_an_output_writes_nothing(world, tmp_path, case)
 def test_preflight_leaves_nothing_and_creates_no_folder(tmp_path):
     """The preflight tries the nearest existing folder with a temporary file it removes;
     it creates no folder."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([tmp_path / "a" / "b" / "x.csv"], [], folders={tmp_path / "c": None})
     assert list(tmp_path.iterdir()) == []
