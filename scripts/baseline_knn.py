@@ -15,8 +15,13 @@ evaluate`.
 * Majority filter: each frame takes the most frequent label among the frames within
   ±0.5 s (31 frames; ties: the frame's own label if tied, else the smallest class index).
 
+* Open world (issue 35): ``--none FEATS...`` adds every frame of these background feature
+  files (motions of no class) as training frames of the class "none"; frames labelled
+  "none" are left unlabelled (no row). Without it every frame gets a class.
+
     scripts/baseline_knn.py (--manifest CSV --features-dir DIR [--split S] |
-                             --truth TRUTH.csv --train FEATS...) DOCS... -o OUT.csv
+                             --truth TRUTH.csv --train FEATS...) [--none FEATS ...]
+                            DOCS... -o OUT.csv
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ import numpy as np
 
 #: Neighbours that vote (issue 10).
 K = 5
+#: The label of background frames (``--none``): never output.
+NONE = "none"
 #: Half window of the frame description and of the majority filter, frames at 30 Hz.
 HALF = 15
 
@@ -146,6 +153,9 @@ def main(argv=None) -> int:
     ap.add_argument("--truth")
     ap.add_argument("--train", action="append", default=[],
                     help="with --truth: the training documents' feature files or folders")
+    ap.add_argument("--none", action="append", default=[], metavar="FEATS",
+                    help="background feature file or folder (repeatable): training frames "
+                         "of 'none'")
     ap.add_argument("-k", type=int, default=K)
     a = ap.parse_args(argv)
     try:
@@ -153,9 +163,15 @@ def main(argv=None) -> int:
                                   split=a.split, truth=a.truth)
         examples = load_examples(sources)
         classes = sorted({e.class_name for e in examples})
-        train = np.concatenate([pack_windows(e.X) for e in examples])
+        none = [read_features(p).X for p in document_files(a.none)] if a.none else []
+        if none:
+            classes.append(NONE)
+        train = np.concatenate([pack_windows(e.X) for e in examples]
+                               + [pack_windows(X) for X in none])
         labels = np.concatenate([np.full(e.X.shape[1], classes.index(e.class_name))
-                                 for e in examples]).astype(np.int64)
+                                 for e in examples]
+                                + [np.full(X.shape[1], classes.index(NONE)) for X in none]
+                                ).astype(np.int64)
         t0 = time.perf_counter()
         rows, files, frames = [], [], {}
         for path in document_files(a.docs):
@@ -163,12 +179,15 @@ def main(argv=None) -> int:
             out = np.empty(ff.X.shape[1], dtype=np.int64)
             _knn(pack_windows(ff.X), train, labels, a.k, len(classes), out)
             for s, e, lab in runs(majority_filter(out)):
+                if classes[lab] == NONE:
+                    continue
                 rows.append(Annotation(ff.document, s, e, classes[lab], float("nan")))
             files.append({"path": str(path), "sha256": ff.sha256})
             frames[ff.document] = int(ff.X.shape[1])
         seconds = time.perf_counter() - t0
         write_annotations(a.output, rows, provenance=provenance(
-            inputs=files, method=f"k-NN baseline (k={a.k}, ±{HALF} frames, 1 s majority)",
+            inputs=files, method=f"k-NN baseline (k={a.k}, ±{HALF} frames, 1 s majority)"
+            + (f", none class from {len(none)} background files" if none else ""),
             training=[s.path for s in sources], documents=frames))
     except MtannoError as exc:
         print(f"baseline_knn: {exc}", file=sys.stderr)

@@ -14,6 +14,10 @@
 # Baseline in the same run: the tuned annotation of issue 10 (no background, no confidence).
 # Nothing is tuned on the documents reported on.
 #
+# Then (issue 35) the cross-rig protocol, scripts/experiment_crossrig.sh OUT/crossrig: the
+# foreign rigs' foreign motions and their motions of HDM05 classes, the background never
+# from the rig tested (CROSSRIG=0 skips it).
+#
 #   scripts/experiment_openworld.sh [OUT] [SEEDS...]   (defaults: out/openworld, seeds 1 2 3)
 #   UNKNOWN=0 skips (a) (22 more tune runs, about 10 minutes on 2 cores).
 set -euo pipefail
@@ -120,4 +124,10 @@ if [ "${UNKNOWN:-1}" != 0 ]; then
   rates() { for c in "$U"/*/; do for s in $SEEDS; do printf '%s,' "$c/seed${s}_$1.json"; done; done; }
   "${TABLES[@]}" unknown-table "tuned, no background, no confidence=$(rates baseline)" \
     "background CMU 02=$(rates bg_cmu02)" "background Bandai set 1=$(rates bg_bandai1)"
+fi
+
+if [ "${CROSSRIG:-1}" != 0 ]; then
+  echo "== cross-rig protocol (issue 35): scripts/experiment_crossrig.sh $OUT/crossrig"
+  FEAT=$OUT/crossrig_features MTANNO=$MTANNO PY=$PY \
+    "$here/scripts/experiment_crossrig.sh" "$OUT/crossrig" $SEEDS
 fi

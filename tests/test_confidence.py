@@ -75,7 +75,7 @@ def test_label_facts_of_superclasses_use_the_median_base_template():
 
 
 def test_the_evidence_registry_is_ordered_and_extensible():
-    assert EVIDENCE == ("cost", "length", "verify", "margin", "background")
+    assert EVIDENCE == ("cost", "length", "verify", "margin", "background", "classifier")
     import mtanno.confidence.evidence as ev
 
     @register_evidence("frames")
@@ -190,3 +190,28 @@ def test_tune_and_annotate_build_the_same_evidence_inputs(world, tmp_path):
     both = [document_evidence(rows, f, X=ff.X, poses=None, names=("cost", "length"))
             for f in (annotate_facts, tune_facts)]
     np.testing.assert_array_equal(*both)
+
+
+def test_config_invariance_round_trips_and_is_checked(tmp_path):
+    """Issue 35: [confidence] invariance is written in INVARIANCES order, read back, and
+    refused when unknown, repeated or without a bank."""
+    from mtanno.confidence.calibration import fit_calibrated
+
+    rng = np.random.default_rng(1)
+    E = rng.random((40, 2))
+    fit = fit_calibrated(E, (E[:, 0] > 0.5).astype(float), names=("cost", "verify"), rng=0)
+    table = {"evidence": ["cost", "verify"], "bank": "b.parquet", "bank_sha256": "a" * 64,
+             "invariance": ["mirror", "retarget"], "calibrator": fit.calibrator.to_dict()}
+    model = ConfidenceModel.from_table(table)
+    assert model.invariance == ("retarget", "mirror")
+    path = tmp_path / "c.toml"
+    path.write_text(class_config_text(ClassConfig(confidence=model)))
+    assert load_class_config(path).confidence.invariance == ("retarget", "mirror")
+    assert 'invariance = ["retarget", "mirror"]' in path.read_text()
+    for bad, msg in ((["scale"], "invariance must list"), (["mirror", "mirror"], "distinct"),
+                     (["mirror"], "invariance needs a verification bank")):
+        t = {**table, "invariance": bad}
+        if "needs" in msg:
+            t = {k: v for k, v in t.items() if not k.startswith("bank")}
+        with pytest.raises(MtannoError, match=msg):
+            ConfidenceModel.from_table(t)

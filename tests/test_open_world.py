@@ -153,3 +153,63 @@ def test_tune_on_annotated_documents_with_poses_verifies_by_poses(world, tmp_pat
     r = cli("annotate", "--mt", world.mt, "--classes", config, feats, "-o", tmp_path / "a.csv",
             "--min-confidence", "0", "-q")
     assert r.exit_code == 0, r.output
+
+
+def test_tune_invariance_and_evidence_are_recorded_and_used(world, tmp_path):
+    """Issue 35: ``tune --invariance`` makes the bank and [confidence] record what the
+    verification is blind to, annotate verifies the same way (its provenance says so);
+    ``--evidence`` chooses the calibrator's evidence, the frame classifier's bank written
+    beside the configuration when it is among them; a bank whose invariance differs from
+    the configuration's is refused in one line."""
+    from mtanno.annotate import load_class_config
+    from mtanno.confidence.verify import build_bank, read_bank, write_bank
+    from mtanno.util.tables import sha256_file
+
+    feats = tmp_path / "docsP"
+    r = cli("features", world.docs, "-o", feats, "--poses", "-q")
+    assert r.exit_code == 0, r.output
+    config = tmp_path / "t.toml"
+    r = cli("tune", "--mt", world.mt, "--truth", world.truth, feats, "-o", config, "-q",
+            "--invariance", "mirror", "--invariance", "retarget",
+            "--evidence", "cost", "--evidence", "verify", "--evidence", "margin",
+            "--evidence", "classifier")
+    assert r.exit_code == 0, r.output
+    conf = load_class_config(config).confidence
+    assert conf.invariance == ("retarget", "mirror")  # in INVARIANCES order
+    assert set(conf.evidence) <= {"cost", "verify", "margin", "classifier"}
+    assert {"verify", "classifier"} <= set(conf.evidence)
+    assert conf.frames_file == "t.frames.parquet"
+    assert conf.frames_sha256 == sha256_file(tmp_path / conf.frames_file)
+    assert conf.frame_bank.windows.shape[0] > 0
+    bank = read_bank(tmp_path / conf.bank_file)
+    assert bank.representation == "poses" and bank.invariance == ("retarget", "mirror")
+    assert "blind to retarget, mirror" in config.read_text()
+    out = tmp_path / "a.csv"
+    r = cli("annotate", "--mt", world.mt, "--classes", config, feats, "-o", out,
+            "--min-confidence", "0", "-q")
+    assert r.exit_code == 0, r.output
+    _, prov = read_annotation_table(out)
+    assert prov["confidence"]["bank"]["invariance"] == ["retarget", "mirror"]
+    assert prov["confidence"]["frames"]["sha256"] == conf.frames_sha256
+    # the same bank without its invariance, pinned by its SHA-256: refused, one line
+    plain = build_bank([(c, p, bank.items[bank.offsets[k]:bank.offsets[k + 1]])
+                        for k, (c, p) in enumerate(zip(bank.labels, bank.performers)) if c],
+                       representation="poses")
+    write_bank(tmp_path / conf.bank_file, plain)
+    text = config.read_text().replace(conf.bank_sha256, sha256_file(tmp_path / conf.bank_file))
+    config.write_text(text)
+    r = cli("annotate", "--mt", world.mt, "--classes", config, feats, "-o", tmp_path / "b.csv")
+    assert r.exit_code != 0 and "invariance" in r.output and "Traceback" not in r.output
+
+
+def test_bad_invariance_and_evidence_are_usage_errors(world, tmp_path):
+    train = ["--manifest", world.manifest, "--features-dir", world.feats, "--split", "train"]
+    for opt, value in (("--invariance", "scale"), ("--evidence", "speed")):
+        r = cli("tune", "--mt", world.mt, *train, opt, value, "-o", tmp_path / "t.toml")
+        assert r.exit_code == 2 and opt in r.output and "Traceback" not in r.output
+    # invariance needs verification by poses: the synthetic clips have none
+    r = cli("tune", "--mt", world.mt, *train, "--invariance", "mirror", "-o",
+            tmp_path / "t.toml")
+    line = assert_one_line(r, "", codes=(2,))
+    assert "--invariance" in line and "poses" in line, line
+    assert not (tmp_path / "t.toml").exists()

@@ -116,3 +116,111 @@ def test_bank_file_round_trip(tmp_path):
         read_bank(tmp_path / "x.parquet")
     with pytest.raises(MtannoError, match="not found"):
         read_bank(tmp_path / "missing.parquet")
+
+
+# --------------------------------------------------------------- invariances (issue 35)
+
+def _skeleton(lengths: dict[str, float], rng) -> np.ndarray:
+    """One random pose (22 × 3) of the canonical hierarchy with the given bone lengths and
+    random bone directions (seeded), built joint by joint from the root."""
+    from mtanno.confidence.verify import CANONICAL_BONES
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    j = {n: i for i, n in enumerate(CANONICAL_JOINTS)}
+    P = np.zeros((22, 3))
+    P[0] = [0.0, 1.1, 0.0]
+    for child, (parent, _) in CANONICAL_BONES.items():
+        d = rng.normal(size=3)
+        P[j[child]] = P[j[parent]] + lengths[child] * d / np.linalg.norm(d)
+    return P
+
+
+def test_retarget_gives_canonical_bones_and_keeps_directions():
+    from mtanno.confidence.verify import CANONICAL_BONES, retarget_poses
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    j = {n: i for i, n in enumerate(CANONICAL_JOINTS)}
+    # the same bone directions on two rigs of other proportions → the same retargeted pose
+    short = {c: 0.5 * length for c, (_, length) in CANONICAL_BONES.items()}
+    odd = {c: length * (1.0 + 0.1 * k) for k, (c, (_, length)) in
+           enumerate(CANONICAL_BONES.items())}
+    a = _skeleton(short, np.random.default_rng(7))
+    b = _skeleton(odd, np.random.default_rng(7))
+    ra, rb = retarget_poses(a[None]), retarget_poses(b[None])
+    assert np.allclose(ra, rb)
+    for child, (parent, length) in CANONICAL_BONES.items():
+        bone = ra[0, j[child]] - ra[0, j[parent]]
+        assert np.linalg.norm(bone) == pytest.approx(length)
+        orig = a[j[child]] - a[j[parent]]
+        assert np.allclose(bone / length, orig / np.linalg.norm(orig))
+    assert np.array_equal(ra[0, 0], a[0])  # the root stays
+    # a bone of no length stays of no length (a rig without a head-top joint)
+    c = a.copy()
+    c[j["headtop"]] = c[j["head"]]
+    rc = retarget_poses(c[None])[0]
+    assert np.array_equal(rc[j["headtop"]], rc[j["head"]])
+    with pytest.raises(MtannoError, match="poses must be"):
+        retarget_poses(np.zeros((3, 11, 3)))
+
+
+def test_mirror_rows_swaps_sides_and_negates_x():
+    from mtanno.confidence.verify import mirror_rows
+
+    R = np.random.default_rng(2).random((4, 3 * len(POSE_JOINTS))).astype(np.float32)
+    M = mirror_rows(R)
+    assert np.array_equal(mirror_rows(M), R)
+    k = {n: i for i, n in enumerate(POSE_JOINTS)}
+    rows, mrows = R.reshape(4, -1, 3), M.reshape(4, -1, 3)
+    assert np.array_equal(mrows[:, k["lwrist"], 0], -rows[:, k["rwrist"], 0])
+    assert np.array_equal(mrows[:, k["lwrist"], 1:], rows[:, k["rwrist"], 1:])
+    assert np.array_equal(mrows[:, k["head"], 1:], rows[:, k["head"], 1:])
+    with pytest.raises(MtannoError, match="pose rows"):
+        mirror_rows(np.zeros((2, 6)))
+
+
+def _pose_bank(invariance):
+    rng = np.random.default_rng(5)
+    base = rng.random((12, 3 * len(POSE_JOINTS))).astype(np.float32)
+    ex = [("kick", p, base + 0.02 * rng.random(base.shape).astype(np.float32))
+          for p in ("p1", "p2")]
+    ex.append(("walk", "p1", rng.random((12, base.shape[1])).astype(np.float32)))
+    return build_bank(ex, representation="poses", invariance=invariance), ex
+
+
+def test_mirror_invariance_verifies_the_mirrored_motion():
+    from mtanno.confidence.verify import mirror_rows
+
+    plain, ex = _pose_bank(())
+    mirrored, _ = _pose_bank(("mirror",))
+    q = mirror_rows(ex[0][2][2:9])  # the first example's motion done with the other side
+    assert mirrored.nearest(q)["kick"] == pytest.approx(0.0, abs=1e-6)
+    assert plain.nearest(q)["kick"] > 0.05
+    assert mirrored.invariance == ("mirror",)
+
+
+def test_invariance_recorded_in_the_bank_file(tmp_path):
+    bank, _ = _pose_bank(("retarget", "mirror"))
+    assert bank.invariance == ("retarget", "mirror")
+    write_bank(tmp_path / "b.parquet", bank)
+    assert read_bank(tmp_path / "b.parquet").invariance == ("retarget", "mirror")
+    with pytest.raises(MtannoError, match="unknown invariance"):
+        _pose_bank(("scale",))
+    feats = [("a", "p", np.zeros((3, 40), np.float32))]
+    with pytest.raises(MtannoError, match="need verification by poses"):
+        build_bank(feats, representation="features", invariance=("mirror",))
+
+
+def test_sequence_retargets_before_the_joints_are_taken():
+    from mtanno.confidence.verify import retarget_poses
+
+    P = np.stack([_skeleton({c: 0.3 for c in _bones()}, np.random.default_rng(s))
+                  for s in range(8)])
+    got = sequence(poses=P, representation="poses", invariance=("retarget",))
+    want = sequence(poses=retarget_poses(P), representation="poses")
+    assert np.allclose(got, want)
+
+
+def _bones():
+    from mtanno.confidence.verify import CANONICAL_BONES
+
+    return CANONICAL_BONES

@@ -17,6 +17,8 @@ from mtanno.commands._common import (
     training_options,
     user_errors,
 )
+from mtanno.confidence.evidence import EVIDENCE
+from mtanno.confidence.verify import INVARIANCES
 from mtanno.errors import MtannoError
 from mtanno.tuning.cv import DOCUMENT_MODES
 from mtanno.tuning.run import VERIFY_MODES
@@ -64,6 +66,16 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
               help="How each segment is verified for its confidence: against the training "
                    "examples (and background) by poses (mtanno features --poses), by the "
                    "boolean features, or not at all; auto: poses when every file has them.")
+@click.option("--invariance", "invariance", multiple=True, type=click.Choice(INVARIANCES),
+              help="Make the pose verification blind to what is not motion (repeatable): "
+                   "retarget (compare poses on one canonical skeleton, whatever the rig's "
+                   "proportions), mirror (a segment also verified mirrored, left and right "
+                   "swapped). Recorded in the bank and [confidence].")
+@click.option("--evidence", "evidence", multiple=True, type=click.Choice(EVIDENCE),
+              help="The evidence the confidence may use (repeatable; default: cost, length, "
+                   "verify, margin, background, as far as the inputs allow; classifier adds a "
+                   "frame classifier, CONFIG.frames.parquet; docs/annotation.md, Confidence). "
+                   "Recorded in [confidence].")
 @click.option("--confidence/--no-confidence", default=True, show_default=True,
               help="Learn the confidence of each segment and the minimum confidence of an "
                    "output row ([confidence], bank CONFIG.verify.parquet beside CONFIG).")
@@ -76,8 +88,8 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @scheduler_option
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
-             disabled, unknown_weight, ablation_dir, background, verify, confidence, seed, jobs,
-             quiet, inside_input, scheduler):
+             disabled, unknown_weight, ablation_dir, background, verify, invariance, evidence,
+             confidence, seed, jobs, quiet, inside_input, scheduler):
     """Learn the annotation parameters from the training data alone.
 
     Cross-validation inside the training examples: each performer (manifest actor, or
@@ -112,7 +124,8 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
         command=command_line(), seed=seed, n_jobs=jobs,
         methods=[m for m in METHODS if m not in disabled], documents=documents,
         unknown_weight=unknown_weight, scheduler=scheduler, background=background,
-        verify=verify, confidence=confidence, failures=skipped)
+        verify=verify, confidence=confidence, invariance=invariance,
+        evidence=evidence or None, failures=skipped)
     for exc in skipped:
         click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     if result.not_validated:

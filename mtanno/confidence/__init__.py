@@ -9,6 +9,8 @@ annotate``. One package owns the concept; tune's cross-validated fitting over it
 * :mod:`~mtanno.confidence.verify` — verification of a segment against the training
   examples and background motions (the bank; subsequence DTW, kernel in
   ``_verify_kernels``);
+* :mod:`~mtanno.confidence.frames` — the frame classifier whose agreement with a segment's
+  label is evidence (issue 35; k nearest training windows, kernels in ``_frame_kernels``);
 * :mod:`~mtanno.confidence.calibration` — Platt and isotonic calibration of the evidence,
   fitted by grouped cross-validation, and the uncalibrated score;
 * :mod:`~mtanno.confidence.model` — :class:`ConfidenceModel`, the ``[confidence]`` table of a
@@ -24,9 +26,11 @@ __getattr__, __all__ = lazy_exports(__name__, {
                     "CalibrationResult", "Calibrator", "IsotonicModel", "LogisticModel",
                     "fit_calibrated", "fit_isotonic", "fit_logistic",
                     "uncalibrated_confidence"),
-    "evidence": ("BANK_EVIDENCE", "EVIDENCE", "LabelFacts", "SegmentFacts",
+    "evidence": ("BANK_EVIDENCE", "DEFAULT_EVIDENCE", "EVIDENCE", "FRAME_EVIDENCE",
+                 "LabelFacts", "SegmentFacts",
                  "document_evidence", "label_facts", "register_evidence", "segment_evidence",
                  "verification_query"),
+    "frames": ("FrameBank", "build_frame_bank", "read_frame_bank", "write_frame_bank"),
     "model": ("CONFIDENCE_KEYS", "ConfidenceModel", "check_min_confidence",
               "confidence_record"),
     "score": ("annotation_facts", "score_document", "single_label_by_confidence",

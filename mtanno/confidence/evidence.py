@@ -16,7 +16,11 @@ Evidence of a segment of label ℓ (natural logarithms; d are verification costs
   leave-one-performer-out scale s_ℓ (how unusual it would be as a new performance);
 * ``margin`` — log(d_ℓ / d_other): against the examples of the nearest other class;
 * ``background`` — log(d_ℓ / d_none): against background motions (``tune --background``);
-  0 without them.
+  0 without them;
+* ``classifier`` (issue 35) — the share of the segment's sampled frames that a frame
+  classifier (k nearest training windows of ±0.5 s of boolean features,
+  :mod:`mtanno.confidence.frames`) labels ℓ: another judge, whose errors differ from the
+  templates'.
 
 To add a kind: a function ``(segment: SegmentFacts) -> float`` decorated with
 :func:`register_evidence`, and a test on hand-made inputs; configurations name it.
@@ -33,8 +37,9 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.labels.segments import Annotation
 
-__all__ = ["BANK_EVIDENCE", "EVIDENCE", "LabelFacts", "SegmentFacts", "document_evidence",
-           "label_facts", "register_evidence", "segment_evidence", "verification_query"]
+__all__ = ["BANK_EVIDENCE", "DEFAULT_EVIDENCE", "EVIDENCE", "FRAME_EVIDENCE", "LabelFacts",
+           "SegmentFacts", "document_evidence", "label_facts", "register_evidence",
+           "segment_evidence", "verification_query"]
 
 #: Cost ratio given to a segment whose cost is infinite (no match inside it).
 FAR = 10.0
@@ -82,6 +87,9 @@ class SegmentFacts:
     members: tuple[str, ...]
     near: Mapping[str, float] = field(default_factory=dict)
     scale: float = 1.0
+    #: the share of its sampled frames the frame classifier labels with one of its
+    #: member classes (NaN without a frame bank)
+    agree: float = math.nan
 
     @property
     def own(self) -> float:
@@ -93,16 +101,20 @@ class SegmentFacts:
 #: kinds that need the verification bank.
 _KINDS: dict[str, Callable[[SegmentFacts], float]] = {}
 _BANK: set[str] = set()
+_FRAMES: set[str] = set()
 
 
-def register_evidence(name: str, *, bank: bool = False):
+def register_evidence(name: str, *, bank: bool = False, frames: bool = False):
     """Register an evidence function under ``name`` (``bank``: it needs the verification
-    bank, :data:`BANK_EVIDENCE`)."""
+    bank, :data:`BANK_EVIDENCE`; ``frames``: the frame classifier's bank,
+    :data:`FRAME_EVIDENCE`)."""
 
     def register(fn: Callable[[SegmentFacts], float]) -> Callable[[SegmentFacts], float]:
         _KINDS[name] = fn
         if bank:
             _BANK.add(name)
+        if frames:
+            _FRAMES.add(name)
         return fn
 
     return register
@@ -138,32 +150,47 @@ def _background(s: SegmentFacts) -> float:
     return math.log((s.own + _EPS) / (bg + _EPS)) if math.isfinite(bg) else 0.0
 
 
+@register_evidence("classifier", frames=True)
+def _classifier(s: SegmentFacts) -> float:
+    return s.agree
+
+
 #: The evidence of a segment, in the order of the columns of :func:`segment_evidence`.
 EVIDENCE = tuple(_KINDS)
 #: The evidence that needs a verification bank.
 BANK_EVIDENCE = tuple(n for n in EVIDENCE if n in _BANK)
+#: The evidence that needs the frame classifier's bank.
+FRAME_EVIDENCE = tuple(n for n in EVIDENCE if n in _FRAMES)
+#: The evidence ``tune`` uses unless told (``tune --evidence``): every kind but the frame
+#: classifier, which the cross-rig measurement did not choose (docs/benchmarks.md).
+DEFAULT_EVIDENCE = tuple(n for n in EVIDENCE if n not in _FRAMES)
 
 
 def verification_query(X: np.ndarray, poses: np.ndarray | None,
-                       representation: str) -> Callable[[Annotation], np.ndarray]:
+                       representation: str, invariance: tuple[str, ...] = ()
+                       ) -> Callable[[Annotation], np.ndarray]:
     """The verification sequence of a row's frames of a document (features ``X``, poses or
-    None), in the bank's ``representation``: the one closure tune and annotate use."""
+    None), in the bank's ``representation`` and ``invariance``: the one closure tune and
+    annotate use."""
     from mtanno.confidence.verify import sequence
 
     def query(r: Annotation) -> np.ndarray:
         return sequence(X=X[:, r.start:r.end + 1] if representation == "features" else None,
                         poses=poses[r.start:r.end + 1] if representation == "poses" else None,
-                        representation=representation)
+                        representation=representation, invariance=invariance)
 
     return query
 
 
 def segment_evidence(rows: Sequence[Annotation], facts: LabelFacts, *, bank=None,
                      query: Callable[[Annotation], np.ndarray] | None = None,
-                     names: Sequence[str] = EVIDENCE) -> np.ndarray:
+                     names: Sequence[str] = EVIDENCE, frame_bank=None,
+                     X: np.ndarray | None = None, exclude: Sequence[str] = ()) -> np.ndarray:
     """(rows × names) evidence of the segments ``rows`` (module docstring). ``bank``
     (:class:`mtanno.confidence.verify.Bank`) and ``query`` (the verification sequence of a
-    row) are needed for the evidence of :data:`BANK_EVIDENCE`."""
+    row) are needed for the evidence of :data:`BANK_EVIDENCE`; ``frame_bank``
+    (:class:`mtanno.confidence.frames.FrameBank`) and the document's features ``X`` for
+    that of :data:`FRAME_EVIDENCE` (``exclude``: classes the classifier must not know)."""
     unknown = [n for n in names if n not in _KINDS]
     if unknown:
         raise MtannoError(f"unknown evidence {', '.join(unknown)} (known: "
@@ -171,6 +198,9 @@ def segment_evidence(rows: Sequence[Annotation], facts: LabelFacts, *, bank=None
     needs_bank = any(n in _BANK for n in names)
     if needs_bank and (bank is None or query is None):
         raise MtannoError("the verification evidence needs a bank and the segments' motion")
+    needs_frames = any(n in _FRAMES for n in names)
+    if needs_frames and (frame_bank is None or X is None):
+        raise MtannoError("the frame classifier's evidence needs its bank and the features")
     fns = [_KINDS[n] for n in names]
     out = np.zeros((len(rows), len(names)))
     for i, r in enumerate(rows):
@@ -183,14 +213,20 @@ def segment_evidence(rows: Sequence[Annotation], facts: LabelFacts, *, bank=None
                 raise MtannoError(f"the verification bank has no example of {r.label!r}",
                                   path=bank.path)
             s.scale = float(np.median([bank.scale.get(c, 1.0) for c in own]))
+        if needs_frames:
+            s.agree = frame_bank.agreement(X, r.start, r.end, s.members, exclude=exclude)
         out[i] = [fn(s) for fn in fns]
     return out
 
 
 def document_evidence(rows: Sequence[Annotation], facts: LabelFacts, *, X: np.ndarray,
                       poses: np.ndarray | None, bank=None,
-                      names: Sequence[str] = EVIDENCE) -> np.ndarray:
+                      names: Sequence[str] = EVIDENCE, frame_bank=None,
+                      exclude: Sequence[str] = ()) -> np.ndarray:
     """:func:`segment_evidence` of rows of one document (features ``X``, poses or None;
-    rows' frames index them), verified against ``bank`` (None: no bank evidence)."""
-    query = verification_query(X, poses, bank.representation) if bank is not None else None
-    return segment_evidence(rows, facts, bank=bank, query=query, names=names)
+    rows' frames index them), verified against ``bank`` (None: no bank evidence) and
+    classified frame by frame by ``frame_bank`` (None: no frame evidence)."""
+    query = verification_query(X, poses, bank.representation, bank.invariance) \
+        if bank is not None else None
+    return segment_evidence(rows, facts, bank=bank, query=query, names=names,
+                            frame_bank=frame_bank, X=X, exclude=exclude)

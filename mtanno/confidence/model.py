@@ -12,6 +12,9 @@ The table, as ``mtanno tune`` writes it::
     min_confidence = 0.3
     bank = "tuned.verify.parquet"
     bank_sha256 = "…"
+    invariance = ["retarget"]     # what the verification is blind to (when any)
+    frames = "tuned.frames.parquet"   # the frame classifier's bank (evidence "classifier")
+    frames_sha256 = "…"
 
     [confidence.calibrator]
     …
@@ -26,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.confidence.calibration import Calibrator
-from mtanno.confidence.evidence import BANK_EVIDENCE, EVIDENCE
+from mtanno.confidence.evidence import BANK_EVIDENCE, EVIDENCE, FRAME_EVIDENCE
 from mtanno.errors import MtannoError
 
 __all__ = ["CONFIDENCE_KEYS", "ConfidenceModel", "check_min_confidence", "confidence_record",
@@ -34,7 +37,7 @@ __all__ = ["CONFIDENCE_KEYS", "ConfidenceModel", "check_min_confidence", "confid
 
 #: Keys of the ``[confidence]`` table and their types.
 CONFIDENCE_KEYS = {"evidence": list, "min_confidence": float, "bank": str, "bank_sha256": str,
-                   "calibrator": dict}
+                   "invariance": list, "frames": str, "frames_sha256": str, "calibrator": dict}
 
 
 def check_min_confidence(value, *, what: str = "min confidence") -> float:
@@ -67,9 +70,18 @@ class ConfidenceModel:
     bank_file: str | None = None
     bank_sha256: str | None = None
     base: str | None = None
+    #: what the bank's verification is blind to (:data:`mtanno.confidence.verify.
+    #: INVARIANCES`), as the bank records it
+    invariance: tuple[str, ...] = ()
+    #: the frame classifier's bank file (relative to ``base``) and its SHA-256 (None
+    #: unless the evidence holds :data:`mtanno.confidence.evidence.FRAME_EVIDENCE`)
+    frames_file: str | None = None
+    frames_sha256: str | None = None
     config_path: str | None = field(default=None, repr=False)
     bank_line: int | None = field(default=None, repr=False)
+    frames_line: int | None = field(default=None, repr=False)
     _bank: object = field(default=None, repr=False, compare=False)
+    _frames: object = field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_table(cls, table: dict, *, path: str | None = None,
@@ -106,6 +118,23 @@ class ConfidenceModel:
             raise bad("bank", "[confidence] bank and bank_sha256 (64 lower-case hex digits) "
                               "go together")
         names = tuple(names)
+        invariance = table.get("invariance", [])
+        from mtanno.confidence.verify import INVARIANCES
+
+        if not all(isinstance(v, str) and v in INVARIANCES for v in invariance) \
+                or len(set(invariance)) != len(invariance):
+            raise bad("invariance", f"[confidence] invariance must list distinct names of "
+                                    f"{', '.join(INVARIANCES)}, got {invariance!r}")
+        if invariance and "bank" not in table:
+            raise bad("invariance", "[confidence] invariance needs a verification bank")
+        if ("frames" in table) != ("frames_sha256" in table) or (
+                "frames_sha256" in table and not is_sha256(table["frames_sha256"])):
+            raise bad("frames", "[confidence] frames and frames_sha256 (64 lower-case hex "
+                                "digits) go together")
+        if "frames" not in table and any(n in FRAME_EVIDENCE for n in names):
+            raise bad("evidence", f"[confidence] evidence "
+                                  f"{', '.join(n for n in names if n in FRAME_EVIDENCE)} needs "
+                                  "the frame classifier's bank (frames = ...)")
         if "bank" not in table and any(n in BANK_EVIDENCE for n in names):
             raise bad("evidence", f"[confidence] evidence "
                                   f"{', '.join(n for n in names if n in BANK_EVIDENCE)} needs "
@@ -121,7 +150,10 @@ class ConfidenceModel:
                               f"calibrator was fitted on ({list(have)})", path=path, line=line)
         return cls(names, calibrator, float(least), table.get("bank"),
                    table.get("bank_sha256"),
-                   str(Path(path).parent) if path else None, path, line_of("confidence", "bank"))
+                   str(Path(path).parent) if path else None,
+                   tuple(v for v in INVARIANCES if v in invariance), table.get("frames"),
+                   table.get("frames_sha256"), path, line_of("confidence", "bank"),
+                   line_of("confidence", "frames"))
 
     def to_table(self) -> dict:
         """The ``[confidence]`` table (what :meth:`from_table` reads)."""
@@ -129,6 +161,11 @@ class ConfidenceModel:
         if self.bank_file is not None:
             out["bank"] = self.bank_file
             out["bank_sha256"] = self.bank_sha256
+        if self.invariance:
+            out["invariance"] = list(self.invariance)
+        if self.frames_file is not None:
+            out["frames"] = self.frames_file
+            out["frames_sha256"] = self.frames_sha256
         out["calibrator"] = self.calibrator.to_dict()
         return out
 
@@ -155,8 +192,32 @@ class ConfidenceModel:
                 raise MtannoError(f"[confidence] bank {path} is not the file tune wrote (its "
                                   "SHA-256 differs from bank_sha256); run mtanno tune again",
                                   **where)
-            self._bank = read_bank(path)
+            bank = read_bank(path)
+            if tuple(bank.invariance) != tuple(self.invariance):
+                raise MtannoError(f"[confidence] invariance {list(self.invariance)} is not "
+                                  f"the bank's ({list(bank.invariance)}); run mtanno tune "
+                                  "again", **where)
+            self._bank = bank
         return self._bank
+
+    @property
+    def frame_bank(self):
+        """The frame classifier's bank (:class:`mtanno.confidence.frames.FrameBank`; None
+        without one), read once; it must be the file tune wrote (its SHA-256)."""
+        if self._frames is None and self.frames_file is not None:
+            from mtanno.confidence.frames import read_frame_bank
+            from mtanno.util.tables import sha256_file
+
+            where = {"path": self.config_path, "line": self.frames_line}
+            path = str(Path(self.base or ".") / self.frames_file)
+            if not Path(path).is_file():
+                raise MtannoError(f"[confidence] frames {path} not found", **where)
+            if sha256_file(path) != self.frames_sha256:
+                raise MtannoError(f"[confidence] frames {path} is not the file tune wrote (its "
+                                  "SHA-256 differs from frames_sha256); run mtanno tune again",
+                                  **where)
+            self._frames = read_frame_bank(path)
+        return self._frames
 
     def probabilities(self, E: np.ndarray) -> np.ndarray:
         """The calibrated probability of every row of evidence ``E``."""
@@ -174,6 +235,10 @@ def confidence_record(model: ConfidenceModel | None, min_confidence: float | Non
         least = model.min_confidence if min_confidence is None else min_confidence
         if model.bank_file is not None:
             out["bank"] = {"path": model.bank_path, "sha256": model.bank_sha256,
-                           "representation": model.bank.representation}
+                           "representation": model.bank.representation,
+                           "invariance": list(model.invariance)}
+        if model.frames_file is not None:
+            out["frames"] = {"path": str(Path(model.base or ".") / model.frames_file),
+                             "sha256": model.frames_sha256}
     out["min_confidence"] = least
     return out

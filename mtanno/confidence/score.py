@@ -46,7 +46,7 @@ def score_document(rows: Sequence[Annotation], *, X: np.ndarray, poses: np.ndarr
     if not rows:
         return []
     E = document_evidence(rows, facts, X=X, poses=poses, bank=confidence.bank,
-                          names=confidence.evidence)
+                          names=confidence.evidence, frame_bank=confidence.frame_bank)
     return with_confidence(rows, confidence.probabilities(E))
 
 

@@ -15,10 +15,23 @@ segment frame) on one of two representations —
   the number of features —
 
 at :data:`VERIFY_FPS` (every :data:`VERIFY_STEP`-th analysis frame), a long segment
-sampled evenly to at most :data:`MAX_QUERY` rows. A :class:`Bank` holds the sequences of
-every training example (class, performer) and of the background documents, and per class
-the typical distance of one of its examples to those of the other performers
-(:attr:`Bank.scale`: leave one performer out), so that distances compare across classes.
+sampled evenly to at most :data:`MAX_QUERY` rows.
+
+Invariances (issue 35; :data:`INVARIANCES`, ``tune --invariance``, recorded in the bank so
+that annotate verifies as tune did) make the pose comparison blind to what is not motion:
+
+* ``retarget`` — every pose is moved onto one canonical skeleton before the comparison
+  (:func:`retarget_poses`: each bone keeps its direction and takes the length of
+  :data:`CANONICAL_BONES`), so that rigs whose joints sit elsewhere on the body (a head
+  joint at the chin or at the crown, narrow or wide shoulders and hips) compare by how
+  the body moves, not by where their joints were placed;
+* ``mirror`` — a segment is also compared mirrored (left and right swapped,
+  :func:`mirror_rows`), the smaller cost counting: a right kick verifies as a kick.
+
+A :class:`Bank` holds the sequences of every training example (class, performer) and of
+the background documents, and per class the typical distance of one of its examples to
+those of the other performers (:attr:`Bank.scale`: leave one performer out), so that
+distances compare across classes.
 
 Frames are 0-based analysis frames (30 Hz) in every argument.
 """
@@ -34,9 +47,10 @@ import numpy as np
 
 from mtanno.errors import JSONError, MtannoError, parse_json, read_input
 
-__all__ = ["BANK_FORMAT", "MAX_QUERY", "POSE_JOINTS", "REPRESENTATIONS", "VERIFY_FPS",
-           "VERIFY_STEP", "Bank", "build_bank", "read_bank", "sequence", "subsequence_costs",
-           "write_bank"]
+__all__ = ["BANK_FORMAT", "CANONICAL_BONES", "INVARIANCES", "MAX_QUERY", "POSE_JOINTS",
+           "REPRESENTATIONS", "VERIFY_FPS", "VERIFY_STEP", "Bank", "build_bank",
+           "check_invariance", "mirror_rows", "read_bank", "retarget_poses", "sequence",
+           "subsequence_costs", "write_bank"]
 
 #: Analysis frames per verification frame (30 Hz → 5 Hz).
 VERIFY_STEP = 6
@@ -52,6 +66,24 @@ POSE_JOINTS = ("root", "lknee", "rknee", "lankle", "rankle", "chest", "head", "l
 REPRESENTATIONS = ("poses", "features")
 #: The ``format`` of a bank file's metadata.
 BANK_FORMAT = "mtanno-verification-bank"
+#: What the pose comparison can be made blind to (module docstring; poses only).
+INVARIANCES = ("retarget", "mirror")
+#: The canonical skeleton of ``retarget``: joint → (parent, bone length in leg lengths),
+#: parents before children. Lengths: about the middle of the HDM05 (ASF), CMU (ASF) and
+#: Bandai (BVH) rigs as the pose normalisation measures them (thigh + shin = 1 leg length
+#: by that normalisation's definition).
+CANONICAL_BONES: dict[str, tuple[str, float]] = {
+    "lhip": ("root", 0.12), "rhip": ("root", 0.12),
+    "lknee": ("lhip", 0.5), "rknee": ("rhip", 0.5),
+    "lankle": ("lknee", 0.5), "rankle": ("rknee", 0.5),
+    "ltoes": ("lankle", 0.2), "rtoes": ("rankle", 0.2),
+    "belly": ("root", 0.16), "chest": ("belly", 0.14), "neck": ("chest", 0.17),
+    "head": ("neck", 0.15), "headtop": ("head", 0.1),
+    "lshoulder": ("chest", 0.27), "rshoulder": ("chest", 0.27),
+    "lelbow": ("lshoulder", 0.32), "relbow": ("rshoulder", 0.32),
+    "lwrist": ("lelbow", 0.31), "rwrist": ("relbow", 0.31),
+    "lfingers": ("lwrist", 0.1), "rfingers": ("rwrist", 0.1),
+}
 
 
 def _pose_index() -> np.ndarray:
@@ -60,18 +92,74 @@ def _pose_index() -> np.ndarray:
     return np.array([CANONICAL_JOINTS.index(j) for j in POSE_JOINTS], dtype=np.int64)
 
 
+def check_invariance(invariance, representation: str | None = "poses") -> tuple[str, ...]:
+    """The invariances ``invariance`` (names of :data:`INVARIANCES`) checked, in that
+    order; they need the pose representation."""
+    names = tuple(invariance or ())
+    unknown = [n for n in names if n not in INVARIANCES]
+    if unknown:
+        raise MtannoError(f"unknown invariance {unknown[0]!r} (choose from "
+                          f"{', '.join(INVARIANCES)})")
+    if names and representation != "poses":
+        raise MtannoError(f"the invariances {', '.join(names)} need verification by poses "
+                          f"(this bank verifies by {representation or 'nothing'})")
+    return tuple(n for n in INVARIANCES if n in names)
+
+
+def retarget_poses(poses: np.ndarray) -> np.ndarray:
+    """Poses (frames × 22 × 3, canonical joints) moved onto the canonical skeleton
+    :data:`CANONICAL_BONES`: from the root (kept), every joint is placed at its parent's
+    new position plus the bone's canonical length along the bone's direction in the
+    pose (a bone of no length keeps no length). Float64, the input's shape."""
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    P = np.asarray(poses, dtype=np.float64)
+    if P.ndim != 3 or P.shape[1:] != (len(CANONICAL_JOINTS), 3):
+        raise MtannoError(f"poses must be (frames × {len(CANONICAL_JOINTS)} × 3), got {P.shape}")
+    j = {n: i for i, n in enumerate(CANONICAL_JOINTS)}
+    out = P.copy()
+    for child, (parent, length) in CANONICAL_BONES.items():
+        bone = P[:, j[child]] - P[:, j[parent]]
+        norm = np.linalg.norm(bone, axis=1, keepdims=True)
+        unit = np.divide(bone, norm, out=np.zeros_like(bone), where=norm > 1e-9)
+        out[:, j[child]] = out[:, j[parent]] + length * unit
+    return out
+
+
+#: Column pairs of :data:`POSE_JOINTS` swapped by :func:`mirror_rows` (left ↔ right).
+_MIRROR = [POSE_JOINTS.index(("r" + n[1:]) if n[0] == "l" else ("l" + n[1:]))
+           if n[0] in "lr" and n not in ("root",) else k for k, n in enumerate(POSE_JOINTS)]
+
+
+def mirror_rows(rows: np.ndarray) -> np.ndarray:
+    """Pose rows of a verification sequence (rows × 3·:data:`POSE_JOINTS`) mirrored in
+    the body's sagittal plane: left and right joints swapped and x (the body's left-to-
+    right axis of the normalised poses) negated — again a normalised pose."""
+    R = np.asarray(rows, dtype=np.float32)
+    if R.ndim != 2 or R.shape[1] != 3 * len(POSE_JOINTS):
+        raise MtannoError(f"pose rows must be (rows × {3 * len(POSE_JOINTS)}), got {R.shape}")
+    out = R.reshape(len(R), len(POSE_JOINTS), 3)[:, _MIRROR].copy()
+    out[:, :, 0] *= -1
+    return np.ascontiguousarray(out.reshape(len(R), -1))
+
+
 def sequence(*, X: np.ndarray | None = None, poses: np.ndarray | None = None,
-             representation: str) -> np.ndarray:
+             representation: str, invariance: tuple[str, ...] = ()) -> np.ndarray:
     """The verification sequence of a stretch of motion: (rows × dims) float32 at
     :data:`VERIFY_FPS`. ``X``: (features × frames) 0/1 features; ``poses``: (frames × 22 ×
-    3) normalised poses (leg lengths); the one ``representation`` names is used."""
+    3) normalised poses (leg lengths); the one ``representation`` names is used.
+    ``invariance``: with ``"retarget"`` the poses are moved onto the canonical skeleton
+    first (:func:`retarget_poses`; ``"mirror"`` acts in :meth:`Bank.nearest`)."""
     if representation == "poses":
         if poses is None:
             raise MtannoError("the pose representation needs poses (mtanno features --poses)")
         P = np.asarray(poses)
         if P.ndim != 3 or P.shape[2] != 3:
             raise MtannoError(f"poses must be (frames × joints × 3), got {P.shape}")
-        rows = P[::VERIFY_STEP][:, _pose_index()].reshape(-1, 3 * len(POSE_JOINTS))
+        P = P[::VERIFY_STEP]
+        if "retarget" in invariance:
+            P = retarget_poses(P)
+        rows = P[:, _pose_index()].reshape(-1, 3 * len(POSE_JOINTS))
     elif representation == "features":
         if X is None:
             raise MtannoError("the feature representation needs the feature matrix")
@@ -134,6 +222,9 @@ class Bank:
     performers: list[str]
     scale: dict[str, float] = field(default_factory=dict)
     path: str | None = None
+    #: what the comparison is blind to (:data:`INVARIANCES`): the bank's sequences were
+    #: made so, and every query must be (:func:`sequence`)
+    invariance: tuple[str, ...] = ()
 
     @property
     def classes(self) -> list[str]:
@@ -144,8 +235,13 @@ class Bank:
         return "" in self.labels
 
     def costs(self, query: np.ndarray) -> np.ndarray:
-        """Cost of a query sequence inside every item (:func:`subsequence_costs`)."""
-        return subsequence_costs(_query(query), self.items, self.offsets)
+        """Cost of a query sequence inside every item (:func:`subsequence_costs`); with
+        the ``mirror`` invariance the smaller of the query's and its mirror's."""
+        q = _query(query)
+        c = subsequence_costs(q, self.items, self.offsets)
+        if "mirror" in self.invariance:
+            c = np.minimum(c, subsequence_costs(mirror_rows(q), self.items, self.offsets))
+        return c
 
     def nearest(self, query: np.ndarray) -> dict[str, float]:
         """Per class (and ``""`` for background) the smallest cost of ``query`` inside its
@@ -162,15 +258,19 @@ class Bank:
                 "step": VERIFY_STEP, "fps": VERIFY_FPS,
                 "joints": list(POSE_JOINTS) if self.representation == "poses" else None,
                 "labels": self.labels, "performers": self.performers,
-                "offsets": [int(x) for x in self.offsets], "scale": self.scale}
+                "offsets": [int(x) for x in self.offsets], "scale": self.scale,
+                "invariance": list(self.invariance)}
 
 
 def build_bank(examples: Sequence[tuple[str, str, np.ndarray]],
-               background: Sequence[np.ndarray] = (), *, representation: str) -> Bank:
+               background: Sequence[np.ndarray] = (), *, representation: str,
+               invariance: Sequence[str] = ()) -> Bank:
     """A :class:`Bank` of ``examples`` ((class, performer, sequence) each; sequences of
-    :func:`sequence`) and ``background`` sequences; computes each class's scale."""
+    :func:`sequence`, made with ``invariance``) and ``background`` sequences; computes
+    each class's scale (under the same invariance)."""
     if representation not in REPRESENTATIONS:
         raise MtannoError(f"unknown representation {representation!r}")
+    invariance = check_invariance(invariance, representation)
     seqs = [s for _, _, s in examples] + list(background)
     seqs = [s for s in seqs if s.shape[0] > 0]
     labels = [c for c, _, s in examples if s.shape[0] > 0] + [""] * sum(
@@ -184,7 +284,7 @@ def build_bank(examples: Sequence[tuple[str, str, np.ndarray]],
         raise MtannoError(f"the sequences have different dims: {sorted(dims)}")
     offsets = np.concatenate([[0], np.cumsum([s.shape[0] for s in seqs])]).astype(np.int64)
     bank = Bank(representation, np.ascontiguousarray(np.concatenate(seqs), dtype=np.float32),
-                offsets, labels, performers)
+                offsets, labels, performers, invariance=invariance)
     bank.scale = _scales(bank)
     return bank
 
@@ -204,7 +304,10 @@ def _scales(bank: Bank) -> dict[str, float]:
                 continue
             q = bank.items[bank.offsets[k]:bank.offsets[k + 1]]
             items, offs = _gather(bank, others)
-            vals.append(float(subsequence_costs(_query(q), items, offs).min()))
+            cost = subsequence_costs(_query(q), items, offs).min()
+            if "mirror" in bank.invariance:
+                cost = min(cost, subsequence_costs(mirror_rows(_query(q)), items, offs).min())
+            vals.append(float(cost))
         v = float(np.median(vals)) if vals else 1.0
         out[c] = v if v > 0 else 1.0
     return out
@@ -260,12 +363,15 @@ def read_bank(path: str | os.PathLike) -> Bank:
         performers = [str(x) for x in meta["performers"]]
         offsets = np.array(meta["offsets"], dtype=np.int64)
         scale = {str(k): float(v) for k, v in meta["scale"].items()}
+        invariance = check_invariance(meta.get("invariance") or (), rep)
         items = np.column_stack([table.column(f"v{d}").to_numpy().astype(np.float32)
                                  for d in range(table.num_columns)]) if table.num_columns \
             else np.zeros((0, 0), np.float32)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise MtannoError(f"verification bank metadata is malformed ({exc})",
                           path=spath) from None
+    except MtannoError as exc:
+        raise MtannoError(f"verification bank metadata: {exc.message}", path=spath) from None
     if rep not in REPRESENTATIONS or len(labels) != len(performers) \
             or offsets.size != len(labels) + 1 or offsets[0] != 0 \
             or offsets[-1] != items.shape[0] or np.any(np.diff(offsets) <= 0) \
@@ -275,4 +381,4 @@ def read_bank(path: str | os.PathLike) -> Bank:
         raise MtannoError("verification bank is inconsistent (items, offsets, labels or "
                           "scales do not agree)", path=spath)
     return Bank(rep, np.ascontiguousarray(items), offsets, labels, performers, scale,
-                path=spath)
+                path=spath, invariance=invariance)

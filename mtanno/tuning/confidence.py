@@ -21,18 +21,25 @@ verified against its own motion.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from mtanno.confidence.evidence import BANK_EVIDENCE, EVIDENCE, document_evidence, label_facts
+from mtanno.confidence.evidence import (
+    BANK_EVIDENCE,
+    DEFAULT_EVIDENCE,
+    EVIDENCE,
+    FRAME_EVIDENCE,
+    document_evidence,
+    label_facts,
+)
 from mtanno.evaluation.calibration import segment_right
 from mtanno.labels.segments import Annotation
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
 __all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "ConfidenceFit", "bank_of",
-           "learn_confidence"]
+           "frame_bank_of", "learn_confidence"]
 
 #: Minimum confidences tried for the output rows.
 MIN_CONFIDENCE_GRID = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
@@ -54,6 +61,7 @@ class ConfidenceFit:
     kinds: list[str]
     table: list[dict] = field(default_factory=list)
     representation: str | None = None
+    invariance: tuple[str, ...] = ()
 
 
 @dataclass
@@ -72,29 +80,43 @@ class _Run:
 
 def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=None,
                      representation: str | None, unknown_weight: float, seed: int = 0,
-                     log: Callable[[str], None] | None = None) -> ConfidenceFit:
+                     log: Callable[[str], None] | None = None,
+                     invariance: tuple[str, ...] = (),
+                     evidence: Sequence[str] | None = None,
+                     background_X: Sequence[np.ndarray] | None = None) -> ConfidenceFit:
     """Fit the confidence of ``params`` on ``tuner``'s folds (module docstring).
 
     ``folds``: the :class:`mtanno.tuning.cv.Fold` records the tuner was built from (same
     order); ``templates``: class → template (their lengths); ``background_seqs``: the
     verification sequence of every background document (indexed as
     :attr:`mtanno.tuning.cv.Fold.background`); ``representation``: what the bank holds
-    (None: no bank, evidence ``cost`` and ``length`` only)."""
+    (None: no bank, evidence ``cost`` and ``length`` only); ``invariance``: what the
+    verification is blind to (:data:`mtanno.confidence.verify.INVARIANCES`; the background
+    sequences must have been made with it); ``evidence``: the kinds the calibrator may use
+    (None: :data:`mtanno.confidence.evidence.DEFAULT_EVIDENCE`, those the inputs allow);
+    ``background_X``: the background documents' features (the frame classifier's
+    background windows, indexed as ``background_seqs``)."""
     from mtanno.confidence.calibration import fit_calibrated
 
-    names = tuple(n for n in EVIDENCE if (representation is not None or n not in BANK_EVIDENCE)
+    wanted = DEFAULT_EVIDENCE if evidence is None else tuple(evidence)
+    names = tuple(n for n in EVIDENCE if n in wanted
+                  and (representation is not None or n not in BANK_EVIDENCE)
                   and (n != "background" or background_seqs))
     if not params.resolve:
         names = tuple(n for n in names if n != "cost")
+    frames = any(n in FRAME_EVIDENCE for n in names)
     taus = dict(params.tau)
     facts = label_facts({c: mt.values.shape[1] for c, mt in templates.items()},
                         tau_for=lambda c: taus.get(c, math.nan))
     rows_E, right, kinds, groups, runs, owners = [], [], [], [], [], []
     for j, (f, fd) in enumerate(zip(folds, tuner.folds)):
-        bank = _fold_bank(f, background_seqs, representation) if representation else None
+        bank = _fold_bank(f, background_seqs, representation, invariance) \
+            if representation else None
+        fbank = frame_bank_of(f.train, [X for k, X in enumerate(background_X or [])
+                                        if k not in set(f.background)]) if frames else None
         for run in _runs(tuner, fd, params, j):
             runs.append(run)
-            E, ok, kind, doc = _run_evidence(run, f, fd, tuner, bank, names, facts)
+            E, ok, kind, doc = _run_evidence(run, f, fd, tuner, bank, names, facts, fbank)
             rows_E.append(E)
             right.extend(ok)
             kinds.extend(kind)
@@ -114,26 +136,37 @@ def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=N
                 f"unknown {t['U']:.3f} background labelled {t['background']:.3f} "
                 f"J {t['J']:.4f}")
     return ConfidenceFit(names, fit.calibrator, float(best["min_confidence"]), fit.oof, y,
-                         kinds, table, representation)
+                         kinds, table, representation, tuple(invariance))
 
 
-def bank_of(examples, background_seqs, representation: str):
+def bank_of(examples, background_seqs, representation: str, invariance: tuple[str, ...] = ()):
     """The verification bank of training ``examples`` (their performer, else their
-    document, as the performer) and the background sequences ``background_seqs``."""
+    document, as the performer) and the background sequences ``background_seqs``, blind to
+    ``invariance``."""
     from mtanno.confidence.verify import build_bank, sequence
 
     items = [(e.class_name, str(e.performer if e.performer is not None else e.document),
-              sequence(X=e.X, poses=e.poses, representation=representation))
+              sequence(X=e.X, poses=e.poses, representation=representation,
+                       invariance=invariance))
              for e in examples]
-    return build_bank(items, list(background_seqs or []), representation=representation)
+    return build_bank(items, list(background_seqs or []), representation=representation,
+                      invariance=invariance)
 
 
-def _fold_bank(fold, background_seqs, representation):
+def frame_bank_of(examples, background_X):
+    """The frame classifier's bank (:mod:`mtanno.confidence.frames`) of training
+    ``examples`` and background documents' features ``background_X``."""
+    from mtanno.confidence.frames import build_frame_bank
+
+    return build_frame_bank([(e.class_name, e.X) for e in examples], list(background_X or []))
+
+
+def _fold_bank(fold, background_seqs, representation, invariance=()):
     """The verification bank of one fold: its training examples and the background
     documents not held out in it."""
     held = set(fold.background)
     return bank_of(fold.train, [s for k, s in enumerate(background_seqs or [])
-                                if k not in held], representation)
+                                if k not in held], representation, invariance)
 
 
 def _runs(tuner, fd, params, j: int):
@@ -169,7 +202,7 @@ def _costs(tuner, fd, segs, arrays) -> list[float]:
     return [float(mat[rows[p], b]) for p, _, b in segs]
 
 
-def _run_evidence(run: _Run, fold, fd, tuner, bank, names, facts):
+def _run_evidence(run: _Run, fold, fd, tuner, bank, names, facts, frame_bank=None):
     """Evidence rows, rightness, kind and document of every segment of a run (frames of
     the fold's held-out documents, which the rows index as annotate's index a document)."""
     sub = fd if run.hidden is None else fd.hidden[run.hidden]
@@ -188,7 +221,8 @@ def _run_evidence(run: _Run, fold, fd, tuner, bank, names, facts):
         ok.append((not is_bg) and run.hidden is None and segment_right((p, a, b), truth))
         kind.append("background" if is_bg else "unknown" if run.hidden else "known")
         doc.append(d)
-    E = document_evidence(rows, facts, X=ho.X, poses=ho.poses, bank=bank, names=names)
+    E = document_evidence(rows, facts, X=ho.X, poses=ho.poses, bank=bank, names=names,
+                          frame_bank=frame_bank, exclude=(run.hidden,) if run.hidden else ())
     return E, ok, kind, doc
 
 

@@ -37,8 +37,8 @@ from mtanno.tuning.search import (
     prepare_fold_class,
 )
 
-__all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "template_folder_of", "tune",
-           "tune_files", "write_tuned"]
+__all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "frame_bank_path_of",
+           "template_folder_of", "tune", "tune_files", "write_tuned"]
 
 
 @dataclass
@@ -72,6 +72,8 @@ class TuneResult:
     #: the verification bank of all training examples and background documents (None:
     #: no verification)
     bank: object = None
+    #: the frame classifier's bank of the same (None: the confidence does not use it)
+    frame_bank: object = None
 
     @property
     def not_validated(self) -> list[str]:
@@ -125,7 +127,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
          log: Callable[[str], None] | None = None, scheduler: str | None = None,
          background: Sequence[str | os.PathLike] = (), verify: str = "auto",
-         confidence: bool = True) -> TuneResult:
+         confidence: bool = True, invariance: Sequence[str] = (),
+         evidence: Sequence[str] | None = None) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
     collect_sources`): see :mod:`mtanno.tuning.search` for the search and
@@ -152,10 +155,13 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     (:mod:`mtanno.tuning.confidence`), verifying segments against the examples by
     ``verify``: ``"poses"``, ``"features"``, ``"none"`` (no verification: the evidence of
     cost and length only) or ``"auto"`` (poses when every training and background file has
-    them, else features).
+    them, else features). ``invariance`` (issue 35): what the pose verification is blind
+    to (:data:`mtanno.confidence.verify.INVARIANCES`; needs verification by poses);
+    ``evidence``: the kinds of evidence the confidence may use (:data:`mtanno.confidence.
+    evidence.EVIDENCE`; None: all that the inputs allow).
     """
     t0 = time.perf_counter()
-    methods = _check_options(methods, documents, unknown_weight, verify)
+    methods = _check_options(methods, documents, unknown_weight, verify, evidence)
     templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir,
                                                         poses=verify in ("auto", "poses"))
     bg_docs, bg_records = _background_inputs(background, layout, examples,
@@ -171,6 +177,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             raise MtannoError("{verify} poses needs poses in every held-out document (run "
                               "mtanno features --poses)", options=("verify",))
         representation = "features"  # auto: a document without poses
+    invariance = _invariance(invariance, representation) if confidence else ()
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
@@ -195,17 +202,18 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     extra_of = _further_templates([params, *(v[0] for v in variants.values())], examples,
                                   templates, learn, n_jobs=n_jobs, scheduler=scheduler,
                                   shared=shared)
-    fit = bank = None
+    fit = bank = frame_bank = None
     if confidence:
-        fit, bank = _learn_confidence(tuner, params, folds, templates, examples, bg_docs,
-                                      representation, unknown_weight, seed, log)
+        fit, bank, frame_bank = _learn_confidence(tuner, params, folds, templates, examples, bg_docs,
+                                      representation, unknown_weight, seed, log,
+                                      tuple(invariance), evidence)
     inputs, shas = _input_records(mt_dir, templates, keyframes_dir, examples)
     folds_held = {f.name: len(f.held_examples) for f in folds}
     seconds = time.perf_counter() - t0
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
                         folds_held, seed, methods, documents, unknown_weight, seconds,
                         template_sha256=shas, background=bg_records, confidence=fit,
-                        bank=bank)
+                        bank=bank, frame_bank=frame_bank)
     for name, (p, ev, st) in variants.items():
         subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
@@ -242,6 +250,8 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
                               split=split, truth=truth, note=log, failures=failures)
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
     planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
+               *([frame_bank_path_of(output)] if options.get("confidence", True)
+                 and "classifier" in (options.get("evidence") or ()) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
     scanned = input_folders(training, features_dir, also=[mt_dir, keyframes_dir])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
@@ -268,8 +278,25 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
 VERIFY_MODES = ("auto", "poses", "features", "none")
 
 
-def _check_options(methods, documents, unknown_weight, verify) -> list[str]:
+def _invariance(invariance, representation) -> tuple[str, ...]:
+    """``tune``'s invariances checked against the bank's representation."""
+    from mtanno.confidence.verify import check_invariance
+
+    try:
+        return check_invariance(invariance, representation)
+    except MtannoError as exc:
+        raise MtannoError(f"{{invariance}}: {exc.message}", options=("invariance",)) from None
+
+
+def _check_options(methods, documents, unknown_weight, verify, evidence=None) -> list[str]:
     """:func:`tune`'s options checked; returns the methods in :data:`METHODS` order."""
+    if evidence is not None:
+        from mtanno.confidence.evidence import EVIDENCE
+
+        unknown = [e for e in evidence if e not in EVIDENCE]
+        if unknown or not evidence:
+            raise MtannoError(f"{{evidence}} must name some of {', '.join(EVIDENCE)}, got "
+                              f"{', '.join(evidence) or 'none'}", options=("evidence",))
     methods = check_methods(methods)
     if documents not in DOCUMENT_MODES:
         raise MtannoError(f"unknown {{documents}} {documents!r} (choose from "
@@ -330,22 +357,31 @@ def _background_inputs(background, layout, examples, *, poses: bool):
 
 
 def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
-                      unknown_weight, seed, log):
-    """The confidence fitted on the folds and the verification bank of everything."""
+                      unknown_weight, seed, log, invariance=(), evidence=None):
+    """The confidence fitted on the folds, the verification bank of everything and the
+    frame classifier's bank (None unless the confidence uses it)."""
+    from mtanno.confidence.evidence import FRAME_EVIDENCE
     from mtanno.confidence.verify import sequence
-    from mtanno.tuning.confidence import bank_of, learn_confidence
+    from mtanno.tuning.confidence import bank_of, frame_bank_of, learn_confidence
 
     seqs = None
     if representation is not None:
-        seqs = [sequence(X=X, poses=P, representation=representation) for _, X, P in bg_docs]
+        seqs = [sequence(X=X, poses=P, representation=representation, invariance=invariance)
+                for _, X, P in bg_docs]
     if log:
-        log(f"confidence: verifying by {representation or 'nothing'}; "
-            f"{len(bg_docs)} background documents")
+        log(f"confidence: verifying by {representation or 'nothing'}"
+            + (f" ({', '.join(invariance)})" if invariance else "")
+            + f"; {len(bg_docs)} background documents")
     fit = learn_confidence(tuner, params, folds, templates=templates, background_seqs=seqs,
                            representation=representation, unknown_weight=unknown_weight,
-                           seed=seed, log=log)
-    bank = bank_of(examples, seqs, representation) if representation is not None else None
-    return fit, bank
+                           seed=seed, log=log, invariance=invariance, evidence=evidence,
+                           background_X=[X for _, X, _ in bg_docs])
+    bank = bank_of(examples, seqs, representation, invariance) \
+        if representation is not None else None
+    frames = None
+    if any(n in FRAME_EVIDENCE for n in fit.evidence):
+        frames = frame_bank_of(examples, [X for _, X, _ in bg_docs])
+    return fit, bank, frames
 
 
 def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
@@ -506,6 +542,13 @@ def template_folder_of(config_path: str | os.PathLike) -> Path:
     return p.with_name(p.stem + ".templates")
 
 
+def frame_bank_path_of(config_path: str | os.PathLike) -> Path:
+    """Where :func:`write_tuned` puts a configuration's frame classifier bank (when its
+    confidence uses it): ``CONFIG.frames.parquet`` beside ``CONFIG.toml``."""
+    p = Path(config_path)
+    return p.with_name(p.stem + ".frames.parquet")
+
+
 def bank_path_of(config_path: str | os.PathLike) -> Path:
     """Where :func:`write_tuned` puts a configuration's verification bank:
     ``CONFIG.verify.parquet`` beside ``CONFIG.toml``."""
@@ -525,16 +568,25 @@ def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> lis
     cfg.background = {r["path"]: r["sha256"] for r in result.background}
     if fit is None:
         return []
-    bank_file = sha = None
+    bank_file = sha = frames_file = frames_sha = None
     if result.bank is not None:
         bpath = bank_path_of(path)
         write_bank(bpath, result.bank)
         bank_file, sha = bpath.name, sha256_file(bpath)
+    if result.frame_bank is not None:
+        from mtanno.confidence.frames import write_frame_bank
+
+        fpath = frame_bank_path_of(path)
+        write_frame_bank(fpath, result.frame_bank)
+        frames_file, frames_sha = fpath.name, sha256_file(fpath)
     cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
-                                     bank_file, sha, str(path.parent))
+                                     bank_file, sha, str(path.parent),
+                                     tuple(fit.invariance) if bank_file else (),
+                                     frames_file=frames_file, frames_sha256=frames_sha)
     kinds = np.array(fit.kinds)
+    blind = f" blind to {', '.join(fit.invariance)}" if fit.invariance else ""
     lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
-             f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "
+             f"{fit.representation or 'nothing'}{blind}), out of fold on {len(fit.right)} held-out "
              f"segments ({int((kinds == 'known').sum())} of known classes, "
              f"{int((kinds == 'unknown').sum())} over a class left out, "
              f"{int((kinds == 'background').sum())} on background): AUROC "
