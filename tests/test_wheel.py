@@ -48,7 +48,10 @@ def test_wheel_contents(wheel):
     for m in ("cmu-asf", "bandai-bvh", "cmu-bvh"):
         assert f"mtanno/skeletons/{m}.toml" in names
     assert "mtanno/py.typed" in names
-    assert "mtanno/evaluation/player.js" in names  # the report page's player
+    from mtanno.evaluation.page import SCRIPTS
+
+    for name in (*SCRIPTS, "page.css"):  # the report page's scripts and style
+        assert f"mtanno/evaluation/{name}" in names
     assert any(n.endswith("licenses/LICENSE") for n in names)
     meta = next(n for n in names if n.endswith("METADATA"))
     text = zipfile.ZipFile(wheel).read(meta).decode()

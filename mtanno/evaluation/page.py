@@ -38,6 +38,8 @@ from urllib.parse import quote
 
 import numpy as np
 
+from mtanno.errors import MtannoError
+
 __all__ = ["CHUNK_BYTES", "DATA_FOLDER", "FORMATS", "SCRIPTS", "Figures", "curve_entries",
            "figure_html", "file_stems", "json_for_script", "page_data", "page_html",
            "pose_entries", "write_chunks"]
@@ -238,7 +240,10 @@ def page_html(*, title: str, summary: str, notes: Sequence[str],
                      f"<a class='up' href='#archive'>↑</a></h2>{body}</section>")
     parts.append(f"<script type='application/json' id='mtanno-data'>{json_for_script(data)}"
                  "</script>")
-    parts.append("<script>\n" + "\n".join(_resource(s) for s in SCRIPTS) + "</script>")
+    script = "\n".join(_resource(s) for s in SCRIPTS)
+    if re.search(r"<!--|<script|</script", script, re.I):  # would end or change the element
+        raise MtannoError("the page's script holds HTML markup (a bug in mtanno)")
+    parts.append(f"<script>\n{script}</script>")
     parts.append("</body></html>\n")
     return "\n".join(parts)
 

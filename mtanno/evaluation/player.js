@@ -2,7 +2,7 @@
 // document's motion as a stick figure of its rig's bones over a ground line, its rows as a
 // timeline (click or drag to seek), its Δ curves; play, pause, speed, step by frames.
 // Poses and curves come from the data files beside the page (data/HASH.js), loaded by an
-// added <script> element when a document of theirs is selected: no fetch(), no network.
+// added script element when a document of theirs is selected: no fetch(), no network.
 (function () {
   "use strict";
   var M = window.mtanno, data = M.data, D = data.docs, R = data.rows, FPS = data.fps;

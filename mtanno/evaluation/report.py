@@ -226,6 +226,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                  title: str = REPORT_TITLE, provenance: dict | None = None,
                  progress: Callable[[int, int], None] | None = None,
                  poses: dict | None = None, pose_sources: dict[str, str] | None = None,
+                 motion_notes: dict[str, str] | None = None,
                  chunk_bytes: int | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
@@ -249,7 +250,8 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     or :class:`~mtanno.evaluation.player.PlayerPoses`) gives the player its motions
     (``pose_sources``: document → the file they came from, for messages); one whose frame
     count is not the annotation's is not shown, and ``ReportResult.motion_notes`` and the
-    page say why (:func:`~mtanno.evaluation.player.motion_mismatch`). They go into data
+    page say why (:func:`~mtanno.evaluation.player.motion_mismatch`; ``motion_notes``:
+    those the caller found so already, document → why). They go into data
     files of about ``chunk_bytes`` (default :data:`~mtanno.evaluation.page.CHUNK_BYTES`; 0:
     one file per document)."""
     from mtanno.evaluation.page import (
@@ -257,36 +259,25 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
         Figures,
         curve_entries,
         page_data,
-        page_html,
         pose_entries,
         write_chunks,
     )
     from mtanno.plot import require_matplotlib
-    from mtanno.util.output import make_folder, write_text
+    from mtanno.util.output import make_folder
 
     require_matplotlib()
     if not annotation:
         raise MtannoError("the annotation has no rows to report on")
     folder = make_folder(out_dir)
     result = ReportResult(folder, folder / "index.html")
+    result.motion_notes.update(motion_notes or {})
     recorded = dict(frames or {})
-    rows_of = _by_doc(annotation)
-    # documents with rows, and those recorded as annotated without any (their truth counts)
-    docs = sorted(set(rows_of) | set(recorded))
     scored = truth is not None
     truth = list(truth or [])
-    truth_of = _by_doc(truth)
-    last = {d: max([a.end + 1 for a in rows_of.get(d, ())]
-                   + [s.end for s in truth_of.get(d, ())] + [0]) for d in docs}
+    n_with_rows, docs, last = _documents(annotation, truth, recorded)
     frames = {d: max(recorded.get(d, 0), last[d]) for d in docs}
     prov = dict(provenance or {})
-    done, total = [0], len(docs) + len(templates or {}) + (2 if scored else 0)
-
-    def step() -> None:
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], total)
-
+    step = _counter(progress, len(docs) + len(templates or {}) + (2 if scored else 0))
     figs = Figures(folder, result, step)
     sections: list[tuple[str, str, str]] = []
     if scored:
@@ -300,16 +291,16 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     if templates:
         _template_figures(figs, templates, sections)
     entries, rigs, rig_list = pose_entries(poses, docs, recorded, last, frames,
-                                            pose_sources or {}, result, step)
+                                           pose_sources or {}, result, step)
     curves = None
     if templates and features:
         curves = curve_entries(entries, templates, features, docs, tau, tau_per_class or {},
-                                delta)
-        if extra_templates:
-            result.notes.append(
-                "the annotation also matched further templates of "
-                f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
-                "their Δ curves here are those of the class's own template only")
+                               delta)
+    if curves and extra_templates:
+        result.notes.append(
+            "the annotation also matched further templates of "
+            f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
+            "their Δ curves here are those of the class's own template only")
     chunks, where = write_chunks(folder, entries, docs, chunk_bytes=CHUNK_BYTES
                                  if chunk_bytes is None else chunk_bytes)
     result.files += [folder / "data" / f"{c}.js" for c in chunks]
@@ -320,15 +311,48 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     data["motions"] = poses is not None
     sections += _closing_sections(result, prov, scored)
     figs.close()
-    n_rows = len(rows_of)
-    summary = (f"{len(docs)} documents ({n_rows} with rows), {len(annotation)} rows, "
-               f"{len({a.label for a in annotation})} classes; frames at 30 Hz"
-               + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation else
-                  "; no truth given: no scores"))
+    _write_page(result, title, data, sections, n_with_rows, annotation)
+    return result
+
+
+def _counter(progress: Callable[[int, int], None] | None, total: int) -> Callable[[], None]:
+    """A step of ``progress(done, total)``, counted."""
+    done = [0]
+
+    def step() -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], max(total, done[0]))
+
+    return step
+
+
+def _documents(annotation, truth, recorded) -> tuple[int, list[str], dict[str, int]]:
+    """The number of documents with rows; the documents: those with rows and those
+    recorded as annotated without any (their truth counts); per document its last
+    labelled frame (1-based) in annotation or truth."""
+    last: dict[str, int] = dict.fromkeys(recorded, 0)
+    for a in annotation:
+        last[a.doc] = max(last.get(a.doc, 0), a.end + 1)
+    n_with_rows = len({a.doc for a in annotation})
+    for t in truth:
+        if t.doc in last:
+            last[t.doc] = max(last[t.doc], t.end)
+    return n_with_rows, sorted(last), last
+
+
+def _write_page(result: ReportResult, title: str, data: dict, sections, n_with_rows: int,
+                annotation) -> None:
+    from mtanno.evaluation.page import page_html
+    from mtanno.util.output import write_text
+
+    summary = (f"{len(data['docs']['name'])} documents ({n_with_rows} with rows), "
+               f"{len(annotation)} rows, {len({a.label for a in annotation})} classes; frames "
+               "at 30 Hz" + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation
+                             else "; no truth given: no scores"))
     write_text(result.page, page_html(title=title, summary=html.escape(summary),
                                       notes=result.notes, sections=sections, data=data))
     result.files.append(result.page)
-    return result
 
 
 def _hex_colours(labels: Sequence[str]) -> dict[str, str]:
@@ -543,9 +567,10 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     else from the pose blocks of ``features`` (``asf``: the ASF of AMC motions, else found
     beside them); Δ curves need ``mt_dir`` and ``features``. A feature or motion file that
     cannot be read is left out and its message appended to ``failures`` (an error without
-    it); so is one that is not the annotated motion (another frame count, or another
-    SHA-256 than the document's feature file records). Returns the result and the
-    annotation's rows."""
+    it). A motion that is not the annotated one (another frame count, or another SHA-256
+    than the document's feature file records) is not played: ``ReportResult.motion_notes``
+    and the page say why, and the message goes to ``failures``. Returns the result and
+    the annotation's rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
         DEFAULT_TAU,
@@ -584,7 +609,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     if truth_path is not None:
         truth = read_truth(truth_path)
         check_within(truth, frames, path=truth_path)
-    feats, poses, sources, made_from = {}, {}, {}, {}
+    feats, poses, sources, made_from, other = {}, {}, {}, {}, {}
     for p in paths:
         try:
             ff = read_features(p, poses=not motions)
@@ -608,9 +633,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
                                   features_source=made_from.get(d))
             if why is not None:
                 del poses[d]
-                if failures is None:
-                    raise MtannoError(why)
-                failures.append(why)
+                other[d] = why
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
         tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
@@ -618,13 +641,11 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         out_dir, truth, rows, frames=frames,
         templates=load_template_folder(mt_dir) if mt_dir else None,
         features=(feats or None) if mt_dir else None, tau=tau, tau_per_class=per_class,
-        poses=poses if motions or poses else None, pose_sources=sources,
+        poses=poses if motions or poses else None, pose_sources=sources, motion_notes=other,
         delta=delta if delta is not None else recorded["delta"],
         extra_templates=recorded["extra_templates"], title=title, progress=progress,
         provenance=provenance(inputs=[*inputs, *motion_paths.values()],
                               truth=str(truth_path) if truth_path else None))
-    for why in result.motion_notes.values():
-        if failures is None:
-            raise MtannoError(why)
-        failures.append(why)
+    if failures is not None:
+        failures.extend(result.motion_notes.values())
     return result, rows
