@@ -245,10 +245,12 @@ def truth_mocap6(labels, output):
                    "annotation's, else 0.05].")
 @click.option("--title", default="mtanno annotation report", show_default=True,
               help="Title of the page.")
+@click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
+              help="Processes reading the motion files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
 def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf, tau, delta,
-               title, quiet):
+               title, jobs, quiet):
     """Write a report of annotation tables into a folder, against ground truth ([MBS09] §7)
     when --truth is given.
 
@@ -280,10 +282,11 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf,
     from mtanno.evaluation.report import report_files
 
     failures: list[str] = []  # inputs that could not be used: reported, the report goes on
-    with ProgressBar("report", "figure", quiet=quiet) as bar:
+    with ProgressBar("report", "step", quiet=quiet) as bar:
         result, rows = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
                                     features=features, motions=motions, asf=asf, tau=tau,
-                                    delta=delta, title=title, progress=bar, failures=failures)
+                                    delta=delta, title=title, progress=bar, failures=failures,
+                                    jobs=jobs)
     for message in failures:
         click.echo(f"mtanno: {message}", err=True)
     if not quiet:

@@ -317,9 +317,9 @@ def pose_entries(poses, docs, recorded, last, frames, sources, result, step):
     index and the rigs (bones, sides); a motion that is not the annotated one is left out
     and said (``result.motion_notes``)."""
     from mtanno.evaluation.player import (
+        EncodedPoses,
         PlayerPoses,
         canonical_player_poses,
-        encode_poses,
         motion_mismatch,
     )
 
@@ -332,7 +332,7 @@ def pose_entries(poses, docs, recorded, last, frames, sources, result, step):
         P = (poses or {}).get(d)
         if P is None:
             continue
-        pp = P if isinstance(P, PlayerPoses) else canonical_player_poses(P)
+        pp = P if isinstance(P, (PlayerPoses, EncodedPoses)) else canonical_player_poses(P)
         why = motion_mismatch(d, pp.frames, recorded=recorded.get(d), last_labelled=last[d],
                               path=sources.get(d, d))
         if why is not None:
@@ -345,7 +345,7 @@ def pose_entries(poses, docs, recorded, last, frames, sources, result, step):
             rig_list.append({"joints": len(pp.sides), "bones": [list(b) for b in pp.bones],
                              "sides": pp.sides})
         rigs[d] = seen[key]
-        entries[d] = [encode_poses(pp.positions), ""]
+        entries[d] = [pp.text if isinstance(pp, EncodedPoses) else pp.encoded().text, ""]
     return entries, rigs, rig_list
 
 

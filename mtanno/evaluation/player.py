@@ -26,7 +26,7 @@ from __future__ import annotations
 import base64
 import os
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +35,8 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.io.rigs import CANONICAL_JOINTS
 
-__all__ = ["BONES", "CURVE_QUANTUM", "POSE_QUANTUM", "PlayerPoses", "canonical_player_poses",
+__all__ = ["BONES", "CURVE_QUANTUM", "POSE_QUANTUM", "EncodedPoses", "PlayerPoses",
+           "canonical_player_poses",
            "decode_curves", "decode_poses", "encode_curves", "encode_poses",
            "load_motion_poses", "motion_files", "motion_mismatch", "rig_poses"]
 
@@ -72,6 +73,21 @@ class PlayerPoses:
     def frames(self) -> int:
         return int(self.positions.shape[0])
 
+    def encoded(self) -> EncodedPoses:
+        """The same, the positions as the page carries them (:func:`encode_poses`)."""
+        return EncodedPoses(self.frames, self.bones, self.sides, encode_poses(self.positions))
+
+
+@dataclass
+class EncodedPoses:
+    """:class:`PlayerPoses` with its positions encoded (:func:`encode_poses`): what a
+    report keeps of thousands of motions (a few kilobytes each)."""
+
+    frames: int
+    bones: list[tuple[int, int]]
+    sides: str
+    text: str
+
 
 def canonical_player_poses(poses: np.ndarray) -> PlayerPoses:
     """The player's view of canonical poses (a feature file's pose block)."""
@@ -89,7 +105,7 @@ def _encode_int16(q: np.ndarray) -> str:
     2¹⁶ both ways, so every int16 comes back."""
     cols = np.ascontiguousarray(q.reshape(q.shape[0], -1).T).astype(np.int32)
     diff = np.diff(cols, axis=1, prepend=0).astype("<i2")  # wraps modulo 2^16
-    return base64.b64encode(zlib.compress(diff.tobytes(), 6)).decode("ascii")
+    return base64.b64encode(zlib.compress(diff.tobytes(), 3)).decode("ascii")
 
 
 def _decode_int16(text: str, width: int) -> np.ndarray:
@@ -228,31 +244,48 @@ def _read_motion_poses(path: Path, asf) -> tuple[np.ndarray, PlayerPoses, str]:
     return canonical, own, str(motion.source_sha256 or "")
 
 
+def _read_task(path: str, asf, rig: bool, encode: bool) -> tuple:
+    """One document's motion for :func:`load_motion_poses` (in a worker process): (poses,
+    SHA-256, None) or (None, None, the error's message)."""
+    try:
+        canonical, own, digest = _read_motion_poses(Path(path), asf)
+    except MtannoError as exc:
+        return None, None, str(exc) if exc.path else f"{path}: {exc}"
+    out = own if rig else canonical
+    return (out.encoded() if encode and rig else out), digest, None
+
+
 def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
                       asf: str | os.PathLike | None = None,
                       failures: list[str] | None = None, rig: bool = False,
-                      digests: dict[str, str] | None = None) -> dict:
+                      encode: bool = False, digests: dict[str, str] | None = None,
+                      jobs: int = 1, progress: Callable[[], None] | None = None) -> dict:
     """The normalised poses at the 30 Hz analysis frames of each document of ``docs`` that
     has a motion file in ``files`` (:func:`motion_files`), as ``features --poses`` computes
     them (``asf``, else the ASF found beside or above an AMC file; skeleton map detected):
     (frames × 22 × 3) arrays, or with ``rig`` the rig's own joints and bones
-    (:class:`PlayerPoses`, :func:`rig_poses`). ``digests`` (given) receives each file's
-    SHA-256. A file that cannot be read is left out, its message appended to ``failures``
-    (an error without it)."""
+    (:class:`PlayerPoses`, :func:`rig_poses`; with ``encode`` as :class:`EncodedPoses`, a
+    few kilobytes each). ``digests`` (given) receives each file's SHA-256. Files are read in
+    ``jobs`` processes; ``progress()`` is called after each. A file that cannot be read is
+    left out, its message appended to ``failures`` (an error without it)."""
+    from mtanno.util.workers import make_pool
+
+    todo = [d for d in docs if d in files]
     out = {}
-    for d in docs:
-        if d not in files:
-            continue
-        try:
-            canonical, own, digest = _read_motion_poses(files[d], asf)
-        except MtannoError as exc:
-            if failures is None:
-                raise
-            failures.append(str(exc) if exc.path else f"{files[d]}: {exc}")
-            continue
-        if digests is not None:
-            digests[d] = digest
-        out[d] = own if rig else canonical
+    with make_pool(jobs=jobs, n_tasks=len(todo)) as pool:
+        tasks = [(str(files[d]), None if asf is None else str(asf), rig, encode) for d in todo]
+        for d, (poses, digest, error) in zip(todo, pool.map(_read_task, tasks,
+                                                             chunksize=8)):
+            if progress is not None:
+                progress()
+            if error is not None:
+                if failures is None:
+                    raise MtannoError(error)
+                failures.append(error)
+                continue
+            if digests is not None:
+                digests[d] = digest
+            out[d] = poses
     return out
 
 

@@ -558,7 +558,8 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
                  asf: str | os.PathLike | None = None, tau: float | None = None,
                  delta: float | None = None, title: str = REPORT_TITLE,
                  progress: Callable[[int, int], None] | None = None,
-                 failures: list[str] | None = None) -> tuple[ReportResult, list]:
+                 failures: list[str] | None = None, chunk_bytes: int | None = None,
+                 jobs: int = 1) -> tuple[ReportResult, list]:
     """The whole ``mtanno report`` run: the annotation tables (files or folders of them),
     the truth, templates, feature files and motion files read and checked against the
     output folder (never an input there), and :func:`write_report` with the thresholds and
@@ -569,8 +570,10 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     cannot be read is left out and its message appended to ``failures`` (an error without
     it). A motion that is not the annotated one (another frame count, or another SHA-256
     than the document's feature file records) is not played: ``ReportResult.motion_notes``
-    and the page say why, and the message goes to ``failures``. Returns the result and
-    the annotation's rows."""
+    and the page say why, and the message goes to ``failures``. Motion files are read in
+    ``jobs`` processes. ``chunk_bytes``: the size of the data files (:func:`write_report`).
+    ``progress(done, total)`` counts motion files read, then the documents and figures of
+    :func:`write_report`. Returns the result and the annotation's rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
         DEFAULT_TAU,
@@ -622,10 +625,17 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         made_from[ff.document] = ff.meta.get("source_sha256")
         if ff.poses is not None:
             poses[ff.document], sources[ff.document] = ff.poses, str(p)
+    read = [0]
+
+    def step() -> None:
+        read[0] += 1
+        if progress is not None:
+            progress(read[0], len(motion_paths) + len(docs))
+
     if motions:
         digests: dict[str, str] = {}
         poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures, rig=True,
-                                  digests=digests)
+                                  encode=True, digests=digests, jobs=jobs, progress=step)
         sources = {d: str(motion_paths[d]) for d in poses}
         for d in list(poses):
             why = motion_mismatch(d, poses[d].frames, recorded=None, last_labelled=0,
@@ -643,7 +653,9 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         features=(feats or None) if mt_dir else None, tau=tau, tau_per_class=per_class,
         poses=poses if motions or poses else None, pose_sources=sources, motion_notes=other,
         delta=delta if delta is not None else recorded["delta"],
-        extra_templates=recorded["extra_templates"], title=title, progress=progress,
+        extra_templates=recorded["extra_templates"], title=title, chunk_bytes=chunk_bytes,
+        progress=None if progress is None else
+        (lambda done, total: progress(read[0] + done, read[0] + total)),
         provenance=provenance(inputs=[*inputs, *motion_paths.values()],
                               truth=str(truth_path) if truth_path else None))
     if failures is not None:
