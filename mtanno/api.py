@@ -23,8 +23,8 @@ if TYPE_CHECKING:
 
     from mtanno.annotate import AnnotationBatch, ClassConfig
     from mtanno.evaluation.metrics import Report
-    from mtanno.evaluation.truth import Segment
     from mtanno.io.skeleton import Motion
+    from mtanno.labels.segments import Segment
     from mtanno.templates.model import MotionTemplate
 
 __all__ = ["annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
@@ -106,7 +106,7 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
     import warnings
 
     from mtanno.annotate import annotation_setup
-    from mtanno.util.store import document_files
+    from mtanno.features.inputs import document_files
 
     paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
     if isinstance(templates, (str, os.PathLike)):
@@ -130,7 +130,7 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
     (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
     from mtanno.annotate import read_annotation_tables, to_segments
     from mtanno.evaluation.metrics import documents_evaluated, evaluate_annotations
-    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.labels.truth import check_within, read_truth
 
     frames = getattr(annotations, "frames", None)  # documents' lengths, for frame accuracy
     if isinstance(annotations, (str, os.PathLike)):

@@ -41,6 +41,12 @@ class MtannoError(Exception):
         self.line = line
         super().__init__(str(self))
 
+    def __reduce__(self):
+        # sent between processes whole (a batch's worker reports it to the command, which
+        # names the options as flags)
+        return (_rebuild, (type(self), self.template, self.path, self.line, self.options,
+                           self.__dict__))
+
     def _render(self, names: dict[str, str]) -> str:
         out = self.template
         for name, text in names.items():  # (not str.format: other braces stay as they are)
@@ -63,6 +69,13 @@ class MtannoError(Exception):
         if self.line is None:
             return f"{self.path}: {self.message}"
         return f"{self.path}:{self.line}: {self.message}"
+
+
+def _rebuild(cls, template, path, line, options, state):
+    exc = cls.__new__(cls)
+    MtannoError.__init__(exc, template, path=path, line=line, options=options)
+    exc.__dict__.update(state)
+    return exc
 
 
 def interrupted_line(name: str) -> str:

@@ -15,8 +15,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.features.store import FeatureFile
 from mtanno.io.skeleton import Motion
-from mtanno.util.store import FeatureFile
 
 #: Characters of a timeline cell: the feature is off in every frame of the cell, on in
 #: every frame, or on in some.

@@ -152,11 +152,11 @@ def main() -> int:
         print(f"machine: {machine()}")
         bench_command(args.command, 100, args.jobs)
         return 0
+    from mtanno.features.store import read_features
     from mtanno.index import build_index, open_index
     from mtanno.keyframes import search_documents, search_index
     from mtanno.keyframes.search import warm_up
     from mtanno.templates import group_by_class, load_examples, sources_from_manifest
-    from mtanno.util.store import read_features
 
     print(f"machine: {machine()}")
     # --- data

@@ -52,7 +52,7 @@ def training_sets(features_dir: Path | None) -> dict[str, list[np.ndarray]]:
             out[cls] = [np.loadtxt(REFERENCE / "features" / cls / (Path(f).stem + ".csv"),
                                    delimiter=",", skiprows=1)[:, 1:].T.copy() for f in files]
         else:
-            from mtanno.util.store import read_feature_matrix
+            from mtanno.features.store import read_feature_matrix
 
             out[cls] = [read_feature_matrix(features_dir / Path(f).with_suffix(".parquet"))
                         for f in files]

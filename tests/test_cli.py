@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from mtanno import synthetic as synth
 from mtanno.cli import main
-from mtanno.util.store import read_features
+from mtanno.features.store import read_features
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ import pytest
 
 from mtanno.evaluation.metrics import evaluate_annotations, frame_level, segment_level
 from mtanno.evaluation.retrieval import retrieval_rows, separation_quotient, top_k_recall
-from mtanno.evaluation.truth import Segment as S
+from mtanno.labels.segments import Segment as S
 
 
 def test_frame_level_with_overlapping_labels():

@@ -18,10 +18,10 @@ from mtanno.features import (
     compute_features_native,
     get_feature_set,
 )
+from mtanno.features.store import read_features
 from mtanno.features.table31 import FEATURES31, FEATURES31_REFERENCE, Feature31
 from mtanno.io import canonical_positions, read_motion
 from mtanno.io.rigs import CANONICAL_JOINTS
-from mtanno.util.store import read_features
 
 SETS31 = ("mrc05", "mrc05-reference")
 

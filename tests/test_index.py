@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from mtanno.errors import MtannoError
 from mtanno.features import get_feature_set
+from mtanno.features.store import write_features
 from mtanno.index import (
     CorruptIndex,
     add_documents,
@@ -26,7 +27,6 @@ from mtanno.index import (
     storage,
 )
 from mtanno.index.core import frame_codes
-from mtanno.util.store import write_features
 
 MRC05 = get_feature_set("mrc05")
 

@@ -63,9 +63,9 @@ def test_motion_poses_are_the_pose_block_of_the_feature_files(world, tmp_path):
     """The canonical poses read from a motion file are those `features --poses` stores
     (same 30 Hz frames, same normalisation), within the page's quantum; the rig's own
     joints (the player's figure) put its canonical joints where those poses are."""
+    from mtanno.features.store import read_features
     from mtanno.io import read_motion
     from mtanno.io.rigs import CANONICAL_JOINTS
-    from mtanno.util.store import read_features
 
     docs = sorted(world.docs.glob("*.amc"))[:2]
     assert cli("features", *docs, "-o", tmp_path / "f", "--poses", "-q").exit_code == 0
@@ -177,7 +177,7 @@ def test_rerun_draws_no_figure_and_writes_no_data_file_again(world, tmp_path):
     feeds; a data file no longer used is removed."""
     from mtanno.annotate import read_annotation_table
     from mtanno.evaluation.report import write_report
-    from mtanno.evaluation.truth import read_truth
+    from mtanno.labels.truth import read_truth
     from mtanno.templates.model import load_template_folder
 
     rows, prov = read_annotation_table(world.annotation)
@@ -207,8 +207,8 @@ def test_delta_curves_in_the_data_files_are_the_annotations(world, tmp_path):
     """With --mt and --features each document's data holds every class's Δ over it, the
     templates quantized with the annotation's δ, and the page the classes' τ."""
     from mtanno.annotate import class_deltas, class_models
+    from mtanno.features.store import read_features
     from mtanno.templates.model import load_template_folder
-    from mtanno.util.store import read_features
 
     cfg = tmp_path / "c.toml"
     names = sorted(p.stem for p in world.mt.glob("*.json"))

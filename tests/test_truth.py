@@ -6,14 +6,8 @@ import pytest
 from conftest import DATA, require_data
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.truth import (
-    Segment,
-    by_document,
-    read_truth,
-    to_analysis_frame,
-    truth_from_mocap6,
-    write_truth,
-)
+from mtanno.labels.segments import Segment, by_document
+from mtanno.labels.truth import read_truth, to_analysis_frame, truth_from_mocap6, write_truth
 
 
 def test_rate_conversion():

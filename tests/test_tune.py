@@ -17,13 +17,13 @@ from world import assert_one_line, cli
 from mtanno.annotate import ClassConfig, label_document, load_class_config
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import evaluate_annotations
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 from mtanno.templates.training import collect_sources
 from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
-from mtanno.util.store import sha256_file
+from mtanno.util.tables import sha256_file
 
 
 def _sources(world):
@@ -270,7 +270,7 @@ def test_a_class_without_a_template_in_a_fold_is_an_unknown_motion_there():
     p = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 2, "b": 1})
     ev = only_ab.evaluate(p, per_class=True)
     assert ev.counts.frame_support == 59
-    segs = only_ab._segments(fd, p, ["a", "b"])
+    segs = only_ab.fold_segments(fd, p, ["a", "b"])
     covered = any(a <= 0 <= b for _, a, b in segs)
     assert ev.per_class_unknown["c"] == (int(covered), 1)
 
@@ -306,7 +306,7 @@ def test_tuner_scores_what_annotate_does(resolve):
     tuner = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.0)
     p = Params(delta=0.05, resolve=resolve, refine=True, slack=2, tau={"a": 0.1, "b": 0.13},
                reject={"b": 0.1}, groups={"a": 2, "b": 1})
-    got = tuner._segments(tuner.folds[0], p, ["a", "b"])
+    got = tuner.fold_segments(tuner.folds[0], p, ["a", "b"])
     # annotate's way: per document, label_document on the same curves with the config
     cfg = ClassConfig(tau={"a": 0.1, "b": 0.13}, reject={"b": 0.1}, resolve=resolve,
                       refine=True, slack=2)
@@ -481,7 +481,7 @@ def test_tuner_matches_time_scaled_templates_as_annotate_does(resolve):
     p = Params(delta=0.05, resolve=resolve, tau={"a": 0.1, "b": 0.13},
                groups={"a": 1, "b": 1}, scales={"a": (0.6,)}, frame_weight=0.5 * resolve)
     assert tuner._templates(tuner.folds[0], "a", p) == [(1, 0), (0, 0.6)]
-    got = tuner._segments(tuner.folds[0], p, ["a", "b"])
+    got = tuner.fold_segments(tuner.folds[0], p, ["a", "b"])
     cfg = ClassConfig(tau={"a": 0.1, "b": 0.13}, resolve=resolve,
                       frame_weight=0.5 * resolve)
     want = []

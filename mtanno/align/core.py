@@ -24,8 +24,8 @@ from mtanno.align.options import COST_UNITS, COSTS, DEFAULT_BAND, DEFAULT_COST
 from mtanno.align.poses import Performance, load_performance, normalize_poses
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_SET, FeatureSet
+from mtanno.features.store import check_layout
 from mtanno.index.core import frame_codes
-from mtanno.util.store import check_layout
 
 __all__ = ["Alignment", "align", "align_files", "alignment_table", "summary",
            "write_alignment"]

@@ -12,8 +12,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from mtanno.annotate._kernels import reference_dbar_kernel
-from mtanno.annotate.config import DEFAULT_TAU, check_tau
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_TAU, check_tau
 
 __all__ = ["modified_delta"]
 
@@ -53,7 +53,7 @@ def _row_spans(per_row: Sequence[tuple[np.ndarray, np.ndarray] | None], L: int):
             offsets)
 
 
-def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
+def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = ANNOTATION_TAU,
                    variant: str = "reference", max_hits: int | None = None,
                    out: np.ndarray | None = None,
                    spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:

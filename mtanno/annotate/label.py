@@ -18,8 +18,8 @@ import numpy as np
 from mtanno.annotate._kernels import _label_runs
 from mtanno.annotate.config import ClassConfig
 from mtanno.annotate.dbar import _reference_in_spans, _row_spans, modified_delta
-from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
 
 __all__ = ["ClassModel", "Windows", "annotate_document", "class_deltas", "evidence_covered",
            "label_document", "label_frames", "merged_spans", "segments_from_labels",
@@ -113,6 +113,9 @@ class ClassModel:
     weights: np.ndarray
     path: str | None = None
     sha256: str | None = None
+    #: a further template of the class (a configuration's ``[templates]``), not the base
+    #: template of the template folder
+    extra: bool = False
     _prepared: dict = field(default_factory=dict, repr=False, compare=False)
 
     def record(self) -> dict:

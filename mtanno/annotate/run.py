@@ -119,7 +119,7 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
         folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv", failures=missing)
         paths = [j.src for j in folder_jobs]
     else:
-        from mtanno.util.store import document_files
+        from mtanno.features.inputs import document_files
 
         folder_jobs, paths = [], document_files(features, failures=missing)
     written = _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir,

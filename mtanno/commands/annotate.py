@@ -6,7 +6,6 @@ import sys
 
 import click
 
-from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU
 from mtanno.commands._common import (
     DELTA,
     TAU,
@@ -17,6 +16,7 @@ from mtanno.commands._common import (
     wait_option,
     waiting_note,
 )
+from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 
 
 @click.command("annotate")
@@ -41,13 +41,13 @@ from mtanno.commands._common import (
               help="Class configuration (TOML): per-class tau, superclasses, and the methods "
                    "`mtanno tune` writes (docs/annotation.md).")
 @click.option("--tau", type=TAU, default=None,
-              help=f"Threshold tau for every class without its own [default: {DEFAULT_TAU:g}].")
+              help=f"Threshold tau for every class without its own [default: {ANNOTATION_TAU:g}].")
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization delta of the templates [default: [decoder] delta of "
-                   f"--classes, else {DEFAULT_DELTA:g}].")
+                   f"--classes, else {ANNOTATION_DELTA:g}].")
 @click.option("--dbar", "variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True,
-              help="Modified-distance (Δ̄) variant (algorithms.md §7).")
+              help="Modified-distance (Δ̄) variant (docs/annotation.md).")
 @click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
               default=None, hidden=True, help="The former name of --dbar.")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),

@@ -13,9 +13,9 @@ from mtanno.commands._common import DELTA, TAU, ProgressBar, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
 from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
-from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
+from mtanno.features.inputs import document_files
 from mtanno.templates.model import template_files
-from mtanno.util.store import document_files
+from mtanno.templates.params import RETRIEVAL_DELTA
 
 
 def json_and_table_options(*, json_what: str, schema: str, table_what: str):
@@ -114,7 +114,7 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
         retrieval_report,
         retrieval_table,
     )
-    from mtanno.evaluation.truth import read_truth
+    from mtanno.labels.truth import read_truth
     from mtanno.util.output import check_outputs, write_stdout
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
@@ -203,7 +203,7 @@ def truth_group():
 @user_errors(2)
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
-    from mtanno.evaluation.truth import truth_from_mocap6, write_truth
+    from mtanno.labels.truth import truth_from_mocap6, write_truth
     from mtanno.util.output import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format
 

@@ -97,7 +97,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
     def progress(outcome):
         bar.update(1)
         if outcome.status == "failed":
-            bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
+            why = outcome.error.for_command() if outcome.error else outcome.message
+            bar.write(f"mtanno: {why}", file=sys.stderr)
 
     try:
         summary = extract_to(items, outdir, listed=listed, asf=asf, wait=wait,
@@ -130,7 +131,7 @@ def info_cmd(file, asf, skeleton, list_features):
     if list_features and path.suffix.lower() != ".parquet":
         raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
-        from mtanno.util.store import read_features
+        from mtanno.features.store import read_features
 
         ff = read_features(path)
         if list_features:

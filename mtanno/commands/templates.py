@@ -24,9 +24,9 @@ from mtanno.commands._common import (
     wait_option,
     waiting_note,
 )
-from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.describe import TOP_FEATURES
 from mtanno.templates.learn import ITER_MAX, ITER_THRESH
+from mtanno.templates.params import RETRIEVAL_DELTA
 
 
 @click.command("learn-mt", epilog=EXIT_PER_CLASS)
@@ -183,7 +183,7 @@ def mt_mirror_cmd(template, output, name):
               help="Output template file.")
 @user_errors(2)
 def mt_scale_cmd(template, factor, output):
-    """Time-scale a template for faster or slower performers (issue 10).
+    """Time-scale a template for faster or slower performers.
 
     Matching lets a match be half to twice as long as the template (the DTW steps), so a
     performer much faster or slower than every training example is not found at all. The
@@ -215,7 +215,7 @@ def mt_scale_cmd(template, factor, output):
               help="Output template file.")
 @user_errors(2)
 def mt_quantize_cmd(template, delta, output):
-    """Quantize a template to 0, 1 and wildcard entries (algorithms.md §3.3).
+    """Quantize a template to 0, 1 and wildcard entries ([MR06] §5.2, docs/templates.md).
 
     The output records δ; matching uses a quantized template as it is.
     """

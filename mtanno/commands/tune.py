@@ -1,4 +1,4 @@
-"""The ``tune`` command (issue 10): annotation parameters learned by cross-validation inside
+"""The ``tune`` command: annotation parameters learned by cross-validation inside
 the training data, written as the class configuration ``annotate --classes`` reads.
 Exit codes: 0 success, 1 a training folder gave no example (the others were used), 2 usage
 error or bad input, 130 interrupted."""
@@ -75,7 +75,7 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
              disabled, unknown_weight, ablation_dir, background, verify, confidence, seed, jobs,
              quiet, scheduler):
-    """Learn the annotation parameters from the training data alone (issue 10).
+    """Learn the annotation parameters from the training data alone.
 
     Cross-validation inside the training examples: each performer (manifest actor, or
     truth document) is held out in turn; templates are learned from the others, the

@@ -25,11 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.truth import Segment, write_truth
 from mtanno.features.hysteresis import analysis_frames
 from mtanno.io.amc import read_amc_values, write_amc
 from mtanno.io.asf import AsfSkeleton, read_asf
 from mtanno.io.skeleton import euler_matrix
+from mtanno.labels.segments import Segment
+from mtanno.labels.truth import write_truth
 from mtanno.util.output import atomic_path
 
 

@@ -353,11 +353,12 @@ def curve_entries(entries, templates, features, docs, tau, tau_per_class, delta)
     """Each document's Δ curves of every class (the second entry of its data), with the
     templates quantized with ``delta`` as the annotation did (algorithms.md §3.4); the
     classes and their τ for the page."""
-    from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, class_deltas, class_models
+    from mtanno.annotate import class_deltas, class_models
     from mtanno.evaluation.player import encode_curves
+    from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 
-    models, _ = class_models(templates, delta=DEFAULT_DELTA if delta is None else delta)
-    tau = DEFAULT_TAU if tau is None else tau
+    models, _ = class_models(templates, delta=ANNOTATION_DELTA if delta is None else delta)
+    tau = ANNOTATION_TAU if tau is None else tau
     for d in docs:
         if d in features:
             curves = np.array([c for c, _ in class_deltas(features[d], models)])

@@ -45,11 +45,11 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
 from mtanno.evaluation.page import FORMATS
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 if TYPE_CHECKING:
-    from mtanno.annotate.tables import Annotation
     from mtanno.evaluation.page import Figures
+    from mtanno.labels.segments import Annotation
 
 NONE = "none"
 #: Title of a report page.
@@ -440,7 +440,7 @@ def _scores(figs: Figures, truth, annotation, docs, frames, prov, sections) -> N
     confusion matrix (table and figure) and the reliability of the confidence."""
     import pyarrow as pa
 
-    from mtanno.annotate.tables import to_segments
+    from mtanno.labels.segments import to_segments
     from mtanno.plot import plot_confusion
     from mtanno.util.tables import write_table
 
@@ -576,18 +576,19 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     :func:`write_report`. Returns the result and the annotation's rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
-        DEFAULT_TAU,
         annotation_files,
         read_annotation_tables,
     )
     from mtanno.evaluation.page import DATA_FOLDER
     from mtanno.evaluation.player import load_motion_poses, motion_files, motion_mismatch
-    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.features.inputs import document_files
+    from mtanno.features.store import read_features
     from mtanno.io import MOCAP_SUFFIXES
+    from mtanno.labels.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
+    from mtanno.templates.params import ANNOTATION_TAU
     from mtanno.util.output import check_outputs
-    from mtanno.util.store import document_files, read_features
     from mtanno.util.tables import provenance
 
     require_matplotlib()
@@ -646,7 +647,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
                 other[d] = why
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
-        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
+        tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
     result = write_report(
         out_dir, truth, rows, frames=frames,
         templates=load_template_folder(mt_dir) if mt_dir else None,

@@ -1,7 +1,7 @@
 """Evaluation of retrieval against ground truth ([MR06] §5.4–5.5, algorithms.md §8): hits
 and relevant hits per τ, top-k recall, the separation quotient, per class.
 
-Frames are 1-based inclusive at 30 Hz (:class:`mtanno.evaluation.truth.Segment`).
+Frames are 1-based inclusive at 30 Hz (:class:`mtanno.labels.segments.Segment`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtanno.evaluation.metrics import overlaps, ratio
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 #: Hit cap per class and document of the retrieval table (the reference driver's).
 DEFAULT_MAX_HITS = 2000
@@ -201,8 +201,8 @@ def evaluate_retrieval_files(models, layout, paths, truth: Sequence[Segment], *,
     with each such message. A truth segment past the end of its document is an error
     naming ``truth_path``."""
     from mtanno.errors import MtannoError
-    from mtanno.evaluation.truth import check_within
-    from mtanno.util.store import check_layout, read_features
+    from mtanno.features.store import check_layout, read_features
+    from mtanno.labels.truth import check_within
 
     documents, files, failed = [], [], []
     for p in paths:

@@ -19,10 +19,11 @@ from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.features.compute import FeatureSet, compute_features, get_feature_set
 from mtanno.features.hysteresis import ANALYSIS_FPS
+from mtanno.features.store import write_features
 from mtanno.features.table import FEATURE_SET
 from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
 from mtanno.io.skeleton import Motion
-from mtanno.util.store import sha256_file, write_features
+from mtanno.util.tables import sha256_file
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,
@@ -188,6 +189,16 @@ class Outcome:
     status: str  # "written", "skipped" or "failed"
     message: str = ""
     frames: int = 0
+    #: the failure as raised, when it was an :class:`MtannoError` (a command shows its
+    #: options as flags: :meth:`MtannoError.for_command`)
+    error: MtannoError | None = None
+
+    @classmethod
+    def of(cls, job: Job, status: str, message: str | MtannoError, frames: int) -> Outcome:
+        """The outcome of a job run by :func:`_extract_one`."""
+        if isinstance(message, MtannoError):
+            return cls(job, status, str(message), frames, message)
+        return cls(job, status, message, frames)
 
 
 @dataclass
@@ -318,7 +329,7 @@ def _stored_meta(path: Path) -> dict | None:
     import pyarrow.parquet as pq
 
     from mtanno.errors import parse_json
-    from mtanno.util.store import META_KEY
+    from mtanno.features.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
@@ -389,21 +400,22 @@ def _guessed_digest(src: Path) -> str:
 
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
              up: str = "y", poses: bool = False) -> Outcome:
-    status, message, frames = _extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
-                                           up, poses)
-    return Outcome(job, status, message, frames)
+    return Outcome.of(job, *_extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
+                                         up, poses))
 
 
 def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
-                 feature_set: str, up: str, poses: bool = False) -> tuple[str, str, int]:
+                 feature_set: str, up: str, poses: bool = False
+                 ) -> tuple[str, str | MtannoError, int]:
     """One document: (status, message, analysis frames); every error is caught and
-    reported for this file alone, so the batch goes on."""
+    reported for this file alone, so the batch goes on (an :class:`MtannoError` as it
+    was raised)."""
     try:
         X, _ = extract_file(src, dst, asf=asf, skeleton=skeleton, feature_set=feature_set,
                             up=up, poses=poses)
         return "written", "", int(X.shape[1])
     except MtannoError as exc:
-        return "failed", str(exc), 0
+        return "failed", exc, 0
     except OSError as exc:  # a file system error not caught where it happened
         return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0
     except Exception as exc:  # a bug, reported per file so the batch goes on
@@ -491,8 +503,8 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
         tasks = [([(j.src, j.dst, j.asf) for j in todo[a:b]], skeleton, feature_set, up, poses)
                  for a, b in chunks]
         for (a, b), results in zip(chunks, pool.map(_run_chunk, tasks)):
-            for j, (status, message, frames) in zip(todo[a:b], results):
-                record(Outcome(j, status, message, frames))
+            for j, result in zip(todo[a:b], results):
+                record(Outcome.of(j, *result))
     return summary
 
 

@@ -148,8 +148,8 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     left alone otherwise. Only the new files are read. With ``failures``, a file that
     cannot be read or does not have the index's features is left out and its message
     appended there; without, it is raised. ``progress(done, total)``: after each file read."""
+    from mtanno.features.store import FeatureLayout
     from mtanno.util.output import check_outputs
-    from mtanno.util.store import FeatureLayout
 
     root = Path(index_dir)
     feature_files = list(feature_files)

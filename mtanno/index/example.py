@@ -25,8 +25,8 @@ def example_matrix(index: Index, example: str | os.PathLike
     """(features × frames matrix, feature names, label) of a query-by-example source
     (``query --example``): a feature file (checked against the index's feature set, names
     and rate), or the name of an indexed document (its features that some group holds)."""
+    from mtanno.features.store import FeatureLayout, check_layout
     from mtanno.index.core import doc_layout, read_feature_doc
-    from mtanno.util.store import FeatureLayout, check_layout
 
     p = Path(example)
     if p.is_file():

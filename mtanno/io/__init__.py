@@ -23,6 +23,7 @@ from mtanno.errors import MtannoError
 from mtanno.io.guess import choose_map
 from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap
 from mtanno.io.skeleton import Channels, Motion, Rig, forward_kinematics
+from mtanno.util.lazy import submodule_getattr
 
 __all__ = ["MOCAP_SUFFIXES", "read_channels", "read_motion", "canonical_positions",
            "find_asf", "Motion", "Rig", "Channels", "CANONICAL_JOINTS"]
@@ -189,3 +190,6 @@ def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
     # the middle axis gives a strided copy, several times slower, that the kernels copy
     # again)
     return np.take(motion.positions, smap.indices(motion.rig, joints), axis=1)
+
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -50,3 +50,6 @@ from mtanno.keyframes.search import (
     search_documents,
     search_index,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

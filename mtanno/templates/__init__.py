@@ -14,6 +14,8 @@
 * :mod:`~mtanno.templates.match` — matching a template over documents: the streaming
   masked subsequence DTW of algorithms.md §3.4 (:func:`match_template`,
   :class:`PreparedTemplate`).
+* :mod:`~mtanno.templates.params` — the published τ and δ of retrieval and annotation,
+  one name each, and :func:`~mtanno.templates.params.check_tau`, the one rule for τ.
 * :mod:`~mtanno.templates.describe` — a template as text for a person (``mtanno mt show``).
 * :mod:`~mtanno.templates.tempo` — time-scaled copies of a template (faster or slower
   performers; ``mtanno mt scale``, and several templates per class in ``tune``).
@@ -51,3 +53,6 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

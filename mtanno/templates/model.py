@@ -31,7 +31,7 @@ from mtanno.util.output import atomic_path
 from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
 if TYPE_CHECKING:
-    from mtanno.util.store import FeatureLayout
+    from mtanno.features.store import FeatureLayout
 
 __all__ = [
     "SCHEMA", "KINDS", "MIRROR_SUFFIX", "FeatureRank", "MotionTemplate", "load_template",
@@ -123,10 +123,10 @@ class MotionTemplate:
         return int(self.values.shape[0])
 
     def layout(self, source: str | None = None) -> FeatureLayout:
-        """The template's :class:`~mtanno.util.store.FeatureLayout` (feature set, feature
-        names, frame rate), what :func:`~mtanno.util.store.check_layout` compares;
+        """The template's :class:`~mtanno.features.store.FeatureLayout` (feature set, feature
+        names, frame rate), what :func:`~mtanno.features.store.check_layout` compares;
         ``source`` names it in messages (default: ``template CLASS``)."""
-        from mtanno.util.store import FeatureLayout
+        from mtanno.features.store import FeatureLayout
 
         return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
                              source if source is not None else f"template {self.class_name}")
@@ -514,7 +514,7 @@ def load_template_folder(path: str | os.PathLike, *,
     sorted by class name; with ``classes`` only those (each must have a template). All
     templates must share feature set, names and frame rate (a difference is an error
     naming the file); two files of one class are an error."""
-    from mtanno.util.store import check_layout
+    from mtanno.features.store import check_layout
 
     files = template_files(path)
     if not files or not files[0].exists():

@@ -22,3 +22,6 @@ __all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder
 
 from mtanno.tuning.run import TuneResult, template_folder_of, tune, tune_files, write_tuned
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

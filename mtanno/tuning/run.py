@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from mtanno._version import __version__
-from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
+from mtanno.annotate import ClassConfig, class_config_text
 from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_TAU
 from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
@@ -183,7 +184,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
                   unknown_weight=unknown_weight, log=log, columns=columns)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
-    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
+    reference = tuner.evaluate(tuner.with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
     variants = {}
     if ablation:
         for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
@@ -279,7 +280,7 @@ def _check_options(methods, documents, unknown_weight, verify) -> list[str]:
 def _read_document(path):
     """The features and poses (None without) of a whole training document (examples cut
     from annotated ones)."""
-    from mtanno.util.store import read_features
+    from mtanno.features.store import read_features
 
     ff = read_features(path, poses=True)
     return ff.X, ff.poses
@@ -304,7 +305,8 @@ def _background_inputs(background, layout, examples, *, poses: bool):
     file."""
     if not background:
         return [], []
-    from mtanno.util.store import check_layout, feature_files, read_features
+    from mtanno.features.inputs import feature_files
+    from mtanno.features.store import check_layout, read_features
 
     training = {e.sha256: e.file for e in examples}
     docs, records = [], []
@@ -325,7 +327,7 @@ def _background_inputs(background, layout, examples, *, poses: bool):
 def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
                       unknown_weight, seed, log):
     """The confidence fitted on the folds and the verification bank of everything."""
-    from mtanno.annotate.verify import sequence
+    from mtanno.confidence.verify import sequence
     from mtanno.tuning.confidence import bank_of, learn_confidence
 
     seqs = None
@@ -345,9 +347,9 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     """The templates of ``mt_dir``, their feature layout, the training examples (each of
     that layout; every class must have some) and the keyframe queries of
     ``keyframes_dir`` (empty without)."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import load_template_folder
     from mtanno.templates.training import group_by_class, load_examples
-    from mtanno.util.store import check_layout
 
     templates = load_template_folder(mt_dir)
     classes = list(templates)
@@ -434,7 +436,7 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
     each with SHA-256) for the provenance, and the SHA-256 of each class's template (the
     configuration's ``[tuned_with]``)."""
     from mtanno.templates.model import template_files
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     shas = {i["path"]: i["sha256"] for i in inputs}
@@ -453,10 +455,10 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
 
 
 def _deltas(methods: Sequence[str], templates) -> list[float]:
-    from mtanno.annotate import DEFAULT_DELTA
+    from mtanno.templates.params import ANNOTATION_DELTA
     from mtanno.tuning.search import DELTA_GRID
 
-    return [float(d) for d in DELTA_GRID] if "delta" in methods else [DEFAULT_DELTA]
+    return [float(d) for d in DELTA_GRID] if "delta" in methods else [ANNOTATION_DELTA]
 
 
 def _run_tasks(tasks: list, n_jobs: int, fn, *, scheduler: str | None = None,
@@ -509,22 +511,22 @@ def bank_path_of(config_path: str | os.PathLike) -> Path:
 def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> list[str]:
     """``[confidence]`` and ``[background]`` of the configuration (the bank written beside
     it) and header lines on how well the confidence did out of fold."""
-    from mtanno.annotate.verify import write_bank
+    from mtanno.confidence.model import ConfidenceModel
+    from mtanno.confidence.verify import write_bank
     from mtanno.evaluation.calibration import auroc, expected_calibration_error
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     fit = result.confidence
     cfg.background = {r["path"]: r["sha256"] for r in result.background}
     if fit is None:
         return []
-    conf: dict = {"evidence": list(fit.evidence), "min_confidence": fit.min_confidence}
+    bank_file = sha = None
     if result.bank is not None:
         bpath = bank_path_of(path)
         write_bank(bpath, result.bank)
-        conf["bank"] = bpath.name
-        conf["bank_sha256"] = sha256_file(bpath)
-    conf["calibrator"] = fit.calibrator.to_dict()
-    cfg.confidence = conf
+        bank_file, sha = bpath.name, sha256_file(bpath)
+    cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
+                                     bank_file, sha, str(path.parent))
     kinds = np.array(fit.kinds)
     lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
              f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "
@@ -576,7 +578,7 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         "folds (held-out performer: examples): "
         + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
         f"cross-validated, tuned:    {_fmt(ev)}",
-        f"cross-validated, reference (tau {DEFAULT_TAU}, no methods): {_fmt(result.reference)}",
+        f"cross-validated, reference (tau {ANNOTATION_TAU}, no methods): {_fmt(result.reference)}",
         "search:",
         *(f"  {s}" for s in result.steps),
         *_confidence_section(cfg, result, path),

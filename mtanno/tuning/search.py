@@ -52,9 +52,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU, ClassConfig, label_document
+from mtanno.annotate import ClassConfig, label_document
 from mtanno.annotate.decode import DEFAULT_SLACK, decode_segments, fold_label, relative_evidence
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 from mtanno.templates.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 from mtanno.tuning.cv import Fold
 from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
@@ -97,7 +98,7 @@ class Params:
     template groups (1: the class's template only) and the tempo factors of its
     time-scaled templates."""
 
-    delta: float = DEFAULT_DELTA
+    delta: float = ANNOTATION_DELTA
     resolve: bool = False
     refine: bool = False
     slack: int = DEFAULT_SLACK
@@ -120,7 +121,7 @@ class Params:
         left to ``[tau] default``)."""
         taus = list(self.tau.values())
         default = default_tau if default_tau is not None else \
-            (max(set(taus), key=taus.count) if taus else DEFAULT_TAU)
+            (max(set(taus), key=taus.count) if taus else ANNOTATION_TAU)
         return ClassConfig(default_tau=default,
                            tau={c: t for c, t in self.tau.items() if t != default},
                            resolve=self.resolve, refine=self.refine, slack=self.slack,
@@ -349,7 +350,7 @@ class Tuner:
         return ([(1, 0)] + ([(n, i) for i in range(n)] if n > 1 else [])
                 + [(0, f) for f in params.scales.get(c, ())])
 
-    def _arrays(self, fd: _FoldData, params: Params):
+    def decoder_arrays(self, fd: _FoldData, params: Params):
         """Δ/τ (ρ applied), starts and frame evidence per class of the fold (segment
         decoder), as :func:`mtanno.annotate.label_document` builds them."""
         L = fd.n_frames
@@ -366,11 +367,11 @@ class Tuner:
                     np.minimum(ev[p], e, out=ev[p])
         return mat, st, ev
 
-    def _segments(self, fd: _FoldData, params: Params, classes: Sequence[str], arrays=None):
+    def fold_segments(self, fd: _FoldData, params: Params, classes: Sequence[str], arrays=None):
         """Output segments (label id, first, last) of one fold with ``classes`` only
-        (``arrays``: :meth:`_arrays` of the fold, for the segment decoder)."""
+        (``arrays``: :meth:`decoder_arrays` of the fold, for the segment decoder)."""
         if params.resolve:
-            mat, st, ev = arrays if arrays is not None else self._arrays(fd, params)
+            mat, st, ev = arrays if arrays is not None else self.decoder_arrays(fd, params)
             rows = [fd.classes.index(c) for c in classes]
             if len(rows) < len(fd.classes):
                 mat, st = mat[rows], st[rows]
@@ -415,8 +416,8 @@ class Tuner:
         per: dict[str, Counts] = {}
         per_unk: dict[str, tuple[int, int]] = {}
         for fd in self.folds:
-            arrays = self._arrays(fd, params) if params.resolve else None
-            segs = self._segments(fd, params, fd.classes, arrays)
+            arrays = self.decoder_arrays(fd, params) if params.resolve else None
+            segs = self.fold_segments(fd, params, fd.classes, arrays)
             total += _count(fd.truth, segs, len(self.names), fd.n_frames, fd.ignore)
             if per_class:
                 for c in self.classes:
@@ -436,8 +437,8 @@ class Tuner:
                 for c, sub in fd.hidden.items():
                     rest = [x for x in fd.classes if x != c]
                     sub_arrays = arrays if sub is fd else (
-                        self._arrays(sub, params) if params.resolve else None)
-                    hit, n = _covered_fraction(sub.truth_by_class[c], self._segments(
+                        self.decoder_arrays(sub, params) if params.resolve else None)
+                    hit, n = _covered_fraction(sub.truth_by_class[c], self.fold_segments(
                         sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
                     unk[0] += hit
                     unk[1] += n
@@ -462,10 +463,10 @@ class Tuner:
             return None, None
         return best, best_ev
 
-    def _with_tau(self, p: Params, tau: float) -> Params:
+    def with_tau(self, p: Params, tau: float) -> Params:
         return p.copy(tau={c: tau for c in self.classes}, reject={})
 
-    def search(self, *, delta: float = DEFAULT_DELTA, methods: Sequence[str] | None = None,
+    def search(self, *, delta: float = ANNOTATION_DELTA, methods: Sequence[str] | None = None,
                ) -> tuple[Params, Evaluation, list[str]]:
         """The coordinate search of the module docstring over ``methods`` (default: the
         tuner's); returns the best parameters, their evaluation and a log of the steps
@@ -480,9 +481,9 @@ class Tuner:
 
         base = Params(delta=delta, resolve="resolve" in on, refine="refine" in on,
                       slack=DEFAULT_SLACK, groups={c: 1 for c in self.classes})
-        ref_ev = self.evaluate(self._with_tau(base.copy(resolve=False, refine=False),
-                                              DEFAULT_TAU))
-        note(f"reference (tau {DEFAULT_TAU}, delta {delta})", ref_ev)
+        ref_ev = self.evaluate(self.with_tau(base.copy(resolve=False, refine=False),
+                                              ANNOTATION_TAU))
+        note(f"reference (tau {ANNOTATION_TAU}, delta {delta})", ref_ev)
         # 1. one τ, per δ and decoder
         deltas = [float(d) for d in DELTA_GRID] if "delta" in on else [float(delta)]
         decoders = [True, False] if "resolve" in on else [False]
@@ -490,7 +491,7 @@ class Tuner:
         for dl in deltas:
             for res in decoders:
                 p0 = base.copy(delta=dl, resolve=res, refine=base.refine)
-                cand, ev = self._best([self._with_tau(p0, t) for t in TAU_GRID])
+                cand, ev = self._best([self.with_tau(p0, t) for t in TAU_GRID])
                 if cur_ev is None or ev.J > cur_ev.J:
                     cur, cur_ev = cand, ev
         note(f"one tau {cur.tau[self.classes[0]]:g}, delta {cur.delta:g}, "
@@ -506,7 +507,7 @@ class Tuner:
                     "extension over unclaimed frames" if cur.refine else "off")
             note(f"refine: {what}", cur_ev)
         if "segments" in on and cur.resolve:
-            got, ev = self._best([self._with_tau(cur.copy(segment_cost=lam), t)
+            got, ev = self._best([self.with_tau(cur.copy(segment_cost=lam), t)
                                   for lam in SEGMENT_COSTS[1:] for t in TAU_GRID], cur_ev, EPS)
             if got is not None:
                 cur, cur_ev = got, ev

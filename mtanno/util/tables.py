@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
+import hashlib
 import io
 import json
 import math
@@ -54,6 +55,16 @@ PROVENANCE_SCHEMA = "mtanno.provenance/1"
 _META_KEY = b"mtanno"
 
 _COMMAND_LINE: list[str] | None = None
+
+
+def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
 
 
 def set_command_line(argv: Sequence[str]) -> None:
@@ -103,7 +114,7 @@ def output_files(path: str | os.PathLike | None) -> list[str]:
 def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
     """``{"path": ..., "sha256": ...}`` of an input file (hashed unless given)."""
     if sha256 is None:
-        from mtanno.util.store import sha256_file
+        from mtanno.util.tables import sha256_file
 
         try:
             sha256 = sha256_file(path)

@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 
 # --------------------------------------------------------------------- feature files
 

@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from held import held_pids, start_held
 from world import checksums, children, cli, temporaries, wait_for
 
 from mtanno import synthetic
@@ -164,15 +165,19 @@ def _loaded(pid: int, library: str) -> bool:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_sigint_while_python_imports_numpy_is_one_line(world):
-    """No hook: the installed console script, SIGINT the moment numpy's library is mapped
-    (the imports go on for most of a second after it). It printed a KeyboardInterrupt
-    traceback and exited −2."""
+def test_sigint_while_python_imports_numpy_is_one_line(world, tmp_path):
+    """The installed console script, SIGINT the moment numpy's library is mapped (the
+    imports go on for most of a second after it). It printed a KeyboardInterrupt traceback
+    and exited −2. The run is held at its shutdown (``MTANNO_TEST_PAUSE``), so it cannot
+    end before the signal: on a loaded machine the signal may arrive after the imports, and
+    the answer must be the same line."""
     script = Path(sys.executable).with_name("mtanno")
     if not script.exists():
         pytest.skip("no installed mtanno console script beside the interpreter")
+    env = {**os.environ, "MTANNO_TEST_PAUSE": f"shutdown:{tmp_path / 'mark'}"}
     proc = subprocess.Popen([sys.executable, str(script), "index", "info", str(world.index)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
     wait_for(lambda: _loaded(proc.pid, "_multiarray_umath"), proc, "numpy's import")
     rc, err = _signalled(proc, signal.SIGINT)
     assert (rc, err.splitlines()) == (130, [LINE.format("SIGINT")]), err
@@ -255,8 +260,9 @@ def test_sighup_stops_a_command_like_sigint_with_exit_129(world, tmp_path):
     (d / "base.amc").write_text(synthetic.amc_text(3000, 1))
     for i in range(60):
         os.symlink("base.amc", d / f"m{i:03d}.amc")
-    proc = subprocess.Popen([*PROGRAM, "features", str(d), "-o", str(out), "--jobs", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    gate = tmp_path / "gate"  # each worker held after one file: the run cannot finish first
+    proc = start_held(["features", d, "-o", out, "--jobs", "2"], gate=gate, after=1,
+                      hold="mtanno.features.extract:_extract_one", start_new_session=False)
     wait_for(lambda: len(list(out.glob("*.parquet"))) >= 2, proc, "the first outputs")
     rc, err = _signalled(proc, signal.SIGHUP)
     assert rc == 129 and err.splitlines()[-1] == LINE.format("SIGHUP"), err
@@ -267,12 +273,12 @@ def test_an_interrupted_tune_prints_one_line(world, tmp_path):
     """Ctrl-C (SIGINT to the process group) while tune --jobs 2 forks its pools: exactly
     one line after the command's (none from workers), exit 130, nothing written."""
     out = tmp_path / "t.toml"
-    proc = subprocess.Popen([*PROGRAM, "tune", "--mt", str(world.mt), "--manifest",
-                             str(world.manifest), "--features-dir", str(world.feats),
-                             "--split", "train", "-o", str(out), "--jobs", "2", "-q"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    wait_for(lambda: children(proc.pid), proc, "its workers started")
+    gate = tmp_path.parent / f"{tmp_path.name}.gate"  # outside the folder checked below
+    proc = start_held(["tune", "--mt", world.mt, "--manifest", world.manifest,
+                       "--features-dir", world.feats, "--split", "train", "-o", out,
+                       "--jobs", "2", "-q"], gate=gate, after=0,
+                      hold="mtanno.tuning.run:_call")  # every task held: tune cannot end
+    wait_for(lambda: children(proc.pid) and held_pids(gate), proc, "its workers started")
     os.killpg(proc.pid, signal.SIGINT)
     try:
         _, err = proc.communicate(timeout=HANG)

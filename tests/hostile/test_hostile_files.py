@@ -19,10 +19,10 @@ import pytest
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
+from mtanno.features.store import read_features
 from mtanno.index import open_index
 from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, load_keyframes, save_keyframes
 from mtanno.keyframes.model import feature_groups_of
-from mtanno.util.store import read_features
 from mtanno.util.tables import read_table
 
 #: JSON text nested far deeper than any parser's recursion allows.

@@ -27,8 +27,8 @@ from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno import synthetic
 from mtanno.errors import MtannoError
+from mtanno.features.store import read_features
 from mtanno.io.asf import read_asf
-from mtanno.util.store import read_features
 
 #: Channels of the CGSPEED_LIKE hierarchy (root 6, 30 joints × 3).
 N_CHANNELS = 6 + 3 * 30

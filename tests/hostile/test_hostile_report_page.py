@@ -27,7 +27,7 @@ from browser import Browser, chromium, wait_for_file
 from test_hostile_motion import bvh_text
 from world import cli
 
-from mtanno.evaluation.truth import read_truth
+from mtanno.labels.truth import read_truth
 
 HOSTILE = "x<!--<script>"
 P = "document.querySelector('[data-mtanno-player]')"

@@ -5,7 +5,7 @@ classes, and background motions that belong to no class.
 The motion templates of [MR06] keep, per frame, only what the class's examples share, so
 a long document of unknown motions offers every template a window that fits. The examples
 themselves say more: a segment is compared with each example by subsequence DTW
-(:mod:`mtanno.annotate._verify_kernels`; free start and end inside the example, cost per
+(:mod:`mtanno.confidence._verify_kernels`; free start and end inside the example, cost per
 segment frame) on one of two representations —
 
 * ``poses``: the normalised poses that ``mtanno features --poses`` stores (root at the
@@ -97,8 +97,8 @@ def subsequence_costs(query: np.ndarray, items: np.ndarray, offsets: np.ndarray
     """Subsequence DTW cost of ``query`` (rows × dims) inside each item of ``items``
     (rows ``offsets[k]:offsets[k+1]``): (items,) costs per query row, the local cost the
     mean absolute difference of two rows (∞ for an empty item;
-    :mod:`mtanno.annotate._verify_kernels`)."""
-    from mtanno.annotate._verify_kernels import _subsequence_costs
+    :mod:`mtanno.confidence._verify_kernels`)."""
+    from mtanno.confidence._verify_kernels import _subsequence_costs
 
     Q = np.ascontiguousarray(query, dtype=np.float32)
     B = np.ascontiguousarray(items, dtype=np.float32)
