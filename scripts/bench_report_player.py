@@ -22,7 +22,12 @@ player's ``mtanno:shown`` event with the motion drawn (a data file loaded by a s
 element, inflated and drawn), medians.
 
     .venv/bin/python scripts/bench_report_player.py [--repeats 3] [--sizes 2148 10000]
-        [--out .cache/bench/report]
+        [--out .cache/bench/report] [--baseline DIR [--baseline-docs 500]]
+
+``--baseline DIR``: a folder holding an earlier ``mtanno`` package (the page before issue
+33: ``git archive b1c3633 mtanno | tar -x -C DIR``), run on the same first
+``--baseline-docs`` documents beside this one (``PYTHONPATH=DIR``), without and with
+``--motions``: the peer of this benchmark, in the same run.
 """
 
 from __future__ import annotations
@@ -188,13 +193,61 @@ def report(args_motions, ann, truth, out: Path, *, chunk_bytes=None) -> tuple[fl
     return run(PYTHON, "-c", code)
 
 
+def subset(out: Path, ann: Path, truth: Path, dirs: list[Path], n: int
+           ) -> tuple[list[Path], Path, Path]:
+    """The first ``n`` documents (by name): their annotation rows, truth and motions (a
+    folder of links)."""
+    folder = out / f"first{n}"
+    if not (folder / "annotation.csv").exists():
+        clips = {p.stem: p for d in dirs for p in d.glob("*.bvh")}
+        keep = sorted(clips)[:n]
+        shutil.rmtree(folder, ignore_errors=True)
+        (folder / "motions").mkdir(parents=True)
+        for d in keep:
+            os.symlink(clips[d].resolve(), folder / "motions" / f"{d}.bvh")
+        wanted = set(keep)
+        for src, name in ((ann, "annotation.csv"), (truth, "truth.csv")):
+            with open(src, newline="") as fh:
+                rows = list(csv.reader(fh))
+            with open(folder / name, "w", newline="") as fh:
+                csv.writer(fh).writerows([rows[0]] + [r for r in rows[1:] if r[0] in wanted])
+        frames = json.loads(ann.with_name(ann.name + ".meta.json").read_text())["documents"]
+        (folder / "annotation.csv.meta.json").write_text(json.dumps(
+            {"documents": {d: frames[d] for d in keep}}))
+    return [folder / "motions"], folder / "annotation.csv", folder / "truth.csv"
+
+
+def baseline(a, dirs, ann, truth) -> None:
+    """This report and the one of ``--baseline`` on the same first documents."""
+    motions, an, tr = subset(a.out, ann, truth, dirs, a.baseline_docs)
+    env = {**os.environ, "PYTHONPATH": str(a.baseline.resolve())}
+    print(f"\n== the first {a.baseline_docs} documents: this page and the one in {a.baseline}")
+    for label, m in (("without --motions", []), ("with --motions", motions)):
+        got = {}
+        for who, e in (("this", None), ("baseline", env)):
+            dest = a.out / f"base_{who}_{bool(m)}"
+            shutil.rmtree(dest, ignore_errors=True)
+            wall, rss = run(MTANNO, "report", an, "--truth", tr,
+                            *(x for d in m for x in ("--motions", d)), "-o", dest, "-q",
+                            env=e)
+            got[who] = (wall, rss, *size(dest), (dest / "index.html").stat().st_size / 1e6)
+        for who in ("this", "baseline"):
+            wall, rss, mb, files, page = got[who]
+            print(f"{label}, {who}: {wall:.1f} s, peak RSS {rss / 1024:.0f} MB, {mb:.1f} MB "
+                  f"in {files} files, page {page:.2f} MB")
+        print(f"{label}: {got['baseline'][0] / got['this'][0]:.1f}× faster, "
+              f"{got['baseline'][2] / got['this'][2]:.1f}× smaller")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--loads", type=int, default=5)
     ap.add_argument("--picks", type=int, default=15)
-    ap.add_argument("--sizes", type=int, nargs="+", default=[2148, 10000])
+    ap.add_argument("--sizes", type=int, nargs="*", default=[2148, 10000])
     ap.add_argument("--out", type=Path, default=REPO / ".cache" / "bench" / "report")
+    ap.add_argument("--baseline", type=Path, default=None)
+    ap.add_argument("--baseline-docs", type=int, default=500)
     a = ap.parse_args(argv)
     print(machine())
     dirs, ann, truth = setup(a.out)
@@ -202,6 +255,8 @@ def main(argv=None) -> int:
         n_rows = sum(1 for _ in fh) - 1
     print(f"Bandai set 2: {len(list(ann.parent.glob('features/*/*.parquet')))} clips, "
           f"{n_rows} annotation rows")
+    if a.baseline is not None:
+        baseline(a, dirs, ann, truth)
     for n in a.sizes:
         motions, an, tr = (dirs, ann, truth) if n == 2148 else copies(a.out, dirs, ann,
                                                                         truth, n)

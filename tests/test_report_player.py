@@ -442,7 +442,10 @@ def test_keyboard_review_survives_a_reload_and_downloads_as_truth(world, tmp_pat
     browser.evaluate("document.getElementById('download-truth').click()")
     got = wait_for_file(tmp_path / "downloads" / "truth.csv")
     with open(got, newline="") as fh:
-        table = [tuple(r.values()) for r in csv.DictReader(fh)]
+        reader = csv.DictReader(fh)
+        table = [tuple(r.values()) for r in reader]
+    # the format scripts/experiment_review.sh simulates (bandai_folds.py review)
+    assert reader.fieldnames == ["doc", "start", "end", "label", "fps"]
     want = sorted([(*map(str, order[0][:3]), order[0][3], "30"),
                    (*map(str, order[2][:3]), "squat", "30")])
     assert sorted(table) == want

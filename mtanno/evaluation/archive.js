@@ -20,8 +20,6 @@
   var rowsOf = group(R.doc, nDocs), truthOf = T ? group(T.doc, nDocs) : null;
   var byName = new Map();  // never an object keyed by a name: "__proto__" is a document too
   D.name.forEach(function (n, i) { byName.set(n, i); });
-  var labelIndex = new Map();
-  data.labels.forEach(function (l, i) { labelIndex.set(l, i); });
   M.rowsOf = function (d) { return rowsOf[d]; };
   M.truthOf = function (d) { return truthOf ? truthOf[d] : []; };
   M.docNamed = function (name) { return byName.has(name) ? byName.get(name) : -1; };

@@ -61,13 +61,11 @@ _SIDES = "".join(n[0] if n != "root" and n[0] in "lr" else "c" for n in CANONICA
 class PlayerPoses:
     """What the player draws of one document: ``positions`` (frames × joints × 3, leg
     lengths, Y up, normalised), the ``bones`` as (parent, child) joint index pairs, and per
-    joint its side (``"l"``, ``"r"`` or ``"c"``, the figure's colours); ``rig`` names the
-    skeleton (the canonical one, or the motion file's rig)."""
+    joint its side (``"l"``, ``"r"`` or ``"c"``, the figure's colours)."""
 
     positions: np.ndarray
     bones: list[tuple[int, int]]
     sides: str
-    rig: str = "canonical"
 
     @property
     def frames(self) -> int:
@@ -183,7 +181,7 @@ def motion_files(inputs: Iterable[str | os.PathLike],
 
 
 def rig_poses(positions: np.ndarray, canonical: np.ndarray, parents: Sequence[int],
-              root: int, side_of: dict[int, str], rig: str = "rig",
+              root: int, side_of: dict[int, str],
               normalised: np.ndarray | None = None) -> PlayerPoses:
     """The rig's own joints normalised like its canonical joints: ``positions`` (frames ×
     nodes × 3, Y up) of every node, ``canonical`` (frames × 22 × 3) those of the canonical
@@ -223,32 +221,34 @@ def rig_poses(positions: np.ndarray, canonical: np.ndarray, parents: Sequence[in
         sides.append(side_of.get(node) or (sides[where[parents[node]]] if node != root
                                            else "c"))
     bones = [(where[parents[n]], where[n]) for n in keep[1:]]
-    return PlayerPoses((R / scale).astype(np.float32), bones, "".join(sides), rig)
+    return PlayerPoses((R / scale).astype(np.float32), bones, "".join(sides))
 
 
-def _read_motion_poses(path: Path, asf) -> tuple[np.ndarray, PlayerPoses, str]:
+def _read_motion_poses(path: Path, asf, sha256: bool = True
+                       ) -> tuple[np.ndarray, PlayerPoses, str]:
     """One motion file at its 30 Hz analysis frames: the canonical poses as the pose block
-    stores them, the rig's own (:func:`rig_poses`), and the file's SHA-256."""
+    stores them, the rig's own (:func:`rig_poses`), and the file's SHA-256 (with
+    ``sha256``, else "")."""
     from mtanno.features.extract import poses_at, to_y_up
     from mtanno.features.hysteresis import analysis_frames
     from mtanno.io import canonical_positions, read_motion
 
-    motion = read_motion(path, asf=asf, sha256=True)
+    motion = read_motion(path, asf=asf, sha256=sha256)
     keep = analysis_frames(motion.positions.shape[0], motion.fps)
     index = motion.smap.indices(motion.rig, CANONICAL_JOINTS)
     C = to_y_up(canonical_positions(motion))
     canonical = poses_at(C, keep)
     side_of = {int(n): side for n, side in zip(index, _SIDES) if side != "c"}
     own = rig_poses(to_y_up(motion.positions[keep]), C[keep], motion.rig.parents.tolist(),
-                    int(index[_J["root"]]), side_of, rig=path.name, normalised=canonical)
+                    int(index[_J["root"]]), side_of, normalised=canonical)
     return canonical, own, str(motion.source_sha256 or "")
 
 
-def _read_task(path: str, asf, rig: bool, encode: bool) -> tuple:
+def _read_task(path: str, asf, rig: bool, encode: bool, sha256: bool) -> tuple:
     """One document's motion for :func:`load_motion_poses` (in a worker process): (poses,
     SHA-256, None) or (None, None, the error's message)."""
     try:
-        canonical, own, digest = _read_motion_poses(Path(path), asf)
+        canonical, own, digest = _read_motion_poses(Path(path), asf, sha256)
     except MtannoError as exc:
         return None, None, str(exc) if exc.path else f"{path}: {exc}"
     out = own if rig else canonical
@@ -265,7 +265,8 @@ def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
     them (``asf``, else the ASF found beside or above an AMC file; skeleton map detected):
     (frames × 22 × 3) arrays, or with ``rig`` the rig's own joints and bones
     (:class:`PlayerPoses`, :func:`rig_poses`; with ``encode`` as :class:`EncodedPoses`, a
-    few kilobytes each). ``digests`` (given) receives each file's SHA-256. Files are read in
+    few kilobytes each). ``digests`` (given) receives each file's SHA-256 (else none is
+    computed). Files are read in
     ``jobs`` processes; ``progress()`` is called after each. A file that cannot be read is
     left out, its message appended to ``failures`` (an error without it)."""
     from mtanno.util.workers import make_pool
@@ -273,7 +274,8 @@ def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
     todo = [d for d in docs if d in files]
     out = {}
     with make_pool(jobs=jobs, n_tasks=len(todo)) as pool:
-        tasks = [(str(files[d]), None if asf is None else str(asf), rig, encode) for d in todo]
+        tasks = [(str(files[d]), None if asf is None else str(asf), rig, encode,
+                  digests is not None) for d in todo]
         for d, (poses, digest, error) in zip(todo, pool.map(_read_task, tasks,
                                                              chunksize=8)):
             if progress is not None:

@@ -580,9 +580,8 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         read_annotation_tables,
     )
     from mtanno.evaluation.page import DATA_FOLDER
-    from mtanno.evaluation.player import load_motion_poses, motion_files, motion_mismatch
+    from mtanno.evaluation.player import motion_files
     from mtanno.features.inputs import document_files
-    from mtanno.features.store import read_features
     from mtanno.io import MOCAP_SUFFIXES
     from mtanno.labels.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
@@ -613,19 +612,6 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     if truth_path is not None:
         truth = read_truth(truth_path)
         check_within(truth, frames, path=truth_path)
-    feats, poses, sources, made_from, other = {}, {}, {}, {}, {}
-    for p in paths:
-        try:
-            ff = read_features(p, poses=not motions)
-        except MtannoError as exc:
-            if failures is None:
-                raise
-            failures.append(str(exc))
-            continue
-        feats[ff.document] = ff.X
-        made_from[ff.document] = ff.meta.get("source_sha256")
-        if ff.poses is not None:
-            poses[ff.document], sources[ff.document] = ff.poses, str(p)
     read = [0]
 
     def step() -> None:
@@ -633,18 +619,8 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         if progress is not None:
             progress(read[0], len(motion_paths) + len(docs))
 
-    if motions:
-        digests: dict[str, str] = {}
-        poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures, rig=True,
-                                  encode=True, digests=digests, jobs=jobs, progress=step)
-        sources = {d: str(motion_paths[d]) for d in poses}
-        for d in list(poses):
-            why = motion_mismatch(d, poses[d].frames, recorded=None, last_labelled=0,
-                                  path=sources[d], digest=digests.get(d),
-                                  features_source=made_from.get(d))
-            if why is not None:
-                del poses[d]
-                other[d] = why
+    feats, poses, sources, other = _player_inputs(paths, motions, motion_paths, docs, asf=asf,
+                                                  jobs=jobs, failures=failures, step=step)
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
         tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
@@ -662,3 +638,39 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     if failures is not None:
         failures.extend(result.motion_notes.values())
     return result, rows
+
+
+def _player_inputs(paths, motions, motion_paths, docs, *, asf, jobs, failures, step):
+    """The feature matrices of ``paths`` and the player's poses: from the motion files
+    (read in ``jobs`` processes, ``step()`` after each; one whose SHA-256 is not the one
+    its feature file records is left out, and why is in the last result), else from the
+    feature files' pose blocks. Returns (features, poses, their files, why not played)."""
+    from mtanno.evaluation.player import load_motion_poses, motion_mismatch
+    from mtanno.features.store import read_features
+
+    feats, poses, sources, made_from, other = {}, {}, {}, {}, {}
+    for p in paths:
+        try:
+            ff = read_features(p, poses=not motions)
+        except MtannoError as exc:
+            if failures is None:
+                raise
+            failures.append(str(exc))
+            continue
+        feats[ff.document] = ff.X
+        made_from[ff.document] = ff.meta.get("source_sha256")
+        if ff.poses is not None:
+            poses[ff.document], sources[ff.document] = ff.poses, str(p)
+    if motions:  # the SHA-256 of each motion only when a feature file records one
+        digests: dict[str, str] | None = {} if any(made_from.values()) else None
+        poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures, rig=True,
+                                  encode=True, digests=digests, jobs=jobs, progress=step)
+        sources = {d: str(motion_paths[d]) for d in poses}
+        for d in list(poses):
+            why = motion_mismatch(d, poses[d].frames, recorded=None, last_labelled=0,
+                                  path=sources[d], digest=(digests or {}).get(d),
+                                  features_source=made_from.get(d))
+            if why is not None:
+                del poses[d]
+                other[d] = why
+    return feats, poses, sources, other
