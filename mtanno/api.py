@@ -36,7 +36,7 @@ PathLike = str | os.PathLike
 def read_motion(path: PathLike, *, asf: PathLike | None = None,
                 skeleton: PathLike | None = None) -> Motion:
     """A motion file (ASF/AMC or BVH) with world positions of every node
-    (:func:`mtanno.io.read_motion`; algorithms.md §1). An AMC file's ASF is found beside
+    (:func:`mtanno.io.read_motion`; docs/method.md §1). An AMC file's ASF is found beside
     it unless ``asf`` is given."""
     from mtanno.io import read_motion as _read
 

@@ -50,7 +50,8 @@ def describe_motion(motion: Motion) -> list[str]:
     """The lines ``mtanno info MOTION`` prints for a motion read by
     :func:`mtanno.io.read_motion`: rig, frame rate, length in frames and seconds, skeleton
     map and how it was chosen or made (a map file that fits, ``--skeleton``, or generated
-    from the joint names and the tree: :mod:`mtanno.io.guess`), and which rig joint each
+    from the joint names and the tree, :mod:`mtanno.io.guess`, or from the hierarchy and
+    rest pose, :mod:`mtanno.io.topology`), and which rig joint each
     canonical joint of the map comes from (MISSING where the map finds none)."""
     from mtanno.io.rigs import CANONICAL_JOINTS
 

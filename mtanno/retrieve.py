@@ -4,7 +4,7 @@
 :func:`mtanno.templates.match.match_template`) into hits; :func:`retrieve` matches a template
 against several documents and ranks all hits by cost. Two extraction rules, both greedy
 (repeatedly the smallest remaining Δ(ℓ) ≤ τ, ties to the lowest frame), as in the reference
-implementation (``../shared/data/reference/retrieval/README.md``; algorithms.md §3.5):
+implementation (``../shared/data/reference/retrieval/README.md``; docs/method.md §3.5):
 
 ``"retrieval"`` (``motionTemplateDTWRetrievalWeighted``)
     A minimum at end frame e with start s (hit length len = e − s + 1) is recorded only if
@@ -102,7 +102,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
                  end_excl: tuple[float, float] = (0.5, 0.1),
                  start_excl: tuple[float, float] = (0.1, 0.5),
                  doc: str | int = 0, doc_index: int = 0) -> HitList:
-    """Greedy hits of one document's Δ below ``tau`` ([MR06] §5.4, algorithms.md §3.5).
+    """Greedy hits of one document's Δ below ``tau`` ([MR06] §5.4, docs/method.md §3.5).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Keyframe benchmark (issue 7; MBS09 §5–7, algorithms.md §5–6 and §9).
+"""Keyframe benchmark (issue 7; MBS09 §5–7, docs/method.md §5–6 and §9).
 
 1. **Keyframe query latency** on the index of the Bandai set-2 archives (5 styles, 30 fps
    BVH, the 40 annotation features; features computed once into ``.cache/bench``, not

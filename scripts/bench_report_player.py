@@ -11,7 +11,7 @@ documents the clips are repeated under new names (hard links to the same BVH fil
 rows and truth).
 
 Timed, for each archive: the whole command ``mtanno report ANNOTATION --truth TRUTH
---motions STYLE_DIR... -o DIR -q`` into a fresh folder (median of ``--repeats``, peak memory
+--motions STYLE_DIR... -o DIR -q --jobs 2`` into a fresh folder (median of ``--repeats``, peak memory
 from ``/usr/bin/time -v``), then once more into the same folder (a rerun: the figures and
 data files are reused); the output's size and file count. The same run with one data file
 per document (``chunk_bytes=0``; the API, as a whole ``python -c`` run) against the default
@@ -182,14 +182,16 @@ def browse(page: Path, loads: int, picks: int, profile: Path) -> tuple[float, fl
         b.close()
 
 
-def report(args_motions, ann, truth, out: Path, *, chunk_bytes=None) -> tuple[float, int]:
+def report(args_motions, ann, truth, out: Path, *, chunk_bytes=None, jobs=1
+           ) -> tuple[float, int]:
     if chunk_bytes is None:
         return run(MTANNO, "report", ann, "--truth", truth,
-                   *(a for m in args_motions for a in ("--motions", m)), "-o", out, "-q")
+                   *(a for m in args_motions for a in ("--motions", m)), "-o", out, "-q",
+                   "--jobs", jobs)
     code = ("import sys; from mtanno.evaluation.report import report_files; "
             f"report_files([{str(ann)!r}], {str(out)!r}, truth_path={str(truth)!r}, "
             f"motions={[str(m) for m in args_motions]!r}, chunk_bytes={chunk_bytes}, "
-            "failures=[])")
+            f"failures=[], jobs={jobs})")
     return run(PYTHON, "-c", code)
 
 
@@ -246,6 +248,8 @@ def main(argv=None) -> int:
     ap.add_argument("--picks", type=int, default=15)
     ap.add_argument("--sizes", type=int, nargs="*", default=[2148, 10000])
     ap.add_argument("--out", type=Path, default=REPO / ".cache" / "bench" / "report")
+    ap.add_argument("--jobs", type=int, default=2, help="report --jobs (default: the two "
+                    "cores the targets name)")
     ap.add_argument("--baseline", type=Path, default=None)
     ap.add_argument("--baseline-docs", type=int, default=500)
     a = ap.parse_args(argv)
@@ -260,15 +264,15 @@ def main(argv=None) -> int:
     for n in a.sizes:
         motions, an, tr = (dirs, ann, truth) if n == 2148 else copies(a.out, dirs, ann,
                                                                         truth, n)
-        print(f"\n== {n} documents")
+        print(f"\n== {n} documents (report --jobs {a.jobs})")
         for label, chunk in (("data files of ~256 KB (default)", None),
                              ("one data file per document", 0)):
             runs = []
             for _ in range(a.repeats):
                 dest = a.out / f"rep{n}_{chunk}"
                 shutil.rmtree(dest, ignore_errors=True)
-                runs.append(report(motions, an, tr, dest, chunk_bytes=chunk))
-            rerun = report(motions, an, tr, dest, chunk_bytes=chunk)
+                runs.append(report(motions, an, tr, dest, chunk_bytes=chunk, jobs=a.jobs))
+            rerun = report(motions, an, tr, dest, chunk_bytes=chunk, jobs=a.jobs)
             mb, files = size(dest)
             page_mb = (dest / "index.html").stat().st_size / 1e6
             print(f"{label}: whole command {statistics.median(w for w, _ in runs):.1f} s "

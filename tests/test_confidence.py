@@ -12,7 +12,7 @@ import pytest
 from mtanno.annotate import Annotation, read_annotations, write_annotations
 from mtanno.annotate.config import ClassConfig, class_config_text, load_class_config
 from mtanno.confidence.calibration import Calibrator, uncalibrated_confidence
-from mtanno.confidence.evidence import EVIDENCE, evidence, label_facts, segment_evidence
+from mtanno.confidence.evidence import EVIDENCE, label_facts, register_evidence, segment_evidence
 from mtanno.confidence.model import ConfidenceModel, check_min_confidence
 from mtanno.confidence.score import single_label_by_confidence
 from mtanno.errors import MtannoError
@@ -78,7 +78,7 @@ def test_the_evidence_registry_is_ordered_and_extensible():
     assert EVIDENCE == ("cost", "length", "verify", "margin", "background")
     import mtanno.confidence.evidence as ev
 
-    @evidence("frames")
+    @register_evidence("frames")
     def _frames(s):
         return float(s.row.end - s.row.start + 1)
 

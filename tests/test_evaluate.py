@@ -1,4 +1,4 @@
-"""Evaluation measures (algorithms.md §8) on hand-made tables with overlaps."""
+"""Evaluation measures (docs/method.md §8) on hand-made tables with overlaps."""
 
 from __future__ import annotations
 

@@ -162,3 +162,21 @@ def test_make_demo_names_every_stage_with_its_time():
     assert len(stages) >= 7
     # every mtanno command of the demo but evaluate (its table is the output) is a stage
     assert len([c for c in commands if c != "evaluate"]) == len(stages), (stages, commands)
+
+
+def test_a_lazy_name_may_not_be_a_submodule_name():
+    """``mtanno.features.hysteresis`` was the function until the module was imported, then
+    the module: a package's lazily attached name may not be one of its modules' names."""
+    from mtanno.util.lazy import lazy_exports
+
+    with pytest.raises(ValueError, match=r"names that are also submodules: \['table'\]"):
+        lazy_exports("mtanno.features", {"table": ("table", "FEATURES")})
+    import mtanno.features.hysteresis as module
+
+    assert callable(module.hysteresis) and not callable(mtanno_features().hysteresis)
+
+
+def mtanno_features():
+    import mtanno.features
+
+    return mtanno.features

@@ -97,7 +97,7 @@ def test_index_structure_matches_naive():
 
 
 def test_intervals_are_merged_runs_of_matching_frames():
-    # keyframe search (algorithms.md §5): union of lists → frame intervals, neighbours merged
+    # keyframe search (docs/method.md §5): union of lists → frame intervals, neighbours merged
     rng = np.random.default_rng(3)
     names = ["a", "b", "c", "d"]
     docs = _random_docs(rng, 4, names, p=0.3)

@@ -1,4 +1,4 @@
-"""Keyframe search (algorithms.md §5) against the brute-force oracle of naive_keyframes.py:
+"""Keyframe search (docs/method.md §5) against the brute-force oracle of naive_keyframes.py:
 random documents and random queries, through an index and by a direct scan."""
 
 from __future__ import annotations

@@ -1,13 +1,14 @@
 """The annotate stage: per-frame class labels of documents from motion templates ([MBS09]
-§4–5, algorithms.md §7) and the tuned methods of issue 10 (``docs/annotation.md``).
+§4–5, docs/method.md §7) and the tuned methods of issue 10 (``docs/annotation.md``).
 
 Modules, in the order the data flows through them:
 
 * :mod:`~mtanno.annotate.config` — class configurations (per-class τ, superclasses, the
   decoder's options; TOML);
-* :mod:`~mtanno.annotate.dbar` — the modified distance Δ̄ of a class (§7 step 2);
-* :mod:`~mtanno.annotate.label` — one document's labels and segments (§7 steps 3–4;
-  :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
+* :mod:`~mtanno.annotate.dbar` — the modified distance Δ̄ of a class (docs/method.md §7
+  step 2);
+* :mod:`~mtanno.annotate.label` — one document's labels and segments (docs/method.md §7
+  steps 3–4; :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
 * :mod:`~mtanno.annotate.decode` — the segment decoder of tuned annotation (issue 10);
 * :mod:`~mtanno.annotate.tables` — annotation tables (0-based rows, 1-based files);
 * :mod:`~mtanno.annotate.batch` — batches of feature files (:class:`AnnotationSetup`,

@@ -11,23 +11,17 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mtanno.confidence.model import ConfidenceModel, is_sha256
-from mtanno.errors import MtannoError, read_input
+from mtanno.errors import MtannoError, read_toml
 from mtanno.templates.params import ANNOTATION_TAU, check_tau
 
 if TYPE_CHECKING:
     from mtanno.annotate.label import ClassModel
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["DECODER_KEYS", "ClassConfig",
            "class_config_text", "load_class_config", "write_class_config"]
@@ -47,8 +41,8 @@ class ClassConfig:
     * ``resolve`` — overlap resolution: the segment decoder (:mod:`mtanno.annotate.decode`) picks
       one least-cost partition into matches instead of Δ̄ labels and extension;
     * ``refine`` — boundary refinement: with ``resolve`` a segment may start up to
-      ``slack`` frames from its match's start; without, the extension of §7 step 4 walks
-      only over frames no other class labels;
+      ``slack`` frames from its match's start; without, the extension of docs/method.md
+      §7 step 4 walks only over frames no other class labels;
     * ``reject`` — rejection ceilings ρ per label (``default_reject`` for the others):
       matches with Δ above it are never taken (segment decoder) or picked (Δ̄);
     * ``frame_weight`` — tie-breaking by frame-wise evidence (segment decoder);
@@ -227,14 +221,7 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     finite number ≥ 0, δ outside [0, 0.5).
     """
     spath = str(path)
-    try:
-        text = read_input(path, what="class configuration").decode("utf-8")
-        data = tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise MtannoError(f"not a valid TOML class configuration: {exc}", path=spath) from None
-    except RecursionError:  # arrays or tables nested thousands deep (tomllib recurses)
-        raise MtannoError("not a valid TOML class configuration: nested too deeply",
-                          path=spath) from None
+    data, text = read_toml(path, what="class configuration")
     cfg = ClassConfig(path=spath, lines=_key_lines(text))
 
     def bad(section: str, key: str | None, msg: str) -> MtannoError:

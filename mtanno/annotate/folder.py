@@ -91,24 +91,14 @@ def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, 
     :func:`mtanno.features.inputs.document_files_below`): a file ``F.parquet`` gives
     ``outdir/F.<fmt>``, a file found in folder ``D`` gives ``outdir/<its path below
     D>`` with the format's suffix (``failures``: as :func:`mtanno.features.inputs.feature_files`).
-    Jobs are sorted by document name. Parquet tables in a
-    folder inside an input folder would be read as feature files by the next run: refused.
+    Jobs are sorted by document name. (An ``outdir`` inside an input folder is judged with
+    the other outputs: :func:`mtanno.annotate.run.annotate_to`.)
     """
     from mtanno.features.inputs import document_files_below
 
     if fmt not in FORMATS:
         raise MtannoError(f"unknown table format {fmt!r} (known: {', '.join(FORMATS)})")
     outdir = Path(outdir)
-    inputs = list(inputs)
-    if fmt == "parquet":
-        out = outdir.resolve()
-        for item in inputs:
-            p = Path(item)
-            if p.is_dir() and (out == p.resolve() or p.resolve() in out.parents):
-                raise MtannoError(f"the output folder is inside the input folder {p}: its "
-                                  "Parquet tables would be read as feature files; choose "
-                                  "another folder, or {fmt} csv", path=str(outdir),
-                                  options=("fmt",))
     jobs = [DocJob(src, outdir / rel.with_suffix(FORMATS[fmt]))
             for src, rel in document_files_below(inputs, failures=failures)]
     return sorted(jobs, key=lambda j: j.doc)

@@ -1,4 +1,4 @@
-"""Frame-wise labels of one document ([MBS09] §4–5, algorithms.md §7): every class
+"""Frame-wise labels of one document ([MBS09] §4–5, docs/method.md §7): every class
 template's distance Δ_p over the document (optionally only inside keyframe windows),
 its modified distance Δ̄_p (:mod:`mtanno.annotate.dbar`), the label of each frame (the
 class of smallest Δ̄) and the maximal runs of one label, extended while Δ̄ keeps falling
@@ -33,7 +33,7 @@ Windows = dict[str, "list[tuple[int, int]] | tuple[np.ndarray, np.ndarray]"]
 
 def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(label index per frame, −1 where every Δ̄ is ∞; Δ_min per frame). Ties → smallest
-    class index (algorithms.md §7 step 3)."""
+    class index (docs/method.md §7 step 3)."""
     dmin = dbars.min(axis=0)
     labels = np.argmin(dbars, axis=0).astype(np.int64)
     labels[~np.isfinite(dmin)] = -1
@@ -42,7 +42,8 @@ def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
                          extend: bool | str = True, row_spans=None) -> list[Annotation]:
-    """Maximal runs of one label, extended (optional) and merged per label (§7 step 4).
+    """Maximal runs of one label, extended (optional) and merged per label (docs/method.md
+    §7 step 4).
     ``extend="unclaimed"`` walks only over frames that no other label has (boundary
     refinement, issue 10). ``row_spans`` (internal, :func:`_row_spans`): (firsts, lasts,
     offsets), the frames where each row holds Δ̄; elsewhere it counts as ∞ and is not read
@@ -75,7 +76,7 @@ def single_label_segments(doc: str, names: Sequence[str], dbars: np.ndarray,
     """Resolve overlapping segments into a partition (``annotate --single-label``).
 
     Every frame covered by one or more of ``rows`` (the segments of one document, possibly
-    overlapping after the extension of algorithms.md §7 step 4) keeps the label, among the
+    overlapping after the extension of docs/method.md §7 step 4) keeps the label, among the
     segments covering it, with the smallest Δ̄ there (ties → the smaller label index, as in
     step 3); frames no segment covers stay unlabelled. The result is the maximal runs of
     one label: no two segments share a frame. ``cost`` is the smallest Δ̄ of the label
@@ -345,7 +346,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                    matrix: bool = True,
                    rows: tuple[np.ndarray, np.ndarray] | None = None,
                    ) -> tuple[list[Annotation], list[str], np.ndarray | None]:
-    """Segments of one document from its templates' distance functions (algorithms.md
+    """Segments of one document from its templates' distance functions (docs/method.md
     §7 steps 2–4, or the methods of issue 10 that ``config`` switches on).
 
     ``names`` is the class of each template, in order; ``matches`` yields, for each

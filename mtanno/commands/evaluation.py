@@ -1,5 +1,5 @@
 """Commands of the evaluation stage: evaluate, evaluate-retrieval, compose, truth and report
-(algorithms.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
+(docs/method.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from mtanno.annotate import load_class_models
-from mtanno.commands._common import DELTA, TAU, ProgressBar, stack, user_errors
+from mtanno.commands._common import DELTA, TAU, ProgressBar, inside_input_option, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
 from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
@@ -168,15 +168,18 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
               help="Keep the manifest order instead of shuffling (e.g. one document of all "
                    "clips, for retrieval tables).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @user_errors(2)
 def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, seed, pause, asf,
-                in_order, quiet):
+                in_order, quiet, inside_input):
     """Build long evaluation documents from labelled clips, with their exact ground truth.
 
     MANIFEST is a CSV with columns file,class[,actor,split] (e.g. the HDM05 clips.csv).
     Clips are drawn in a seeded random order; at every seam the root is turned and moved
     so the next clip starts where and facing how the previous one ended. Writes
-    OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json.
+    OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json. OUT may
+    not be, or lie inside, a folder holding clips unless --inside-input says so: the
+    documents would be read as clips by the next `mtanno features` over it.
     """
     from mtanno.evaluation.compose import compose_documents, read_clips
 
@@ -185,7 +188,7 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
         docs, truth = compose_documents(clips, out_dir, n_docs=n_docs,
                                         clips_per_doc=clips_per_doc, seed=seed, pause=pause,
                                         asf=asf, shuffle=not in_order, inputs=[manifest],
-                                        progress=bar)
+                                        progress=bar, inside_input=inside_input)
     if not quiet:
         click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> "
                    f"{out_dir}", err=True)

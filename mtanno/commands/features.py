@@ -13,6 +13,7 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import (
+    inside_input_option,
     scheduler_option,
     show_progress,
     user_errors,
@@ -47,11 +48,12 @@ from mtanno.errors import MtannoError
                    "facing +x, in leg lengths (docs/formats.md), for pose evidence without "
                    "rereading the motion files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2, flags={"outdir": "-o"})
 def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, poses, quiet,
-                 wait, scheduler):
+                 inside_input, wait, scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
     annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
@@ -70,10 +72,12 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
 
     An output is up to date, and skipped unless --force, when the provenance it records
     matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
-    up axis, the extractor version, and whether it has poses (--poses). Files that fail are
-    reported as `path:line: what is wrong` and the others are still written. Exit code: 0
-    all written or up to date, 1 some files failed, 2 usage error, 3 OUTDIR locked by
-    another run (see --wait), 130 interrupted (finished outputs stay, no partial file).
+    up axis, the extractor version, and whether it has poses (--poses). Files that fail, and
+    inputs that yield no motion file (an empty folder), are reported as `path:line: what is
+    wrong` and the others are still written. OUTDIR may not be, or lie inside, an input
+    folder unless --inside-input says so. Exit code: 0 all written or up to date, 1 some
+    files failed, 2 usage error, 3 OUTDIR locked by another run (see --wait), 130
+    interrupted (finished outputs stay, no partial file).
 
     Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
     """
@@ -102,6 +106,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
 
     try:
         summary = extract_to(items, outdir, listed=listed, asf=asf, wait=wait,
+                             inside_input=inside_input,
                              on_wait=waiting_note(outdir), on_start=start, n_jobs=jobs,
                              force=force, skeleton=skeleton, progress=progress,
                              feature_set=feature_set, up=up, scheduler=scheduler, poses=poses)

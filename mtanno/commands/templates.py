@@ -17,6 +17,7 @@ from mtanno.commands._common import (
     EXIT_BAD_INPUT_OR_PLOT,
     EXIT_PER_CLASS,
     Number,
+    inside_input_option,
     show_progress,
     training_argument,
     training_options,
@@ -48,10 +49,11 @@ from mtanno.templates.params import RETRIEVAL_DELTA
 @click.option("--thresh", default=ITER_THRESH, show_default=True, type=Number(min=0),
               help="Stop once the largest normalised alignment cost is at most this.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @user_errors(2)
 def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, classes,
-                 iterations, thresh, quiet, wait):
+                 iterations, thresh, quiet, inside_input, wait):
     """Learn one motion template per class from example clips ([MR06] §4.1).
 
     Training examples come from one of:
@@ -74,7 +76,8 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     Examples of a class are used in file-name order (segments by start frame); the
     template returned is the one learned with the first example as reference. Writes
     OUTDIR/CLASS.json (schema mtanno.template/1: values, weights, training files with
-    SHA-256, parameters, iterations, final cost); see `mtanno mt show`.
+    SHA-256, parameters, iterations, final cost); see `mtanno mt show`. OUTDIR may not be,
+    or lie inside, a TRAINING folder or --features-dir unless --inside-input says so.
 
     Example: mtanno learn-mt --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o mts/
@@ -102,6 +105,7 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
             training, outdir, manifest=manifest, features_dir=features_dir, split=split,
             truth=truth, classes=classes, hard=hard, iter_max=iterations, thresh=thresh,
             wait=wait, on_wait=waiting_note(outdir), on_start=start, progress=progress,
+            inside_input=inside_input,
             note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     finally:
         if bar is not None:

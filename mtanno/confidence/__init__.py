@@ -25,7 +25,7 @@ __getattr__, __all__ = lazy_exports(__name__, {
                     "fit_calibrated", "fit_isotonic", "fit_logistic",
                     "uncalibrated_confidence"),
     "evidence": ("BANK_EVIDENCE", "EVIDENCE", "LabelFacts", "SegmentFacts",
-                 "document_evidence", "evidence", "label_facts", "segment_evidence",
+                 "document_evidence", "label_facts", "register_evidence", "segment_evidence",
                  "verification_query"),
     "model": ("CONFIDENCE_KEYS", "ConfidenceModel", "check_min_confidence",
               "confidence_record"),

@@ -18,8 +18,8 @@ Evidence of a segment of label ℓ (natural logarithms; d are verification costs
 * ``background`` — log(d_ℓ / d_none): against background motions (``tune --background``);
   0 without them.
 
-To add a kind: a function ``(segment: SegmentFacts) -> float`` under :func:`evidence`'s
-decorator, and a test on hand-made inputs; the configuration files name it.
+To add a kind: a function ``(segment: SegmentFacts) -> float`` decorated with
+:func:`register_evidence`, and a test on hand-made inputs; configurations name it.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from mtanno.errors import MtannoError
 from mtanno.labels.segments import Annotation
 
 __all__ = ["BANK_EVIDENCE", "EVIDENCE", "LabelFacts", "SegmentFacts", "document_evidence",
-           "evidence", "label_facts", "segment_evidence", "verification_query"]
+           "label_facts", "register_evidence", "segment_evidence", "verification_query"]
 
 #: Cost ratio given to a segment whose cost is infinite (no match inside it).
 FAR = 10.0
@@ -95,7 +95,7 @@ _KINDS: dict[str, Callable[[SegmentFacts], float]] = {}
 _BANK: set[str] = set()
 
 
-def evidence(name: str, *, bank: bool = False):
+def register_evidence(name: str, *, bank: bool = False):
     """Register an evidence function under ``name`` (``bank``: it needs the verification
     bank, :data:`BANK_EVIDENCE`)."""
 
@@ -108,31 +108,31 @@ def evidence(name: str, *, bank: bool = False):
     return register
 
 
-@evidence("cost")
+@register_evidence("cost")
 def _cost(s: SegmentFacts) -> float:
     r = s.row
     ratio = r.cost / s.tau if s.tau > 0 and math.isfinite(r.cost) else FAR
     return min(ratio, FAR)
 
 
-@evidence("length")
+@register_evidence("length")
 def _length(s: SegmentFacts) -> float:
     r = s.row
     return math.log((r.end - r.start + 1) / max(s.template_frames, 1.0))
 
 
-@evidence("verify", bank=True)
+@register_evidence("verify", bank=True)
 def _verify(s: SegmentFacts) -> float:
     return math.log((s.own + _EPS) / s.scale)
 
 
-@evidence("margin", bank=True)
+@register_evidence("margin", bank=True)
 def _margin(s: SegmentFacts) -> float:
     other = min((v for c, v in s.near.items() if c and c not in s.members), default=math.inf)
     return math.log((s.own + _EPS) / (other + _EPS)) if math.isfinite(other) else 0.0
 
 
-@evidence("background", bank=True)
+@register_evidence("background", bank=True)
 def _background(s: SegmentFacts) -> float:
     bg = s.near.get("", math.inf)
     return math.log((s.own + _EPS) / (bg + _EPS)) if math.isfinite(bg) else 0.0

@@ -29,11 +29,10 @@ import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import JSONError, MtannoError, parse_json, read_input
 
 __all__ = ["BANK_FORMAT", "MAX_QUERY", "POSE_JOINTS", "REPRESENTATIONS", "VERIFY_FPS",
            "VERIFY_STEP", "Bank", "build_bank", "read_bank", "sequence", "subsequence_costs",
@@ -239,13 +238,16 @@ def read_bank(path: str | os.PathLike) -> Bank:
     import pyarrow.parquet as pq
 
     spath = str(path)
-    if not Path(path).is_file():
-        raise MtannoError("verification bank not found", path=spath)
+    data = read_input(path, what="verification bank")  # a regular file, never a FIFO
     try:
-        table = pq.read_table(path)
-        meta = json.loads((table.schema.metadata or {}).get(b"mtanno", b"null"))
+        table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise MtannoError(f"not a readable verification bank: {exc}", path=spath) from None
+    try:  # the one bounded JSON reader: depth, size, encoding checked (mtanno.errors)
+        meta = parse_json((table.schema.metadata or {}).get(b"mtanno", b"null"), path=spath)
+    except JSONError as exc:
+        raise MtannoError(f"verification bank metadata is malformed ({exc.message})",
+                          path=spath) from None
     if not isinstance(meta, dict) or meta.get("format") != BANK_FORMAT:
         raise MtannoError("not a verification bank (no mtanno bank metadata)", path=spath)
     if meta.get("version") != 1 or meta.get("step") != VERIFY_STEP:

@@ -351,7 +351,7 @@ def pose_entries(poses, docs, recorded, last, frames, sources, result, step):
 
 def curve_entries(entries, templates, features, docs, tau, tau_per_class, delta) -> dict:
     """Each document's Δ curves of every class (the second entry of its data), with the
-    templates quantized with ``delta`` as the annotation did (algorithms.md §3.4); the
+    templates quantized with ``delta`` as the annotation did (docs/method.md §3.4); the
     classes and their τ for the page."""
     from mtanno.annotate import class_deltas, class_models
     from mtanno.evaluation.player import encode_curves

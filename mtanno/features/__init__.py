@@ -1,4 +1,4 @@
-"""Relational features: joint positions → boolean features per frame (algorithms.md §2).
+"""Relational features: joint positions → boolean features per frame (docs/method.md §2).
 
 :func:`compute_features` evaluates every row of a feature table at the native frame rate
 (velocities and hysteresis included) and reduces the result to the 30 Hz analysis rate.
@@ -28,7 +28,9 @@ from mtanno.util.lazy import lazy_exports
 __getattr__, __all__ = lazy_exports(__name__, {
     "compute": ("FEATURE_SETS", "FeatureSet", "compute_features", "compute_features_native",
                 "get_feature_set"),
-    "hysteresis": ("ANALYSIS_FPS", "analysis_frames", "hysteresis"),
+    # (the function hysteresis is mtanno.features.hysteresis.hysteresis: a package name
+    # that is also a submodule's would be the module once the module is imported)
+    "hysteresis": ("ANALYSIS_FPS", "analysis_frames"),
     "table": ("FEATURE_NAMES", "FEATURE_SET", "FEATURE_SET_VERSION", "FEATURES", "GROUPS",
               "MIRROR_PAIRS", "Feature", "feature_index", "mirror_permutation"),
 })

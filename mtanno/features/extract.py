@@ -9,6 +9,7 @@ files that fail.
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +33,7 @@ EXTRACTOR_VERSION = 1
 
 
 #: The world axes a motion file may have pointing up (``features --up``); features are
-#: defined for Y up (algorithms.md §1), Z-up data is turned first.
+#: defined for Y up (docs/method.md §1), Z-up data is turned first.
 UP_AXES = ("y", "z")
 
 
@@ -273,28 +274,37 @@ def _folder_jobs(folder: Path, outdir: Path) -> list[Job]:
 
 def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
                asf: str | os.PathLike | None = None,
-               listed: Iterable[str | os.PathLike] = ()) -> list[Job]:
+               listed: Iterable[str | os.PathLike] = (),
+               inside_input: bool = False) -> list[Job]:
     """Map inputs to output paths under ``outdir``.
 
     A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
     ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
     An input that is missing or neither a motion file nor a folder is a failed job
-    (reported, the batch goes on: exit code 1), as is an entry of a folder with a motion
-    suffix that is not a regular file (a FIFO is never opened); when no input is usable,
-    the first such input on the command line is raised instead (exit code 2). ``listed``
-    are more inputs, read from a list (``features -``), whose failures are always failed
-    jobs. Raises :class:`MtannoError` for two inputs with the same output, or an output
-    that is one of the inputs (:func:`mtanno.util.output.check_outputs`).
+    (reported, the batch goes on: exit code 1), as is a folder that holds no motion file
+    (an empty folder named like one, ``x.amc/``, too) and an entry of a folder with a
+    motion suffix that is not a regular file (a FIFO is never opened); when no input is
+    usable, the first such input on the command line is raised instead (exit code 2).
+    ``listed`` are more inputs, read from a list (``features -``), whose failures are
+    always failed jobs. Raises :class:`MtannoError` for two inputs with the same output,
+    an output that is one of the inputs, and, unless ``inside_input``, an ``outdir`` that
+    is or lies inside an input folder (:func:`mtanno.util.output.check_outputs`).
     """
     outdir = Path(outdir)
+    inputs, listed = list(inputs), list(listed)
     jobs: list[Job] = []
     refused: list[MtannoError] = []  # bad command-line inputs, raised when nothing is usable
     for item, strict in [*((i, True) for i in inputs), *((i, False) for i in listed)]:
         p = Path(item)
         why = _not_regular(p)
         if why is None and p.is_dir():
-            jobs.extend(_folder_jobs(p, outdir))
-            continue
+            found = _folder_jobs(p, outdir)
+            if found:
+                jobs.extend(found)
+                continue
+            why = (f"a folder (named like a motion file) holding no {' or '.join(MOCAP_SUFFIXES)} "
+                   "file" if _is_motion(p) else
+                   f"no {' or '.join(MOCAP_SUFFIXES)} files in this folder or below")
         if why is None and not _is_motion(p):
             why = _unknown_type(p)
         if why is not None and strict:
@@ -320,6 +330,9 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     good = [j for j in unique if not j.error]
     check_outputs([j.dst for j in good],
                   [*(j.src for j in good), *({j.asf for j in good} - {None})],
+                  folders={outdir: []}, inside_input=inside_input,
+                  scanned={p: MOCAP_SUFFIXES for p in map(Path, [*inputs, *listed])
+                           if p.is_dir()},
                   writable=False)  # a file whose output cannot be written fails alone
     return unique
 
@@ -353,7 +366,10 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
     from mtanno.features.poses import pose_metadata
     from mtanno.io.rigs import select_map
 
-    meta = _stored_meta(job.dst) if job.dst.is_file() else None
+    try:  # (a name too long for the file system is no output: written, and failing, later)
+        meta = _stored_meta(job.dst) if stat.S_ISREG(os.stat(job.dst).st_mode) else None
+    except OSError:
+        meta = None
     if meta is None:
         return False
     fs = _feature_set(feature_set)
@@ -419,6 +435,11 @@ def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
     except OSError as exc:  # a file system error not caught where it happened
         return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0
     except Exception as exc:  # a bug, reported per file so the batch goes on
+        from mtanno.util.workers import interruption_in
+
+        found = interruption_in(exc)  # a signal Python wrapped: the run is interrupted
+        if found is not None:
+            raise found from None
         return "failed", f"{src}: internal error: {type(exc).__name__}: {exc}", 0
 
 
@@ -510,10 +531,12 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
 
 def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
                listed: Iterable[str | os.PathLike] = (), asf: str | os.PathLike | None = None,
-               wait: bool = False, on_wait: Callable[[str], None] | None = None,
+               inside_input: bool = False, wait: bool = False,
+               on_wait: Callable[[str], None] | None = None,
                on_start: Callable[[int], None] | None = None, **options) -> Summary:
     """The whole ``mtanno features`` run: the jobs of :func:`plan_batch` (``inputs``,
-    ``listed``, ``asf``), an error when they hold no motion file, the output folder made
+    ``listed``, ``asf``, ``inside_input``), an error when they hold no motion file, the
+    output folder made
     and locked (:func:`mtanno.util.locks.folder_lock`: busy is
     :class:`~mtanno.util.locks.LockBusy`, or with ``wait`` waited for after one
     ``on_wait(holder)`` call) and :func:`run_batch` (``options`` are its keyword options).
@@ -527,7 +550,7 @@ def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
         raise MtannoError("the output folder name ({outdir}) is empty; name a folder ('.' "
                           "for this one)", options=("outdir",))
     items = list(inputs)
-    jobs = plan_batch(items, outdir, asf=asf, listed=listed)
+    jobs = plan_batch(items, outdir, asf=asf, listed=listed, inside_input=inside_input)
     if not jobs:
         folders = [str(i) for i in items if Path(i).is_dir()]
         raise MtannoError("no .amc or .bvh files found in the inputs" + (

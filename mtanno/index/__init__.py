@@ -1,4 +1,4 @@
-"""Relational index and queries ([MRC05] §4–6, algorithms.md §4): the Python API behind
+"""Relational index and queries ([MRC05] §4–6, docs/method.md §4): the Python API behind
 ``mtanno index`` and ``mtanno query``.
 
 * :func:`build_index`, :func:`open_index`, :func:`add_documents`, :func:`remove_documents`

@@ -1,6 +1,6 @@
 """The relational index in memory: adaptive segmentation, inverted lists, documents, groups.
 
-[MRC05] §4 and §5.3 (algorithms.md §4): for a feature group F (a named subset of the feature
+[MRC05] §4 and §5.3 (docs/method.md §4): for a feature group F (a named subset of the feature
 set's features, e.g. lower/upper/mix), the F-segments of a document are the maximal runs of
 frames with equal F-feature vectors. A segment's vector is stored as an integer *code*,
 ``Σ_k bit_k · 2^k`` over the group's features in group order (the reference
@@ -136,7 +136,7 @@ class GroupIndex:
     def intervals(self, patterns: Iterable[tuple[int, int]]):
         """Frame intervals where the group's vector matches a pattern (``(mask, value)``
         pairs, see :meth:`lists_matching`): the union of the matching inverted lists with
-        adjacent segments merged (algorithms.md §5, keyframe search). Returns (doc, start,
+        adjacent segments merged (docs/method.md §5, keyframe search). Returns (doc, start,
         end) arrays, 0-based, ``end`` inclusive, sorted by document and frame."""
         from mtanno.index import _kernels
 

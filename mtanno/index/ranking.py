@@ -22,8 +22,8 @@ __all__ = ["QUERY_HIT_COLUMNS", "hit_table", "rank_by_template", "rank_by_templa
 def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.ndarray,
                      features: Sequence[str]) -> Hits:
     """Re-rank hits by the cost of a quantized motion template on each hit's frames only
-    ([MRC05] §6.2, "finer ranking … on the few hits"; algorithms.md §3.4): cost = min Δ over
-    the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
+    ([MRC05] §6.2, "finer ranking … on the few hits"; docs/method.md §3.4): cost = min Δ
+    over the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
     template (such hits are ranked last; :attr:`Hits.unfit` counts them). ``values``
     (f × K, 0/1/0.5), ``weights`` (K,), ``features`` the template's feature names (rebuilt
     from the index's groups)."""

@@ -1,4 +1,4 @@
-"""Mocap readers: ASF/AMC and BVH files → world joint positions (algorithms.md §1).
+"""Mocap readers: ASF/AMC and BVH files → world joint positions (docs/method.md §1).
 
 :func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
 forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.
@@ -9,7 +9,8 @@ parser, private), ``_limits`` (the bounds on every number a header declares, pri
 :mod:`~mtanno.io.skeleton` (rig graph and forward kinematics, vectorised over frames),
 :mod:`~mtanno.io.rigs` (skeleton map files: rig nodes → the 22 canonical joints) and
 :mod:`~mtanno.io.guess` (skeleton maps made from joint names and the tree, for BVH rigs no
-map file fits).
+map file fits) and :mod:`~mtanno.io.topology` (made from the hierarchy and pose alone, where
+the names say nothing).
 """
 
 from __future__ import annotations
@@ -142,7 +143,7 @@ def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None
     skeleton:
         A skeleton map (file or name) to use instead of the automatically detected one
         (the first map file that fits, else for a BVH rig one made from its joint names
-        and tree: :func:`mtanno.io.guess.choose_map`).
+        and tree, or from its hierarchy and pose: :func:`mtanno.io.guess.choose_map`).
     sha256:
         Also give the SHA-256 of the file's bytes as parsed (``Motion.source_sha256``):
         the file is read once for both.

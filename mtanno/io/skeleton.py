@@ -1,7 +1,7 @@
 """Rig description and forward kinematics shared by the ASF/AMC and BVH readers.
 
-Spec: ``algorithms.md`` §1 and ``features.md`` §1.3–1.4. Both file formats are reduced to
-one model: a tree of nodes, each with a local rotation
+Spec: ``docs/method.md`` §1 and ``docs/method/features.md`` §1.3–1.4. Both file formats
+are reduced to one model: a tree of nodes, each with a local rotation
 
     L_j = pre_j · R_{a0}(θ0) · R_{a1}(θ1) · R_{a2}(θ2) · post_j
 
@@ -218,7 +218,8 @@ def forward_kinematics(rig: Rig, angles: np.ndarray, trans: np.ndarray, has_tran
     has_trans:
         (nodes,) bool: the node's translation comes from ``trans`` instead of its offset.
     heading_node, heading_axis:
-        ``heading[f] = G_heading_node(f) · heading_axis`` (features.md F40).
+        ``heading[f] = G_heading_node(f) · heading_axis`` (F40,
+        docs/method/features.md §5.3).
 
     Returns
     -------

@@ -6,7 +6,7 @@ labelled segment: ``doc`` (document name = feature file
 stem), ``start`` and ``end`` (1-based inclusive frames), ``label`` and optionally ``fps``
 (the rate the frames are given at; 30 when absent). Inside mtanno every table is at the
 30 Hz analysis rate: frames given at another rate are converted with
-``ceil(frame / ratio)`` (algorithms.md §8), ratio = fps / 30.
+``ceil(frame / ratio)`` (docs/method.md §8), ratio = fps / 30.
 """
 
 from __future__ import annotations

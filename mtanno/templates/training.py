@@ -36,8 +36,8 @@ from mtanno.util.tables import sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
-    "few_examples_warning", "group_by_class", "ignored_documents_note", "load_examples",
-    "sources_from_manifest", "sources_from_tree", "sources_from_truth",
+    "few_examples_warning", "group_by_class", "ignored_documents_note", "input_folders",
+    "load_examples", "sources_from_manifest", "sources_from_tree", "sources_from_truth",
 ]
 
 
@@ -221,6 +221,20 @@ def sources_from_truth(truth: str | os.PathLike, features: Iterable[str | os.Pat
         ignored.extend(missing)
     return [ExampleSource(s.label, str(by_doc[s.doc]), s.start, s.end, origin=str(truth),
                           performer=s.doc) for s in segments if s.doc in by_doc]
+
+
+def input_folders(training: Sequence[str | os.PathLike] = (),
+                  features_dir: str | os.PathLike | None = None, *,
+                  also: Sequence[str | os.PathLike | None] = (),
+                  ) -> dict[str | os.PathLike, tuple[str, ...]]:
+    """The folders training examples are read from (``TRAINING`` folders,
+    ``features_dir``), each with the suffix read there, and the folders of ``also`` (the
+    templates' or keyframe queries' folder: no suffix, nothing in them is scanned), as
+    :func:`mtanno.util.output.check_outputs` takes them (``scanned``): no output folder
+    among the inputs unless the user says so."""
+    return {**{f: () for f in also if f is not None and Path(f).is_dir()},
+            **{f: (".parquet",) for f in [*training, features_dir]
+               if f is not None and Path(f).is_dir()}}
 
 
 def collect_sources(training: Sequence[str | os.PathLike] = (), *,

@@ -219,7 +219,7 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
                features_dir: str | os.PathLike | None = None, split: str | None = None,
                truth: str | os.PathLike | None = None,
                keyframes_dir: str | os.PathLike | None = None,
-               ablation_dir: str | os.PathLike | None = None,
+               ablation_dir: str | os.PathLike | None = None, inside_input: bool = False,
                log: Callable[[str], None] | None = None, command: Sequence[str] = (),
                failures: list[MtannoError] | None = None, **options) -> TuneResult:
     """The whole ``mtanno tune`` run: the training examples named as
@@ -227,13 +227,14 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     against the inputs before any work (:func:`mtanno.util.output.check_outputs`),
     :func:`tune` (``options`` are its keyword options), and the configuration written to
     ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
-    ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there. ``log`` receives
+    ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
+    or lies inside, a folder of the inputs only with ``inside_input``). ``log`` receives
     the notes on the inputs and the search log, a line each; ``failures`` receives the
     training folders that give no example (the others are used; without it such a folder is
     an error)."""
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.model import template_files
-    from mtanno.templates.training import collect_sources
+    from mtanno.templates.training import collect_sources, input_folders
     from mtanno.util.output import check_outputs, make_folder
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
@@ -241,9 +242,12 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
     planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
+    scanned = input_folders(training, features_dir, also=[mt_dir, keyframes_dir])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
                             *(s.path for s in sources), *options.get("background", ()),
-                            *(keyframe_files(keyframes_dir) if keyframes_dir else [])])
+                            *(keyframe_files(keyframes_dir) if keyframes_dir else [])],
+                  folders={ablation_dir: []} if ablation_dir else None, scanned=scanned,
+                  inside_input=inside_input)
     if log:
         files = {s.path for s in sources}
         log(f"training inputs: {len(sources)} examples in {len(files)} feature files"

@@ -11,6 +11,8 @@
 * :mod:`~mtanno.util.units` — the units every stage shares (the 30 Hz analysis rate);
 * :mod:`~mtanno.util.lazy` — modules loaded on attribute access (``mtanno.util.tables``
   after a bare ``import mtanno``);
+* :mod:`~mtanno.util.pause` — the test hook that holds a process at a named point;
+* :mod:`~mtanno.util.stdout` — standard output that says so when a write fails;
 * ``_bits`` — bit kernels the stages' numba kernels share (private).
 
 The feature-file format is the features stage's (:mod:`mtanno.features.store`). The modules
@@ -21,7 +23,8 @@ loading one does not load the others.
 
 from mtanno.util.lazy import submodule_getattr
 
-__all__ = ["jitnote", "lazy", "locks", "outcomes", "output", "tables", "units", "workers"]
+__all__ = ["jitnote", "lazy", "locks", "outcomes", "output", "pause", "stdout", "tables",
+           "units", "workers"]
 
 
 __getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

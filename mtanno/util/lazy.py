@@ -43,6 +43,9 @@ def lazy_exports(package: str, exports: dict[str, tuple[str, ...]]
     module of the package (a file format, say) does not load the others (numba kernels).
     Unknown names fall back to the submodules (:func:`submodule_getattr`)."""
     module_of = {name: module for module, names in exports.items() for name in names}
+    clash = sorted(set(module_of) & set(exports))
+    if clash:  # importing the submodule would replace the name by the module
+        raise ValueError(f"{package}: names that are also submodules: {clash}")
     namespace = importlib.import_module(package).__dict__
 
     def attach(name: str) -> Any:

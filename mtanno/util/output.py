@@ -3,8 +3,9 @@
 Every file mtanno writes goes through :func:`atomic_path`, so a command that fails, is
 interrupted or is killed never leaves half a file under the output's name:
 
-* the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``,
-  and renamed over the target (``os.replace``, atomic on POSIX) only when complete;
+* the data is written to a temporary file beside the target, ``.NAME.HOST-PID.XXXXXXXX.tmp``
+  (NAME cut short where the whole would not fit in a folder entry), and renamed over the
+  target (``os.replace``, atomic on POSIX) only when complete;
 * the temporary file is removed when writing fails or is interrupted (Ctrl-C, SIGTERM: see
   :mod:`mtanno.util.workers`); a writer killed outright (SIGKILL, power loss) cannot clean up, so
   the next write into the same folder removes the temporary files of writers that are no
@@ -17,7 +18,9 @@ interrupted or is killed never leaves half a file under the output's name:
 the command's inputs or an input's provenance sidecar, or would replace one (same resolved
 path, or the same file through a hard link or symbolic link: same device and inode), is
 refused; so is any file a command writes inside its output folder that is an input, an
-output inside an input folder the command reads (the next run would read it), and an
+output inside an input folder the command reads (the next run would read it), an output
+folder that is or lies inside an input folder unless the user said it is meant
+(``--inside-input``: outputs among the input data are never written silently), and an
 output that cannot be written (tried before the work: a command that fails writes
 nothing).
 """
@@ -40,6 +43,9 @@ __all__ = ["EXIT_CLOSED_OUTPUT", "atomic_path", "check_outputs", "current_umask"
 
 #: Suffix of every temporary file :func:`atomic_path` creates.
 TMP_SUFFIX = ".tmp"
+#: Longest name of a folder entry (bytes) on the file systems mtanno writes to (POSIX
+#: NAME_MAX of ext4, XFS, btrfs, tmpfs, NFS).
+_NAME_MAX = 255
 
 
 def _host_tag() -> str:
@@ -184,7 +190,13 @@ def _temporary(target: Path, mode: int, made: list[str]) -> int:
     covers this call removes the file even when an interruption (SIGINT, SIGTERM) is raised
     the moment ``open`` returns."""
     remove_stale_temporaries(target.parent)
-    prefix = os.path.join(str(target.parent), f".{target.name}.{_HOST}-{os.getpid()}.")
+    tail = f".{_HOST}-{os.getpid()}."
+    # the name cut so that the temporary's fits in a folder entry (NAME_MAX) wherever the
+    # target's own does: an output named near the limit is still written
+    room = _NAME_MAX - len(os.fsencode(tail)) - 1 - 8 - len(TMP_SUFFIX)
+    name = os.fsencode(target.name)
+    name = os.fsdecode(name[:room]) if len(name) > room else target.name
+    prefix = os.path.join(str(target.parent), f".{name}{tail}")
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) \
         | getattr(os, "O_BINARY", 0)
     made_folder = False
@@ -379,7 +391,7 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
                   inputs: Iterable[str | os.PathLike | None], *,
                   folders: Mapping[str | os.PathLike, Iterable[str] | None] | None = None,
                   scanned: Mapping[str | os.PathLike, Iterable[str] | None] | None = None,
-                  writable: bool = True) -> None:
+                  writable: bool = True, inside_input: bool | None = None) -> None:
     """Refuse, before any work, every output that would destroy an input or break the next
     run, and every output that cannot be written; so a command that fails writes nothing.
 
@@ -398,6 +410,14 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
       suffixes it reads there (None: every file). An output below it with one of those
       suffixes (an output folder: one of its names) would be read as an input by the
       next run over the same folder, and is refused.
+    * ``inside_input`` False: an output folder (a key of ``folders``) that is, or lies
+      inside, an input folder (a key of ``scanned``; its suffixes may be empty: a folder
+      inputs are read from without a scan, as compose's clip root) is refused, in one line
+      naming the option that allows it (``{inside_input}``: ``--inside-input`` on the
+      command line), so that no output lands among the input data silently (a read-only
+      data set, a folder the next run reads). True: allowed (an output the next run would
+      read is still refused, above). None: not checked (a folder that is the command's
+      alone, an index, is refused inside an input folder by the rule above).
     * With ``writable`` (the default) every output location is tried before the work: an
       output file must not be a folder, and the folder it goes into, or the nearest folder
       above it that exists, must be a folder where a file can be created (a temporary file
@@ -425,6 +445,8 @@ def check_outputs(outputs: Iterable[str | os.PathLike | None],
     out_paths = _check_files(outputs, by_path, by_inode, paths)
     _check_folders(out_folders, patterns, by_path, paths)
     _check_scanned(scanned or {}, out_paths, out_folders)
+    if inside_input is False:
+        _check_inside(scanned or {}, out_folders)
     if writable:
         probed: dict[str, OSError | None] = {}
         for item, _ in out_paths:
@@ -528,7 +550,8 @@ def _check_folders(out_folders, patterns, by_path, paths: _Paths) -> None:
 
     for given_name, rfolder, names in out_folders:
         hit = by_path.get(rfolder) or by_path.get(paths.resolved(Path(given_name)))
-        if hit is not None:
+        if hit is not None and not (names is not None and os.path.isdir(rfolder)):
+            # (an input folder written into is not replaced: the rules below judge it)
             raise _clash(given_name, hit)
         if names is None:  # the folder is the command's: nothing of the inputs below it
             inside = next((i for rp, (i, _) in by_path.items() if _inside(rp, rfolder)),
@@ -567,6 +590,22 @@ def _check_scanned(scanned, out_paths, out_folders) -> None:
             raise MtannoError(f"output lies inside {folder}, whose {what} are read as "
                               "inputs: the next run over that folder would read this output "
                               "too; choose an output outside it", path=hits[0])
+
+
+def _check_inside(scanned, out_folders) -> None:
+    """Refuse an output folder that is, or lies inside, an input folder (``check_outputs``,
+    ``inside_input``)."""
+    for folder in scanned:
+        if folder is None or str(folder) == "-":
+            continue
+        rfolder = os.path.realpath(folder)
+        for given_name, rf, _ in out_folders:
+            if _inside(rf, rfolder):
+                where = "is" if rf == rfolder else "lies inside"
+                raise MtannoError(f"the output folder {where} the input folder {folder}: its "
+                                  "outputs would be written among the input data; choose a "
+                                  "folder outside it, or give {inside_input} if this is "
+                                  "meant", path=given_name, options=("inside_input",))
 
 
 def _preflight(target: Path, probed: dict, *, folder: bool) -> None:

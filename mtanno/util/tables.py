@@ -38,7 +38,7 @@ from typing import Any
 
 import pyarrow as pa
 
-from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_json
+from mtanno.errors import JSONError, MtannoError, open_regular, parse_json, read_input, read_json
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
@@ -60,7 +60,7 @@ _COMMAND_LINE: list[str] | None = None
 def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
     """Hex SHA-256 of a file's bytes."""
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
+    with open_regular(path) as fh:  # a regular file: a FIFO would block (OSError else)
         while block := fh.read(chunk):
             h.update(block)
     return h.hexdigest()
@@ -444,7 +444,8 @@ def table_provenance(path: str | os.PathLike) -> dict | None:
     import pyarrow.parquet as pq
 
     try:
-        with open(path, "rb") as fh:  # a file object: pyarrow cannot open non-UTF-8 names
+        # a file object: pyarrow cannot open non-UTF-8 names (and a FIFO would block)
+        with open_regular(path) as fh:
             raw = (pq.read_schema(fh).metadata or {}).get(_META_KEY)
         prov = parse_json(raw) if raw else None
     except (OSError, ValueError, TypeError, pa.ArrowException, JSONError):
