@@ -116,10 +116,44 @@ class Browser:
             time.sleep(0.05)
 
     def open(self, url: str) -> None:
-        """Load a page and wait until it is complete."""
+        """Load a page afresh (also when only its #fragment differs from the page shown,
+        which a browser would not reload) and wait until it is complete."""
+        self.evaluate("window.__mtannoOld = true")
+        if self.evaluate("location.href.split('#')[0]") == url.split("#")[0]:
+            self.send("Page.navigate", {"url": "about:blank"}, session=True)
+            self.wait_for("location.href === 'about:blank' && !window.__mtannoOld",
+                          "leaving the page")
         self.send("Page.navigate", {"url": url}, session=True)
-        self.wait_for(f"document.readyState === 'complete' && location.href === {url!r}",
+        self.wait_for(f"document.readyState === 'complete' && !window.__mtannoOld && "
+                      f"location.href.split('#')[0] === {url.split('#')[0]!r}",
                       f"loading {url}")
+
+    def reload(self) -> None:
+        """Reload the page and wait until the new one is complete."""
+        self.evaluate("window.__mtannoOld = true")
+        self.send("Page.reload", {"ignoreCache": True}, session=True)
+        self.wait_for("!window.__mtannoOld && document.readyState === 'complete'",
+                      "reloading the page")
+
+    _KEYS = {"ArrowDown": 40, "ArrowUp": 38, "ArrowLeft": 37, "ArrowRight": 39, "Enter": 13,
+             "Escape": 27, " ": 32}
+
+    def key(self, key: str, *, shift: bool = False) -> None:
+        """Press and release one key (a real keyboard event: ``keydown`` handlers see it);
+        ``key`` is a character or a name of :attr:`_KEYS`."""
+        code = self._KEYS.get(key, ord(key.upper()[0]))
+        params = {"key": key, "windowsVirtualKeyCode": code, "modifiers": 8 if shift else 0}
+        if len(key) == 1:
+            params["text"] = key
+        self.send("Input.dispatchKeyEvent", {"type": "keyDown", **params}, session=True)
+        self.send("Input.dispatchKeyEvent", {"type": "keyUp", **params}, session=True)
+
+    def screenshot(self) -> bytes:
+        """The viewport as PNG bytes."""
+        import base64
+
+        shot = self.send("Page.captureScreenshot", {"format": "png"}, session=True)
+        return base64.b64decode(shot["data"])
 
     def close(self) -> None:
         try:

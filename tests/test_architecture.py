@@ -447,7 +447,7 @@ MANY_OPTIONS = {
     # dataclasses once those are merged
     "mtanno.annotate.run.annotate_to", "mtanno.annotate.batch.annotate_files",
     "mtanno.tuning.run.tune", "mtanno.tuning.run.tune_files",  # tune_files: **options
-    "mtanno.evaluation.report.write_report",
+    "mtanno.evaluation.report.write_report", "mtanno.evaluation.report.report_files",
     "mtanno.features.extract.extract_to",  # **options (run_batch's)
 }
 

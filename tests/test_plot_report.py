@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import shutil
-import subprocess
 
 import numpy as np
 import pytest
@@ -189,13 +188,13 @@ def test_report_files_and_tables(world, tmp_path):
             "--features", world.docfeats)
     assert r.exit_code == 0, r.output
     assert f"-> {out / 'index.html'}" in r.output
-    docs = [p.stem for p in world.doc_files]
     names = {p.name for p in out.iterdir()}
-    for stem in ["confusion", *(f"timeline_{d}" for d in docs), *(f"delta_{d}" for d in docs),
+    for stem in ["confusion", "reliability",
                  *(f"template_{p.stem}" for p in world.mt.glob("*.json"))]:
         assert {f"{stem}.png", f"{stem}.svg"} <= names, stem
     assert {"index.html", "per_class.csv", "per_class.md", "per_class.tex", "confusion.csv",
-            "per_class.csv.meta.json"} <= names
+            "per_class.csv.meta.json", "figures.json", "data"} <= names
+    assert not any(n.startswith(("timeline_", "delta_")) for n in names)  # drawn in the page
     rows = list(csv.DictReader((out / "per_class.csv").open()))
     ev = run("evaluate", single, "--truth", world.truth, "-o", tmp_path / "ev.csv")
     assert rows == list(csv.DictReader((tmp_path / "ev.csv").open()))  # = mtanno evaluate
@@ -211,21 +210,23 @@ def test_report_files_and_tables(world, tmp_path):
 
     assert total == sum(read_features(p).X.shape[1] for p in world.doc_files)
     page = (out / "index.html").read_text()
-    # confusion, reliability of the confidence, timelines and Δ curves, templates
-    assert page.count("<img ") == 2 + 2 * len(docs) + len(list(world.mt.glob("*.json")))
-    assert (out / "reliability.png").is_file() and "AUROC" in page
-    assert "src='data:image/png;base64," in page and "segments overlap" not in page
+    # confusion, reliability of the confidence, templates; each a file beside the page
+    assert page.count("<img ") == 2 + len(list(world.mt.glob("*.json")))
+    assert "src='confusion.png'" in page and "src='reliability.png'" in page
+    assert "AUROC" in page and "segments overlap" not in page
     assert ev.exit_code == 0
 
 
-def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path, monkeypatch):
+def test_report_takes_the_annotations_delta_and_taus(world, tmp_path):
     """A tuned annotation (δ 0.25, a τ of its own for one class, a further template for
-    another): the report's Δ curves are quantized with the annotation's δ, each class's
-    own τ is drawn in its colour, and the page says which classes had further templates."""
+    another): the report's Δ curves take the annotation's δ and τ (the page's data), and
+    the page says which classes had further templates; --tau and --delta replace them."""
     import json
+    import re
 
     import mtanno.evaluation.report as report
     from mtanno.annotate import class_deltas, class_models
+    from mtanno.evaluation.player import decode_curves
     from mtanno.features.store import read_features
     from mtanno.templates.model import load_template_folder
 
@@ -241,38 +242,29 @@ def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path,
     prov = json.loads((tmp_path / "a.csv.meta.json").read_text())
     assert report.annotation_parameters([{}, prov]) == {
         "tau": 0.13, "tau_per_class": {own: 0.07}, "delta": 0.25, "extra_templates": [extra]}
-    axes = {}
-    real = report._Writer.figure
-
-    def keep(self, ax, stem, section, caption):
-        axes[stem] = ax
-        return real(self, ax, stem, section, caption)
-
-    monkeypatch.setattr(report._Writer, "figure", keep)
     doc = world.doc_files[0]
-    out = tmp_path / "rep"
-    r = run("report", ann, "--truth", world.truth, "-o", out, "--mt", world.mt,
-            "--features", doc)
-    assert r.exit_code == 0, r.output
-    ax = axes[f"delta_{doc.stem}"]
-    models, _ = class_models(load_template_folder(world.mt), delta=0.25)
-    want = dict(zip((m.name for m in models), class_deltas(read_features(doc).X, models)))
-    for line in ax.lines:
-        if line.get_label() in want:
-            y = want[line.get_label()][0]
-            assert np.array_equal(line.get_ydata(), np.where(np.isfinite(y), y, np.nan),
-                                  equal_nan=True)
-    labels = [line.get_label() for line in ax.lines]
-    assert labels.count("τ = 0.13") == 1 and f"τ {own} = 0.07" in labels
-    colour = next(x.get_color() for x in ax.lines if x.get_label() == own)
-    assert next(x.get_color() for x in ax.lines if x.get_label() == f"τ {own} = 0.07") == colour
-    assert f"also matched further templates of {extra}" in (out / "index.html").read_text()
-    # --tau and --delta replace the annotation's
-    axes.clear()
-    assert run("report", ann, "--truth", world.truth, "-o", tmp_path / "r2", "--mt", world.mt,
-               "--features", doc, "--tau", "0.2", "--delta", "0.05").exit_code == 0
-    labels = [line.get_label() for line in axes[f"delta_{doc.stem}"].lines]
-    assert "τ = 0.2" in labels and not any(x.startswith(f"τ {own}") for x in labels)
+
+    def page(out, *extra_args):
+        r = run("report", ann, "--truth", world.truth, "-o", out, "--mt", world.mt,
+                "--features", doc, *extra_args)
+        assert r.exit_code == 0, r.output
+        text = (out / "index.html").read_text()
+        data = json.loads(re.search(r"id='mtanno-data'>(.*?)</script>", text, re.S).group(1))
+        i = data["docs"]["name"].index(doc.stem)
+        js = (out / "data" / f"{data['chunks'][data['docs']['chunk'][i]]}.js").read_text()
+        entry = json.loads(js[js.index(",") + 1:-3])[data["docs"]["slot"][i]]
+        return text, data["curves"], decode_curves(entry[1], len(data["curves"]["classes"]))
+
+    text, curves, got = page(tmp_path / "rep")
+    assert f"also matched further templates of {extra}" in text
+    assert dict(zip(curves["classes"], curves["tau"]))[own] == 0.07
+    for delta, args in ((0.25, ()), (0.05, ("--tau", "0.2", "--delta", "0.05"))):
+        text, curves, got = page(tmp_path / f"rep{delta}", *args)
+        models, _ = class_models(load_template_folder(world.mt), delta=delta)
+        want = np.array([c for c, _ in class_deltas(read_features(doc).X, models)])
+        ok = np.isfinite(want)
+        assert np.abs(got[ok] - np.minimum(want[ok], 6.5)).max() <= 0.5e-4 + 1e-9
+    assert curves["tau"] == [0.2] * len(curves["classes"]) and curves["default"] == 0.2
 
 
 def _chromium() -> str | None:
@@ -283,35 +275,38 @@ def _chromium() -> str | None:
 
 
 def test_report_page_loads_every_image_in_a_browser(world, tmp_path):
-    """The page opened in headless Chromium: every image decoded (complete, with a natural
-    width), none missing. Chromium is a Debian package: apt-get install chromium."""
-    browser = _chromium()
-    if browser is None:
+    """The page opened in headless Chromium from its folder: every image (files beside the
+    page, loaded lazily) decodes, none missing. Chromium is a Debian package: apt-get
+    install chromium."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from browser import Browser
+
+    binary = _chromium()
+    if binary is None:
         pytest.skip("headless Chromium not found (Debian: apt-get install chromium); the "
                     "report page is checked in a browser only where it is installed")
     out = tmp_path / "rep"
     assert run("report", world.annotation, "--truth", world.truth, "-o", out, "-q",
                "--mt", world.mt).exit_code == 0
-    page = (out / "index.html").read_text()
-    n_images = page.count("<img ")
-    # the page alone, moved away from its folder: nothing may come from beside it
-    probe = tmp_path / "alone" / "page.html"
-    probe.parent.mkdir()
-    script = ("<script>window.addEventListener('load', () => {const imgs = [...document.images];"
-              "document.body.setAttribute('data-loaded', imgs.filter(i => i.complete && "
-              "i.naturalWidth > 0).length + '/' + imgs.length);});</script>")
-    probe.write_text(page.replace("</body>", script + "</body>"))
-    r = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                        "--no-first-run", "--disable-background-networking",
-                        "--disable-component-update", "--disable-sync",
-                        f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=5000",
-                        "--dump-dom", probe.as_uri()], capture_output=True, text=True,
-                       timeout=120)
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert f'data-loaded="{n_images}/{n_images}"' in r.stdout, r.stdout[-500:]
-    # confusion matrix, reliability of the confidence, a timeline per document, a heat
-    # map per template
-    assert n_images == 2 + len(world.doc_files) + len(list(world.mt.glob("*.json")))
+    n_images = (out / "index.html").read_text().count("<img ")
+    # confusion matrix, reliability of the confidence, a heat map per template
+    assert n_images == 2 + len(list(world.mt.glob("*.json")))
+    b = Browser(binary, tmp_path / "profile")
+    try:
+        b.open((out / "index.html").as_uri())
+        loaded = b.evaluate(
+            "Promise.all([...document.images].map(i => { i.loading = 'eager';"
+            " return i.decode().then(() => i.naturalWidth > 0, () => false); }))")
+        assert loaded == [True] * n_images
+        # the table of contents leads to every section
+        anchors = b.evaluate("[...document.querySelectorAll('nav.toc a')].map(a =>"
+                             " !!document.getElementById(a.hash.slice(1)))")
+        assert anchors and all(anchors)
+    finally:
+        b.close()
 
 
 def test_report_without_truth_summarises_and_lists_rows_for_review(world, tmp_path):
@@ -338,6 +333,6 @@ def test_report_without_truth_summarises_and_lists_rows_for_review(world, tmp_pa
     conf = [float(x["confidence"]) for x in review]
     assert conf == sorted(conf)
     page = (out / "index.html").read_text()
-    assert "Classes in the annotation" in page and "Review list" in page
+    assert "Classes in the annotation" in page and "id=\"archive\"" in page
     assert not (out / "per_class.csv").exists() and not (out / "confusion.csv").exists()
-    assert page.count("<img ") == len(frames)  # one timeline per document
+    assert page.count("<img ") == 0  # the timelines are drawn in the page

@@ -49,7 +49,10 @@ def test_wheel_contents(wheel):
         assert f"mtanno/skeletons/{m}.toml" in names
     assert "mtanno/markersets/vicon-41.toml" in names  # the C3D marker set
     assert "mtanno/py.typed" in names
-    assert "mtanno/evaluation/player.js" in names  # the report page's player
+    from mtanno.evaluation.page import SCRIPTS
+
+    for name in (*SCRIPTS, "page.css"):  # the report page's scripts and style
+        assert f"mtanno/evaluation/{name}" in names
     assert any(n.endswith("licenses/LICENSE") for n in names)
     meta = next(n for n in names if n.endswith("METADATA"))
     text = zipfile.ZipFile(wheel).read(meta).decode()

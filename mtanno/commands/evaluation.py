@@ -172,52 +172,60 @@ def truth_mocap6(labels, output):
               help="Ground truth table (doc,start,end,label[,fps]); without it the page "
                    "summarises the annotation (an archive nobody has labelled).")
 @click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
-              help="Report folder (created): index.html, tables, PNG and SVG figures.")
+              help="Report folder (created): index.html, data/, tables, PNG and SVG figures.")
 @click.option("--mt", "mt_dir", type=click.Path(exists=True), default=None,
               help="Template folder: adds each template as a heat map, and with --features "
                    "each class's Δ curve over every document.")
 @click.option("--features", "features", multiple=True, type=click.Path(exists=True),
               help="Feature files or folders of the annotated documents: with --mt the Δ "
-                   "curves; files with poses (features --poses) give the players. "
+                   "curves; files with poses (features --poses) give the player its "
+                   "motions; with --motions each motion is checked against the SHA-256 "
+                   "its feature file records. "
                    "Repeatable.")
 @click.option("--motions", "motions", multiple=True, type=click.Path(), metavar="PATH",
               help="Motion files (.amc, .bvh, .c3d) or folders of them, matched to the documents "
-                   "by file name: a stick-figure player per document (instead of the poses "
-                   "of --features). Repeatable.")
+                   "by file name: the player shows each as a stick figure of its rig "
+                   "(instead of the poses of --features). Repeatable.")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
               help="ASF skeleton of AMC motions (default: found beside or above each).")
 @click.option("--tau", type=TAU, default=None,
-              help="Threshold drawn in the Δ plots [default: the annotation's tau, and "
+              help="Threshold drawn with the Δ curves [default: the annotation's tau, and "
                    "its per-class taus in the classes' colours].")
 @click.option("--delta", type=DELTA, default=None,
-              help="Quantization delta of the templates for the Δ plots [default: the "
+              help="Quantization delta of the templates for the Δ curves [default: the "
                    "annotation's, else 0.05].")
 @click.option("--title", default="mtanno annotation report", show_default=True,
               help="Title of the page.")
+@click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
+              help="Processes reading the motion files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @user_errors(2)
 def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf, tau, delta,
-               title, quiet):
+               title, jobs, quiet):
     """Write a report of annotation tables into a folder, against ground truth ([MBS09] §7)
-    when --truth is given.
+    when --truth is given: a page to review thousands of documents, and tables for papers.
 
     \b
-    index.html                 self-contained page (images inline): open it in a browser
+    index.html                 the page: open it in a browser (it needs its folder)
+    data/HASH.js               the documents' poses and Δ curves, loaded by the page
     per_class.csv|.md|.tex     with --truth: P/R/F per class, frames and segments, support
     confusion.csv|.png|.svg    with --truth: frame confusion matrix, truth x annotation
     reliability.png|.svg       with --truth: how well the confidence column is calibrated
     summary.csv|.md            without --truth: per class segments, duration, share
     review.csv                 every row, the least confident first (the rows to check)
-    timeline_DOC.png|.svg      per document: truth (if given) and annotation
     template_CLASS.png|.svg    with --mt: the templates as heat maps
-    delta_DOC.png|.svg         with --mt and --features: each class's Δ over the document
+    figures.json               what each figure was drawn from: a rerun redraws only changes
 
-    With --motions (or --features files that hold poses) the page shows each document's
-    motion as a stick figure with its annotation under it; a click on a row of the review
-    list plays that segment, and #autoplay after the page's address plays them all. In
-    the review list a row is accepted, rejected, relabelled or moved by frames, and
-    "Download truth" saves the accepted rows as a truth CSV for learn-mt, tune and
-    evaluate --truth (docs/annotation.md, "mtanno report").
+    The page lists every document as a row with its timeline (opacity: confidence),
+    filtered by label, name and confidence range, sorted, counted per class; the selected
+    document plays beside the list (with --motions, or --features files that hold poses;
+    with --mt and --features its Δ curves too). index.html#doc=NAME&frame=F opens a
+    document at a frame, #autoplay plays it. Rows are accepted, rejected or relabelled at
+    the keyboard (j/k, a, x, l), kept across reloads, and "Download truth" saves the
+    accepted rows as a truth CSV for learn-mt, tune and evaluate --truth (a label beginning
+    with = + - @ is refused there: a spreadsheet would run it). A motion whose frame count
+    is not the annotation's is said and not played (exit code 1). Details:
+    docs/annotation.md.
 
     ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
     table below a folder, such as the per-document tables of `mtanno annotate
@@ -229,10 +237,11 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf,
     from mtanno.evaluation.report import report_files
 
     failures: list[str] = []  # inputs that could not be used: reported, the report goes on
-    with ProgressBar("report", "figure", quiet=quiet) as bar:
+    with ProgressBar("report", "step", quiet=quiet) as bar:
         result, rows = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
                                     features=features, motions=motions, asf=asf, tau=tau,
-                                    delta=delta, title=title, progress=bar, failures=failures)
+                                    delta=delta, title=title, progress=bar, failures=failures,
+                                    jobs=jobs)
     for message in failures:
         click.echo(f"mtanno: {message}", err=True)
     if not quiet:

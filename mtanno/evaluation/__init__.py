@@ -15,12 +15,15 @@ every stage that reads it). Modules:
   table (issue 26);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
   clips (``mtanno compose``, :func:`compose_to`);
-* :mod:`~mtanno.evaluation.report` — the HTML report and its tables (``mtanno report``);
-* :mod:`~mtanno.evaluation.player` — the report page's stick-figure players and its review
-  list's controls (review to truth; the script ``player.js`` is package data).
+* :mod:`~mtanno.evaluation.report` — the report and its tables (``mtanno report``);
+* :mod:`~mtanno.evaluation.page` — the report page: an archive view of every document, one
+  player, review to truth (its scripts ``archive.js``, ``player.js``, ``review.js`` and
+  style ``page.css`` are package data), its data files and figures;
+* :mod:`~mtanno.evaluation.player` — the player's motions: poses from motion files or pose
+  blocks, checked against the annotation, encoded for the page.
 
 Every module's public names are importable from the package, attached on first use
-(PEP 562), except those of ``compose`` and ``player`` (import them): reading a
+(PEP 562), except those of ``compose``, ``page`` and ``player`` (import them): reading a
 truth table loads neither the report nor the feature extractor.
 """
 

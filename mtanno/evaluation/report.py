@@ -1,21 +1,27 @@
 """``mtanno report``: an annotation run as a page for people and tables for papers.
 
-From annotation tables and the ground truth (and optionally the templates and the
-documents' feature files) :func:`write_report` writes into one folder:
+From annotation tables and, when there is one, the ground truth (and optionally the
+templates, the documents' feature files and their motions) :func:`write_report` writes into
+one folder:
 
-* ``index.html`` — a self-contained page (every image inline as a data URI, no other file
-  needed) with the tables and figures below;
+* ``index.html`` — the page (:mod:`mtanno.evaluation.page`): an archive view of every
+  document (a compact row each, its timeline drawn in the browser, filter, sort, counts per
+  class), one player beside it for the selected document (stick figure, timeline, Δ curves
+  with ``--mt`` and ``--features``), review at the keyboard into a truth CSV, then the
+  tables and figures below behind a table of contents;
+* ``data/*.js`` — the documents' poses and Δ curves, loaded by the page when a document of
+  theirs is selected (the page needs its folder);
 * ``per_class.csv`` / ``.md`` / ``.tex`` — per-class P/R/F at frame and segment level with
   their support ([MBS09] §7), frame accuracy, Edit and F1@{10,25,50} (the rows of ``mtanno
   evaluate``, "–" where undefined), CSV with provenance;
 * ``confusion.csv`` and ``confusion.png``/``.svg`` — the frame-level confusion matrix,
   truth × annotation, with a "none" row and column (frames without a label);
-* ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
-* with templates and features: ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4)
-  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, docs/method.md §3.4);
-* on the page, with the documents' poses, a stick-figure player per document, and always
-  the review list with the controls that turn it into a truth CSV
-  (:mod:`mtanno.evaluation.player`).
+* ``reliability.png``/``.svg`` — the confidence against the truth;
+* without truth ``summary.csv``/``.md``; always ``review.csv`` (every row, the least
+  confident first);
+* with templates ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4);
+* ``figures.json`` — what each figure was drawn from: a rerun whose inputs did not change
+  draws none again.
 
 A confusion matrix needs one label per frame. Annotations from ``annotate
 --single-label`` are a partition; the default output may overlap, and then each frame is
@@ -25,11 +31,10 @@ which approximates the per-frame Δ̄ that ``--single-label`` uses); the page sa
 
 from __future__ import annotations
 
-import base64
 import html
 import math
 import os
-import re
+from collections import defaultdict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,29 +44,31 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
-from mtanno.evaluation.player import review_html
+from mtanno.evaluation.page import FORMATS
 from mtanno.labels.segments import Segment
 
 if TYPE_CHECKING:
+    from mtanno.evaluation.page import Figures
     from mtanno.labels.segments import Annotation
 
 NONE = "none"
 #: Title of a report page.
 REPORT_TITLE = "mtanno annotation report"
-FORMATS = ("png", "svg")
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
-#: after documents and classes), for :func:`mtanno.util.preflight.check_outputs`.
+#: after classes), for :func:`mtanno.util.preflight.check_outputs`; the folder ``data/`` is
+#: the report's alone.
 REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
                 "per_class.tex", "confusion.csv", "confusion.csv.meta.json", "summary.csv",
                 "summary.csv.meta.json", "summary.md", "review.csv", "review.csv.meta.json",
-                *(f"{stem}.{fmt}" for stem in ("confusion", "reliability", "timeline_*",
-                                               "template_*", "delta_*") for fmt in FORMATS))
+                "figures.json", *(f"{stem}.{fmt}" for stem in ("confusion", "reliability",
+                                                              "template_*") for fmt in FORMATS))
 
 
 @dataclass
 class ReportResult:
     """What :func:`write_report` wrote: the folder, the HTML page, every file, the
-    evaluation, the confusion matrix with its labels, and notes shown on the page."""
+    evaluation, the confusion matrix with its labels, notes shown on the page, and per
+    document why its motion is not shown (a motion that is not the annotated one)."""
 
     folder: Path
     page: Path
@@ -70,6 +77,15 @@ class ReportResult:
     labels: list[str] = field(default_factory=list)
     confusion: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+    motion_notes: dict[str, str] = field(default_factory=dict)
+    figures_drawn: int = 0
+
+
+def _by_doc(items, key=lambda x: x.doc) -> dict[str, list]:
+    out: dict[str, list] = defaultdict(list)
+    for x in items:
+        out[key(x)].append(x)
+    return out
 
 
 def _frame_labels(segs: Sequence, n: int, rank: dict[str, int]) -> tuple[np.ndarray, bool]:
@@ -99,11 +115,12 @@ def confusion_matrix(truth: Sequence[Segment], annotation: Sequence[Annotation],
     rank = {lab: i for i, lab in enumerate(labels)}
     M = np.zeros((len(labels), len(labels)), np.int64)
     overlapped = False
+    truth_of, rows_of = _by_doc(truth), _by_doc(annotation)
     for doc, n in frames.items():
-        t, _ = _frame_labels([(s.start - 1, s.end - 1, s.label, 0.0) for s in truth
-                              if s.doc == doc], n, rank)
-        a, ov = _frame_labels([(r.start, r.end, r.label, r.cost) for r in annotation
-                               if r.doc == doc], n, rank)
+        t, _ = _frame_labels([(s.start - 1, s.end - 1, s.label, 0.0)
+                              for s in truth_of.get(doc, ())], n, rank)
+        a, ov = _frame_labels([(r.start, r.end, r.label, r.cost)
+                               for r in rows_of.get(doc, ())], n, rank)
         overlapped |= ov
         t[t < 0] = rank[NONE]
         a[a < 0] = rank[NONE]
@@ -165,41 +182,12 @@ def latex_table(rows: Sequence[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
-
-
-class _Writer:
-    """Writes the figures (PNG and SVG), remembers them for the page."""
-
-    def __init__(self, folder: Path, result: ReportResult, figures: int = 0,
-                 progress: Callable[[int, int], None] | None = None):
-        self.folder = folder
-        self.result = result
-        self.images: list[tuple[str, str, Path]] = []  # section, caption, png
-        self.figures, self.progress = figures, progress  # progress(done, of figures)
-
-    def figure(self, ax, stem: str, section: str, caption: str) -> None:
-        from mtanno.plot import save_figure
-
-        for fmt in FORMATS:
-            path = self.folder / f"{stem}.{fmt}"
-            save_figure(ax, path)
-            self.result.files.append(path)
-        self.images.append((section, caption, self.folder / f"{stem}.png"))
-        if self.progress is not None:
-            self.progress(len(self.images), max(self.figures, len(self.images)))
-
-    def text(self, name: str, text: str) -> None:
-        from mtanno.util.output import write_text
-
-        write_text(self.folder / name, text)
-        self.result.files.append(self.folder / name)
 
 
 def _html_table(rows: Sequence[dict]) -> str:
     cols = list(rows[0]) if rows else []
-    out = ["<table><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols) + "</tr>"]
+    out = ["<table class='scores'><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+           + "</tr>"]
     for r in rows:
         cells = []
         for c in cols:
@@ -208,49 +196,6 @@ def _html_table(rows: Sequence[dict]) -> str:
             cells.append(f"<td>{text}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     return "\n".join(out) + "</table>"
-
-
-_STYLE = ("body{font-family:sans-serif;max-width:1200px;margin:auto}"
-          "table{border-collapse:collapse;max-width:100%}td,th{border:1px solid #ccc;"
-          "padding:2px 6px;text-align:right;overflow-wrap:anywhere}"
-          "img{max-width:100%;display:block;margin:8px 0}"
-          "pre{white-space:pre-wrap;overflow-wrap:anywhere}"
-          ".player{margin:12px 0}canvas.figure{display:block;border:1px solid #ddd}"
-          "canvas.timeline{display:block;width:100%;cursor:pointer}"
-          "tr.review{cursor:pointer}tr.review.accept{background:#e6f4e6}"
-          "tr.review.reject{background:#f6e6e6;color:#888}"
-          "td input{width:5em}td input.label{width:13em}")
-
-
-def _page(result: ReportResult, images, rows, title: str, provenance: dict, *, docs=(),
-          review: str = "", scored: bool = True, motions: str = "", script: str = "") -> str:
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
-             f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"]
-    files = ("per_class.csv/.md/.tex, confusion.csv" if scored else "summary.csv/.md (no "
-             "truth given: no scores)")
-    parts.append(f"<p>{len(docs)} document(s); frames at 30 Hz. Files beside this page: "
-                 f"{files}, review.csv, every figure as PNG and SVG.</p>")
-    for note in result.notes:  # `command` in a note is code on the page, not a backtick
-        text = re.sub(r"`([^`]+)`", r"<code>\1</code>", html.escape(note))
-        parts.append(f"<p><b>Note:</b> {text}</p>")
-    parts.append(("<h2>Precision, recall, F per class</h2>" if scored else
-                  "<h2>Classes in the annotation</h2>") + _html_table(rows))
-    sections: dict[str, list] = {}
-    for section, caption, png in images:
-        sections.setdefault(section, []).append((caption, png))
-    for section, items in sections.items():
-        parts.append(f"<h2>{html.escape(section)}</h2>")
-        for caption, png in items:
-            data = base64.b64encode(png.read_bytes()).decode("ascii")
-            parts.append(f"<figure><img alt='{html.escape(caption)}' "
-                         f"src='data:image/png;base64,{data}'>"
-                         f"<figcaption>{html.escape(caption)}</figcaption></figure>")
-    parts += [motions, review]
-    parts.append("<h2>Provenance</h2><pre>" + html.escape(
-        "\n".join(f"{k}: {v}" for k, v in provenance.items() if k != "inputs")) + "</pre>")
-    parts.append(script)
-    parts.append("</body></html>\n")
-    return "\n".join(parts)
 
 
 def annotation_parameters(provenances: Sequence[dict]) -> dict:
@@ -272,6 +217,7 @@ def annotation_parameters(provenances: Sequence[dict]) -> dict:
             "extra_templates": sorted(extra) if isinstance(extra, dict) else []}
 
 
+
 def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                  annotation: Sequence[Annotation], *, frames: dict[str, int] | None = None,
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
@@ -279,162 +225,252 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                  delta: float | None = None, extra_templates: Sequence[str] = (),
                  title: str = REPORT_TITLE, provenance: dict | None = None,
                  progress: Callable[[int, int], None] | None = None,
-                 poses: dict[str, np.ndarray] | None = None) -> ReportResult:
+                 poses: dict | None = None, pose_sources: dict[str, str] | None = None,
+                 motion_notes: dict[str, str] | None = None,
+                 chunk_bytes: int | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
-    document's length (default: the last labelled frame of truth or annotation);
-    ``templates`` (class → :class:`~mtanno.templates.model.MotionTemplate`) adds heat maps
-    and, with ``features`` (document → features × frames matrix), the Δ curves of every
-    class: templates quantized with ``delta`` (default 0.05) as the annotation did,
-    ``tau`` drawn, and in the class's colour each τ of ``tau_per_class`` that differs from
-    it. ``extra_templates`` names the classes the annotation also matched further
-    templates for (a tuned configuration's ``[templates]``): their curves, of the class's
-    own template only, are not the annotation's Δ, and the page says so. Documents are
-    those annotated. ``progress(done, total)`` is called after each figure.
+    document's length as the annotation recorded it (default: the last labelled frame of
+    truth or annotation); documents are those annotated. ``templates`` (class →
+    :class:`~mtanno.templates.model.MotionTemplate`) adds heat maps and, with ``features``
+    (document → features × frames matrix), the Δ curves of every class in the player:
+    templates quantized with ``delta`` (default 0.05) as the annotation did, ``tau`` and
+    each class's τ of ``tau_per_class`` drawn. ``extra_templates`` names the classes the
+    annotation also matched further templates for (a tuned configuration's
+    ``[templates]``): their curves, of the class's own template only, are not the
+    annotation's Δ, and the page says so. ``progress(done, total)`` is called after each
+    document and figure.
 
-    Without ``truth`` (None; issue 24, an archive nobody has labelled) the page has, instead
-    of the scores and the confusion matrix, per class the number of segments, their
-    duration and share of the archive (``summary.csv``); the timelines show the annotation
-    alone. Either way ``review.csv`` and the page's review list hold every row, the least
-    confident first (the rows to check), with the controls that turn a review into a truth
-    CSV (:func:`mtanno.evaluation.player.review_html`). ``poses`` (document → normalised
-    poses at the 30 Hz frames, :mod:`mtanno.evaluation.player`) adds a stick-figure player
-    per document that has them."""
-    from mtanno.plot import (
-        label_colours,
-        plot_template,
-        require_matplotlib,
+    Without ``truth`` (None; an archive nobody has labelled) the page has, instead of the
+    scores and the confusion matrix, per class the number of segments, their duration and
+    share of the archive (``summary.csv``). Either way ``review.csv`` holds every row, the
+    least confident first, and the page reviews them into a truth CSV.
+
+    ``poses`` (document → (frames × 22 × 3) normalised canonical poses at the 30 Hz frames,
+    or :class:`~mtanno.evaluation.player.PlayerPoses`) gives the player its motions
+    (``pose_sources``: document → the file they came from, for messages); one whose frame
+    count is not the annotation's is not shown, and ``ReportResult.motion_notes`` and the
+    page say why (:func:`~mtanno.evaluation.player.motion_mismatch`; ``motion_notes``:
+    those the caller found so already, document → why). They go into data
+    files of about ``chunk_bytes`` (default :data:`~mtanno.evaluation.page.CHUNK_BYTES`; 0:
+    one file per document)."""
+    from mtanno.evaluation.page import (
+        CHUNK_BYTES,
+        Figures,
+        curve_entries,
+        page_data,
+        pose_entries,
+        write_chunks,
     )
+    from mtanno.plot import require_matplotlib
     from mtanno.util.output import make_folder
-    from mtanno.util.tables import write_table
 
     require_matplotlib()
     if not annotation:
         raise MtannoError("the annotation has no rows to report on")
     folder = make_folder(out_dir)
     result = ReportResult(folder, folder / "index.html")
-    frames = dict(frames or {})
-    # documents with rows, and those recorded as annotated without any (their truth counts)
-    docs = sorted({a.doc for a in annotation} | set(frames))
+    result.motion_notes.update(motion_notes or {})
+    recorded = dict(frames or {})
     scored = truth is not None
     truth = list(truth or [])
-    for d in docs:
-        last = max([a.end + 1 for a in annotation if a.doc == d]
-                   + [s.end for s in truth if s.doc == d] + [0])
-        frames[d] = max(frames.get(d, 0), last)
-    frames = {d: frames[d] for d in docs}
+    n_with_rows, docs, last = _documents(annotation, truth, recorded)
+    frames = {d: max(recorded.get(d, 0), last[d]) for d in docs}
     prov = dict(provenance or {})
-    import pyarrow as pa
-
-    w = _Writer(folder, result, progress=progress, figures=len(docs) + len(templates or {})
-                + (sum(d in features for d in docs) if templates and features else 0)
-                + (2 if scored else 0))
+    step = _counter(progress, len(docs) + len(templates or {}) + (2 if scored else 0))
+    figs = Figures(folder, result, step)
+    sections: list[tuple[str, str, str]] = []
     if scored:
-        rows, labels = _scores(w, truth, annotation, docs, frames, prov)
+        _scores(figs, truth, annotation, docs, frames, prov, sections)
     else:
-        rows = summary_rows(annotation, frames)
-        labels = [r["class"] for r in rows[:-1]]
-        write_table(folder / "summary.csv", pa.Table.from_pylist(rows), provenance=prov)
-        result.files += [folder / "summary.csv", folder / "summary.csv.meta.json"]
-        w.text("summary.md", _plain_markdown(rows))
-    review = review_rows(annotation)
-    write_table(folder / "review.csv", pa.Table.from_pylist(review), provenance=prov)
-    result.files += [folder / "review.csv", folder / "review.csv.meta.json"]
-    colours = label_colours(labels)
-    _timelines(w, docs, truth if scored else None, annotation, frames, colours)
+        _summary(figs, annotation, frames, prov, sections)
+    _review_table(folder, result, annotation, prov)
+    labels = sorted({a.label for a in annotation} | {s.label for s in truth}
+                    | set(templates or ()))
+    colours = _hex_colours(labels)
     if templates:
-        for name, mt in templates.items():
-            w.figure(plot_template(mt), f"template_{_safe(name)}", "Templates",
-                     f"template {name}")
+        _template_figures(figs, templates, sections)
+    entries, rigs, rig_list = pose_entries(poses, docs, recorded, last, frames,
+                                           pose_sources or {}, result, step)
+    curves = None
     if templates and features:
-        _delta_figures(w, templates, {d: features[d] for d in docs if d in features}, tau,
-                       tau_per_class or {}, delta)
-        if extra_templates:
-            result.notes.append(
-                "the annotation also matched further templates of "
-                f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
-                "their Δ curves here are those of the class's own template only")
-    from mtanno.util.output import write_text
-
-    motions, script = _players(annotation, docs, frames, colours, poses)
-    classes = sorted({a.label for a in annotation} | {s.label for s in truth})
-    write_text(result.page, _page(
-        result, w.images, rows, title, prov, docs=docs, scored=scored, motions=motions,
-        review=review_html(review, classes, set(poses or ())), script=script))
-    result.files.append(result.page)
+        curves = curve_entries(entries, templates, features, docs, tau, tau_per_class or {},
+                               delta)
+    if curves and extra_templates:
+        result.notes.append(
+            "the annotation also matched further templates of "
+            f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
+            "their Δ curves here are those of the class's own template only")
+    chunks, where = write_chunks(folder, entries, docs, chunk_bytes=CHUNK_BYTES
+                                 if chunk_bytes is None else chunk_bytes)
+    result.files += [folder / "data" / f"{c}.js" for c in chunks]
+    _motion_notes(result, docs, poses, entries)
+    data = page_data(docs, frames, annotation, truth=truth if scored else None,
+                     colours=colours, notes=result.motion_notes, chunks=chunks, where=where,
+                     rigs=rigs, rig_list=rig_list, curves=curves, title=title)
+    data["motions"] = poses is not None
+    sections += _closing_sections(result, prov, scored)
+    figs.close()
+    _write_page(result, title, data, sections, n_with_rows, annotation)
     return result
 
 
-def _timelines(w: _Writer, docs, truth, annotation, frames, colours) -> None:
-    """Per document its timeline figure: truth (None: not given) and annotation."""
-    from mtanno.plot import plot_timeline
+def _counter(progress: Callable[[int, int], None] | None, total: int) -> Callable[[], None]:
+    """A step of ``progress(done, total)``, counted."""
+    done = [0]
 
-    by_doc: dict[str, dict[str, list]] = {d: {} for d in docs}  # lanes, grouped once
-    for s in truth or ():
-        if s.doc in by_doc:
-            by_doc[s.doc].setdefault("truth", []).append((s.start, s.end, s.label))
+    def step() -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], max(total, done[0]))
+
+    return step
+
+
+def _documents(annotation, truth, recorded) -> tuple[int, list[str], dict[str, int]]:
+    """The number of documents with rows; the documents: those with rows and those
+    recorded as annotated without any (their truth counts); per document its last
+    labelled frame (1-based) in annotation or truth."""
+    last: dict[str, int] = dict.fromkeys(recorded, 0)
     for a in annotation:
-        by_doc[a.doc].setdefault("annotation", []).append((a.start + 1, a.end + 1, a.label))
-    for d in docs:
-        lanes = {**({"truth": by_doc[d].get("truth", [])} if truth is not None else {}),
-                 "annotation": by_doc[d].get("annotation", [])}
-        ax = plot_timeline(lanes, n_frames=frames[d], colours=colours)
-        present = sorted({lab for segs in lanes.values() for _, _, lab in segs})
-        _legend(ax, present, colours)
-        ax.figure.set_size_inches(12, max(1.8, 0.9 + 0.16 * len(present)))
-        ax.set_title(d)
-        w.figure(ax, f"timeline_{_safe(d)}", "Timelines: truth and annotation"
-                 if truth is not None else "Timelines of the annotation", d)
+        last[a.doc] = max(last.get(a.doc, 0), a.end + 1)
+    n_with_rows = len({a.doc for a in annotation})
+    for t in truth:
+        if t.doc in last:
+            last[t.doc] = max(last[t.doc], t.end)
+    return n_with_rows, sorted(last), last
 
 
-def _players(annotation, docs, frames, colours, poses) -> tuple[str, str]:
-    """The page's section of players (none without ``poses``) and its script (players
-    and the review list's controls)."""
+def _write_page(result: ReportResult, title: str, data: dict, sections, n_with_rows: int,
+                annotation) -> None:
+    from mtanno.evaluation.page import page_html
+    from mtanno.util.output import write_text
+
+    summary = (f"{len(data['docs']['name'])} documents ({n_with_rows} with rows), "
+               f"{len(annotation)} rows, {len({a.label for a in annotation})} classes; frames "
+               "at 30 Hz" + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation
+                             else "; no truth given: no scores"))
+    write_text(result.page, page_html(title=title, summary=html.escape(summary),
+                                      notes=result.notes, sections=sections, data=data))
+    result.files.append(result.page)
+
+
+def _hex_colours(labels: Sequence[str]) -> dict[str, str]:
     from matplotlib.colors import to_hex
 
-    from mtanno.evaluation.player import player_script, players_data, players_html
+    from mtanno.plot import label_colours
 
-    hexes = {lab: to_hex(colours.get(lab, "#888888")) for lab in {a.label for a in annotation}}
-    shown = {d: poses[d] for d in docs if d in (poses or {})}
-    data = players_data(shown, annotation, frames, hexes)
-    section = "" if poses is None else players_html(data, [d for d in docs if d not in shown])
-    return section, player_script(data)
+    colours = label_colours(labels)
+    return {lab: to_hex(colours.get(lab, "#888888")) for lab in labels}
 
 
-def _scores(w: _Writer, truth, annotation, docs, frames, prov) -> tuple[list[dict], list[str]]:
+def _summary(figs: Figures, annotation, frames, prov, sections) -> None:
+    """Without truth: per class segments, duration and share (summary.csv, .md, page)."""
+    import pyarrow as pa
+
+    from mtanno.util.tables import write_table
+
+    rows = summary_rows(annotation, frames)
+    folder, result = figs.folder, figs.result
+    write_table(folder / "summary.csv", pa.Table.from_pylist(rows), provenance=prov)
+    _text(result, folder / "summary.md", _plain_markdown(rows))
+    result.files += [folder / "summary.csv", folder / "summary.csv.meta.json"]
+    sections.append(("summary", "Classes in the annotation", _html_table(rows)))
+
+
+def _text(result: ReportResult, path: Path, text: str) -> None:
+    from mtanno.util.output import write_text
+
+    write_text(path, text)
+    result.files.append(path)
+
+
+def _review_table(folder: Path, result: ReportResult, annotation, prov) -> None:
+    import pyarrow as pa
+
+    from mtanno.util.tables import write_table
+
+    write_table(folder / "review.csv", pa.Table.from_pylist(review_rows(annotation)),
+                provenance=prov)
+    result.files += [folder / "review.csv", folder / "review.csv.meta.json"]
+
+
+def _template_figures(figs: Figures, templates: dict, sections) -> None:
+    from mtanno.evaluation.page import file_stems
+    from mtanno.plot import plot_template
+
+    stems = file_stems(sorted(templates))
+    for name, mt in sorted(templates.items()):
+        figs.figure(lambda mt=mt: plot_template(mt), f"template_{stems[name]}", "templates",
+                    f"template {name}", name, list(mt.feature_names), mt.values, mt.weights,
+                    mt.kind, mt.quantized, mt.delta)
+    sections.append(("templates", "Templates", figs.html("templates")))
+
+
+def _motion_notes(result: ReportResult, docs, poses, entries) -> None:
+    """The page's notes on motions: documents without one, those not played."""
+    if poses is None:
+        return
+    missing = [d for d in docs if d not in poses]
+    if missing:
+        result.notes.append(f"no motion for {len(missing)} of {len(docs)} document(s): "
+                            + ", ".join(missing[:20]) + (", …" if len(missing) > 20 else ""))
+    if result.motion_notes:
+        bad = sorted(result.motion_notes)
+        result.notes.append(
+            f"the motion of {len(bad)} document(s) is not the annotated one and is not played "
+            "(each says why in the archive; filter note:): " + ", ".join(bad[:20])
+            + (", …" if len(bad) > 20 else ""))
+
+
+def _closing_sections(result: ReportResult, prov: dict, scored: bool) -> list:
+    files = ("per_class.csv/.md/.tex, confusion.csv" if scored else "summary.csv/.md")
+    listing = (f"<p>Beside this page: {files}, review.csv (every row, the least confident "
+               "first), every figure as PNG and SVG, figures.json (what each was drawn from: "
+               "a rerun draws again only what changed), and data/ (the documents' poses and "
+               "Δ curves, loaded when a document is selected: move the folder, not the page "
+               "alone).</p>")
+    text = "\n".join(f"{k}: {v}" for k, v in prov.items() if k != "inputs")
+    return [("files", "Files", listing),
+            ("provenance", "Provenance", f"<pre>{html.escape(text)}</pre>")]
+
+
+def _scores(figs: Figures, truth, annotation, docs, frames, prov, sections) -> None:
     """The evaluation against ``truth``: the per-class table (CSV, Markdown, LaTeX), the
-    confusion matrix (table and figure) and the reliability of the confidence; returns the
-    table's rows and the matrix's labels."""
+    confusion matrix (table and figure) and the reliability of the confidence."""
     import pyarrow as pa
 
     from mtanno.labels.segments import to_segments
     from mtanno.plot import plot_confusion
     from mtanno.util.tables import write_table
 
-    result, folder = w.result, w.folder
+    result, folder = figs.result, figs.folder
     ev = evaluate_annotations(truth, to_segments(annotation), documents=docs, frames=frames)
     result.evaluation = ev
     result.notes.extend(ev.warnings)  # e.g. truth and annotation without a common label
     rows = ev.rows()
     write_table(folder / "per_class.csv", pa.Table.from_pylist(rows), provenance=prov)
     result.files += [folder / "per_class.csv", folder / "per_class.csv.meta.json"]
-    w.text("per_class.md", markdown_table(rows))
-    w.text("per_class.tex", latex_table(rows))
+    _text(result, folder / "per_class.md", markdown_table(rows))
+    _text(result, folder / "per_class.tex", latex_table(rows))
+    sections.append(("scores", "Precision, recall, F per class", _html_table(rows)))
     M, labels, overlapped = confusion_matrix(truth, annotation, frames)
     result.confusion, result.labels = M, labels
     if overlapped:
-        result.notes.append("the annotation's segments overlap; in the confusion matrix and "
-                            "timelines each frame counts for the covering segment with the "
-                            "smallest cost (use `mtanno annotate --single-label` for an exact "
+        result.notes.append("the annotation's segments overlap; in the confusion matrix "
+                            "each frame counts for the covering segment with the smallest "
+                            "cost (use `mtanno annotate --single-label` for an exact "
                             "partition by Δ̄); the Acc column, like `mtanno evaluate`, gives "
                             "each frame to the covering segment that starts last")
     table = {"truth": labels, **{lab: M[:, j].tolist() for j, lab in enumerate(labels)}}
     write_table(folder / "confusion.csv", pa.table(table), provenance=prov)
     result.files += [folder / "confusion.csv", folder / "confusion.csv.meta.json"]
-    w.figure(plot_confusion(M, labels), "confusion", "Confusion matrix (frames)",
-             "rows: truth, columns: annotation; counts of frames")
-    _reliability(w, truth, annotation, prov)
-    return rows, labels
+    figs.figure(lambda: plot_confusion(M, labels), "confusion", "confusion",
+                "rows: truth, columns: annotation; counts of frames", M, labels)
+    sections.append(("confusion", "Confusion matrix (frames)", figs.html("confusion")))
+    _reliability(figs, truth, annotation, prov)
+    if any(s == "reliability" for s, _, _ in figs.items):
+        sections.append(("reliability", "Confidence", figs.html("reliability")))
 
 
 def summary_rows(annotation: Sequence[Annotation], frames: dict[str, int]) -> list[dict]:
@@ -442,22 +478,26 @@ def summary_rows(annotation: Sequence[Annotation], frames: dict[str, int]) -> li
     Hz; a frame two rows of a label cover counts once), seconds, their share of the
     documents' ``frames`` and the rows' mean confidence (None where no row has one)."""
     total = sum(frames.values())
-    out = []
     labels = sorted({a.label for a in annotation})
+    covered: dict[str | None, int] = dict.fromkeys([*labels, None], 0)
+    for d, rows in _by_doc(annotation).items():
+        n = frames.get(d, 0) or max(a.end + 1 for a in rows)
+        union = np.zeros(n, dtype=bool)
+        for lab, mine in _by_doc(rows, key=lambda a: a.label).items():
+            mask = np.zeros(n, dtype=bool)
+            for a in mine:
+                mask[a.start:a.end + 1] = True
+            covered[lab] += int(mask.sum())
+            union |= mask
+        covered[None] += int(union.sum())
+    by_label = _by_doc(annotation, key=lambda a: a.label)
+    out = []
     for lab in [*labels, None]:
-        rows = [a for a in annotation if lab is None or a.label == lab]
-        covered = 0
-        for d in sorted({a.doc for a in rows}):
-            mask = np.zeros(frames.get(d, 0) or max(a.end + 1 for a in rows if a.doc == d),
-                            dtype=bool)
-            for a in rows:
-                if a.doc == d:
-                    mask[a.start:a.end + 1] = True
-            covered += int(mask.sum())
+        rows = by_label[lab] if lab is not None else list(annotation)
         conf = [a.confidence for a in rows if not math.isnan(a.confidence)]
         out.append({"class": lab if lab is not None else "all", "segments": len(rows),
-                    "frames": covered, "seconds": round(covered / 30.0, 2),
-                    "share": round(covered / total, 4) if total else None,
+                    "frames": covered[lab], "seconds": round(covered[lab] / 30.0, 2),
+                    "share": round(covered[lab] / total, 4) if total else None,
                     "mean confidence": round(float(np.mean(conf)), 4) if conf else None})
     return out
 
@@ -478,7 +518,8 @@ def review_rows(annotation: Sequence[Annotation]) -> list[dict]:
             for a in sorted(annotation, key=key)]
 
 
-def _reliability(w: _Writer, truth, annotation, prov: dict) -> None:
+
+def _reliability(figs: Figures, truth, annotation, prov: dict) -> None:
     """The reliability diagram of the rows' confidence against the truth (issue 26), and
     its AUROC and ECE as a note; nothing when no row has a confidence or there is no
     truth."""
@@ -498,45 +539,15 @@ def _reliability(w: _Writer, truth, annotation, prov: dict) -> None:
     table = reliability_table(prob, right)
     calibrated = (prov.get("confidence") or {}).get("calibrated")
     what = "calibrated" if calibrated else "uncalibrated (1 − cost/τ: a score, not a probability)"
-    w.figure(plot_reliability(table), "reliability", "Confidence",
-             f"reliability of the confidence, {what}: per bin the fraction of rows whose "
-             "label is right (IoU ≥ 0.5 with a truth segment of its label)")
-    w.result.notes.append(
+    figs.figure(lambda: plot_reliability(table), "reliability", "reliability",
+                f"reliability of the confidence, {what}: per bin the fraction of rows whose "
+                "label is right (IoU ≥ 0.5 with a truth segment of its label)", prob, right,
+                what)
+    figs.result.notes.append(
         f"confidence ({what}): {int(right.sum())} of {len(rows)} rows right, AUROC "
         f"{auroc(prob, right):.3f}, ECE {expected_calibration_error(prob, right):.3f}")
 
 
-def _legend(ax, labels, colours) -> None:
-    from matplotlib.patches import Patch
-
-    if labels:
-        ax.legend(handles=[Patch(color=colours[lab], label=lab) for lab in labels],
-                  loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
-
-
-def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
-                   tau: float | None, tau_per_class: dict[str, float],
-                   delta: float | None) -> None:
-    from mtanno.annotate import class_deltas, class_models
-    from mtanno.plot import label_colours, plot_delta
-    from mtanno.templates.params import ANNOTATION_DELTA
-
-    models, _ = class_models(templates, delta=ANNOTATION_DELTA if delta is None else delta)
-    colours = label_colours(sorted(m.name for m in models))
-    for d, X in features.items():
-        ax = None
-        for m, (curve, _) in zip(models, class_deltas(X, models)):
-            ax = plot_delta(curve, label=m.name, tau=tau, ax=ax)
-            [line for line in ax.lines if line.get_label() == m.name][0].set_color(
-                colours[m.name])
-            own = tau_per_class.get(m.name)
-            if own is not None and own != tau:
-                ax.axhline(own, color=colours[m.name], linestyle=":", linewidth=1,
-                           label=f"τ {m.name} = {own:g}")
-        ax.set_title(f"{d}: Δ of every class")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False)
-        ax.figure.set_size_inches(12, max(3.5, 1.0 + 0.16 * len(models)))
-        w.figure(ax, f"delta_{_safe(d)}", "Distance curves Δ per class", d)
 
 
 def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
@@ -547,24 +558,30 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
                  asf: str | os.PathLike | None = None, tau: float | None = None,
                  delta: float | None = None, title: str = REPORT_TITLE,
                  progress: Callable[[int, int], None] | None = None,
-                 failures: list[str] | None = None) -> tuple[ReportResult, list]:
+                 failures: list[str] | None = None, chunk_bytes: int | None = None,
+                 jobs: int = 1) -> tuple[ReportResult, list]:
     """The whole ``mtanno report`` run: the annotation tables (files or folders of them),
     the truth, templates, feature files and motion files read and checked against the
     output folder (never an input there), and :func:`write_report` with the thresholds and
-    δ the annotation recorded (``tau``, ``delta`` override them). Poses for the players
-    come from ``motions`` (:func:`mtanno.evaluation.player.motion_files`), else from the
-    pose blocks of ``features`` (``asf``: the ASF of AMC motions, else found beside them);
-    Δ curves need ``mt_dir`` and ``features``. A feature or
-    motion file that cannot be read is left out and its message appended to ``failures``
-    (an error without it). Returns the result and the annotation's rows."""
+    δ the annotation recorded (``tau``, ``delta`` override them). Poses for the player come
+    from ``motions`` (:func:`mtanno.evaluation.player.motion_files`; the rig's own bones),
+    else from the pose blocks of ``features`` (``asf``: the ASF of AMC motions, else found
+    beside them); Δ curves need ``mt_dir`` and ``features``. A feature or motion file that
+    cannot be read is left out and its message appended to ``failures`` (an error without
+    it). A motion that is not the annotated one (another frame count, or another SHA-256
+    than the document's feature file records) is not played: ``ReportResult.motion_notes``
+    and the page say why, and the message goes to ``failures``. Motion files are read in
+    ``jobs`` processes. ``chunk_bytes``: the size of the data files (:func:`write_report`).
+    ``progress(done, total)`` counts motion files read, then the documents and figures of
+    :func:`write_report`. Returns the result and the annotation's rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
         annotation_files,
         read_annotation_tables,
     )
-    from mtanno.evaluation.player import load_motion_poses, motion_files
+    from mtanno.evaluation.page import DATA_FOLDER
+    from mtanno.evaluation.player import motion_files
     from mtanno.features.inputs import document_files
-    from mtanno.features.store import read_features
     from mtanno.io import MOCAP_SUFFIXES
     from mtanno.labels.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
@@ -583,18 +600,55 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
                **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     annotations = annotation_files(annotations)
     inputs = [*annotations, *([truth_path] if truth_path else [])]
+    outputs = {out_dir: REPORT_FILES, Path(out_dir) / DATA_FOLDER: None}
     check_outputs([], [*inputs, *paths, *(template_files(mt_dir) if mt_dir else [])],
-                  folders={out_dir: REPORT_FILES}, scanned=scanned)
+                  folders=outputs, scanned=scanned)
     rows, frames, provs = read_annotation_tables(annotations)
     docs = sorted({r.doc for r in rows} | set(frames))
     motion_paths = motion_files(motions, docs)
-    check_outputs([], [*motion_paths.values()], folders={out_dir: REPORT_FILES})
+    check_outputs([], [*motion_paths.values()], folders=outputs)
     recorded = annotation_parameters(provs)
     truth = None
     if truth_path is not None:
         truth = read_truth(truth_path)
         check_within(truth, frames, path=truth_path)
-    feats, poses = {}, {}
+    read = [0]
+
+    def step() -> None:
+        read[0] += 1
+        if progress is not None:
+            progress(read[0], len(motion_paths) + len(docs))
+
+    feats, poses, sources, other = _player_inputs(paths, motions, motion_paths, docs, asf=asf,
+                                                  jobs=jobs, failures=failures, step=step)
+    per_class = recorded["tau_per_class"] if tau is None else {}
+    if tau is None:  # the annotation's thresholds
+        tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
+    result = write_report(
+        out_dir, truth, rows, frames=frames,
+        templates=load_template_folder(mt_dir) if mt_dir else None,
+        features=(feats or None) if mt_dir else None, tau=tau, tau_per_class=per_class,
+        poses=poses if motions or poses else None, pose_sources=sources, motion_notes=other,
+        delta=delta if delta is not None else recorded["delta"],
+        extra_templates=recorded["extra_templates"], title=title, chunk_bytes=chunk_bytes,
+        progress=None if progress is None else
+        (lambda done, total: progress(read[0] + done, read[0] + total)),
+        provenance=provenance(inputs=[*inputs, *motion_paths.values()],
+                              truth=str(truth_path) if truth_path else None))
+    if failures is not None:
+        failures.extend(result.motion_notes.values())
+    return result, rows
+
+
+def _player_inputs(paths, motions, motion_paths, docs, *, asf, jobs, failures, step):
+    """The feature matrices of ``paths`` and the player's poses: from the motion files
+    (read in ``jobs`` processes, ``step()`` after each; one whose SHA-256 is not the one
+    its feature file records is left out, and why is in the last result), else from the
+    feature files' pose blocks. Returns (features, poses, their files, why not played)."""
+    from mtanno.evaluation.player import load_motion_poses, motion_mismatch
+    from mtanno.features.store import read_features
+
+    feats, poses, sources, made_from, other = {}, {}, {}, {}, {}
     for p in paths:
         try:
             ff = read_features(p, poses=not motions)
@@ -604,21 +658,19 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
             failures.append(str(exc))
             continue
         feats[ff.document] = ff.X
+        made_from[ff.document] = ff.meta.get("source_sha256")
         if ff.poses is not None:
-            poses[ff.document] = ff.poses
-    if motions:
-        poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures)
-    per_class = recorded["tau_per_class"] if tau is None else {}
-    if tau is None:  # the annotation's thresholds
-        tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
-    result = write_report(
-        out_dir, truth, rows, frames=frames,
-        templates=load_template_folder(mt_dir) if mt_dir else None,
-        features=(feats or None) if mt_dir else None, tau=tau, tau_per_class=per_class,
-        poses=poses if motions or poses else None,
-        delta=delta if delta is not None else recorded["delta"],
-        extra_templates=recorded["extra_templates"], title=title, progress=progress,
-        provenance=provenance(inputs=[*inputs, *motion_paths.values()],
-                              truth=str(truth_path) if truth_path else None))
-    return result, rows
-
+            poses[ff.document], sources[ff.document] = ff.poses, str(p)
+    if motions:  # the SHA-256 of each motion only when a feature file records one
+        digests: dict[str, str] | None = {} if any(made_from.values()) else None
+        poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures, rig=True,
+                                  encode=True, digests=digests, jobs=jobs, progress=step)
+        sources = {d: str(motion_paths[d]) for d in poses}
+        for d in list(poses):
+            why = motion_mismatch(d, poses[d].frames, recorded=None, last_labelled=0,
+                                  path=sources[d], digest=(digests or {}).get(d),
+                                  features_source=made_from.get(d))
+            if why is not None:
+                del poses[d]
+                other[d] = why
+    return feats, poses, sources, other
