@@ -17,7 +17,7 @@ from mtanno.commands._common import (
     user_errors,
 )
 from mtanno.errors import MtannoError
-from mtanno.tuning.cv import DOCUMENT_MODES
+from mtanno.tuning.cv import DOCUMENT_MODES, MAX_EXAMPLES
 from mtanno.tuning.run import VERIFY_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
@@ -65,6 +65,11 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("--confidence/--no-confidence", default=True, show_default=True,
               help="Learn the confidence of each segment and the minimum confidence of an "
                    "output row ([confidence], bank CONFIG.verify.parquet beside CONFIG).")
+@click.option("--max-examples", default=MAX_EXAMPLES, show_default=True,
+              type=click.IntRange(min=0),
+              help="Learn each template of the cross-validation (and each group template) "
+                   "from at most N examples of its class, drawn evenly over the performers "
+                   "(learning costs grow with the square of the examples); 0: all.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the held-out document composition (same seed, same file).")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
@@ -73,8 +78,8 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @scheduler_option
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
-             disabled, unknown_weight, ablation_dir, background, verify, confidence, seed, jobs,
-             quiet, scheduler):
+             disabled, unknown_weight, ablation_dir, background, verify, confidence,
+             max_examples, seed, jobs, quiet, scheduler):
     """Learn the annotation parameters from the training data alone (issue 10).
 
     Cross-validation inside the training examples: each performer (manifest actor, or
@@ -109,7 +114,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
         command=command_line(), seed=seed, n_jobs=jobs,
         methods=[m for m in METHODS if m not in disabled], documents=documents,
         unknown_weight=unknown_weight, scheduler=scheduler, background=background,
-        verify=verify, confidence=confidence, failures=skipped)
+        verify=verify, confidence=confidence, max_examples=max_examples, failures=skipped)
     for exc in skipped:
         click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     if result.not_validated:

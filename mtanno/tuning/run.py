@@ -24,7 +24,7 @@ from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
 from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
-from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
+from mtanno.tuning.cv import DOCUMENT_MODES, MAX_EXAMPLES, learning_subset, make_folds
 from mtanno.tuning.search import (
     GROUPS,
     METHODS,
@@ -33,7 +33,8 @@ from mtanno.tuning.search import (
     Params,
     Tuner,
     check_methods,
-    prepare_fold_class,
+    learn_fold_class,
+    match_fold_class,
 )
 
 __all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "template_folder_of", "tune",
@@ -71,6 +72,8 @@ class TuneResult:
     #: the verification bank of all training examples and background documents (None:
     #: no verification)
     bank: object = None
+    #: the most examples a template was learned from (None: all; issue 34)
+    max_examples: int | None = None
 
     @property
     def not_validated(self) -> list[str]:
@@ -106,7 +109,8 @@ def _spans(windows_per_doc: list[list[tuple[int, int]]], offsets: np.ndarray, ma
 
 
 def _final_groups(cls: str, examples: list[TrainingExample], k: int, learn: dict) -> list:
-    """The group templates of a class learned from all its training examples."""
+    """The group templates of a class learned from its training examples (all of them, or
+    the :func:`mtanno.tuning.cv.learning_subset` the caller drew)."""
     from mtanno.templates.learn import learn_template
     from mtanno.tuning.cluster import example_distances, group_examples
 
@@ -124,7 +128,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
          log: Callable[[str], None] | None = None, scheduler: str | None = None,
          background: Sequence[str | os.PathLike] = (), verify: str = "auto",
-         confidence: bool = True) -> TuneResult:
+         confidence: bool = True, max_examples: int | None = MAX_EXAMPLES) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
     collect_sources`): see :mod:`mtanno.tuning.search` for the search and
@@ -152,6 +156,13 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     ``verify``: ``"poses"``, ``"features"``, ``"none"`` (no verification: the evidence of
     cost and length only) or ``"auto"`` (poses when every training and background file has
     them, else features).
+
+    Issue 34: ``max_examples`` — every template learned here (per fold and class, and
+    the final group templates) is learned from at most that many of the class's examples
+    (:func:`mtanno.tuning.cv.learning_subset`; None or 0: all): the learning's cost grows
+    with the square of the examples. The search keeps the distance functions of every
+    class's templates on the held-out documents: template (1, 0) at every δ, the others
+    only at the δ it chose (memory in proportion to the training frames).
     """
     t0 = time.perf_counter()
     methods = _check_options(methods, documents, unknown_weight, verify)
@@ -173,14 +184,17 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
-    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn)
+    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn,
+                        max_examples=max_examples, seed=seed)
     prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
                                                           scheduler=scheduler, shared=shared)))
     columns = {c: matched_columns(templates[c].weights) for c in classes}
     columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
                     for c in classes for f in TEMPO_SCALES})
+    fetch = _fetch_matches(tasks, prepared, n_jobs=n_jobs, scheduler=scheduler, shared=shared)
     tuner = Tuner(folds, prepared, classes=classes, methods=methods,
-                  unknown_weight=unknown_weight, log=log, columns=columns)
+                  unknown_weight=unknown_weight, log=log, columns=columns, fetch=fetch,
+                  jobs=n_jobs if scheduler is None else 1)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
     reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
@@ -193,7 +207,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             variants[name] = tuner.search(delta=delta0, methods=subset)
     extra_of = _further_templates([params, *(v[0] for v in variants.values())], examples,
                                   templates, learn, n_jobs=n_jobs, scheduler=scheduler,
-                                  shared=shared)
+                                  shared=shared, max_examples=max_examples, seed=seed)
     fit = bank = None
     if confidence:
         fit, bank = _learn_confidence(tuner, params, folds, templates, examples, bg_docs,
@@ -204,12 +218,13 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
                         folds_held, seed, methods, documents, unknown_weight, seconds,
                         template_sha256=shas, background=bg_records, confidence=fit,
-                        bank=bank)
+                        bank=bank, max_examples=max_examples or None)
     for name, (p, ev, st) in variants.items():
         subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
                                            folds_held, seed, subset, documents, unknown_weight,
-                                           seconds, template_sha256=shas)
+                                           seconds, template_sha256=shas,
+                                           max_examples=max_examples or None)
     return result
 
 
@@ -370,12 +385,16 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     return templates, layout, examples, queries
 
 
-def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> list:
+def _fold_tasks(folds, examples, templates, queries, layout, methods, learn, *,
+                max_examples: int | None = None, seed: int = 0) -> list:
     """One task per fold and class with training examples in it (:func:`_fold_class_task`):
-    the class's templates learned on the fold's training examples, matched over its
-    held-out documents (inside the keyframe windows where the class has a query)."""
+    the class's templates learned on the fold's training examples (at most
+    ``max_examples`` of them, :func:`mtanno.tuning.cv.learning_subset`), matched over its
+    held-out documents (inside the keyframe windows where the class has a query). The
+    tasks come largest first (examples × frames², what learning costs), for an even load
+    of the workers."""
     index = {id(e): i for i, e in enumerate(examples)}
-    tasks = []
+    tasks, cost = [], []
     for f in folds:
         windows = None
         if queries:
@@ -388,6 +407,7 @@ def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> 
             train = [e for e in f.train if e.class_name == c]
             if not train:
                 continue
+            train = [train[i] for i in learning_subset(train, max_examples, seed=seed)]
             spans = ev_spans = None
             if windows is not None and c in queries:
                 wins = [w.get(c, []) for w in windows]
@@ -399,17 +419,24 @@ def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> 
                 "evidence": "frames" in methods and "resolve" in methods,
                 "evidence_spans": ev_spans,
                 "scales": TEMPO_SCALES if "templates" in methods else ()}))
-    return tasks
+            cost.append(sum(e.X.shape[1] for e in train))  # √ of the learning's cost
+    order = sorted(range(len(tasks)), key=lambda j: -cost[j])
+    return [tasks[j] for j in order]
 
 
 def _further_templates(chosen: Sequence[Params], examples, templates, learn, *, n_jobs,
-                       scheduler, shared) -> Callable[[Params], dict]:
+                       scheduler, shared, max_examples: int | None = None,
+                       seed: int = 0) -> Callable[[Params], dict]:
     """``extra_of(params)``: per class its further templates under ``params`` (one of
-    ``chosen``): the groups' templates, learned here from all the class's training
-    examples for every group count that ``chosen`` uses, then the time-scaled copies of
-    its template."""
+    ``chosen``): the groups' templates, learned here from the class's training examples
+    (at most ``max_examples``, :func:`mtanno.tuning.cv.learning_subset`) for every group
+    count that ``chosen`` uses, then the time-scaled copies of its template."""
     classes = list(templates)
-    by_class = {c: [i for i, e in enumerate(examples) if e.class_name == c] for c in classes}
+    by_class = {}
+    for c in classes:
+        idx = [i for i, e in enumerate(examples) if e.class_name == c]
+        by_class[c] = [idx[j] for j in learning_subset([examples[i] for i in idx], max_examples,
+                                                       seed=seed)]
     wanted = sorted({(c, p.groups[c]) for p in chosen for c in classes
                      if p.groups.get(c, 1) > 1})
     got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
@@ -475,15 +502,46 @@ def _call(fn, args, kwargs):
     return fn(*args, **kwargs)
 
 
-def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
-    """:func:`prepare_fold_class` of one fold and class, from the shared examples (by
-    index) and the fold's held-out documents."""
+def _fold_class_task(cls: str, train: list[int], fold: str, *, deltas, groups, learn, spans,
+                     evidence, evidence_spans, scales) -> dict:
+    """The templates of one fold and class (:func:`mtanno.tuning.search.learn_fold_class`)
+    from the shared examples (by index), and the matches of template (1, 0) on the fold's
+    held-out documents at every δ, without evidence (:func:`mtanno.tuning.search.
+    match_fold_class`): what the search's first step needs. The other templates are
+    matched later at the δ the search chose (:func:`_match_task`)."""
     from mtanno.util.workers import shared
 
     data = shared()
     held_X, offsets = data["held"][fold]
-    return prepare_fold_class(cls, [data["examples"][i] for i in train], held_X, offsets,
-                              **kwargs)
+    mts, made = learn_fold_class(cls, [data["examples"][i] for i in train], groups=groups,
+                                 learn=learn, scales=scales)
+    match = match_fold_class({(1, 0): mts[(1, 0)]}, held_X, offsets, deltas=deltas,
+                             spans=spans, evidence=False)
+    return {"groups": made, "templates": mts, "match": match}
+
+
+def _match_task(templates: dict, fold: str, delta: float, *, spans, evidence,
+                evidence_spans) -> dict:
+    """All templates of one fold and class matched at ``delta``, with their evidence."""
+    from mtanno.util.workers import shared
+
+    held_X, offsets = shared()["held"][fold]
+    return {"match": match_fold_class(templates, held_X, offsets, deltas=[delta], spans=spans,
+                                      evidence=evidence, evidence_spans=evidence_spans)}
+
+
+def _fetch_matches(tasks, prepared, *, n_jobs, scheduler, shared):
+    """``fetch(δ)`` of :class:`mtanno.tuning.search.Tuner`: every fold and class's templates
+    matched at δ, in the workers (:func:`_match_task`)."""
+
+    def fetch(delta: float) -> dict:
+        jobs = [(key, (prepared[key]["templates"], key[0], float(delta)),
+                 {k: kwargs[k] for k in ("spans", "evidence", "evidence_spans")})
+                for key, _, kwargs in tasks]
+        return dict(zip([t[0] for t in jobs], _run_tasks(jobs, n_jobs, _match_task,
+                                                         scheduler=scheduler, shared=shared)))
+
+    return fetch
 
 
 def _final_groups_task(cls: str, idx: list[int], k: int, learn: dict) -> list:
@@ -572,7 +630,9 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         f"class configuration written by mtanno {__version__} tune "
         f"({' '.join(command) if command else 'API'})",
         f"seed {result.seed}; methods: {', '.join(result.methods) or 'none'}; held-out "
-        f"documents: {result.documents}; unknown-class weight {result.unknown_weight:g}",
+        f"documents: {result.documents}; unknown-class weight {result.unknown_weight:g}; "
+        + (f"templates learned from at most {result.max_examples} examples each"
+           if result.max_examples else "templates learned from all examples"),
         "folds (held-out performer: examples): "
         + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
         f"cross-validated, tuned:    {_fmt(ev)}",

@@ -47,7 +47,7 @@ order); ``n_jobs`` only spreads the learning and matching over processes.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -57,7 +57,12 @@ from mtanno.annotate.decode import DEFAULT_SLACK, decode_segments, fold_label, r
 from mtanno.errors import MtannoError
 from mtanno.templates.tempo import COPY_BUDGET, TEMPO_SCALES, time_scaled
 from mtanno.tuning.cv import Fold
-from mtanno.tuning.score import Counts, _count, _covered_fraction  # unchecked: own segments
+from mtanno.tuning.score import (  # unchecked: own segments
+    Counts,
+    _count,
+    _cover,
+    _covered_fraction,
+)
 
 __all__ = ["DELTA_GRID", "EPS", "FRAME_WEIGHTS", "METHODS", "REJECT_STEPS", "SCALE_SETS",
            "SCALE_STEPS", "SEGMENT_COSTS", "SLACK_GRID", "TAU_GRID", "TAU_STEPS",
@@ -89,6 +94,8 @@ SCALE_STEPS = (0.8, 0.9, 1.1, 1.25)
 EPS = 0.002
 #: Default weight of the unknown-class rate in the objective.
 UNKNOWN_WEIGHT = 0.02
+#: Runs with a class left out remembered (a few steps' worth; oldest dropped first).
+HIDDEN_CACHE = 4096
 
 
 @dataclass
@@ -156,20 +163,26 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
                        spans: tuple[np.ndarray, np.ndarray] | None, evidence: bool,
                        evidence_spans: tuple[np.ndarray, np.ndarray] | None = None,
                        scales: Sequence[float] = ()) -> dict:
-    """One class of one fold (a worker task): its templates learned from ``train`` (all
-    examples, and per group for each group count of ``groups``), quantized with each δ,
-    matched against the held-out documents (``offsets``; only inside ``spans`` — absolute
-    first and last frames — when keyframe windows are given; the frame evidence then only
-    inside ``evidence_spans``, the windows widened as annotate widens them). Returns ``{"groups": {k: k'},
-    "match": {(δ, k', i): (Δ, absolute starts, evidence or None)}}``: k' groups were made
-    for k asked (fewer when a group would be too small); template (1, 0) is the one learned
-    from all examples, (k', i) group i of a split into k', and (0, f) for each f of
-    ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.templates.tempo.time_scaled`;
-    evidence None: it equals the template's)."""
-    from mtanno.annotate.decode import distinct_frames, frame_evidence
+    """One class of one fold: its templates learned from ``train`` (:func:`learn_fold_class`)
+    and matched against the held-out documents with each δ (:func:`match_fold_class`).
+    Returns ``{"groups": {k: k'}, "match": {(δ, k', i): (Δ, absolute starts, evidence or
+    None)}}``. (``tune`` runs the two halves apart: the search's first step needs only
+    template (1, 0), the others only at the δ it chose.)"""
+    templates, made = learn_fold_class(cls, train, groups=groups, learn=learn, scales=scales)
+    return {"groups": made,
+            "match": match_fold_class(templates, held_X, offsets, deltas=deltas, spans=spans,
+                                      evidence=evidence, evidence_spans=evidence_spans)}
+
+
+def learn_fold_class(cls: str, train, *, groups: Sequence[int], learn: dict,
+                     scales: Sequence[float] = ()) -> tuple[dict, dict]:
+    """The templates of one class of one fold, learned from ``train`` (all examples, and
+    per group for each group count of ``groups``): ``({key: template}, {k: k'})``. k' groups
+    were made for k asked (fewer when a group would be too small); template (1, 0) is the
+    one learned from all examples, (k', i) group i of a split into k', and (0, f) for each
+    f of ``scales`` template (1, 0) time-scaled by f (:func:`mtanno.templates.tempo.
+    time_scaled`)."""
     from mtanno.templates.learn import learn_template
-    from mtanno.templates.match import PreparedTemplate, pack_document
-    from mtanno.templates.model import quantize
     from mtanno.tuning.cluster import example_distances, group_examples
 
     templates = {(1, 0): learn_template(train, class_name=cls, **learn)}
@@ -186,6 +199,23 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
             for i in range(n):
                 templates[(n, i)] = learn_template([e for e, g in zip(train, lab) if g == i],
                                                    class_name=cls, **learn)
+    return templates, made
+
+
+def match_fold_class(templates: dict, held_X: np.ndarray, offsets: np.ndarray, *,
+                     deltas: Sequence[float], spans: tuple[np.ndarray, np.ndarray] | None,
+                     evidence: bool,
+                     evidence_spans: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """The templates of :func:`learn_fold_class` quantized with each δ and matched against
+    the held-out documents (``offsets``; only inside ``spans`` — absolute first and last
+    frames — when keyframe windows are given; the frame evidence then only inside
+    ``evidence_spans``, the windows widened as annotate widens them):
+    ``{(δ, k, i): (Δ, absolute starts, evidence or None)}`` (evidence None without
+    ``evidence``, and for a time-scaled copy: it equals the template's)."""
+    from mtanno.annotate.decode import distinct_frames, frame_evidence
+    from mtanno.templates.match import PreparedTemplate, pack_document
+    from mtanno.templates.model import quantize
+
     packed = pack_document(held_X, held_X.shape[0])
     distinct = distinct_frames(packed) if evidence else None
     out = {}
@@ -204,7 +234,7 @@ def prepare_fold_class(cls: str, train, held_X: np.ndarray, offsets: np.ndarray,
             ev = frame_evidence(packed, q.values, spans=evidence_spans,
                                 distinct=distinct) if evidence and key[0] else None
             out[(float(delta), *key)] = (d, s, ev)
-    return {"groups": made, "match": out}
+    return out
 
 
 @dataclass
@@ -224,29 +254,63 @@ class _FoldData:
                                             # (not scored in F1, F2 by the search)
     known_ignore: np.ndarray | None = None  # the absent classes' frames only
     n_background: int = 0                   # background documents (the last ones)
+    spans: list | None = None               # a subset's documents: (first, end, first
+                                            # here) frames in its fold (:func:`_subset`)
+    truth_cover: np.ndarray | None = None   # score._cover of the truth, once
+
+
+def _gather(spans: Sequence[tuple[int, int, int]], arr: np.ndarray) -> np.ndarray:
+    """The frames ``a..b−1`` of every span (a, b, new first frame) of ``arr`` (last axis),
+    concatenated: a fold's array restricted to some of its documents."""
+    return np.concatenate([arr[..., a:b] for a, b, _ in spans], axis=-1)
+
+
+def _gather_starts(spans: Sequence[tuple[int, int, int]], st: np.ndarray) -> np.ndarray:
+    """:func:`_gather` of start frames, moved along with their documents (−1 stays)."""
+    out = _gather(spans, st)
+    for a, b, n in spans:
+        part = out[..., n:n + b - a]
+        np.add(part, n - a, out=part, where=part >= 0)
+    return out
+
+
+class _SubsetMatch(Mapping):
+    """The match cache of a fold seen through some of its documents (:func:`_subset`):
+    each entry sliced when it is read, so a subset holds no copy of the fold's arrays
+    (issue 34: the copies of every class's subset were most of ``tune``'s memory)."""
+
+    def __init__(self, match: dict, spans: list[tuple[int, int, int]]):
+        self._match = match
+        self._spans = spans
+
+    def __getitem__(self, key):
+        d, st, ev = self._match[key]
+        return (_gather(self._spans, d), _gather_starts(self._spans, st),
+                None if ev is None else _gather(self._spans, ev))
+
+    def __iter__(self):
+        return iter(self._match)
+
+    def __len__(self) -> int:
+        return len(self._match)
 
 
 def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
     """The fold restricted to some of its documents (the unknown-class runs of a class
-    need only the documents that hold it): arrays sliced, start frames moved along."""
+    need only the documents that hold it): arrays sliced as they are read
+    (:class:`_SubsetMatch`), start frames moved along."""
     if len(docs) == len(fd.offsets) - 1:
         return fd
-    idx = np.concatenate([np.arange(fd.offsets[d], fd.offsets[d + 1]) for d in docs])
     lengths = [int(fd.offsets[d + 1] - fd.offsets[d]) for d in docs]
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
-    shift = np.concatenate([np.full(n, offsets[j] - fd.offsets[d], dtype=np.int64)
-                            for j, (d, n) in enumerate(zip(docs, lengths))])
+    spans = [(int(fd.offsets[d]), int(fd.offsets[d + 1]), int(offsets[j]))
+             for j, d in enumerate(docs)]
     new_of = {int(d): j for j, d in enumerate(docs)}
 
     def frame(a: int) -> int:
         d = int(np.searchsorted(fd.offsets, a, side="right")) - 1
         return int(a - fd.offsets[d] + offsets[new_of[d]])
 
-    match = {}
-    for key, (d, st, ev) in fd.match.items():
-        s2 = st[idx]
-        match[key] = (d[idx], np.where(s2 >= 0, s2 + shift, -1),
-                      None if ev is None else ev[idx])
     keep = [(c, a, b) for c, a, b in fd.truth
             if int(np.searchsorted(fd.offsets, a, side="right")) - 1 in new_of]
     truth = [(c, frame(a), frame(b)) for c, a, b in keep]
@@ -255,9 +319,17 @@ def _subset(fd: _FoldData, docs: Sequence[int]) -> _FoldData:
         for a, b in lst:
             if int(np.searchsorted(fd.offsets, a, side="right")) - 1 in new_of:
                 by_class.setdefault(c, []).append((frame(a), frame(b)))
-    return _FoldData(fd.name, int(offsets[-1]), offsets, fd.classes, truth, by_class, match,
-                     fd.groups)
+    return _FoldData(fd.name, int(offsets[-1]), offsets, fd.classes, truth, by_class,
+                     _SubsetMatch(fd.match, spans), fd.groups, spans=spans)
 
+
+def _sub_arrays(sub: _FoldData, arrays):
+    """:meth:`Tuner._arrays` of a subset from those of its fold (the same numbers: every
+    entry is a minimum over the templates of one frame, so slicing before or after is
+    alike)."""
+    mat, st, ev = arrays
+    return (_gather(sub.spans, mat), _gather_starts(sub.spans, st),
+            None if ev is None else _gather(sub.spans, ev))
 
 
 def _groups_text(split: dict[str, int]) -> str:
@@ -281,10 +353,27 @@ class Tuner:
     def __init__(self, folds: Sequence[Fold], prepared: dict[tuple[str, str], dict], *,
                  classes: Sequence[str], methods: Sequence[str] = METHODS,
                  unknown_weight: float = UNKNOWN_WEIGHT, log: Callable[[str], None] | None = None,
-                 columns: dict | None = None):
-        """``columns``: the matching columns (:func:`mtanno.templates.tempo.matched_columns`)
-        of each class's template (key: class) and of its time-scaled copies (key: (class,
-        factor)), for the copies' budget; None: no budget."""
+                 columns: dict | None = None,
+                 fetch: Callable[[float], dict] | None = None, jobs: int = 1):
+        """``prepared``: (fold, class) → ``{"groups": …, "match": …}`` as
+        :func:`prepare_fold_class` returns it. ``columns``: the matching columns
+        (:func:`mtanno.templates.tempo.matched_columns`) of each class's template (key:
+        class) and of its time-scaled copies (key: (class, factor)), for the copies'
+        budget; None: no budget.
+
+        ``fetch``: when given, ``prepared`` holds only template (1, 0) of every class (what
+        the search's first step needs, at every δ), and ``fetch(δ)`` gives, in the same
+        form, the matches of all templates with their evidence at δ; it is called the
+        first time a point at δ needs them (issue 34: only the δ the search chose is kept
+        whole). ``jobs`` > 1: the candidates of a search step are scored in that many
+        worker processes (forked: they share the cached fold data)."""
+        self._fetch = fetch
+        self._whole: set[float] = set()
+        #: (fold, class left out, the other classes' parameters) → its unknown-class
+        #: counts: the candidates of a per-class step share the run without their class
+        self._hidden: dict[tuple, tuple[int, int]] = {}
+        self.jobs = int(jobs)
+        self._pool = None
         self.classes = list(classes)
         self.columns = columns
         self.methods = set(methods)
@@ -340,6 +429,47 @@ class Tuner:
                     fd.hidden[c] = _subset(fd, docs)
             self.folds.append(fd)
         self.evaluations = 0
+
+    # ------------------------------------------------------------------ fold data
+
+    def _need(self, params: Params) -> None:
+        """Fetch the matches of all templates at ``params.delta`` if ``params`` needs more
+        than template (1, 0) without evidence and they are not here yet."""
+        if self._fetch is None or params.delta in self._whole:
+            return
+        if not (params.frame_weight > 0 or any(k > 1 for k in params.groups.values())
+                or any(params.scales.values())):
+            return
+        got = self._fetch(params.delta)
+        for fd in self.folds:
+            for c in fd.classes:
+                for (delta, k, i), v in got[(fd.name, c)]["match"].items():
+                    fd.match[(delta, c, k, i)] = v
+        self._whole.add(params.delta)
+        self._close_pool()  # its workers hold the fold data as it was
+
+    def _close_pool(self, *, error: bool = False) -> None:
+        pool, self._pool = self._pool, None
+        if pool is not None:
+            if error:
+                pool.stop()
+            else:
+                pool.__exit__(None, None, None)
+
+    def _evaluate_all(self, candidates: Sequence[Params]) -> list[Evaluation]:
+        """:meth:`evaluate` of every candidate, in order (in the worker processes when
+        ``jobs`` > 1)."""
+        for cand in candidates:
+            self._need(cand)
+        if self.jobs < 2 or len(candidates) < 2:
+            return [self.evaluate(c) for c in candidates]
+        if self._pool is None:
+            from mtanno.util.workers import WorkerPool
+
+            self._pool = WorkerPool(min(self.jobs, len(candidates)), shared=self)
+        got = list(self._pool.map(_evaluate_shared, [(c,) for c in candidates]))
+        self.evaluations += len(candidates)
+        return got
 
     # ------------------------------------------------------------------ scoring
 
@@ -406,9 +536,17 @@ class Tuner:
         back = np.arange(L) - np.cumsum(sep)  # frame of the concatenation without separators
         return [(self.ids[r.label], int(back[r.start]), int(back[r.end])) for r in rows]
 
+    def _without(self, params: Params, c: str) -> tuple:
+        """What the run with class ``c`` left out depends on: ``params`` but ``c``'s own."""
+        return (params.delta, params.resolve, params.refine, params.slack,
+                params.frame_weight, params.segment_cost,
+                tuple((x, params.tau.get(x), params.reject.get(x), params.groups.get(x, 1),
+                       tuple(params.scales.get(x, ()))) for x in self.classes if x != c))
+
     def evaluate(self, params: Params, *, per_class: bool = False) -> Evaluation:
         """J and the counts of ``params`` over all folds (unknown rate with each class left
         out in turn)."""
+        self._need(params)
         self.evaluations += 1
         total = Counts.zero()
         unk = [0, 0]
@@ -417,7 +555,10 @@ class Tuner:
         for fd in self.folds:
             arrays = self._arrays(fd, params) if params.resolve else None
             segs = self._segments(fd, params, fd.classes, arrays)
-            total += _count(fd.truth, segs, len(self.names), fd.n_frames, fd.ignore)
+            if fd.truth_cover is None:
+                fd.truth_cover = _cover(fd.truth, len(self.names), fd.n_frames)
+            total += _count(fd.truth, segs, len(self.names), fd.n_frames, fd.ignore,
+                            fd.truth_cover)
             if per_class:
                 for c in self.classes:
                     cid = self.ids[c]
@@ -434,11 +575,18 @@ class Tuner:
                 per_unk[c] = (h0 + hit, n0 + n)
             if self.unknown_weight > 0 or per_class:
                 for c, sub in fd.hidden.items():
-                    rest = [x for x in fd.classes if x != c]
-                    sub_arrays = arrays if sub is fd else (
-                        self._arrays(sub, params) if params.resolve else None)
-                    hit, n = _covered_fraction(sub.truth_by_class[c], self._segments(
-                        sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
+                    key = (fd.name, c, self._without(params, c))
+                    got = self._hidden.get(key)
+                    if got is None:
+                        rest = [x for x in fd.classes if x != c]
+                        sub_arrays = arrays if sub is fd or arrays is None else \
+                            _sub_arrays(sub, arrays)
+                        got = _covered_fraction(sub.truth_by_class[c], self._segments(
+                            sub, params, rest, sub_arrays) if rest else [], sub.n_frames)
+                        if len(self._hidden) >= HIDDEN_CACHE:
+                            del self._hidden[next(iter(self._hidden))]
+                        self._hidden[key] = got
+                    hit, n = got
                     unk[0] += hit
                     unk[1] += n
                     h0, n0 = per_unk.get(c, (0, 0))
@@ -454,8 +602,7 @@ class Tuner:
         """The candidate of highest J (the first of equals), if it beats ``current`` by
         more than ``eps``."""
         best, best_ev = None, None
-        for cand in candidates:
-            ev = self.evaluate(cand)
+        for cand, ev in zip(candidates, self._evaluate_all(candidates)):
             if best_ev is None or ev.J > best_ev.J:
                 best, best_ev = cand, ev
         if current is not None and (best_ev is None or best_ev.J <= current.J + eps):
@@ -470,6 +617,16 @@ class Tuner:
         """The coordinate search of the module docstring over ``methods`` (default: the
         tuner's); returns the best parameters, their evaluation and a log of the steps
         (one line each, with J)."""
+        try:
+            got = self._search(delta=delta, methods=methods)
+        except BaseException:
+            self._close_pool(error=True)
+            raise
+        self._close_pool()
+        return got
+
+    def _search(self, *, delta: float, methods: Sequence[str] | None,
+                ) -> tuple[Params, Evaluation, list[str]]:
         on = set(self.methods if methods is None else methods)
         steps: list[str] = []
 
@@ -487,12 +644,11 @@ class Tuner:
         deltas = [float(d) for d in DELTA_GRID] if "delta" in on else [float(delta)]
         decoders = [True, False] if "resolve" in on else [False]
         cur, cur_ev = None, None
-        for dl in deltas:
-            for res in decoders:
-                p0 = base.copy(delta=dl, resolve=res, refine=base.refine)
-                cand, ev = self._best([self._with_tau(p0, t) for t in TAU_GRID])
-                if cur_ev is None or ev.J > cur_ev.J:
-                    cur, cur_ev = cand, ev
+        cands = [self._with_tau(base.copy(delta=dl, resolve=res, refine=base.refine), t)
+                 for dl in deltas for res in decoders for t in TAU_GRID]
+        for cand, ev in zip(cands, self._evaluate_all(cands)):  # the first of the best
+            if cur_ev is None or ev.J > cur_ev.J:
+                cur, cur_ev = cand, ev
         note(f"one tau {cur.tau[self.classes[0]]:g}, delta {cur.delta:g}, "
              f"{'segment decoder' if cur.resolve else 'reference decoder'}", cur_ev)
         # 2. boundary refinement
@@ -590,6 +746,13 @@ class Tuner:
                 return cur, cur_ev, used
             used += costs[cands.index(got)]
             cur, cur_ev = got, ev
+
+
+def _evaluate_shared(params: Params) -> Evaluation:
+    """:meth:`Tuner.evaluate` in a worker of the tuner's pool."""
+    from mtanno.util.workers import shared
+
+    return shared().evaluate(params)
 
 
 def _round(x: float) -> float:
