@@ -744,3 +744,40 @@ def test_tune_learns_each_template_from_at_most_max_examples(world, monkeypatch,
     sizes.clear()
     r = tune(_sources(world), world.mt, seed=1, n_jobs=1, confidence=False, max_examples=0)
     assert max(sizes) > 1 and r.max_examples is None
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_the_best_candidate_is_found_without_scoring_every_run(jobs):
+    """_best scores the runs with a class left out only while a candidate can still win,
+    and returns what scoring everything returns: the first of the highest J, or nothing
+    when none beats the current point by eps."""
+    fold, prepared = _fold_data()
+    fold.held_out.truth.append(("c", 0, 0))
+    tuner = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.5, jobs=jobs)
+    base = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 1, "b": 1})
+    cands = [base.copy(tau={"a": ta, "b": tb}, resolve=r, groups={"a": g, "b": 1})
+             for ta in (0.05, 0.1, 0.3, 0.5) for tb in (0.05, 0.13, 0.5) for r in (True, False)
+             for g in (1, 2)]
+    cands += cands[:5]  # equals later in the list: the first must win
+    full = [tuner.evaluate(c) for c in cands]
+    top = max(e.J for e in full)
+    first = next(i for i, e in enumerate(full) if e.J == top)
+    runs = []
+    if jobs == 1:  # count the runs scored (in this process)
+        segments = tuner._segments
+        tuner._segments = lambda fd, p, classes, arrays=None: runs.append(len(classes)) or \
+            segments(fd, p, classes, arrays)
+    try:
+        tuner._hidden.clear()
+        got, ev = tuner._best(cands)
+        assert got == cands[first] and ev == full[first]
+        if jobs == 1:  # every run with all classes, and far fewer with one left out
+            assert runs.count(2) == len(cands) and 0 < runs.count(1) < len(cands)
+        for current, eps in ((full[first], 0.0), (full[-1], 0.0), (full[-1], 0.01)):
+            got, ev = tuner._best(cands, current, eps)
+            if top > current.J + eps:
+                assert got == cands[first] and ev == full[first]
+            else:
+                assert got is None and ev is None
+    finally:
+        tuner._close_pool()
