@@ -189,14 +189,78 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     return ff.document, rows, ff.native_frames, ff.sha256, time.perf_counter() - t0
 
 
+#: Documents per task of a worker pool at most (a task carries file names only: the setup
+#: reaches every worker once, :func:`mtanno.util.workers.shared`).
+MAX_CHUNK = 16
+#: Tasks per worker at least, where there are enough documents (for an even load).
+CHUNKS_PER_JOB = 4
+
+
+def _chunks(paths: list, n_jobs: int) -> list[list]:
+    """``paths`` in consecutive tasks of up to :data:`MAX_CHUNK` documents, at least
+    :data:`CHUNKS_PER_JOB` tasks per worker where there are enough (one document per task
+    without a pool: the results come as the documents are done)."""
+    if n_jobs < 2:
+        return [[p] for p in paths]
+    size = max(1, min(MAX_CHUNK, -(-len(paths) // (n_jobs * CHUNKS_PER_JOB))))
+    return [paths[i:i + size] for i in range(0, len(paths), size)]
+
+
+def _annotate_chunk(items: list[tuple[str, str | None]]) -> list:
+    """Every document of a task, with the batch's setup that every worker got once
+    (:func:`mtanno.util.workers.shared`): :func:`_annotate_file`, or, with an output
+    table, :func:`_annotate_into` it."""
+    from mtanno.util.workers import shared
+
+    setup, base = shared()
+    return [_annotate_file(p, *setup) if dst is None else _annotate_into(p, dst, setup, base)
+            for p, dst in items]
+
+
+def _annotate_into(path: str, dst: str, setup: tuple, base: dict):
+    """One document annotated and its table written to ``dst`` (format by suffix) with the
+    provenance ``base`` of the batch for this one document (its feature file, frames and
+    time of writing; issue 34: written where it was computed, in the worker, instead of
+    one after another by the parent): ``(document, rows written, frames, sha256,
+    seconds)``, or the message of its failure."""
+    from mtanno.annotate.tables import write_annotations
+    from mtanno.util.tables import utc_now
+
+    got = _annotate_file(path, *setup)
+    if isinstance(got, str):
+        return got
+    doc, rows, native, digest, seconds = got
+    prov = dict(base)  # the keys in the order AnnotationSetup.provenance gives them
+    prov["created"] = utc_now()
+    prov["inputs"] = [{"path": str(path), "sha256": digest}]
+    prov["documents"] = {doc: int(native.shape[0])}
+    try:
+        write_annotations(dst, rows, {doc: native}, provenance=prov)
+    except MtannoError as exc:
+        return str(exc)
+    return doc, len(rows), int(native.shape[0]), digest, seconds
+
+
 def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
                    layout: FeatureLayout, config: ClassConfig, dbar_variant: str,
                    match_variant: str, keyframes, n_jobs: int,
                    single_label: bool, scheduler: str | None, confidence=None,
-                   min_confidence: float | None = None):
+                   min_confidence: float | None = None,
+                   outputs: Sequence[str | os.PathLike] | None = None,
+                   provenance: dict | None = None):
     """(path, result) for every document of a batch in input order, as the pool delivers
     them: result is ``(document, rows, native frames, sha256, seconds)`` or the message
-    of the document's failure."""
+    of the document's failure. With ``outputs`` (one table per path) each document's
+    table is written where it is annotated, with ``provenance`` (the batch's, with
+    placeholders for the document's own entries; :func:`_annotate_into`), and result is
+    ``(document, rows written, frames, sha256, seconds)``.
+
+    Issue 34 (many short files as cheap as one long document): the setup (models,
+    configuration, keyframe queries, confidence with its verification bank) reaches each
+    worker once — forked with the pool, or scattered to a dask cluster — and a task
+    carries the names of several documents (:func:`_chunks`). With local workers the
+    first document is annotated here before the pool starts, so that the workers are
+    forked with every kernel it needs already loaded."""
     from mtanno.keyframes import KeyframeSet
     from mtanno.util.workers import make_pool
 
@@ -206,11 +270,20 @@ def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
             keyframes = KeyframeSet(keyframes, layout.names, feature_set=layout.feature_set)
         except MtannoError:
             pass
-    args = [(str(p), models, layout, config, dbar_variant, match_variant, keyframes,
-             single_label, confidence, min_confidence) for p in paths]
-    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(args)) as pool:
-        for a, result in zip(args, pool.map(_annotate_file, args)):
-            yield a[0], result
+    setup = (models, layout, config, dbar_variant, match_variant, keyframes, single_label,
+             confidence, min_confidence)
+    items = list(zip([str(p) for p in paths], [None] * len(paths) if outputs is None
+                     else [str(o) for o in outputs]))
+    if n_jobs > 1 and scheduler is None and len(items) > 1:
+        # the first document here: the workers are forked with its kernels loaded
+        (path, dst), items = items[0], items[1:]
+        yield path, (_annotate_file(path, *setup) if dst is None else
+                     _annotate_into(path, dst, setup, provenance))
+    chunks = _chunks(items, n_jobs if scheduler is None else max(n_jobs, 2))
+    with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(chunks),
+                   shared=(setup, provenance)) as pool:
+        for chunk, results in zip(chunks, pool.map(_annotate_chunk, [(c,) for c in chunks])):
+            yield from ((p, r) for (p, _), r in zip(chunk, results))
 
 
 def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
@@ -334,14 +407,20 @@ class AnnotationSetup:
                               min_confidence=self.min_confidence)
 
     def iter_annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1,
-                      scheduler: str | None = None):
+                      scheduler: str | None = None,
+                      outputs: Sequence[str | os.PathLike] | None = None):
         """(path, result) per document in input order as they are done (result: document,
-        rows, native frames, SHA-256, seconds; or the failure's message)."""
+        rows, native frames, SHA-256, seconds; or the failure's message). With ``outputs``
+        (one table per path) each table is written, with this setup's provenance for its
+        document, where the document was annotated (result: document, rows written,
+        frames, SHA-256, seconds)."""
         return _iter_annotate(paths, self.models, layout=self.layout, config=self.config,
                               dbar_variant=self.dbar_variant, match_variant=self.match_variant,
                               keyframes=self.keyframes or None, n_jobs=n_jobs,
                               single_label=self.single_label, scheduler=scheduler,
-                              confidence=self.confidence, min_confidence=self.min_confidence)
+                              confidence=self.confidence, min_confidence=self.min_confidence,
+                              outputs=outputs, provenance=None if outputs is None else
+                              self.provenance(inputs=[{}], documents={"": 0}))
 
 
 def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
