@@ -2,7 +2,7 @@
 
 The package reads the pipeline left to right: :mod:`mtanno.io` (mocap files to joint
 positions), :mod:`mtanno.features` (40 boolean relational features at 30 Hz, stored as
-Parquet feature files by :mod:`mtanno.util.store`), :mod:`mtanno.templates` (motion
+Parquet feature files by :mod:`mtanno.features.store`), :mod:`mtanno.templates` (motion
 templates), :mod:`mtanno.index` (relational index and queries), :mod:`mtanno.keyframes`,
 :mod:`mtanno.annotate`, :mod:`mtanno.tuning` and :mod:`mtanno.evaluation`;
 :mod:`mtanno.align` and :mod:`mtanno.retrieve` beside them, the plumbing in
@@ -22,6 +22,7 @@ light): :func:`read_motion`, :func:`compute_features`, :func:`learn_templates`,
 
 from mtanno._version import __version__
 from mtanno.errors import MtannoError
+from mtanno.util.lazy import submodule_getattr
 
 _API = ("annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
         "load_templates", "read_motion")
@@ -29,12 +30,16 @@ _API = ("annotate_documents", "compute_features", "evaluate_annotation", "learn_
 __all__ = ["MtannoError", "__version__", *_API]
 
 
-def __getattr__(name: str):
+def _api(name: str):
     if name in _API:
         from mtanno import api
 
         return getattr(api, name)
-    raise AttributeError(f"module 'mtanno' has no attribute {name!r}")
+    raise AttributeError(name)
+
+
+# the facade's names, then the subpackages on first use (mtanno.annotate.load_class_config)
+__getattr__ = submodule_getattr(__name__, _api)
 
 
 def __dir__() -> list[str]:

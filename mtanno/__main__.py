@@ -13,7 +13,8 @@ functions, flushing the output), so no late shutdown step runs with the default 
 no library thread can abort the process while the interpreter is torn down.
 
 This module imports only what is loaded already when it runs: os, signal, sys and
-:mod:`mtanno.errors` (which the package imports).
+:mod:`mtanno.errors` (which the package imports), and the test hook
+:mod:`mtanno.util.pause` (os and signal alone).
 """
 
 from __future__ import annotations
@@ -23,16 +24,16 @@ import signal
 import sys
 
 from mtanno.errors import interrupted_line  # (loaded already: the package imports it)
+from mtanno.util.pause import pause_at
 
 #: Exit codes of an interrupted command: 128 + the signal as shells report it, SIGTERM like
 #: SIGINT ("interrupted"), SIGHUP its own.
 EXIT_CODES = {"SIGINT": 130, "SIGTERM": 130, "SIGHUP": 129}
 
-#: Test hook: ``MTANNO_TEST_PAUSE=MOMENT:FILE`` makes the program create FILE at MOMENT
-#: (``imports``: handlers set, nothing imported yet; ``shutdown``: the command has returned)
-#: and wait there for a signal, so that tests can send one at that moment without guessing
-#: a time.
-PAUSE_VARIABLE = "MTANNO_TEST_PAUSE"
+# Test hook (mtanno.util.pause): MTANNO_TEST_PAUSE=MOMENT:FILE makes the program create
+# FILE at MOMENT (``imports``: handlers set, nothing imported yet; ``shutdown``: the command
+# has returned) and wait there for a signal, so that tests can send one at that moment
+# without guessing a time.
 
 
 def _at_the_edge(signum, frame) -> None:
@@ -52,16 +53,6 @@ def install_edge_handlers() -> None:
             signal.signal(signum, _at_the_edge)
 
 
-def _pause(moment: str) -> None:
-    want, _, marker = os.environ.get(PAUSE_VARIABLE, "").partition(":")
-    if want != moment or not marker:
-        return
-    with open(marker, "w"):
-        pass
-    while True:  # until the test's signal ends the process
-        signal.pause()
-
-
 def _code(exc: SystemExit) -> int:
     """The exit status Python would give for ``sys.exit(exc.code)``."""
     if exc.code is None:
@@ -77,7 +68,7 @@ def _finish(code: int) -> None:
     then with :func:`os._exit`, so the edge handlers hold until the very end."""
     import atexit
 
-    _pause("shutdown")
+    pause_at("shutdown")
     try:
         atexit._run_exitfuncs()
     finally:
@@ -92,7 +83,7 @@ def _finish(code: int) -> None:
 def main() -> None:
     """Run the ``mtanno`` command line (:func:`mtanno.cli.main`) inside the edge policy."""
     install_edge_handlers()
-    _pause("imports")
+    pause_at("imports")
     try:
         from mtanno.cli import main as cli_main
 

@@ -23,8 +23,8 @@ if TYPE_CHECKING:
 
     from mtanno.annotate import AnnotationBatch, ClassConfig
     from mtanno.evaluation.metrics import Report
-    from mtanno.evaluation.truth import Segment
     from mtanno.io.skeleton import Motion
+    from mtanno.labels.segments import Segment
     from mtanno.templates.model import MotionTemplate
 
 __all__ = ["annotate_documents", "compute_features", "evaluate_annotation", "learn_templates",
@@ -34,27 +34,31 @@ PathLike = str | os.PathLike
 
 
 def read_motion(path: PathLike, *, asf: PathLike | None = None,
-                skeleton: PathLike | None = None) -> Motion:
-    """A motion file (ASF/AMC or BVH) with world positions of every node
-    (:func:`mtanno.io.read_motion`; algorithms.md §1). An AMC file's ASF is found beside
-    it unless ``asf`` is given."""
+                skeleton: PathLike | None = None, markers: PathLike | None = None,
+                up: str | None = None) -> Motion:
+    """A motion file (ASF/AMC, BVH or C3D) with world positions of every node, Y up
+    (:func:`mtanno.io.read_motion`; docs/method.md §1). An AMC file's ASF is found beside
+    it unless ``asf`` is given; a C3D file's joints come from the marker set ``markers``
+    (default: the built-in set that fits); ``up``: the file's up axis ("y" or "z"; default
+    Y for ASF/AMC and BVH, the file's for C3D)."""
     from mtanno.io import read_motion as _read
 
-    return _read(path, asf=asf, skeleton=skeleton)
+    return _read(path, asf=asf, skeleton=skeleton, markers=markers, up=up)
 
 
 def compute_features(motion: Motion | PathLike, *, feature_set: str = "ak40",
-                     up: str = "y") -> np.ndarray:
+                     up: str | None = None) -> np.ndarray:
     """The (features × frames) 0/1 matrix (uint8) of a motion at 30 Hz: the 40 relational
     features of [MR06] Table 6 + F40 (``feature_set="ak40"``) or the 31 of [MRC05]
     (``"mrc05"``); row names in :func:`mtanno.features.get_feature_set`. ``motion`` is a
-    :class:`~mtanno.io.skeleton.Motion` or a motion file; ``up`` its up axis ("y" or "z").
+    :class:`~mtanno.io.skeleton.Motion` or a motion file; ``up`` its up axis ("y" or "z";
+    for a file as :func:`read_motion` takes it, for a Motion default "y").
     (:func:`mtanno.features.extract.features_from_motion`.)"""
     from mtanno.features.extract import features_from_motion
 
     if not hasattr(motion, "positions"):
-        motion = read_motion(motion)
-    X, _ = features_from_motion(motion, feature_set=feature_set, up=up)
+        motion, up = read_motion(motion, up=up), "y"  # (read turned to Y up)
+    X, _ = features_from_motion(motion, feature_set=feature_set, up=up or "y")
     return X
 
 
@@ -106,7 +110,7 @@ def annotate_documents(features: PathLike | Iterable[PathLike],
     import warnings
 
     from mtanno.annotate import annotation_setup
-    from mtanno.util.store import document_files
+    from mtanno.features.inputs import document_files
 
     paths = document_files([features] if isinstance(features, (str, os.PathLike)) else features)
     if isinstance(templates, (str, os.PathLike)):
@@ -130,7 +134,7 @@ def evaluate_annotation(annotations: AnnotationBatch | Sequence | PathLike,
     (:func:`mtanno.evaluation.metrics.evaluate_annotations`.)"""
     from mtanno.annotate import read_annotation_tables, to_segments
     from mtanno.evaluation.metrics import documents_evaluated, evaluate_annotations
-    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.labels.truth import check_within, read_truth
 
     frames = getattr(annotations, "frames", None)  # documents' lengths, for frame accuracy
     if isinstance(annotations, (str, os.PathLike)):

@@ -55,10 +55,17 @@ class _Main(click.Group):
     errors are one line too (:class:`_UsageLine`)."""
 
     def main(self, args=None, prog_name=None, **extra):
+        from mtanno.errors import MtannoError
+        from mtanno.util.stdout import guarded_stdout
         from mtanno.util.tables import set_command_line
 
         set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
-        return super().main(args=args, prog_name=prog_name, **extra)
+        try:  # a full device under standard output says so (help texts too)
+            with guarded_stdout():
+                return super().main(args=args, prog_name=prog_name, **extra)
+        except MtannoError as exc:  # outside a command's own error report (--help)
+            click.echo(f"mtanno: {exc}", err=True)
+            sys.exit(2)
 
     def make_context(self, info_name, args, parent=None, **extra):
         try:  # the group's own options (mtanno --bogus)

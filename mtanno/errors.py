@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import os
 import re
-from pathlib import Path
+import sys
 
 
 class MtannoError(Exception):
@@ -41,6 +41,12 @@ class MtannoError(Exception):
         self.line = line
         super().__init__(str(self))
 
+    def __reduce__(self):
+        # sent between processes whole (a batch's worker reports it to the command, which
+        # names the options as flags)
+        return (_rebuild, (type(self), self.template, self.path, self.line, self.options,
+                           self.__dict__))
+
     def _render(self, names: dict[str, str]) -> str:
         out = self.template
         for name, text in names.items():  # (not str.format: other braces stay as they are)
@@ -65,6 +71,13 @@ class MtannoError(Exception):
         return f"{self.path}:{self.line}: {self.message}"
 
 
+def _rebuild(cls, template, path, line, options, state):
+    exc = cls.__new__(cls)
+    MtannoError.__init__(exc, template, path=path, line=line, options=options)
+    exc.__dict__.update(state)
+    return exc
+
+
 def interrupted_line(name: str) -> str:
     """The one line of a command interrupted by signal ``name`` (``SIGINT`` …), wherever the
     interruption lands (:mod:`mtanno.__main__`, :mod:`mtanno.cli`)."""
@@ -72,15 +85,71 @@ def interrupted_line(name: str) -> str:
             "were not written")
 
 
-def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
-    """The bytes of an input file; a missing or unreadable file is a :class:`MtannoError`
-    naming it (``what`` names the kind of file in the message)."""
+def _kind(mode: int) -> str:
+    import stat
+
+    return ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else
+            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file")
+
+
+class NotRegularFile(OSError):
+    """What :func:`open_regular` refuses to read: a FIFO, a device, a socket."""
+
+
+def open_regular(path: str | os.PathLike):
+    """A regular file opened for reading (binary), the one way mtanno opens a file it
+    reads; anything else is refused before a byte is read: a FIFO (opening one waits for a
+    writer, reading it for the writer's end), a device (``/dev/zero`` never ends), a
+    socket (:class:`NotRegularFile`), a folder (:class:`IsADirectoryError`). The file is
+    opened without waiting (``O_NONBLOCK``, so a FIFO cannot hold the open) and checked
+    with ``fstat`` on the descriptor (what was opened, not what the name pointed to a
+    moment before). Errors are :class:`OSError` (for callers that treat an unreadable file
+    as absent); :func:`open_input` makes them one :class:`MtannoError`."""
+    import errno
+    import stat
+
+    nonblock = getattr(os, "O_NONBLOCK", 0)
+    # io.open (a binary read, as audit hooks see it) with a descriptor opened not to wait
+    fh = open(path, "rb", opener=lambda p, flags: os.open(p, flags | nonblock))
     try:
-        return Path(path).read_bytes()
+        mode = os.fstat(fh.fileno()).st_mode
+        if stat.S_ISDIR(mode):
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+        if not stat.S_ISREG(mode):
+            raise NotRegularFile(errno.EINVAL, f"not a regular file ({_kind(mode)}): not read",
+                                 str(path))
+        if nonblock:
+            os.set_blocking(fh.fileno(), True)
+        return fh
+    except BaseException:
+        fh.close()
+        raise
+
+
+def open_input(path: str | os.PathLike, *, what: str = "file"):
+    """:func:`open_regular`, its refusals one :class:`MtannoError` naming the file
+    (``what`` names the kind of file): missing, unreadable, a folder, or not a regular
+    file (a FIFO, a device: "is not a regular file (a FIFO): not read")."""
+    try:
+        return open_regular(path)
     except FileNotFoundError:
         raise MtannoError(f"{what} not found", path=str(path)) from None
+    except NotRegularFile as exc:
+        raise MtannoError(f"{what} is {exc.strerror}", path=str(path)) from None
     except OSError as exc:
         raise MtannoError(f"cannot read {what}: {exc.strerror or exc}", path=str(path)) from None
+
+
+def read_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
+    """The bytes of an input file (:func:`open_input`: a regular file, never a FIFO or a
+    device); a missing or unreadable file is a :class:`MtannoError` naming it (``what``
+    names the kind of file in the message)."""
+    with open_input(path, what=what) as fh:
+        try:
+            return fh.read()
+        except OSError as exc:
+            raise MtannoError(f"cannot read {what}: {exc.strerror or exc}",
+                              path=str(path)) from None
 
 
 def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
@@ -94,6 +163,35 @@ def read_text_input(path: str | os.PathLike, *, what: str = "file") -> bytes:
         raise MtannoError("binary data (NUL byte) in a text file", path=str(path),
                           line=raw[:nul].count(b"\n") + 1)
     return raw
+
+
+# --------------------------------------------------------------------------- TOML files
+
+
+def read_toml(path: str | os.PathLike, *, what: str = "file") -> tuple[dict, str]:
+    """(value, text) of a TOML file (skeleton maps, class configurations), read as
+    :func:`read_input` reads (a regular file) and parsed so that any input is one
+    :class:`MtannoError` naming the file: not UTF-8, malformed (tomllib's message, with its
+    line), or nested so deeply that the parser, which recurses, cannot follow (arrays or
+    inline tables thousands deep: "nested too deeply", never a RecursionError)."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    spath = str(path)
+    raw = read_input(path, what=what)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise MtannoError(f"not a valid TOML {what}: not UTF-8 text", path=spath) from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as exc:
+        raise MtannoError(f"not a valid TOML {what}: {exc}", path=spath) from None
+    except RecursionError:  # tomllib recurses once per level of nesting
+        raise MtannoError(f"not a valid TOML {what}: nested too deeply (arrays or tables "
+                          "inside each other thousands of levels deep)", path=spath) from None
 
 
 # --------------------------------------------------------------------------- JSON files

@@ -15,8 +15,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.features.store import FeatureFile
 from mtanno.io.skeleton import Motion
-from mtanno.util.store import FeatureFile
 
 #: Characters of a timeline cell: the feature is off in every frame of the cell, on in
 #: every frame, or on in some.
@@ -32,6 +32,9 @@ def describe_feature_file(ff: FeatureFile) -> list[str]:
     skeleton map and the mtanno version that wrote it (the file's metadata)."""
     m = ff.meta
     poses = m.get("poses") if ff.has_poses else None
+    n = ff.X.shape[1]
+    invalid = n - int(ff.valid.sum())
+    markers = m.get("markers") if isinstance(m.get("markers"), dict) else None
     return [
         f"feature file   {ff.path}",
         f"document       {ff.document}",
@@ -41,7 +44,12 @@ def describe_feature_file(ff: FeatureFile) -> list[str]:
         f"frames         {ff.X.shape[1]} at {m.get('analysis_fps')} Hz "
         f"({m.get('native_frames')} native at {m.get('native_fps')} Hz)",
         *([f"poses          {len(poses['joints'])} joints, {poses['unit']}"] if poses else []),
-        f"skeleton map   {m.get('skeleton_map')}",
+        *([f"invalid        {invalid} frames ({100 * invalid / max(n, 1):.1f} %) in "
+           f"{len(m['invalid'])} stretch(es): no evidence, never labelled"]
+          if "invalid" in m else []),
+        *([f"marker set     {markers.get('set')} (subject prefix "
+           f"{markers.get('subject') or 'none'!r}, units {markers.get('units')})"]
+          if markers else [f"skeleton map   {m.get('skeleton_map')}"]),
         f"mtanno         {m.get('mtanno_version')}",
     ]
 
@@ -50,10 +58,13 @@ def describe_motion(motion: Motion) -> list[str]:
     """The lines ``mtanno info MOTION`` prints for a motion read by
     :func:`mtanno.io.read_motion`: rig, frame rate, length in frames and seconds, skeleton
     map and how it was chosen or made (a map file that fits, ``--skeleton``, or generated
-    from the joint names and the tree: :mod:`mtanno.io.guess`), and which rig joint each
+    from the joint names and the tree, :mod:`mtanno.io.guess`, or from the hierarchy and
+    rest pose, :mod:`mtanno.io.topology`), and which rig joint each
     canonical joint of the map comes from (MISSING where the map finds none)."""
     from mtanno.io.rigs import CANONICAL_JOINTS
 
+    if motion.markers is not None:
+        return describe_markers(motion)
     rig = motion.rig
     cov = motion.smap.coverage(rig)
     missing = [j for j in CANONICAL_JOINTS if cov[j] is None]
@@ -69,6 +80,48 @@ def describe_motion(motion: Motion) -> list[str]:
         + (f" (missing: {', '.join(missing)})" if missing else ""),
     ]
     return lines + [f"  {j:<10} <- {cov[j] or 'MISSING'}" for j in CANONICAL_JOINTS]
+
+
+def describe_markers(motion: Motion) -> list[str]:
+    """The lines ``mtanno info FILE.c3d`` prints: frame rate, length, units and up axis,
+    the marker set and how it was chosen, the subject prefix, gaps filled and frames
+    invalid, the body sizes measured, which canonical joints each marker feeds and how
+    each joint is made (:mod:`mtanno.io.markerset`)."""
+    from mtanno.io.rigs import CANONICAL_JOINTS
+
+    r = motion.markers
+    mset = motion.smap
+    n = motion.n_frames
+    filled = sum(r.filled.values())
+    lines = [
+        f"file           {motion.source}",
+        f"markers        {len(r.markers) + len(r.ignored)} in the file, {len(r.markers)} "
+        f"read" + (f" (ignored: {', '.join(r.ignored[:8])}{' …' if len(r.ignored) > 8 else ''})"
+                   if r.ignored else ""),
+        f"frame rate     {motion.fps:g} Hz",
+        f"frames         {n}",
+        f"duration       {n / motion.fps:.2f} s",
+        f"units, up      {r.units}, {r.up.upper()} up",
+        f"marker set     {mset.name} ({mset.path})",
+        f"set chosen     {mset.how}",
+        f"subject        {r.subject or '(no prefix)'}",
+        f"gaps filled    {filled} marker-frames" + (
+            f" ({', '.join(f'{k} {v}' for k, v in sorted(r.filled.items())[:8])})"
+            if filled else ""),
+        f"invalid        {r.n_invalid} frames ({100 * r.n_invalid / max(n, 1):.1f} %)" + (
+            f"; joints not computed: {', '.join(f'{k} {v}' for k, v in r.invalid.items())}"
+            if r.invalid else ""),
+        "sizes (mm)     " + ", ".join(f"{k} {v:.0f}" for k, v in r.sizes.items()),
+        "marker feeds joints:",
+    ]
+    width = max((len(k) for k in r.feeds), default=4)
+    for marker, joints in r.feeds.items():
+        label = r.markers.get(marker, "MISSING")
+        lines.append(f"  {marker:<{width}} ({label}) -> {', '.join(joints) or '(gap filling only)'}")
+    lines.append("joints:")
+    cov = mset.coverage(motion.rig)
+    lines += [f"  {j:<10} <- {cov[j]}" for j in CANONICAL_JOINTS]
+    return lines
 
 
 def feature_rows(ff: FeatureFile) -> list[dict]:

@@ -94,7 +94,7 @@ def plot_template(mt: MotionTemplate, *, ax: Axes | None = None) -> Axes:
 
 def plot_delta(delta: np.ndarray, *, label: str | None = None, tau: float | None = None,
                ax: Axes | None = None) -> Axes:
-    """A distance curve Δ over a document's frames (algorithms.md §3.4; [MR06] Fig. 7):
+    """A distance curve Δ over a document's frames (docs/method.md §3.4; [MR06] Fig. 7):
     x = frame (1-based), y = Δ; frames where no match ends (Δ = ∞) leave gaps. ``tau``
     draws the threshold."""
     delta = np.asarray(delta, dtype=np.float64)

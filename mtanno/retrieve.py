@@ -4,7 +4,7 @@
 :func:`mtanno.templates.match.match_template`) into hits; :func:`retrieve` matches a template
 against several documents and ranks all hits by cost. Two extraction rules, both greedy
 (repeatedly the smallest remaining Δ(ℓ) ≤ τ, ties to the lowest frame), as in the reference
-implementation (``../shared/data/reference/retrieval/README.md``; algorithms.md §3.5):
+implementation (``../shared/data/reference/retrieval/README.md``; docs/method.md §3.5):
 
 ``"retrieval"`` (``motionTemplateDTWRetrievalWeighted``)
     A minimum at end frame e with start s (hit length len = e − s + 1) is recorded only if
@@ -32,8 +32,9 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.templates.match import DEFAULT_STEP_WEIGHTS, DEFAULT_STEPS, PreparedTemplate
+from mtanno.templates.params import RETRIEVAL_DELTA, check_tau
 
-__all__ = ["DEFAULT_DELTA", "DEFAULT_MAX_HITS", "DEFAULT_TAU", "HIT_MODES", "Hit", "HitList",
+__all__ = ["DEFAULT_MAX_HITS", "HIT_MODES", "Hit", "HitList",
            "RetrievalBatch", "extract_hits", "hit_table", "retrieve",
            "retrieve_files", "retrieve_files_classes", "write_hits"]
 
@@ -41,10 +42,6 @@ __all__ = ["DEFAULT_DELTA", "DEFAULT_MAX_HITS", "DEFAULT_TAU", "HIT_MODES", "Hit
 HIT_MODES = ("retrieval", "classification")
 #: Hit cap per document.
 DEFAULT_MAX_HITS = 1000
-#: Quality threshold of retrieval: hits have Δ ≤ τ ([MR06] §5.4).
-DEFAULT_TAU = 0.06
-#: Quantization δ of templates for retrieval ([MR06] §5.2).
-DEFAULT_DELTA = 0.1
 
 
 @dataclass(frozen=True)
@@ -91,7 +88,6 @@ def _check_fraction_pair(value, name: str) -> tuple[float, float]:
 
 
 def _check_options(tau, mode, max_hits) -> float:
-    from mtanno.annotate.config import check_tau  # the one rule for τ: a number ≥ 0
 
     tau = check_tau(tau)
     if mode not in HIT_MODES:
@@ -106,7 +102,7 @@ def extract_hits(delta: np.ndarray, start: np.ndarray, *, tau: float, mode: str 
                  end_excl: tuple[float, float] = (0.5, 0.1),
                  start_excl: tuple[float, float] = (0.1, 0.5),
                  doc: str | int = 0, doc_index: int = 0) -> HitList:
-    """Greedy hits of one document's Δ below ``tau`` ([MR06] §5.4, algorithms.md §3.5).
+    """Greedy hits of one document's Δ below ``tau`` ([MR06] §5.4, docs/method.md §3.5).
 
     Parameters
     ----------
@@ -276,7 +272,7 @@ def _documents(paths: Sequence[str | os.PathLike], layout, batch: RetrievalBatch
     """Yield (document name, features) of each feature file that can be read and fits
     ``layout``; record its native frames and file in ``batch``, a failure in
     ``batch.failed``, and call ``progress`` once per file."""
-    from mtanno.util.store import check_layout, read_features
+    from mtanno.features.store import check_layout, read_features
 
     for p in paths:
         try:
@@ -298,8 +294,8 @@ def retrieve_files(template_values: np.ndarray, weights: np.ndarray,
                    paths: Sequence[str | os.PathLike], *, layout, tau: float,
                    max_hits: int = DEFAULT_MAX_HITS, variant: str = "reference",
                    progress: Callable[[str, str | None], None] | None = None) -> RetrievalBatch:
-    """:func:`retrieve` over feature files: each is read (:func:`mtanno.util.store.read_features`)
-    and checked against the template's ``layout`` (:func:`mtanno.util.store.check_layout`); a
+    """:func:`retrieve` over feature files: each is read (:func:`mtanno.features.store.read_features`)
+    and checked against the template's ``layout`` (:func:`mtanno.features.store.check_layout`); a
     file that fails is recorded in ``failed`` and the others are still searched.
     ``progress`` is called once per file with its path and its failure (None on success)."""
     batch = RetrievalBatch(HitList())
@@ -331,7 +327,7 @@ def retrieve_files_classes(templates: Mapping[str, tuple[np.ndarray, np.ndarray]
 
 def retrieval_template(mt, *, delta: float | None = None):
     """The template as retrieval uses it ([MR06] §5.4): quantized with ``delta``, else with
-    its own δ, else :data:`DEFAULT_DELTA`; a template quantized already keeps its δ (a
+    its own δ, else :data:`RETRIEVAL_DELTA`; a template quantized already keeps its δ (a
     ``delta`` that differs is an error: its values cannot be quantized again)."""
     from mtanno.templates.model import quantize
 
@@ -342,5 +338,5 @@ def retrieval_template(mt, *, delta: float | None = None):
                               options=("delta",))
         return mt
     return quantize(mt, delta if delta is not None else (mt.delta if mt.delta is not None
-                                                          else DEFAULT_DELTA))
+                                                          else RETRIEVAL_DELTA))
 

@@ -45,7 +45,7 @@ def unknown(annotations: list[str], truth: str, cls: str, out: Path) -> int:
     import numpy as np
 
     from mtanno.annotate import read_annotations
-    from mtanno.evaluation.truth import read_truth
+    from mtanno.labels.truth import read_truth
 
     rows = [a for p in annotations for a in read_annotations(p)]
     frames = labelled = 0

@@ -162,7 +162,7 @@ def review(fold: Path, out: Path, k: int, seed: int, feats: Path | None = None) 
     """Write OUT's files for ``k`` reviewed clips per content (module docstring)."""
     import csv
 
-    from mtanno.evaluation.truth import read_truth
+    from mtanno.labels.truth import read_truth
 
     train = (fold / "train.csv").read_text().splitlines()
     with open(fold / "truth.csv", newline="") as fh:

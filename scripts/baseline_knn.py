@@ -132,8 +132,9 @@ def runs(labels: np.ndarray) -> list[tuple[int, int, int]]:
 def main(argv=None) -> int:
     from mtanno.annotate import Annotation, write_annotations
     from mtanno.errors import MtannoError
+    from mtanno.features.inputs import document_files
+    from mtanno.features.store import read_features
     from mtanno.templates.training import collect_sources, load_examples
-    from mtanno.util.store import document_files, read_features
     from mtanno.util.tables import provenance
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

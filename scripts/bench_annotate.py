@@ -42,7 +42,7 @@ def run(args: list[str]) -> None:
 
 
 def tiled(src: Path, dst: Path, frames: int) -> Path:
-    from mtanno.util.store import read_features, write_features
+    from mtanno.features.store import read_features, write_features
 
     ff = read_features(src)
     reps = -(-frames // ff.X.shape[1])
@@ -122,9 +122,9 @@ def bench_setup(name: str, doc: str):
 def keyframes(out: Path, clips: Path, repeats: int) -> None:
     """Annotation of the 60-minute document with and without GA keyframes (issue 7)."""
     from mtanno.annotate import annotate_document, load_class_models
+    from mtanno.features.store import read_features
     from mtanno.keyframes import KeyframeSet, class_spans, class_windows, load_keyframe_folder
     from mtanno.templates.match import pack_document
-    from mtanno.util.store import read_features
 
     kf = learned_keyframes(out, clips)
     doc = out / "doc_60min.parquet"

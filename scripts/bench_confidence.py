@@ -63,7 +63,7 @@ def background(out: Path) -> Path:
 
 
 def tiled_with_poses(src: Path, dst: Path, frames: int) -> Path:
-    from mtanno.util.store import read_features, write_features
+    from mtanno.features.store import read_features, write_features
 
     ff = read_features(src, poses=True)
     reps = -(-frames // ff.X.shape[1])
@@ -99,8 +99,8 @@ def prepare(out: Path):
 def in_process(out: Path, doc: Path, config: Path) -> tuple[float, float]:
     """(median seconds of matching and labels, of the confidence) of the document."""
     from mtanno.annotate import annotate_document, load_annotation_setup
-    from mtanno.annotate.confidence import score_document
-    from mtanno.util.store import read_features
+    from mtanno.confidence.score import score_document
+    from mtanno.features.store import read_features
 
     ff = read_features(doc, poses=True)
     setup = load_annotation_setup(out / "mt", config_path=config)

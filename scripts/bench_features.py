@@ -1,7 +1,10 @@
 """Benchmark of the feature stage: parsing, forward kinematics and features, separately.
 
 Data: the 232 HDM05 clips (ASF/AMC, 120 Hz) and the 174 Bandai set-1 clips (BVH, 30 Hz) in
-``../shared/data``. Peer: pybvh 0.9 (PyPI) reading the same BVH files and computing world
+``../shared/data``; C3D: the same 232 HDM05 clips as virtual-marker C3D files (the 41 Vicon
+markers placed on their bones, ``tests/virtual_markers.py``, written once into the cache) and
+the five real C3D takes of ``../shared/data/c3d`` (read + markers → joints + features).
+Peer: pybvh 0.9 (PyPI) reading the same BVH files and computing world
 joint positions, measured in the same run. pybvh refuses position channels below the root,
 which every Bandai joint has, so both readers are timed on an equivalent rewrite of each
 file made once beforehand (``scripts/pybvh_peer.py``; positions agree to 1e-12); mtanno is
@@ -10,7 +13,7 @@ also timed on the original files.
 Every figure is the median over ``--repeats`` passes after one warm-up pass (which loads
 the numba kernels from their cache); the warm-up pass is reported as "cold". Run:
 
-    .venv/bin/python scripts/bench_features.py [--repeats 5] [--quick] [--whole-only]
+    .venv/bin/python scripts/bench_features.py [--repeats 5] [--quick] [--whole-only] [--c3d]
 """
 
 from __future__ import annotations
@@ -61,9 +64,55 @@ def one_pass(files) -> tuple[int, float, float, float]:
     return frames, tp, tk, tf
 
 
-def bench_mtanno(name: str, files, repeats: int) -> dict:
+def one_pass_c3d(files) -> tuple[int, float, float, float]:
+    """(native frames, read s, markers → joints s, features s) for one pass over C3D files
+    (:func:`mtanno.io.c3d.read_c3d`, the marker set, :func:`marker_joints`)."""
+    from mtanno.io.c3d import read_c3d
+    from mtanno.io.markerjoints import marker_joints
+    from mtanno.io.markerset import choose_set
+    from mtanno.io.skeleton import to_y_up
+
+    frames = 0
+    tp = tk = tf = 0.0
+    for f in files:
+        t0 = time.perf_counter()
+        md = read_c3d(f)
+        t1 = time.perf_counter()
+        mset = choose_set(md.labels)
+        joints, heading, _, _ = marker_joints(mset, md.labels, md.points, md.fps)
+        joints, heading = to_y_up(joints / 10.0, md.up), to_y_up(heading, md.up)
+        t2 = time.perf_counter()
+        compute_features(joints, heading, md.fps)
+        t3 = time.perf_counter()
+        frames += md.n_frames
+        tp += t1 - t0
+        tk += t2 - t1
+        tf += t3 - t2
+    return frames, tp, tk, tf
+
+
+def virtual_c3d_files(clips) -> list[Path]:
+    """The HDM05 clips as virtual-marker C3D files (Z up, mm), made once into the cache."""
+    from c3d_support import write_c3d
+    from virtual_markers import place_markers
+
+    out_dir = CACHE_ROOT.parent / "bench" / "c3d-hdm05"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out = []
+    for amc in clips:
+        c3d = out_dir / (amc.stem + ".c3d")
+        if not c3d.exists():
+            labels, pts = place_markers(*read_channels(amc))
+            tmp = c3d.with_suffix(".tmp")
+            write_c3d(tmp, labels, np.stack([pts[..., 0], -pts[..., 2], pts[..., 1]], axis=-1))
+            tmp.replace(c3d)
+        out.append(c3d)
+    return out
+
+
+def bench_mtanno(name: str, files, repeats: int, one_pass=one_pass) -> dict:
     cold = one_pass(files)
-    runs = [one_pass(files) for _ in range(repeats)]
+    runs = [one_pass(files) for _ in range(repeats)]  # (C3D: parse = read, kinematics = joints)
     n = runs[0][0]
     med = [statistics.median(r[i] for r in runs) for i in (1, 2, 3)]
     total = statistics.median(r[1] + r[2] + r[3] for r in runs)
@@ -223,6 +272,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="a few files only (smoke run)")
+    ap.add_argument("--c3d", action="store_true",
+                    help="the AMC and C3D paths only (all HDM05 clips, the real takes)")
     ap.add_argument("--whole-only", action="store_true",
                     help="only the whole-command figure (issue 12)")
     ap.add_argument("--tree", type=Path, help="the tripled HDM05 tree (whole command)")
@@ -245,6 +296,17 @@ def main() -> int:
     if args.quick:
         hdm, set1 = hdm[:20], set1[:10]
     asf = bench_mtanno("mtanno HDM05 ASF/AMC 120 Hz", hdm, args.repeats)
+    vc3d = bench_mtanno("mtanno HDM05 as C3D (virtual) 120 Hz", virtual_c3d_files(hdm),
+                        args.repeats, one_pass_c3d)
+    takes = sorted((SHARED_DATA / "c3d").glob("*.c3d"))
+    real = bench_mtanno("mtanno real C3D takes 120 Hz", takes, args.repeats, one_pass_c3d)
+    c3d_line = (f"C3D read + markers → joints + features: {vc3d['total']:,.0f} native frames/s "
+                f"on the HDM05 clips as C3D = {vc3d['total'] / asf['total']:.0%} of the AMC path "
+                f"(goal >= 50 %); real takes {real['total']:,.0f} frames/s = "
+                f"{real['total'] / asf['total']:.0%}")
+    if args.c3d:
+        print(f"\n{c3d_line}")
+        return 0
     bvh = bench_mtanno("mtanno Bandai set1 BVH 30 Hz", set1, args.repeats)
     rewritten = pybvh_files(set1)
     same = bench_mtanno("mtanno Bandai set1, pybvh rewrite", rewritten, args.repeats)
@@ -252,6 +314,7 @@ def main() -> int:
     print()
     print(f"ASF/AMC parse + kinematics + features: {asf['total']:,.0f} native frames/s per core "
           f"(target >= 100,000; the original system: ~2,000)")
+    print(c3d_line)
     print(f"BVH read + positions, same files: mtanno {same['parse_fk']:,.0f} vs pybvh "
           f"{peer:,.0f} frames/s = {same['parse_fk'] / peer:.1f}x (target >= 2x); "
           f"mtanno on the original 6-channel files: {bvh['parse_fk']:,.0f} frames/s")

@@ -1,4 +1,4 @@
-"""Index and query benchmark (MRC05 §6.1–6.2, Tables 2 and 3; algorithms.md §4 and §9).
+"""Index and query benchmark (MRC05 §6.1–6.2, Tables 2 and 3; docs/method.md §4 and §9).
 
 Data: the Bandai set-2 archives (5 styles, 30 fps BVH) and the 232 HDM05 clips. Features are
 computed once per feature set into ``.cache/bench/<data>-<set>/`` (skipped when present;

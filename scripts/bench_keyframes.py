@@ -1,4 +1,4 @@
-"""Keyframe benchmark (issue 7; MBS09 §5–7, algorithms.md §5–6 and §9).
+"""Keyframe benchmark (issue 7; MBS09 §5–7, docs/method.md §5–6 and §9).
 
 1. **Keyframe query latency** on the index of the Bandai set-2 archives (5 styles, 30 fps
    BVH, the 40 annotation features; features computed once into ``.cache/bench``, not
@@ -152,11 +152,11 @@ def main() -> int:
         print(f"machine: {machine()}")
         bench_command(args.command, 100, args.jobs)
         return 0
+    from mtanno.features.store import read_features
     from mtanno.index import build_index, open_index
     from mtanno.keyframes import search_documents, search_index
     from mtanno.keyframes.search import warm_up
     from mtanno.templates import group_by_class, load_examples, sources_from_manifest
-    from mtanno.util.store import read_features
 
     print(f"machine: {machine()}")
     # --- data

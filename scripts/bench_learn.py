@@ -9,7 +9,7 @@ call of :func:`mtanno.templates.learn.learn` on the in-memory matrices), not fil
 Every figure is the median of ``--repeats`` runs after one warm-up run (which loads or
 compiles the numba kernels); each result is also checked against the golden template.
 
-Original system (spec §9): 3 s per class (MBS09), 3.8–25.6 s, mean 7.5 s (MR06); the
+Original system (docs/method.md §9): 3 s per class (MBS09), 3.8–25.6 s, mean 7.5 s (MR06); the
 reference implementation under Octave needed the times in ``reference/mt/*_info.txt``,
 listed beside ours. Target: < 0.5 s per class. Run:
 
@@ -52,7 +52,7 @@ def training_sets(features_dir: Path | None) -> dict[str, list[np.ndarray]]:
             out[cls] = [np.loadtxt(REFERENCE / "features" / cls / (Path(f).stem + ".csv"),
                                    delimiter=",", skiprows=1)[:, 1:].T.copy() for f in files]
         else:
-            from mtanno.util.store import read_feature_matrix
+            from mtanno.features.store import read_feature_matrix
 
             out[cls] = [read_feature_matrix(features_dir / Path(f).with_suffix(".parquet"))
                         for f in files]

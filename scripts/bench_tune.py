@@ -147,9 +147,9 @@ def main() -> int:
          str(out / "tuned_kf.toml")])
 
     from mtanno.annotate import annotate_document, load_annotation_setup
+    from mtanno.features.store import read_features
     from mtanno.keyframes import KeyframeSet, class_spans, load_keyframe_folder
     from mtanno.templates.match import pack_document
-    from mtanno.util.store import read_features
 
     doc = tiled(src, out / "doc_60min.parquet", 60 * 60 * 30)
     ff = read_features(doc)

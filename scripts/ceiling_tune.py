@@ -26,6 +26,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from mtanno.features.store import read_features
 from mtanno.templates.model import load_template_folder
 from mtanno.templates.tempo import TEMPO_SCALES
 from mtanno.templates.training import collect_sources, group_by_class, load_examples
@@ -33,7 +34,6 @@ from mtanno.tuning.cv import Fold, _documents, _separate  # the held-out documen
 from mtanno.tuning.run import _learn_params
 from mtanno.tuning.score import Counts
 from mtanno.tuning.search import DELTA_GRID, GROUPS, Tuner, prepare_fold_class
-from mtanno.util.store import read_features
 
 MOCAP6_DOCS = ("13_29", "13_30", "13_31")
 BANDAI_STYLES = ("active", "elderly", "feminine", "masculine", "normal")

@@ -45,7 +45,7 @@ def confidence(paths: list[str], truth: str, bins: int = 10) -> dict:
         reliability_table,
         rows_right,
     )
-    from mtanno.evaluation.truth import read_truth
+    from mtanno.labels.truth import read_truth
 
     rows, _, _ = read_annotation_tables(paths)
     right = rows_right(rows, read_truth(truth))

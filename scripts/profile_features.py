@@ -94,10 +94,10 @@ def instrument() -> None:
 
     import mtanno.features as features
     import mtanno.features.extract as extract
+    import mtanno.features.store as store
     import mtanno.io as io
     import mtanno.io.amc as amc
     import mtanno.util.output as output
-    import mtanno.util.store as store
 
     _patch(extract, "plan_batch", "parent: plan (listing, check_outputs)")
     _patch(extract, "up_to_date", "parent: up-to-date checks")
@@ -124,7 +124,7 @@ def instrument() -> None:
         _patch(mod, "dumps", "write: metadata JSON")
     _patch(pq, "write_table", "write: Parquet encode")
     try:
-        import mtanno.util._parquet as direct
+        import mtanno.features._parquet as direct
     except ImportError:  # a checkout before the direct encoder
         direct = None
     _patch(direct, "encode", "write: Parquet encode")

@@ -8,7 +8,7 @@ import numpy as np
 
 
 def hysteresis_naive(on, off):
-    """features.md §4, written out literally (frames 1-based as in the spec)."""
+    """docs/method/features.md §4, written out literally (frames 1-based as in the spec)."""
     n = len(on)
     s = [0] * (n + 1)
     for t in range(1, n + 1):
@@ -20,7 +20,7 @@ def hysteresis_naive(on, off):
 
 
 def velocity_naive(x, fps, window_ms):
-    """features.md §3 literally: differences, mirror padding, explicit window sums."""
+    """docs/method/features.md §3 literally: differences, mirror padding, explicit window sums."""
     x = np.asarray(x, dtype=float)
     n = len(x)
     L = max(1, math.ceil(round(window_ms * fps) / 1000)) if window_ms else 1

@@ -2,7 +2,8 @@
 
 Real-valued measures behind the relational features, vectorised over frames and features.
 
-Spec: ``features.md`` §2 (body units), §3 (velocities) and §5 (one measure per feature).
+Spec: ``docs/method/features.md`` §2 (body units), ``docs/method/features.md`` §3
+(velocities) and ``docs/method/features.md`` §5 (one measure per feature).
 ``J`` is the (frames × 22 × 3) array of canonical joint positions (``CANONICAL_JOINTS``
 order) at the native frame rate, in the rig's length unit; velocities are in length units
 per second. A measure function evaluates *several features of the same kind at once*:
@@ -22,7 +23,8 @@ _J = {name: k for k, name in enumerate(CANONICAL_JOINTS)}
 
 
 def velocity(x: np.ndarray, fps: float, window_ms: float) -> np.ndarray:
-    """Smoothed velocity of a trajectory (frames × …) (features.md §3), units per second.
+    """Smoothed velocity of a trajectory (frames × …) (docs/method/features.md §3), units
+    per second.
 
     Forward differences with the last one repeated, symmetric padding of ``h = ceil(L/2)``
     samples at both ends, box average of ``L`` samples ``[t−h+1, t−h+L]``, times ``fps``.
@@ -197,9 +199,9 @@ def m_angle_max(J, idx, fps, win):
 
 
 def m_touch(J, idx, params, k):
-    """min over capsule tests of d − (k·c)·ℓ (features31.md §4) for one row: ``idx`` is the
-    flat (a, b, q, a, b, q, …) joint list, ``params`` the (c, ball_a, ball_b, …) list.
-    NaN tests are skipped (the feature is their OR)."""
+    """min over capsule tests of d − (k·c)·ℓ (docs/method/features31.md §4) for one row:
+    ``idx`` is the flat (a, b, q, a, b, q, …) joint list, ``params`` the (c, ball_a,
+    ball_b, …) list. NaN tests are skipped (the feature is their OR)."""
     best = np.full(J.shape[0], np.nan)
     for i in range(len(idx) // 3):
         a, b, q = idx[3 * i:3 * i + 3]
@@ -251,7 +253,8 @@ def _interval(V, spec, unit):
 def features_numpy(joints, heading, fps, features=None):
     """(features × frames) uint8 features computed with the numpy measures above (default
     table: the 40 annotation features)."""
-    from mtanno.features import FEATURES, hysteresis
+    from mtanno.features import FEATURES
+    from mtanno.features.hysteresis import hysteresis
     from mtanno.features.measures import body_units
 
     features = FEATURES if features is None else features

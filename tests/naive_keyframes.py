@@ -1,6 +1,6 @@
 """Slow, obviously-correct keyframe search: the oracle of the keyframe tests.
 
-Straight from algorithms.md §5: enumerate every tuple of frames t_1 ≤ … ≤ t_n of a document
+Straight from docs/method.md §5: enumerate every tuple of frames t_1 ≤ … ≤ t_n of a document
 with the features at t_j matching keyframe j and dmin_j ≤ t_{j+1} − t_j ≤ dmax_j
 (recursion over frames, no intervals, no index), mark the frames of every chain's span
 [t_1, t_n], and report the maximal runs of marked frames. Windows are widened frame by frame.

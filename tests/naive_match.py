@@ -1,8 +1,9 @@
 """Slow, obviously-correct template matching and hit extraction: the oracles of the tests.
 
-Written straight from the text of algorithms.md §3.4–3.5, features.md Appendix A and the
-retrieval README: full cost matrix, full accumulated-cost matrix with the chosen step of every
-cell, starts found by backtracking (not propagated), hits by repeated argmin over a copy of Δ.
+Written straight from the text of docs/method.md §3.4–3.5, docs/method/features.md §A and
+the retrieval README: full cost matrix, full accumulated-cost matrix with the chosen step of
+every cell, starts found by backtracking (not propagated), hits by repeated argmin over a
+copy of Δ.
 Pure Python loops over Python floats; no packing, no streaming.
 """
 
@@ -27,7 +28,8 @@ def expand_naive(values, weights):
 
 
 def cost_matrix_naive(values, weights, X, variant):
-    """Local cost C[k][l] as a list of lists (algorithms.md §3.4 / features.md App. A)."""
+    """Local cost C[k][l] as a list of lists (docs/method.md §3.4,
+    docs/method/features.md §A)."""
     if variant == "reference":
         V, ws = expand_naive(values, weights)
     else:

@@ -1,5 +1,5 @@
 """Slow, obviously correct subsequence DTW of a query inside bank items (the oracle of
-:mod:`mtanno.annotate._verify_kernels`)."""
+:mod:`mtanno.confidence._verify_kernels`)."""
 
 from __future__ import annotations
 

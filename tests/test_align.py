@@ -38,7 +38,7 @@ from mtanno.align import (
 from mtanno.align.dtw import FEATURE_TIE, WarpingPath
 from mtanno.errors import MtannoError
 from mtanno.features import get_feature_set
-from mtanno.util.store import FeatureLayout
+from mtanno.features.store import FeatureLayout
 
 # --------------------------------------------------------------------------- oracles
 

@@ -7,7 +7,7 @@ from conftest import DATA, require_data
 from data_cache import unpack_archive
 
 from mtanno.features.extract import plan_batch, run_batch
-from mtanno.util.store import read_features
+from mtanno.features.store import read_features
 
 
 def _convert(inputs, out, **kw):

@@ -1,4 +1,4 @@
-"""Annotation (algorithms.md §7) on hand-made Δ curves: Δ̄, labels, ties, extension."""
+"""Annotation (docs/method.md §7) on hand-made Δ curves: Δ̄, labels, ties, extension."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ INF = np.inf
 
 
 def naive_dbar(delta, start, tau, max_hits=None):
-    """Literal reading of §7 step 2 (reference variant)."""
+    """Literal reading of docs/method.md §7 step 2 (reference variant)."""
     d = [x if np.isfinite(x) else INF for x in delta]
     dbar = [INF] * len(d)
     blocked = [False] * len(d)
@@ -43,8 +43,9 @@ def naive_dbar(delta, start, tau, max_hits=None):
 
 
 def naive_segments(doc, names, dbars, extend=True):
-    """Literal reading of §7 steps 3–4: per-frame argmin label, maximal runs, extension
-    while Δ̄ does not rise, merge of overlapping runs of a label, smallest Δ̄ inside."""
+    """Literal reading of docs/method.md §7 steps 3–4: per-frame argmin label, maximal
+    runs, extension while Δ̄ does not rise, merge of overlapping runs of a label, smallest Δ̄
+    inside."""
     P, L = dbars.shape
     labels = []
     for j in range(L):

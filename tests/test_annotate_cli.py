@@ -12,7 +12,7 @@ from click.testing import CliRunner
 
 from mtanno import synthetic
 from mtanno.cli import main
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 
 
 def run(*args):

@@ -3,8 +3,9 @@ document, skips the documents whose table is up to date, survives SIGINT and SIG
 rerun computes only what is missing, and the union equals an uninterrupted run), and holds
 the output folder's lock against a second run; ``evaluate`` and ``report`` read the folder.
 
-The killed and concurrent runs are real processes slowed down deterministically: a small
-wrapper makes every document take a fixed time before it is annotated.
+The killed and concurrent runs are real processes held at a known point (:mod:`held`): the
+run stops before a given document until the test lets it go on, so the test signals it or
+starts a second run while it is surely still running, however loaded the machine.
 """
 
 from __future__ import annotations
@@ -14,31 +15,22 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from held import held_pids, lines_until, release, start_held
 from world import cli, temporaries, wait_for
 
 from mtanno.annotate import annotation_files, load_annotation_setup
 from mtanno.annotate.folder import DocJob, annotate_folder, plan_folder, recipe, up_to_date
 from mtanno.errors import MtannoError
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 from mtanno.util.tables import provenance_as_read
 
-#: mtanno with every document delayed by $MTANNO_TEST_DELAY seconds (one process, --jobs 1).
-SLOW_MTANNO = [sys.executable, "-c", (
-    "import os, sys, time\n"
-    "import mtanno.annotate.batch as a\n"
-    "_run = a._annotate_file\n"
-    "def slow(*args):\n"
-    "    time.sleep(float(os.environ['MTANNO_TEST_DELAY']))\n"
-    "    return _run(*args)\n"
-    "a._annotate_file = slow\n"
-    "from mtanno.cli import main\n"
-    "sys.exit(main(prog_name='mtanno'))\n")]
+#: The function each document goes through (held before a given document).
+PER_DOCUMENT = "mtanno.annotate.batch:_annotate_file"
 N_DOCS = 40
 #: Generous bound for a run to get somewhere (a hung run fails instead of hanging the suite).
 HANG = 120.0
@@ -89,10 +81,9 @@ def summary(output: str) -> str:
     return next(ln for ln in output.splitlines() if ln.startswith("annotate:"))
 
 
-def start_slow(args, delay: float) -> subprocess.Popen:
-    env = {**os.environ, "MTANNO_TEST_DELAY": str(delay)}
-    return subprocess.Popen([*SLOW_MTANNO, *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+def start_held_run(args, gate: Path, *, after: int) -> subprocess.Popen:
+    """``mtanno ARGS`` held before its document ``after + 1`` until ``gate`` exists."""
+    return start_held(args, hold=PER_DOCUMENT, after=after, gate=gate)
 
 
 # --------------------------------------------------------------------------- plan and API
@@ -106,10 +97,9 @@ def test_plan_mirrors_the_input_tree(archive, world, tmp_path):
     assert [j.doc for j in jobs] == sorted(j.doc for j in jobs)
     with pytest.raises(MtannoError, match="unknown table format 'xlsx'"):
         plan_folder([archive], tmp_path / "out", fmt="xlsx")
-    # Parquet tables inside the input folder would be read as feature files next time
-    with pytest.raises(MtannoError, match="inside the input folder"):
-        plan_folder([archive], archive / "annotations", fmt="parquet")
-    assert plan_folder([archive], archive / "annotations", fmt="csv")
+    # an output folder inside the input folder is judged with every other output, by
+    # annotate_to (tests/hostile/test_hostile_outputs.py, "inside an input folder")
+    assert plan_folder([archive], archive / "annotations", fmt="parquet")
 
 
 def test_recipe_is_the_content_not_the_place():
@@ -309,7 +299,7 @@ def test_usage_errors(world, tmp_path):
     # a folder of feature files is not an output folder for Parquet tables
     r = cli("annotate", "--mt", world.mt, world.docfeats, "--output-dir", world.docfeats,
             "--format", "parquet")
-    assert r.exit_code == 2 and "inside the input folder" in r.output
+    assert r.exit_code == 2 and "output would overwrite an input" in r.output
     assert not (tmp_path / "o").exists()
 
 
@@ -348,9 +338,11 @@ def test_evaluate_and_report_read_a_folder(world, archive, reference, tmp_path):
 def test_killed_run_resumes_with_the_missing_documents(world, archive, reference, tmp_path,
                                                        name):
     out = tmp_path / "out"
-    proc = start_slow(["annotate", "--mt", world.mt, archive, "--output-dir", out], 0.1)
-    try:
-        wait_for(lambda: complete(out) >= 8, proc, "8 tables written")
+    gate = tmp_path / "gate"
+    proc = start_held_run(["annotate", "--mt", world.mt, archive, "--output-dir", out], gate,
+                          after=8)
+    try:  # held before its ninth document: 8 tables written, the run still going
+        wait_for(lambda: complete(out) >= 8 and held_pids(gate), proc, "8 tables written")
         proc.send_signal(getattr(signal, name))
         _, err = proc.communicate(timeout=HANG)
     finally:
@@ -364,7 +356,7 @@ def test_killed_run_resumes_with_the_missing_documents(world, archive, reference
         assert err.strip().splitlines()[-1].startswith("mtanno: interrupted (SIGINT)")
         assert temporaries(out) == [] and not (out / ".mtanno.lock").exists()
     done = complete(out)
-    assert 8 <= done < N_DOCS
+    assert done == 8
     r = cli("annotate", "--mt", world.mt, archive, "--output-dir", out)
     assert r.exit_code == 0, r.output
     assert f"{N_DOCS - done} computed" in summary(r.output)
@@ -379,17 +371,29 @@ def test_killed_run_resumes_with_the_missing_documents(world, archive, reference
 
 @pytest.mark.parametrize("wait", [False, True], ids=["exit 3", "--wait"])
 def test_two_runs_on_one_folder(world, archive, reference, tmp_path, wait):
+    """The first run is held after its first table, so the second meets its lock whatever
+    the machine's load; it is let go once the second has exited (exit 3) or says it waits
+    (--wait)."""
     out = tmp_path / "out"
     args = ["annotate", "--mt", world.mt, archive, "--output-dir", out]
-    first = start_slow(args, 0.1)
+    gate = tmp_path / "gate"
+    first = start_held_run(args, gate, after=1)
+    second = None
     try:
-        wait_for(lambda: complete(out) >= 1, first, "its first table")
-        second = start_slow([*args, *(["--wait"] if wait else [])], 0.0)
-        _, err2 = second.communicate(timeout=HANG)
+        wait_for(lambda: complete(out) >= 1 and held_pids(gate), first, "its first table")
+        second = start_held_run([*args, *(["--wait"] if wait else [])], tmp_path / "never",
+                                after=N_DOCS)
+        seen = lines_until(second, "waiting for pid") if wait else []  # then it waits
+        if not wait:
+            _, err2 = second.communicate(timeout=HANG)  # refused while the first is held
+        release(gate)
         _, err1 = first.communicate(timeout=HANG)
+        if wait:
+            _, rest = second.communicate(timeout=HANG)
+            err2 = "".join(seen) + rest
     finally:
-        for p in (first,):
-            if p.poll() is None:
+        for p in (first, second):
+            if p is not None and p.poll() is None:
                 p.kill()
                 p.wait()
     assert first.returncode == 0, err1

@@ -11,8 +11,8 @@ import pytest
 
 import mtanno
 from mtanno.annotate import read_annotations
+from mtanno.features.store import read_features
 from mtanno.templates.model import load_template_folder
-from mtanno.util.store import read_features
 
 
 def test_import_is_light_and_names_the_api():
@@ -70,7 +70,7 @@ def test_annotate_documents_applies_a_class_configuration_as_the_command_does(wo
     from mtanno.cli import main
     from mtanno.templates.model import save_template
     from mtanno.templates.tempo import time_scaled
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     names = sorted(p.stem for p in world.mt.glob("*.json"))
     mts = load_template_folder(world.mt)
@@ -136,7 +136,7 @@ def test_extract_to_is_the_features_command(world, tmp_path):
     with pytest.raises(mtanno.MtannoError, match=r"output folder name \(outdir=\) is empty"):
         extract_to([clip], " ")
     (tmp_path / "empty").mkdir()
-    with pytest.raises(mtanno.MtannoError, match="no .amc or .bvh files"):
+    with pytest.raises(mtanno.MtannoError, match=r"no \.amc, \.bvh or \.c3d files"):
         extract_to([tmp_path / "empty"], tmp_path / "new" / "out")
     bad = tmp_path / "bad.amc"
     bad.write_text("not a motion\n")

@@ -85,6 +85,11 @@ def _reexports() -> dict[tuple[str, str], str]:
                 if src in MODULES:
                     for a in node.names:
                         out[(mod, a.asname or a.name)] = src
+            elif (isinstance(node, ast.Assign) and isinstance(node.value, ast.Call)
+                  and getattr(node.value.func, "id", "") == "lazy_exports"):
+                # names attached on first use: lazy_exports(__name__, {module: names})
+                for module, names in ast.literal_eval(node.value.args[1]).items():
+                    out.update({(mod, name): f"{mod}.{module}" for name in names})
     return out
 
 
@@ -177,6 +182,58 @@ def test_no_upward_import():
     assert not up, f"modules importing a package they are part of: {up}"
 
 
+#: The layers, bottom to top: a module may import only from its own package and from the
+#: packages ranked below it (imports under ``if TYPE_CHECKING:`` excepted). Top-level
+#: modules (``mtanno/retrieve.py``) rank as packages of their own; ``mtanno`` (the
+#: package's ``__init__``, the lazy facade) is the top.
+RANKS = ["_version", "errors", "util", "io", "features", "labels", "info", "synthetic",
+         "templates", "retrieve", "index", "keyframes", "confidence", "align", "annotate", "plot",
+         "evaluation", "tuning", "api", "commands", "cli", "__main__", "mtanno"]
+
+
+def layer(module: str) -> str:
+    """The package (or top-level module) of the rank table a module belongs to."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "mtanno"
+
+
+def upward_edges(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """(module, import) pairs where the import's layer ranks above the module's."""
+    rank = {name: i for i, name in enumerate(RANKS)}
+    return sorted((m, d) for m, deps in graph.items() for d in deps
+                  if layer(d) != layer(m) and rank[layer(d)] > rank[layer(m)])
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    out: dict[str, set[str]] = {}
+    for m, deps in graph.items():
+        out.setdefault(layer(m), set()).update(layer(d) for d in deps if layer(d) != layer(m))
+    return out
+
+
+def test_every_layer_has_a_rank():
+    layers = {layer(m) for m in MODULES}
+    assert layers <= set(RANKS), f"packages without a rank: {sorted(layers - set(RANKS))}"
+
+
+def test_imports_point_down_the_layers():
+    up = upward_edges(import_graph())
+    assert not up, f"imports of a higher layer: {up}"
+
+
+def test_no_package_cycle():
+    found = cycles(package_graph(import_graph()))
+    assert not found, f"package cycles: {found}"
+
+
+def test_the_layer_checks_catch_what_they_forbid():
+    graph = {"mtanno.util.store": {"mtanno.features.table"},
+             "mtanno.features.table": {"mtanno.util.output"}, "mtanno.util.output": set()}
+    assert upward_edges(graph) == [("mtanno.util.store", "mtanno.features.table")]
+    assert cycles(package_graph(graph)) == [["features", "util"]]
+    assert not upward_edges({"mtanno.annotate.run": {"mtanno.templates.match"}})
+
+
 def test_top_level_modules():
     top = sorted(p.name for p in PACKAGE.glob("*.py"))
     assert len(top) <= MAX_TOP_LEVEL, top
@@ -211,8 +268,9 @@ def test_package_docstring_lists_its_modules(package):
                     if p.is_dir() and (p / "__init__.py").exists())
     missing = [n for n in names if n not in doc]
     assert not missing, f"{path}: the docstring does not name {missing}"
-    assert any(isinstance(n, ast.Assign) and any(getattr(t, "id", None) == "__all__"
-                                                 for t in n.targets) for n in tree.body), \
+    targets = [t for n in tree.body if isinstance(n, ast.Assign) for t in n.targets]
+    targets += [e for t in targets if isinstance(t, ast.Tuple) for e in t.elts]
+    assert any(getattr(t, "id", None) == "__all__" for t in targets), \
         f"{path}: no __all__"
 
 

@@ -223,9 +223,9 @@ def test_asf_bad_lines(tmp_path):
 
 
 def test_unknown_suffix(tmp_path):
-    p = tmp_path / "x.c3d"
+    p = tmp_path / "x.fbx"
     p.write_bytes(b"abc")
-    with pytest.raises(MtannoError, match="unknown motion file type '.c3d'"):
+    with pytest.raises(MtannoError, match="unknown motion file type '.fbx'"):
         read_motion(p)
 
 
@@ -233,8 +233,8 @@ def test_amc_room_for_frames_from_earlier_files(tmp_path):
     """The parser sizes its arrays from the frames of earlier files of the same skeleton;
     a file of much shorter frames (more frames for its size) is read again with room for
     all, and reads as it does on its own."""
-    from mtanno.io import _cached_asf
     from mtanno.io.amc import read_amc
+    from mtanno.io.rigmotion import _cached_asf
 
     long_ = synth.write_pair(tmp_path, stem="long", n_frames=20)
     rounded = [ln if ln.isdigit() or ln.startswith((":", "#")) else

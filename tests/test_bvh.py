@@ -1,5 +1,5 @@
-"""BVH reader, forward kinematics on BVH rigs and the BVH skeleton maps (algorithms.md §1,
-features.md §0 and §1.5)."""
+"""BVH reader, forward kinematics on BVH rigs and the BVH skeleton maps (docs/method.md §1,
+docs/method/features.md §0 and §1.5)."""
 
 from __future__ import annotations
 

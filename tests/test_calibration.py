@@ -1,4 +1,4 @@
-"""Calibrated segment confidence (mtanno.annotate.calibration) and its measures
+"""Calibrated segment confidence (mtanno.confidence.calibration) and its measures
 (mtanno.evaluation.calibration, mtanno.plot.reliability_figure), issue 26: recovery of known
 probabilities on synthetic segments, slow obvious oracles for AUROC, ECE and
 pool-adjacent-violators, hand-worked cases, round trips, and every invalid input."""
@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 
-from mtanno.annotate.calibration import (
+from mtanno.confidence.calibration import (
     CALIBRATION_METHODS,
     Calibrator,
     IsotonicModel,

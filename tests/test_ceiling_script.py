@@ -7,10 +7,10 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+from mtanno.features.store import read_features
 from mtanno.templates.training import collect_sources, group_by_class, load_examples
 from mtanno.tuning.cv import _documents
 from mtanno.tuning.search import Params
-from mtanno.util.store import read_features
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "ceiling_tune.py"
 
@@ -34,6 +34,6 @@ def test_ceiling_scores_the_annotated_documents(world):
     truth_frames = sum(e.X.shape[1] for e in held)
     assert ev.counts.frame_support == truth_frames
     assert ev.counts.seg_support == len(held)
-    reference = tuner.evaluate(tuner._with_tau(Params(), 0.13))
+    reference = tuner.evaluate(tuner.with_tau(Params(), 0.13))
     assert ev.J >= reference.J
     assert ev.J == tuner.evaluate(params).J

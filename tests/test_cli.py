@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from mtanno import synthetic as synth
 from mtanno.cli import main
-from mtanno.util.store import read_features
+from mtanno.features.store import read_features
 
 
 @pytest.fixture
@@ -139,7 +139,7 @@ def test_usage_errors_exit_2(tmp_path):
     r = run(["features", str(tmp_path / "missing"), "-o", str(tmp_path / "o")])
     assert r.exit_code == 2 and "no such file or directory" in r.output
     r = run(["features", str(tmp_path), "-o", str(tmp_path / "o")])
-    assert r.exit_code == 2 and "no .amc or .bvh files" in r.output
+    assert r.exit_code == 2 and "no .amc, .bvh or .c3d files" in r.output
     r = run(["features", str(tmp_path)])
     assert r.exit_code == 2
     r = run(["features", str(tmp_path), "-o", str(tmp_path / "o"), "--jobs", "0"])

@@ -10,9 +10,9 @@ import pytest
 from mtanno import synthetic
 from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import Clip, _root_matrix, _yaw, _zyx_angles, compose_documents, read_clips
-from mtanno.evaluation.truth import read_truth
 from mtanno.features.extract import features_from_motion
 from mtanno.io import canonical_positions, read_motion
+from mtanno.labels.truth import read_truth
 
 
 @pytest.fixture

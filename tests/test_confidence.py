@@ -10,13 +10,11 @@ import numpy as np
 import pytest
 
 from mtanno.annotate import Annotation, read_annotations, write_annotations
-from mtanno.annotate.calibration import uncalibrated_confidence
-from mtanno.annotate.confidence import (
-    check_min_confidence,
-    segment_evidence,
-    single_label_by_confidence,
-)
 from mtanno.annotate.config import ClassConfig, class_config_text, load_class_config
+from mtanno.confidence.calibration import Calibrator, uncalibrated_confidence
+from mtanno.confidence.evidence import EVIDENCE, label_facts, register_evidence, segment_evidence
+from mtanno.confidence.model import ConfidenceModel, check_min_confidence
+from mtanno.confidence.score import single_label_by_confidence
 from mtanno.errors import MtannoError
 
 ROWS = [Annotation("d1", 0, 9, "kick", 0.05, 0.91), Annotation("d1", 5, 20, "walk", 0.02, 0.25),
@@ -56,19 +54,46 @@ def test_min_confidence_checked():
 
 def test_evidence_of_hand_made_segments():
     rows = [Annotation("d", 0, 29, "kick", 0.05), Annotation("d", 30, 44, "kick", math.inf)]
-    E = segment_evidence(rows, taus={"kick": 0.1}, lengths={"kick": 30.0},
-                         names=("cost", "length"))
+    facts = label_facts({"kick": 30}, tau_for=lambda c: 0.1)
+    E = segment_evidence(rows, facts, names=("cost", "length"))
     assert E[0].tolist() == pytest.approx([0.5, 0.0])
     assert E[1, 0] == 10.0 and E[1, 1] == pytest.approx(math.log(0.5))
+    none = label_facts({}, tau_for=lambda c: 0.1)
     with pytest.raises(MtannoError, match="needs a bank"):
-        segment_evidence(rows, taus={}, lengths={}, names=("verify",))
+        segment_evidence(rows, none, names=("verify",))
     with pytest.raises(MtannoError, match="unknown evidence"):
-        segment_evidence(rows, taus={}, lengths={}, names=("speed",))
+        segment_evidence(rows, none, names=("speed",))
+
+
+def test_label_facts_of_superclasses_use_the_median_base_template():
+    facts = label_facts({"kickL": 20, "kickR": 40, "walk": 31},
+                        tau_for=lambda c: {"kick": 0.2}.get(c, 0.1),
+                        superclasses={"kick": ["kickL", "kickR"]})
+    assert facts.lengths == {"kick": 30.0, "walk": 31.0}
+    assert facts.members == {"kick": ("kickL", "kickR"), "walk": ("walk",)}
+    assert facts.taus == {"kick": 0.2, "walk": 0.1}
+
+
+def test_the_evidence_registry_is_ordered_and_extensible():
+    assert EVIDENCE == ("cost", "length", "verify", "margin", "background")
+    import mtanno.confidence.evidence as ev
+
+    @register_evidence("frames")
+    def _frames(s):
+        return float(s.row.end - s.row.start + 1)
+
+    try:
+        rows = [Annotation("d", 0, 29, "kick", 0.05)]
+        E = segment_evidence(rows, label_facts({"kick": 30}, tau_for=lambda c: 0.1),
+                             names=("frames", "cost"))
+        assert E.tolist() == [[30.0, 0.5]]
+    finally:
+        del ev._KINDS["frames"]
 
 
 def test_background_evidence_changes_a_decision():
     """A background example like the segment makes its background evidence large."""
-    from mtanno.annotate.verify import build_bank
+    from mtanno.confidence.verify import build_bank
 
     rng = np.random.default_rng(0)
     kick = rng.random((12, 6)).astype(np.float32)
@@ -79,8 +104,9 @@ def test_background_evidence_changes_a_decision():
 
     def evidence(background):
         bank = build_bank(ex, background, representation="features")
-        return segment_evidence(rows, taus={"kick": 0.1}, lengths={"kick": 12.0}, bank=bank,
-                                query=lambda r: seg, names=("verify", "background"))[0]
+        facts = label_facts({"kick": 12}, tau_for=lambda c: 0.1)
+        return segment_evidence(rows, facts, bank=bank, query=lambda r: seg,
+                                names=("verify", "background"))[0]
 
     without = evidence([other])
     with_like = evidence([other, seg.copy()])  # background holds this very motion
@@ -97,14 +123,23 @@ def test_single_label_prefers_the_more_confident_segment():
 
 
 def test_config_confidence_and_background_round_trip(tmp_path):
-    cfg = ClassConfig(background={"bg/a.parquet": "a" * 64},
-                      confidence={"evidence": ["cost", "length"], "min_confidence": 0.3,
-                                  "calibrator": {"method": "platt", "names": ["cost", "length"],
-                                                 "logistic": {"coef": [1.0, -2.0]}}})
+    from mtanno.confidence.calibration import fit_calibrated
+
+    rng = np.random.default_rng(0)
+    E = rng.random((40, 2))
+    fit = fit_calibrated(E, (E[:, 0] > 0.5).astype(float), names=("cost", "length"), rng=0)
+    table = {"evidence": ["cost", "length"], "min_confidence": 0.3,
+             "calibrator": fit.calibrator.to_dict()}
+    model = ConfidenceModel.from_table(table)
+    assert isinstance(model.calibrator, Calibrator) and model.evidence == ("cost", "length")
+    cfg = ClassConfig(background={"bg/a.parquet": "a" * 64}, confidence=model)
     path = tmp_path / "c.toml"
     path.write_text(class_config_text(cfg))
     back = load_class_config(path)
-    assert back.background == cfg.background and back.confidence == cfg.confidence
+    assert back.background == cfg.background
+    assert back.confidence.to_table() == model.to_table()
+    assert (back.confidence.evidence, back.confidence.min_confidence) == (("cost", "length"),
+                                                                         0.3)
 
 
 @pytest.mark.parametrize("text, msg", [
@@ -123,3 +158,35 @@ def test_bad_confidence_sections(tmp_path, text, msg):
     path.write_text(text)
     with pytest.raises(MtannoError, match=msg):
         load_class_config(path)
+
+
+def test_tune_and_annotate_build_the_same_evidence_inputs(world, tmp_path):
+    """The evidence of the same segments is equal whether tune builds its inputs (the
+    template folder's templates, the tuned τ) or annotate does (its class models, extra
+    templates of the configuration included, under the configuration): the length of a
+    label is its base template's in both (issue 32: annotate took the median over the
+    extra templates too)."""
+    from mtanno.annotate import annotation_setup
+    from mtanno.confidence.evidence import document_evidence
+    from mtanno.confidence.score import annotation_facts
+    from mtanno.features.store import read_features
+    from mtanno.templates.model import load_template_folder, save_template
+    from mtanno.templates.tempo import time_scaled
+
+    templates = load_template_folder(world.mt)
+    cls = sorted(templates)[0]
+    slow = tmp_path / "slow.json"
+    save_template(slow, time_scaled(templates[cls], 1.6))
+    cfg = ClassConfig(tau={c: 0.1 + 0.01 * i for i, c in enumerate(sorted(templates))},
+                      templates={cls: [str(slow)]})
+    setup = annotation_setup(templates, config=cfg)
+    assert sum(m.extra for m in setup.models) == 1  # the slow copy is matched too
+    annotate_facts = annotation_facts(setup.models, setup.config)
+    tune_facts = label_facts({c: mt.values.shape[1] for c, mt in templates.items()},
+                             tau_for=cfg.tau_for)
+    assert annotate_facts == tune_facts
+    ff = read_features(world.doc_files[0])
+    rows = [Annotation(ff.path, 0, 29, cls, 0.05), Annotation(ff.path, 10, 99, cls, 0.2)]
+    both = [document_evidence(rows, f, X=ff.X, poses=None, names=("cost", "length"))
+            for f in (annotate_facts, tune_facts)]
+    np.testing.assert_array_equal(*both)

@@ -5,6 +5,7 @@ the one `mtanno evaluate` scores from the written table."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -36,6 +37,9 @@ def test_make_demo_on_synthetic_data(tmp_path):
     assert "[tau]" in config and "training inputs" in config
 
     lines = run.stdout.splitlines()
+    timed = [x for x in lines if re.fullmatch(r"demo: .+ +\d+\.\d s", x)]
+    assert [x.split()[1] for x in timed] == ["features", "learn-mt", "tune", "compose",
+                                             "features", "annotate", "annotate", "report"]
     untuned = lines[lines.index(next(x for x in lines if x.startswith("demo: untuned"))) + 2]
     assert untuned.startswith("overall")
     report = json.loads((demo / "report.json").read_text())

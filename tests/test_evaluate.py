@@ -1,4 +1,4 @@
-"""Evaluation measures (algorithms.md §8) on hand-made tables with overlaps."""
+"""Evaluation measures (docs/method.md §8) on hand-made tables with overlaps."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 from mtanno.evaluation.metrics import evaluate_annotations, frame_level, segment_level
 from mtanno.evaluation.retrieval import retrieval_rows, separation_quotient, top_k_recall
-from mtanno.evaluation.truth import Segment as S
+from mtanno.labels.segments import Segment as S
 
 
 def test_frame_level_with_overlapping_labels():

@@ -19,10 +19,9 @@ from mtanno.features import (
     analysis_frames,
     compute_features_native,
     feature_index,
-    hysteresis,
     mirror_permutation,
 )
-from mtanno.features.hysteresis import _hysteresis_kernel
+from mtanno.features.hysteresis import _hysteresis_kernel, hysteresis
 from mtanno.features.measures import window_samples
 from mtanno.io import canonical_positions, read_motion
 
@@ -80,7 +79,7 @@ def test_velocity_matches_naive(fps, win, n):
 def test_velocity_closed_forms_inside_clip():
     x = np.random.default_rng(0).normal(size=(100, 3))
     v = velocity(x, 120.0, 100)
-    t = 50  # 0-based; features.md §3: v(t) = 10·(x(t+7) − x(t−5)) with 1-based t
+    t = 50  # 0-based; docs/method/features.md §3: v(t) = 10·(x(t+7) − x(t−5)) with 1-based t
     assert np.allclose(v[t], 10 * (x[t + 7] - x[t - 5]))
     v = velocity(x, 120.0, 250)
     assert np.allclose(v[t], 4 * (x[t + 16] - x[t - 14]))
@@ -176,7 +175,8 @@ def test_kernel_equals_numpy_measures_bit_for_bit(tmp_path, seed):
 
 @pytest.mark.parametrize("n", [1, 2, 7, 29])
 def test_kernel_short_clips(tmp_path, n):
-    # clips shorter than the velocity windows (12 and 30 samples) mirror-pad (features.md §8)
+    # clips shorter than the velocity windows (12 and 30 samples) mirror-pad
+    # (docs/method/features.md §8)
     m = _synthetic_motion(tmp_path, n)
     J = canonical_positions(m)
     assert np.array_equal(compute_features_native(J, m.heading, m.fps),

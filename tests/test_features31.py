@@ -12,16 +12,11 @@ from naive_features import features_numpy
 from mtanno import synthetic
 from mtanno.cli import main
 from mtanno.errors import MtannoError
-from mtanno.features import (
-    FEATURE_SETS,
-    compute_features,
-    compute_features_native,
-    get_feature_set,
-)
+from mtanno.features import FEATURE_SETS, compute_features, compute_features_native, get_feature_set
+from mtanno.features.store import read_features
 from mtanno.features.table31 import FEATURES31, FEATURES31_REFERENCE, Feature31
 from mtanno.io import canonical_positions, read_motion
 from mtanno.io.rigs import CANONICAL_JOINTS
-from mtanno.util.store import read_features
 
 SETS31 = ("mrc05", "mrc05-reference")
 
@@ -48,7 +43,7 @@ def test_table31_layout():
 
 
 def test_mrc05_fixes_exactly_the_listed_bugs():
-    # features31.md §5.1–5.3; everything else is the reference table
+    # docs/method/features31.md §5.1–5.3; everything else is the reference table
     diff = {f.id: (f, g) for f, g in zip(FEATURES31, FEATURES31_REFERENCE) if f != g}
     assert sorted(diff) == ["F04", "F10", "F11", "F27"]
     assert diff["F04"][1].unit == "femR" and diff["F04"][0].unit == "femL"
@@ -114,7 +109,8 @@ def _pose(points):
 
 
 def test_capsule_semantics():
-    # features31.md §4: distance to the line inside, balls at the ends when enabled, ≤ k·ℓ
+    # docs/method/features31.md §4: distance to the line inside, balls at the ends when
+    # enabled, ≤ k·ℓ
     pts = [(10.0, 5.0, 0.0),    # beside the segment, d = 10 = 1.0·ℓ → touching (≤)
            (10.5, 5.0, 0.0),    # d = 10.5 > 10
            (0.0, 19.0, 0.0),    # beyond headtop by 9 → ball → touching
@@ -140,7 +136,7 @@ def test_touch_hysteresis_uses_both_radii():
     assert got[0].tolist() == [0, 1, 1, 1, 0, 0]
 
 
-# --- golden outputs of the reference implementation (features31.md §7) -----------------
+# --- golden outputs of the reference implementation (docs/method/features31.md §7) ---------
 
 def _ref_clips():
     if not REFERENCE.is_dir():
@@ -195,7 +191,7 @@ def test_mrc05_root_fast_no_longer_always_on():
             on += int(X[26].sum())
             frames += X.shape[1]
         rates[name] = on / frames
-    assert rates["mrc05-reference"] > 0.9  # features31.md §5.3: 93 % on these clips
+    assert rates["mrc05-reference"] > 0.9  # docs/method/features31.md §5.3: 93 % on these clips
     assert rates["mrc05"] < 0.8
 
 
@@ -220,7 +216,7 @@ def test_cli_feature_set_option(tmp_path):
 @pytest.mark.parametrize("name", ["mrc05", "mrc05-reference", "ak40"])
 def test_degenerate_rig_gives_nan_tests_not_errors(name):
     # rigs without fingertips map fingers to the wrist (e.g. Bandai BVH): the hand segment
-    # has length 0, capsule tests on it are NaN and hence false (features31.md §4)
+    # has length 0, capsule tests on it are NaN and hence false (docs/method/features31.md §4)
     fs = get_feature_set(name)
     rng = np.random.default_rng(3)
     J = rng.normal(size=(50, 22, 3)) * 25

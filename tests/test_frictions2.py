@@ -183,14 +183,14 @@ def test_features_goes_on_past_a_missing_path_or_an_unknown_type(world, tmp_path
     for the one file it reads; a run that wrote nothing leaves no output folder."""
 
     good = world.clips / "squat"
-    c3d = tmp_path / "take.c3d"
+    c3d = tmp_path / "take.fbx"
     c3d.write_bytes(b"\x02\x50" + bytes(510))
     for bad, words in ((tmp_path / "nope.amc", "no such file or directory"),
-                       (c3d, "unknown motion file type '.c3d'")):
+                       (c3d, "unknown motion file type '.fbx'")):
         out = tmp_path / f"out_{bad.suffix[1:]}"
         r = cli("features", good, bad, "-o", out)
         assert r.exit_code == 1, r.output
-        assert _lines(r) == [f"mtanno: {bad}: {words} (expected .amc or .bvh)"
+        assert _lines(r) == [f"mtanno: {bad}: {words} (expected .amc, .bvh or .c3d)"
                              if bad == c3d else f"mtanno: {bad}: {words}"]
         assert len(list(out.glob("*.parquet"))) == len(list(good.glob("*.amc"))) > 0
         assert "1 failed" in r.output
@@ -199,7 +199,7 @@ def test_features_goes_on_past_a_missing_path_or_an_unknown_type(world, tmp_path
         assert r.exit_code == 2 and len(_lines(r)) == 1 and words in r.output
         assert not alone.exists()
     r = cli("info", c3d)
-    assert r.exit_code == 2 and "unknown motion file type '.c3d'" in r.output
+    assert r.exit_code == 2 and "unknown motion file type '.fbx'" in r.output
     corrupt = tmp_path / "corrupt"
     corrupt.mkdir()
     (corrupt / "x.bvh").write_text("junk\n")

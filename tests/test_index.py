@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from mtanno.errors import MtannoError
 from mtanno.features import get_feature_set
+from mtanno.features.store import write_features
 from mtanno.index import (
     CorruptIndex,
     add_documents,
@@ -26,7 +27,6 @@ from mtanno.index import (
     storage,
 )
 from mtanno.index.core import frame_codes
-from mtanno.util.store import write_features
 
 MRC05 = get_feature_set("mrc05")
 
@@ -97,7 +97,7 @@ def test_index_structure_matches_naive():
 
 
 def test_intervals_are_merged_runs_of_matching_frames():
-    # keyframe search (algorithms.md §5): union of lists → frame intervals, neighbours merged
+    # keyframe search (docs/method.md §5): union of lists → frame intervals, neighbours merged
     rng = np.random.default_rng(3)
     names = ["a", "b", "c", "d"]
     docs = _random_docs(rng, 4, names, p=0.3)

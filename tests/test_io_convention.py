@@ -11,8 +11,7 @@ import pyarrow.parquet as pq
 import pytest
 from world import cli
 
-from mtanno.util.store import sha256_file
-from mtanno.util.tables import _cell, read_table
+from mtanno.util.tables import _cell, read_table, sha256_file
 
 
 def _commands(w, tmp):

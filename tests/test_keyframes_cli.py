@@ -14,6 +14,7 @@ from world import assert_one_line, cli
 
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES, GROUPS
+from mtanno.features.store import read_features
 from mtanno.keyframes import (
     Extension,
     Gap,
@@ -26,7 +27,6 @@ from mtanno.keyframes import (
     stiffness_bounds,
 )
 from mtanno.keyframes.model import feature_groups_of
-from mtanno.util.store import read_features
 from mtanno.util.tables import read_table
 
 

@@ -1,4 +1,4 @@
-"""Keyframe learning (algorithms.md §6): fitness on training sequences, the genetic
+"""Keyframe learning (docs/method.md §6): fitness on training sequences, the genetic
 algorithm's properties on tiny problems (a brute-force optimum, reproducibility, elitism),
 jittered copies, the hard and heuristic methods, and learn-keyframes through the CLI."""
 

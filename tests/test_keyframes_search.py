@@ -1,4 +1,4 @@
-"""Keyframe search (algorithms.md §5) against the brute-force oracle of naive_keyframes.py:
+"""Keyframe search (docs/method.md §5) against the brute-force oracle of naive_keyframes.py:
 random documents and random queries, through an index and by a direct scan."""
 
 from __future__ import annotations
@@ -259,7 +259,7 @@ def test_keyframe_set_checks_its_documents():
 def test_annotate_files_takes_a_keyframe_set(tmp_path):
     """A batch annotated with a prepared KeyframeSet equals one with the queries' dict."""
     from mtanno.annotate import ClassModel, annotate_files
-    from mtanno.util.store import FeatureLayout, write_features
+    from mtanno.features.store import FeatureLayout, write_features
 
     rng = np.random.default_rng(1)
     X = (rng.random((7, 60)) < 0.4).astype(np.uint8)

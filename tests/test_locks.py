@@ -11,6 +11,7 @@ import sys
 import threading
 
 import pytest
+from held import lines_until
 from world import cli
 
 from mtanno.util.locks import EXIT_BUSY, LockBusy, folder_lock
@@ -19,29 +20,6 @@ MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
 #: Generous bound on waiting for another process (a hung run fails instead of hanging).
 HANG = 120.0
-
-
-def _lines_until(proc: subprocess.Popen, text: str) -> list[str]:
-    """Read ``proc``'s standard error line by line until a line holds ``text`` (the event
-    the test waits for, instead of a fixed sleep); the lines read. Fails if the process ends
-    first or nothing comes within :data:`HANG` seconds."""
-    lines: list[str] = []
-    found = threading.Event()
-
-    def read():
-        for line in proc.stderr:
-            lines.append(line)
-            if text in line:
-                found.set()
-                return
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    reader.join(HANG)
-    if not found.is_set():
-        proc.kill()
-        pytest.fail(f"no line with {text!r} from the run: {''.join(lines)}")
-    return lines
 
 
 def test_second_holder_is_refused_with_the_holder_named(tmp_path):
@@ -106,7 +84,7 @@ def test_commands_exit_3_or_wait(world, tmp_path):
         proc = subprocess.Popen([*MTANNO, "learn-mt", "--manifest", str(world.manifest),
                                  "--features-dir", str(world.feats), "-o", str(out), "-q",
                                  "--wait"], stderr=subprocess.PIPE, text=True)
-        lines = _lines_until(proc, "waiting for pid")  # it reached the lock and waits
+        lines = lines_until(proc, "waiting for pid")  # it reached the lock and waits
         assert proc.poll() is None  # still waiting
     _, err = proc.communicate(timeout=HANG)
     assert proc.returncode == 0, "".join(lines) + err

@@ -76,7 +76,7 @@ def test_annotate_chunk_reads_the_setup_of_its_worker(world, monkeypatch):
 
 
 def test_the_bank_is_checked_once_and_costs_what_subsequence_dtw_says():
-    from mtanno.annotate.verify import build_bank, subsequence_costs
+    from mtanno.confidence.verify import build_bank, subsequence_costs
 
     rng = np.random.default_rng(3)
     seqs = [rng.random((rng.integers(3, 12), 5)).astype(np.float32) for _ in range(9)]

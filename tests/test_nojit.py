@@ -20,7 +20,8 @@ from naive_features import features_numpy
 from mtanno import synthetic
 from mtanno.io import read_channels, read_motion, canonical_positions
 from mtanno.io.skeleton import forward_kinematics
-from mtanno.features import compute_features_native, hysteresis
+from mtanno.features import compute_features_native
+from mtanno.features.hysteresis import hysteresis
 import numba
 assert numba.config.DISABLE_JIT
 d = Path(tempfile.mkdtemp())

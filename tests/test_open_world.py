@@ -38,20 +38,20 @@ def tuned(world, tmp_path_factory):
 
 def test_tune_records_the_background_and_the_confidence(tuned):
     from mtanno.annotate import load_class_config
-    from mtanno.annotate.verify import read_bank
-    from mtanno.util.store import sha256_file
+    from mtanno.confidence.verify import read_bank
+    from mtanno.util.tables import sha256_file
 
     root, mt, _, config, background = tuned
     cfg = load_class_config(config)
     files = sorted(background.glob("*.parquet"))
     assert cfg.background == {str(f): sha256_file(f) for f in files}
     conf = cfg.confidence
-    assert set(conf["evidence"]) == {"cost", "length", "verify", "margin", "background"}
-    assert 0.0 <= conf["min_confidence"] <= 0.8
-    bank = read_bank(root / conf["bank"])
+    assert set(conf.evidence) == {"cost", "length", "verify", "margin", "background"}
+    assert 0.0 <= conf.min_confidence <= 0.8
+    bank = read_bank(root / conf.bank_file)
     assert bank.representation == "features"  # the synthetic features have no poses
     assert bank.has_background and BACKGROUND_CLASS not in bank.classes
-    assert conf["bank_sha256"] == sha256_file(root / conf["bank"])
+    assert conf.bank_sha256 == sha256_file(root / conf.bank_file)
     assert "AUROC" in config.read_text()
 
 
@@ -89,8 +89,8 @@ def test_without_a_tuned_confidence_the_score_is_uncalibrated(world):
 def test_a_pose_bank_needs_feature_files_with_poses(world, tuned, tmp_path):
     """A configuration verifying by poses, given feature files without them: each file
     fails with one line saying how to make them; exit code 1."""
-    from mtanno.annotate.verify import POSE_JOINTS, build_bank, read_bank, write_bank
-    from mtanno.util.store import sha256_file
+    from mtanno.confidence.verify import POSE_JOINTS, build_bank, read_bank, write_bank
+    from mtanno.util.tables import sha256_file
 
     root, mt, _, config, _ = tuned
     old = read_bank(root / "tuned.verify.parquet")
@@ -140,7 +140,7 @@ def test_tune_on_annotated_documents_with_poses_verifies_by_poses(world, tmp_pat
     """--truth documents: the held-out documents are the feature files themselves, read
     with their poses, so the bank verifies by poses (auto)."""
     from mtanno.annotate import load_class_config
-    from mtanno.annotate.verify import read_bank
+    from mtanno.confidence.verify import read_bank
 
     feats = tmp_path / "docsP"
     r = cli("features", world.docs, "-o", feats, "--poses", "-q")
@@ -149,7 +149,7 @@ def test_tune_on_annotated_documents_with_poses_verifies_by_poses(world, tmp_pat
     r = cli("tune", "--mt", world.mt, "--truth", world.truth, feats, "-o", config, "-q")
     assert r.exit_code == 0, r.output
     conf = load_class_config(config).confidence
-    assert read_bank(tmp_path / conf["bank"]).representation == "poses"
+    assert read_bank(tmp_path / conf.bank_file).representation == "poses"
     r = cli("annotate", "--mt", world.mt, "--classes", config, feats, "-o", tmp_path / "a.csv",
             "--min-confidence", "0", "-q")
     assert r.exit_code == 0, r.output

@@ -14,8 +14,8 @@ from click.testing import CliRunner
 
 from mtanno.annotate import Annotation
 from mtanno.cli import main
-from mtanno.evaluation.truth import Segment
-from mtanno.util.store import write_features
+from mtanno.features.store import write_features
+from mtanno.labels.segments import Segment
 
 matplotlib = pytest.importorskip("matplotlib", reason="the 'plot' extra is not installed")
 matplotlib.use("Agg")
@@ -207,7 +207,7 @@ def test_report_files_and_tables(world, tmp_path):
     conf = list(csv.DictReader((out / "confusion.csv").open()))
     assert conf[-1]["truth"] == "none" and list(conf[0])[-1] == "none"
     total = sum(int(v) for row in conf for k, v in row.items() if k != "truth")
-    from mtanno.util.store import read_features
+    from mtanno.features.store import read_features
 
     assert total == sum(read_features(p).X.shape[1] for p in world.doc_files)
     page = (out / "index.html").read_text()
@@ -226,8 +226,8 @@ def test_report_draws_delta_with_the_annotations_delta_and_taus(world, tmp_path,
 
     import mtanno.evaluation.report as report
     from mtanno.annotate import class_deltas, class_models
+    from mtanno.features.store import read_features
     from mtanno.templates.model import load_template_folder
-    from mtanno.util.store import read_features
 
     names = sorted(p.stem for p in world.mt.glob("*.json"))
     own, extra = names[0], names[1]

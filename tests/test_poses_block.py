@@ -21,10 +21,10 @@ from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES
 from mtanno.features.extract import extract_file, plan_batch, run_batch, to_y_up, up_to_date
 from mtanno.features.poses import POSE_UNIT, normalize_poses, pose_metadata
+from mtanno.features.store import POSE_PREFIX, pose_columns, read_features, write_features
 from mtanno.io import canonical_positions, read_motion
 from mtanno.io.rigs import CANONICAL_JOINTS
 from mtanno.templates.training import ExampleSource, load_examples
-from mtanno.util.store import POSE_PREFIX, pose_columns, read_features, write_features
 
 COLUMNS = pose_columns(CANONICAL_JOINTS)
 META = {"analysis_fps": 30.0, "feature_set": "mr06-ak40"}
@@ -107,7 +107,7 @@ def test_round_trip_real(tmp_path):
 
 @pytest.mark.parametrize("n", [1, 2, 7, 76, 500, 1023, 1024, 1100])
 def test_written_as_pyarrow_writes_it(tmp_path, n):
-    """Short pose files are assembled by the direct encoder (util/_parquet), long ones by
+    """Short pose files are assembled by the direct encoder (features/_parquet), long ones by
     pyarrow with zstd: either way the bytes are pyarrow's, and they read back exactly."""
     rng = np.random.default_rng(n)
     X = (rng.random((40, n)) < 0.4).astype(np.uint8)
@@ -131,7 +131,7 @@ def test_written_as_pyarrow_writes_it(tmp_path, n):
 
 
 def test_the_float_encoder_agrees_with_this_pyarrow():
-    from mtanno.util import _parquet
+    from mtanno.features import _parquet
 
     assert _parquet.available_floats() is not None
 

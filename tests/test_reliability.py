@@ -15,8 +15,9 @@ import pytest
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
-from mtanno.util.output import _HOST, atomic_path, check_outputs, remove_stale_temporaries
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
+from mtanno.util.output import _HOST, atomic_path, remove_stale_temporaries
+from mtanno.util.preflight import check_outputs
 
 # --------------------------------------------------------------------- 1: outputs = inputs
 

@@ -37,7 +37,7 @@ def test_poses_round_trip_within_half_a_quantum():
 def test_motion_poses_are_the_pose_block_of_the_feature_files(world, tmp_path):
     """The poses a player shows from a motion file are those `features --poses` stores
     (same 30 Hz frames, same normalisation), within the embedding's quantum."""
-    from mtanno.util.store import read_features
+    from mtanno.features.store import read_features
 
     docs = sorted(world.docs.glob("*.amc"))[:2]
     assert cli("features", *docs, "-o", tmp_path / "f", "--poses", "-q").exit_code == 0

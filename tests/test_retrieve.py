@@ -1,4 +1,5 @@
-"""Hit extraction (algorithms.md §3.5) against the literal oracle, hand-made Δ curves, ranking."""
+"""Hit extraction (docs/method.md §3.5) against the literal oracle, hand-made Δ curves,
+ranking."""
 
 from __future__ import annotations
 

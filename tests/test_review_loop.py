@@ -15,7 +15,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from mtanno.evaluation.truth import read_truth
+from mtanno.labels.truth import read_truth
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "bandai_folds.py"
 CONTENTS = ("run", "walk", "wave-left-hand")

@@ -507,15 +507,23 @@ def _swap_names(b: Bvh) -> Bvh:
 
 @pytest.mark.realdata
 def test_mirrored_naming_detected(bandai_text, tmp_path):
+    """Names whose sides the pose contradicts: the pose decides (read_motion, the default
+    method), or the map made from the names alone refuses them ("mirrored naming")."""
     path = _swap_names(_mixamo(parse_bvh(bandai_text), "mixamorig:")).write(tmp_path / "m.bvh")
     with pytest.raises(MtannoError, match=r"mirrored naming: the legs and arms named left "
                                           r"are on the subject's right") as e:
-        read_motion(path)
+        guess_map(*read_bvh(path), method="names")
     assert "\n" not in str(e.value) and str(path) in str(e.value)
+    X0, _ = _features(parse_bvh(bandai_text).write(tmp_path / "orig.bvh"))
+    X, m = _features(path)
+    assert m.smap.name == "guessed-mixamo"
+    assert m.smap.joints["lhip"] == "mixamorig:RightUpLeg"   # named right, lies left
+    assert "sides from the pose on 64 frames: the legs and arms named left lie on the " \
+        "subject's right" in m.smap.how
+    assert (X == X0).all()
     # --swap-sides makes the map of the correctly named rig: the same features
     X, _ = features_from_motion(read_motion(path, skeleton=_write_map(
         tmp_path, ["--swap-sides"], path)))
-    X0, _ = _features(parse_bvh(bandai_text).write(tmp_path / "orig.bvh"))
     assert (X == X0).all()
 
 
@@ -528,7 +536,9 @@ def test_mirrored_naming_cmu_rest_pose(cmu_file):
     rig.names = [swap(n) for n in rig.names]
     rig.meta["end_sites"] = [swap(n) for n in rig.meta["end_sites"]]
     with pytest.raises(MtannoError, match="mirrored naming.*checked on the rest pose"):
-        guess_map(rig)
+        guess_map(rig, method="names")
+    smap = guess_map(rig)
+    assert smap.joints["lhip"] == "RightUpLeg" and smap.joints["rwrist"] == "LeftHand"
 
 
 TPOSE = """HIERARCHY
@@ -628,6 +638,16 @@ TPOSE_NAMES = {"hips": "Hips", "lthigh": "LeftUpLeg", "lknee": "LeftLeg", "neck"
                "lelbow": "LeftForeArm"}
 
 
+TPOSE_JOINTS = {
+    "root": "Hips", "lhip": "LeftUpLeg", "rhip": "RightUpLeg", "lknee": "LeftLeg",
+    "rknee": "RightLeg", "lankle": "LeftFoot", "rankle": "RightFoot",
+    "ltoes": "LeftFoot_End", "rtoes": "RightFoot_End", "belly": "Spine",
+    "chest": "Chest", "neck": "Neck", "head": "Head", "headtop": "Head_End",
+    "lshoulder": "LeftArm", "rshoulder": "RightArm", "lelbow": "LeftForeArm",
+    "relbow": "RightForeArm", "lwrist": "LeftHand", "rwrist": "RightHand",
+    "lfingers": "LeftHand_End", "rfingers": "RightHand_End"}
+
+
 def _tpose(tmp_path: Path, **names: str) -> Path:
     text = TPOSE.format(**{**TPOSE_NAMES, **names})
     row = " ".join(["0"] * (6 + 3 * 18))
@@ -639,14 +659,7 @@ def _tpose(tmp_path: Path, **names: str) -> Path:
 def test_tpose_rig_mapped(tmp_path):
     m = read_motion(_tpose(tmp_path))
     assert m.smap.name == "guessed-mixamo-style"
-    assert m.smap.joints == {
-        "root": "Hips", "lhip": "LeftUpLeg", "rhip": "RightUpLeg", "lknee": "LeftLeg",
-        "rknee": "RightLeg", "lankle": "LeftFoot", "rankle": "RightFoot",
-        "ltoes": "LeftFoot_End", "rtoes": "RightFoot_End", "belly": "Spine",
-        "chest": "Chest", "neck": "Neck", "head": "Head", "headtop": "Head_End",
-        "lshoulder": "LeftArm", "rshoulder": "RightArm", "lelbow": "LeftForeArm",
-        "relbow": "RightForeArm", "lwrist": "LeftHand", "rwrist": "RightHand",
-        "lfingers": "LeftHand_End", "rfingers": "RightHand_End"}
+    assert m.smap.joints == TPOSE_JOINTS
     assert m.smap.heading_axis == (1.0, 0.0, 0.0)
     assert "legs and arms confirmed by the pose on 2 frames" in m.smap.how
 
@@ -667,28 +680,43 @@ def test_neck_found_without_its_name(tmp_path):
      "could not place lhip, lknee, lankle, ltoes (lhip, lknee, lankle, ltoes: several knee "
      "candidates (LeftLeg, LeftKnee))"),
 ])
-def test_ambiguous_rig_lists_what_it_could_not_place(tmp_path, names, expected):
+def test_names_that_do_not_place_every_joint(tmp_path, names, expected):
+    """Names that leave joints unplaced: the map made from the names alone lists them in
+    one line; read_motion maps the rig from its hierarchy instead."""
     path = _tpose(tmp_path, **names)
     with pytest.raises(MtannoError) as e:
-        read_motion(path)
+        guess_map(*read_bvh(path), method="names")
     msg = str(e.value)
     assert "\n" not in msg and msg.startswith(f"{path}: no skeleton map fits this BVH rig")
     assert expected in msg and msg.endswith("pass skeleton= MAP.toml (docs/formats.md)")
-    result = CliRunner().invoke(main, ["info", str(path)])
+    result = CliRunner().invoke(main, ["skeleton", "guess", "--method", "names", str(path)])
     assert result.exit_code == 2 and result.output.count("\n") == 1
     assert result.output.rstrip().endswith("pass --skeleton MAP.toml (docs/formats.md)")
     assert "Traceback" not in result.output
+    m = read_motion(path)
+    assert m.smap.name == "guessed-hierarchy"
+    renamed = {TPOSE_NAMES[k] + end: v + end for k, v in names.items() for end in ("", "_End")}
+    assert m.smap.joints == {k: renamed.get(v, v) for k, v in TPOSE_JOINTS.items()}
+    assert m.smap.how.startswith("generated from the hierarchy and rest pose (the joint "
+                                 "names place ")
 
 
 def test_not_placed_at_all(tmp_path):
-    """Generic names everywhere: every canonical joint is listed."""
+    """Generic names everywhere: every canonical joint is listed by the names; the
+    hierarchy places them all."""
     text = re.sub(r"(ROOT|JOINT) \S+", lambda m: f"{m.group(1)} Bone{m.start()}",
                   _tpose(tmp_path).read_text())
     path = tmp_path / "bones.bvh"
     path.write_text(text)
     with pytest.raises(MtannoError, match="could not place " + ", ".join(CANONICAL_JOINTS)
                        + " \\("):
-        read_motion(path)
+        guess_map(*read_bvh(path), method="names")
+    old = re.findall(r"(?:ROOT|JOINT) (\S+)", _tpose(tmp_path).read_text())
+    new = re.findall(r"(?:ROOT|JOINT) (\S+)", text)
+    renamed = {**dict(zip(old, new)), **{a + "_End": b + "_End" for a, b in zip(old, new)}}
+    m = read_motion(path)
+    assert m.smap.joints == {k: renamed[v] for k, v in TPOSE_JOINTS.items()}
+    assert "(the joint names place none of the 22 joints)" in m.smap.how
 
 
 def test_builtin_map_still_wins(tmp_path):
@@ -736,7 +764,8 @@ def test_skeleton_guess_round_trip(tmp_path):
     result = CliRunner().invoke(main, ["skeleton", "guess", str(src)])
     assert result.exit_code == 0 and "[joints]" in result.output
     bad = _tpose(tmp_path, head="Skull")
-    result = CliRunner().invoke(main, ["skeleton", "guess", str(bad), "-o", str(out)])
+    result = CliRunner().invoke(main, ["skeleton", "guess", str(bad), "-o", str(out),
+                                       "--method", "names"])
     assert result.exit_code == 2 and result.output.count("\n") == 1
     assert "could not place" in result.output
 

@@ -23,7 +23,7 @@ from mtanno.evaluation.segmentation import (
     overlap_counts,
     segmentation_scores,
 )
-from mtanno.evaluation.truth import Segment as S
+from mtanno.labels.segments import Segment as S
 
 
 def scores(truth, output, docs=None, frames=None):

@@ -11,8 +11,8 @@ import pytest
 
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES
+from mtanno.features.store import read_feature_matrix, read_features, write_features
 from mtanno.util.output import atomic_path
-from mtanno.util.store import read_feature_matrix, read_features, write_features
 
 
 def test_round_trip(tmp_path):
@@ -96,8 +96,7 @@ def _pyarrow_bytes(X, names, native, meta) -> bytes:
 
 
 def test_short_files_are_byte_identical_to_pyarrow_for_every_length(tmp_path):
-    from mtanno.features import get_feature_set
-    from mtanno.util import _parquet
+    from mtanno.features import _parquet, get_feature_set
 
     assert _parquet.available() is not None  # the direct encoder agrees with this pyarrow
     rng = np.random.default_rng(3)
@@ -115,7 +114,7 @@ def test_short_files_are_byte_identical_to_pyarrow_for_every_length(tmp_path):
 
 
 def test_short_files_fall_back_to_pyarrow(tmp_path, monkeypatch):
-    from mtanno.util import _parquet
+    from mtanno.features import _parquet
 
     monkeypatch.setattr(_parquet, "_CHECKED", None)  # as if this pyarrow wrote other bytes
     X = (np.random.default_rng(4).random((40, 9)) < 0.5).astype(np.uint8)

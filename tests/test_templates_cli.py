@@ -11,8 +11,8 @@ from conftest import HDM05, REFERENCE, require_data
 
 from mtanno.cli import main
 from mtanno.features import FEATURE_NAMES
+from mtanno.features.store import write_features
 from mtanno.templates.model import load_template, mirror, quantize
-from mtanno.util.store import write_features
 
 
 def run(args):

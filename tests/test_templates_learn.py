@@ -1,4 +1,4 @@
-"""Motion-template learning: numba kernels = a naive reading of features.md App. A, the
+"""Motion-template learning: numba kernels = a naive reading of docs/method/features.md §A, the
 golden templates of the reference implementation, thesis Example 3.1 and Claim 3.1."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from mtanno.templates.learn import (
 )
 
 # --------------------------------------------------------------------------- naive oracle
-# Plain Python loops written from features.md Appendix A (and thesis §3.3.1 for hard MTs);
+# Plain Python loops written from docs/method/features.md §A (and thesis §3.3.1 for hard MTs);
 # every float operation in the order the appendix gives.
 
 

@@ -1,4 +1,4 @@
-"""Motion-template objects: quantization (algorithms.md §3.3), mirroring (MR06 §5.4), the
+"""Motion-template objects: quantization (docs/method.md §3.3), mirroring (MR06 §5.4), the
 JSON file and every way ``load_template`` rejects a bad one."""
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import pytest
 
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES
+from mtanno.features.store import write_features
 from mtanno.templates.learn import learn, learn_template
 from mtanno.templates.training import (
     ExampleSource,
@@ -17,7 +18,7 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
-from mtanno.util.store import sha256_file, write_features
+from mtanno.util.tables import sha256_file
 
 
 def write_doc(path, X, *, names=FEATURE_NAMES, fps=30.0, feature_set="mr06-ak40"):

@@ -6,18 +6,12 @@ import pytest
 from conftest import DATA, require_data
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.truth import (
-    Segment,
-    by_document,
-    read_truth,
-    to_analysis_frame,
-    truth_from_mocap6,
-    write_truth,
-)
+from mtanno.labels.segments import Segment, by_document
+from mtanno.labels.truth import read_truth, to_analysis_frame, truth_from_mocap6, write_truth
 
 
 def test_rate_conversion():
-    # algorithms.md §8: ceil(frame / ratio)
+    # docs/method.md §8: ceil(frame / ratio)
     assert [to_analysis_frame(f, 120) for f in (1, 4, 5, 8, 9)] == [1, 1, 2, 2, 3]
     assert to_analysis_frame(17, 30) == 17
     assert to_analysis_frame(3, 60) == 2

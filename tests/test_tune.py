@@ -17,13 +17,13 @@ from world import assert_one_line, cli
 from mtanno.annotate import ClassConfig, label_document, load_class_config
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import evaluate_annotations
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 from mtanno.templates.training import collect_sources
 from mtanno.tuning import METHODS, tune, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
-from mtanno.util.store import sha256_file
+from mtanno.util.tables import sha256_file
 
 
 def _sources(world):
@@ -270,7 +270,7 @@ def test_a_class_without_a_template_in_a_fold_is_an_unknown_motion_there():
     p = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 2, "b": 1})
     ev = only_ab.evaluate(p, per_class=True)
     assert ev.counts.frame_support == 59
-    segs = only_ab._segments(fd, p, ["a", "b"])
+    segs = only_ab.fold_segments(fd, p, ["a", "b"])
     covered = any(a <= 0 <= b for _, a, b in segs)
     assert ev.per_class_unknown["c"] == (int(covered), 1)
 
@@ -306,7 +306,7 @@ def test_tuner_scores_what_annotate_does(resolve):
     tuner = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.0)
     p = Params(delta=0.05, resolve=resolve, refine=True, slack=2, tau={"a": 0.1, "b": 0.13},
                reject={"b": 0.1}, groups={"a": 2, "b": 1})
-    got = tuner._segments(tuner.folds[0], p, ["a", "b"])
+    got = tuner.fold_segments(tuner.folds[0], p, ["a", "b"])
     # annotate's way: per document, label_document on the same curves with the config
     cfg = ClassConfig(tau={"a": 0.1, "b": 0.13}, reject={"b": 0.1}, resolve=resolve,
                       refine=True, slack=2)
@@ -481,7 +481,7 @@ def test_tuner_matches_time_scaled_templates_as_annotate_does(resolve):
     p = Params(delta=0.05, resolve=resolve, tau={"a": 0.1, "b": 0.13},
                groups={"a": 1, "b": 1}, scales={"a": (0.6,)}, frame_weight=0.5 * resolve)
     assert tuner._templates(tuner.folds[0], "a", p) == [(1, 0), (0, 0.6)]
-    got = tuner._segments(tuner.folds[0], p, ["a", "b"])
+    got = tuner.fold_segments(tuner.folds[0], p, ["a", "b"])
     cfg = ClassConfig(tau={"a": 0.1, "b": 0.13}, resolve=resolve,
                       frame_weight=0.5 * resolve)
     want = []
@@ -669,7 +669,7 @@ def _old_subset(fd, docs):
 def test_a_class_left_out_reads_its_documents_from_the_fold_arrays():
     """The run with a class left out sees the fold's arrays sliced to the documents that
     hold the class (no copies kept), exactly the arrays a materialised subset held."""
-    from mtanno.tuning.search import _sub_arrays
+    from mtanno.tuning.folddata import _sub_arrays
 
     fold, prepared = _fold_data()
     fold.held_out.X = np.zeros((3, 90), np.uint8)
@@ -692,7 +692,7 @@ def test_a_class_left_out_reads_its_documents_from_the_fold_arrays():
         assert np.array_equal(d, d2) and np.array_equal(s, s2) and np.array_equal(ev, ev2)
     p = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 2, "b": 1},
                frame_weight=0.3)
-    for want, got in zip(tuner._arrays(sub, p), _sub_arrays(sub, tuner._arrays(fd, p))):
+    for want, got in zip(tuner.decoder_arrays(sub, p), _sub_arrays(sub, tuner.decoder_arrays(fd, p))):
         assert np.array_equal(want, got)
     # the run without a class is scored once for the candidates that differ only in it
     ev = tuner.evaluate(p, per_class=True)
@@ -764,8 +764,8 @@ def test_the_best_candidate_is_found_without_scoring_every_run(jobs):
     first = next(i for i, e in enumerate(full) if e.J == top)
     runs = []
     if jobs == 1:  # count the runs scored (in this process)
-        segments = tuner._segments
-        tuner._segments = lambda fd, p, classes, arrays=None: runs.append(len(classes)) or \
+        segments = tuner.fold_segments
+        tuner.fold_segments = lambda fd, p, classes, arrays=None: runs.append(len(classes)) or \
             segments(fd, p, classes, arrays)
     try:
         tuner._hidden.clear()

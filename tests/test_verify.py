@@ -8,7 +8,7 @@ import pytest
 from naive_verify import subsequence_costs as naive_costs
 from nojit import run_without_jit
 
-from mtanno.annotate.verify import (
+from mtanno.confidence.verify import (
     MAX_QUERY,
     POSE_JOINTS,
     VERIFY_STEP,

@@ -1,5 +1,5 @@
 """The built wheel works for a pip user: installed into a fresh virtual environment outside
-the repository, `mtanno features` reads a real ASF/AMC and a real BVH file.
+the repository, `mtanno features` reads a real ASF/AMC, a real BVH and a real C3D file.
 
 This is what catches run-time files that are not package data (the skeleton maps were once
 looked up in the source tree, so every installed copy failed on every motion file).
@@ -15,7 +15,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from conftest import HDM05, REPO, require_data
+from conftest import DATA, HDM05, REPO, require_data
 
 try:
     from data_cache import bandai_clips
@@ -47,6 +47,7 @@ def test_wheel_contents(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     for m in ("cmu-asf", "bandai-bvh", "cmu-bvh"):
         assert f"mtanno/skeletons/{m}.toml" in names
+    assert "mtanno/markersets/vicon-41.toml" in names  # the C3D marker set
     assert "mtanno/py.typed" in names
     assert "mtanno/evaluation/player.js" in names  # the report page's player
     assert any(n.endswith("licenses/LICENSE") for n in names)
@@ -76,11 +77,17 @@ def test_installed_wheel_reads_real_motion_files(wheel, tmp_path):
     assert str(env_dir) in r.stdout and str(REPO) not in r.stdout, r.stdout
     mtanno = env_dir / "bin" / "mtanno"
     out = tmp_path / "feats"
-    r = subprocess.run([str(mtanno), "features", str(amc), str(bvh), "-o", str(out), "-q"],
-                       capture_output=True, text=True, env=env, cwd=tmp_path)
+    c3d = DATA / "c3d" / "85_02.c3d"  # (the c3d package is a dependency: pip installed it)
+    r = subprocess.run([str(mtanno), "features", str(amc), str(bvh), str(c3d), "-o", str(out),
+                        "-q"], capture_output=True, text=True, env=env, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (out / f"{amc.stem}.parquet").is_file()
     assert (out / f"{bvh.stem}.parquet").is_file()
+    assert (out / f"{c3d.stem}.parquet").is_file()
+    r = subprocess.run([str(mtanno), "info", str(c3d)], capture_output=True, text=True, env=env,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "marker set     vicon-41" in r.stdout and str(env_dir) in r.stdout
     r = subprocess.run([str(mtanno), "info", str(bvh)], capture_output=True, text=True, env=env,
                        cwd=tmp_path)
     assert r.returncode == 0, r.stderr

@@ -20,10 +20,9 @@ kernels load with the first name used.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from mtanno.util.lazy import lazy_exports
 
-_EXPORTS = {
+__getattr__, __all__ = lazy_exports(__name__, {
     "coarse": ("ALL", "POSE", "CoarseAlignment", "Segments", "coarse_alignment",
                "pose_features", "select_features"),
     "core": ("Alignment", "align", "align_files", "alignment_table", "write_alignment"),
@@ -32,18 +31,7 @@ _EXPORTS = {
     "options": ("COSTS", "DEFAULT_BAND", "DEFAULT_COST"),
     "poses": ("Performance", "body_scale", "load_performance", "normalize_poses",
               "performance_from_positions"),
-}
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-
-__all__ = sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module 'mtanno.align' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"mtanno.align.{_MODULE_OF[name]}"), name)
-    globals()[name] = value
-    return value
+})
 
 
 def __dir__() -> list[str]:

@@ -24,8 +24,9 @@ from mtanno.align.options import COST_UNITS, COSTS, DEFAULT_BAND, DEFAULT_COST
 from mtanno.align.poses import Performance, load_performance, normalize_poses
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_SET, FeatureSet
+from mtanno.features.store import check_layout
 from mtanno.index.core import frame_codes
-from mtanno.util.store import check_layout
+from mtanno.io.formats import expected
 
 __all__ = ["Alignment", "align", "align_files", "alignment_table", "summary",
            "write_alignment"]
@@ -113,7 +114,7 @@ def align(a: Performance, b: Performance, *, features: Sequence[str] | None = No
         for p in (a, b):
             if p.joints is None:
                 raise MtannoError("a feature file has features but no joint positions: the "
-                                  "positions cost needs the motion file (.amc, .bvh); use "
+                                  f"positions cost needs the motion file ({expected()}); use "
                                   "{cost} features for feature files", path=p.where,
                                   options=("cost",))
     for p in (a, b):
@@ -143,14 +144,14 @@ def align(a: Performance, b: Performance, *, features: Sequence[str] | None = No
 def align_files(path_a: str | os.PathLike, path_b: str | os.PathLike, *,
                 asf: str | os.PathLike | None = None, skeleton: str | os.PathLike | None = None,
                 feature_set: str | FeatureSet = FEATURE_SET, **options) -> Alignment:
-    """:func:`align` of two files: motion files (``.amc``, ``.bvh``; ``asf``, ``skeleton``
+    """:func:`align` of two files: motion files (``.amc``, ``.bvh``, ``.c3d``; ``asf``, ``skeleton``
     and ``feature_set`` as in :func:`mtanno.align.poses.load_performance`) or feature files
     (``.parquet``, feature cost only). ``options``: those of :func:`align`."""
     if options.get("cost", DEFAULT_COST) == "positions":
         for p in (path_a, path_b):
             if str(p).lower().endswith(".parquet"):
                 raise MtannoError("a feature file has features but no joint positions: the "
-                                  "positions cost needs the motion file (.amc, .bvh); use "
+                                  f"positions cost needs the motion file ({expected()}); use "
                                   "{cost} features for feature files", path=str(p),
                                   options=("cost",))
     a = load_performance(path_a, asf=asf, skeleton=skeleton, feature_set=feature_set)

@@ -5,7 +5,7 @@ inside an *area* (:class:`Area`): per row a the columns ``lo[a] .. hi[a]``. The 
 stage 1 (:mod:`mtanno.align.coarse`) derives from the matched segment pairs is a staircase
 band along the coarse alignment; :func:`Area.full` is the whole matrix (classical DTW).
 
-The recursion is classical DTW (algorithms.md §3.1): steps (1, 1), (1, 0), (0, 1), each
+The recursion is classical DTW (docs/method.md §3.1): steps (1, 1), (1, 0), (0, 1), each
 adding the local cost of the cell it enters, D(a, b) = c(a, b) + min(D(a−1, b−1),
 D(a−1, b), D(a, b−1)); ties go to the diagonal, then to the step that advances A. The total
 cost is the sum of the local costs along the path, the *mean cost* that sum divided by the
@@ -15,7 +15,7 @@ what it enters: the row's weight for (1, 0), the column's for (0, 1), the larger
 for (1, 1) (a diagonal run through a block of equal costs visits max(rows, columns) cells);
 the mean cost is then the total divided by the summed weights of the path's steps.
 
-Local costs (algorithms.md §3.1 for DTW; [MRC05] §7 and Kovar and Gleicher's point-cloud
+Local costs (docs/method.md §3.1 for DTW; [MRC05] §7 and Kovar and Gleicher's point-cloud
 distance for the poses):
 
 * ``positions`` — the mean over the joints of the Euclidean distance between two poses

@@ -25,7 +25,7 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.features import ANALYSIS_FPS, FEATURE_SET, FeatureSet, compute_features, get_feature_set
 from mtanno.features.poses import body_scale, normalize_poses
-from mtanno.util.store import FeatureLayout
+from mtanno.features.store import FeatureLayout
 
 __all__ = ["Performance", "body_scale", "load_performance", "normalize_poses",
            "performance_from_positions"]
@@ -129,7 +129,7 @@ def load_performance(path: str | os.PathLike, *, asf: str | os.PathLike | None =
     """
     spath = str(path)
     if Path(path).suffix.lower() == ".parquet":
-        from mtanno.util.store import read_features
+        from mtanno.features.store import read_features
 
         ff = read_features(path)
         if ff.X.shape[1] == 0:

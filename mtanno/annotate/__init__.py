@@ -1,46 +1,40 @@
 """The annotate stage: per-frame class labels of documents from motion templates ([MBS09]
-§4–5, algorithms.md §7) and the tuned methods of issue 10 (``docs/annotation.md``).
+§4–5, docs/method.md §7) and the tuned methods of issue 10 (``docs/annotation.md``).
 
 Modules, in the order the data flows through them:
 
 * :mod:`~mtanno.annotate.config` — class configurations (per-class τ, superclasses, the
-  decoder's options; TOML), :data:`DEFAULT_TAU`, :data:`DEFAULT_DELTA`, :func:`check_tau`;
-* :mod:`~mtanno.annotate.dbar` — the modified distance Δ̄ of a class (§7 step 2);
-* :mod:`~mtanno.annotate.label` — one document's labels and segments (§7 steps 3–4;
-  :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
+  decoder's options; TOML);
+* :mod:`~mtanno.annotate.dbar` — the modified distance Δ̄ of a class (docs/method.md §7
+  step 2);
+* :mod:`~mtanno.annotate.label` — one document's labels and segments (docs/method.md §7
+  steps 3–4; :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
 * :mod:`~mtanno.annotate.decode` — the segment decoder of tuned annotation (issue 10);
 * :mod:`~mtanno.annotate.tables` — annotation tables (0-based rows, 1-based files);
-* :mod:`~mtanno.annotate.verify` — verification of segments against training examples and
-  background motions by subsequence DTW (issue 26);
-* :mod:`~mtanno.annotate.confidence` — the evidence and confidence of every segment
-  (issue 26);
 * :mod:`~mtanno.annotate.batch` — batches of feature files (:class:`AnnotationSetup`,
   :func:`annotate_files`);
 * :mod:`~mtanno.annotate.folder` — resumable annotation into a folder (``--output-dir``);
 * :mod:`~mtanno.annotate.run` — the whole ``mtanno annotate`` run, from file names to
   files (:func:`annotate_to`);
-* :mod:`~mtanno.annotate.calibration` — the calibrated confidence of segments (issue 26:
-  :func:`fit_calibrated`, :class:`Calibrator`) and the uncalibrated fallback score;
-* :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private);
-* :mod:`~mtanno.annotate._verify_kernels` — the subsequence DTW kernel of verification
-  (private).
+* :mod:`~mtanno.annotate._kernels` — the stage's numba kernels (private).
+
+The confidence of every segment (its evidence, verification, calibration and the tuned
+model a configuration holds) is :mod:`mtanno.confidence`.
 
 The public names of these modules are importable from ``mtanno.annotate`` itself.
 """
 
 __all__ = [
-    "ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "AnnotateRun", "CALIBRATION_FOLDS",
-    "CALIBRATION_L2", "CALIBRATION_METHODS", "DECODER_KEYS", "DEFAULT_CALIBRATION", "DEFAULT_DELTA",
-    "DEFAULT_TAU", "NEWTON_MAX_ITER", "UNCALIBRATED", "Annotation", "AnnotationBatch",
-    "AnnotationSetup", "CalibrationResult", "Calibrator", "ClassConfig", "ClassModel",
-    "IsotonicModel", "LogisticModel", "Windows", "annotate_document", "annotate_files",
-    "annotate_to", "annotation_files", "annotation_setup", "annotation_table", "check_tau",
-    "class_config_text", "class_deltas", "class_models", "evidence_covered", "fit_calibrated",
-    "fit_isotonic", "fit_logistic", "label_document", "label_frames", "load_annotation_setup",
-    "load_class_config", "load_class_models", "load_config_templates", "merge_annotation_tables",
-    "merged_spans", "modified_delta", "read_annotation_table", "read_annotation_tables",
-    "read_annotations", "segments_from_labels", "single_label_segments", "to_segments",
-    "uncalibrated_confidence", "write_annotations", "write_class_config",
+    "ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "AnnotateRun", "DECODER_KEYS", "Annotation",
+    "AnnotationBatch", "AnnotationSetup", "ClassConfig", "ClassModel", "Windows",
+    "annotate_document", "annotate_files", "annotate_to", "annotation_files",
+    "annotation_setup", "annotation_table", "class_config_text", "class_deltas",
+    "class_models", "evidence_covered", "label_document", "label_frames",
+    "load_annotation_setup", "load_class_config", "load_class_models",
+    "load_config_templates", "merge_annotation_tables", "merged_spans", "modified_delta",
+    "read_annotation_table", "read_annotation_tables", "read_annotations",
+    "segments_from_labels", "single_label_segments", "to_segments", "write_annotations",
+    "write_class_config",
 ]
 
 from mtanno.annotate.batch import (
@@ -53,28 +47,9 @@ from mtanno.annotate.batch import (
     load_class_models,
     load_config_templates,
 )
-from mtanno.annotate.calibration import (
-    CALIBRATION_FOLDS,
-    CALIBRATION_L2,
-    CALIBRATION_METHODS,
-    DEFAULT_CALIBRATION,
-    NEWTON_MAX_ITER,
-    UNCALIBRATED,
-    CalibrationResult,
-    Calibrator,
-    IsotonicModel,
-    LogisticModel,
-    fit_calibrated,
-    fit_isotonic,
-    fit_logistic,
-    uncalibrated_confidence,
-)
 from mtanno.annotate.config import (
     DECODER_KEYS,
-    DEFAULT_DELTA,
-    DEFAULT_TAU,
     ClassConfig,
-    check_tau,
     class_config_text,
     load_class_config,
     write_class_config,
@@ -96,13 +71,15 @@ from mtanno.annotate.run import AnnotateRun, annotate_to
 from mtanno.annotate.tables import (
     ANNOTATION_COLUMNS,
     ANNOTATION_SUFFIXES,
-    Annotation,
     annotation_files,
     annotation_table,
     merge_annotation_tables,
     read_annotation_table,
     read_annotation_tables,
     read_annotations,
-    to_segments,
     write_annotations,
 )
+from mtanno.labels.segments import Annotation, to_segments
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -1,9 +1,9 @@
 """The numba kernels of the annotate stage (private; each is wrapped by a public function
 that validates its input, and tested against a slow reference in ``tests/naive*.py``):
 
-* the reference modified distance Δ̄ ([MBS09] §4, algorithms.md §7 step 2;
+* the reference modified distance Δ̄ ([MBS09] §4, docs/method.md §7 step 2;
   :func:`mtanno.annotate.dbar.modified_delta`);
-* labels and extended runs of a Δ̄ matrix (§7 steps 3–4;
+* labels and extended runs of a Δ̄ matrix (docs/method.md §7 steps 3–4;
   :func:`mtanno.annotate.label.segments_from_labels`);
 * the segment decoder and its frame evidence (issue 10; :mod:`mtanno.annotate.decode`).
 
@@ -293,12 +293,12 @@ def reference_dbar_kernel(delta, start, tau, max_hits, dbar, span_first, span_la
     return hits
 
 
-# ------------------------------------------------ labels and runs (§7 steps 3–4)
+# ---------------------------------- labels and runs (docs/method.md §7 steps 3–4)
 
 
 @numba.njit(cache=True)
 def _extend(dbar, s, t, lo, hi):
-    """Walk outward from [s, t] while Δ̄ does not rise (algorithms.md §7 step 4), inside
+    """Walk outward from [s, t] while Δ̄ does not rise (docs/method.md §7 step 4), inside
     frames lo … hi (where the row holds Δ̄: outside, it would be ∞ and stop the walk)."""
     r = s
     while r > lo and dbar[r - 1] <= dbar[r]:

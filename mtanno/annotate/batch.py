@@ -13,20 +13,21 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mtanno.annotate.config import DEFAULT_DELTA, ClassConfig, check_tau, load_class_config
-from mtanno.annotate.label import ClassModel, annotate_document
-from mtanno.annotate.tables import Annotation
+from mtanno.annotate.config import ClassConfig, load_class_config
+from mtanno.annotate.label import ClassModel, annotate_document, valid_rows, valid_windows
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
+from mtanno.templates.params import ANNOTATION_DELTA, check_tau
 
 if TYPE_CHECKING:
-    from mtanno.util.store import FeatureLayout
+    from mtanno.features.store import FeatureLayout
 
 __all__ = ["AnnotationBatch", "AnnotationSetup", "annotate_files", "annotation_setup",
            "class_models", "load_annotation_setup", "load_class_models",
            "load_config_templates"]
 
 
-def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA,
+def load_class_models(mt_dir: str | os.PathLike, *, delta: float = ANNOTATION_DELTA,
                       classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
     """The templates of a folder (``*.json``; or one template file;
     :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
@@ -38,14 +39,15 @@ def load_class_models(mt_dir: str | os.PathLike, *, delta: float = DEFAULT_DELTA
                         where=f"the templates in {mt_dir}")
 
 
-def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
+def class_models(templates: dict, *, delta: float = ANNOTATION_DELTA,
                  where: str = "the templates") -> tuple[list[ClassModel], FeatureLayout]:
     """:class:`ClassModel` records of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`, e.g. from ``load_template_folder`` or
     learned in memory), quantized with ``delta``, and the feature layout they share
     (``where`` names them in messages)."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import quantize
-    from mtanno.util.store import check_layout, sha256_file
+    from mtanno.util.tables import sha256_file
 
     if not templates:
         raise MtannoError("no class templates to annotate with")
@@ -67,12 +69,13 @@ def class_models(templates: dict, *, delta: float = DEFAULT_DELTA,
 
 
 def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
-                          delta: float = DEFAULT_DELTA) -> list[ClassModel]:
+                          delta: float = ANNOTATION_DELTA) -> list[ClassModel]:
     """The further templates of ``config.templates`` (several templates per class) as
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.store import check_layout, sha256_file
+    from mtanno.util.tables import sha256_file
 
     out = []
     for cls, paths in config.template_paths().items():
@@ -88,7 +91,7 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
             check_layout(mt.layout(f"template {path}"), layout, path=str(path))
             q = quantize(mt, delta)
             model = ClassModel(cls, q.values, q.weights, path=str(path),
-                               sha256=sha256_file(path))
+                               sha256=sha256_file(path), extra=True)
             try:
                 model.matcher("reference")
             except MtannoError as exc:
@@ -129,7 +132,7 @@ class AnnotationBatch:
         try:
             import pandas  # noqa: F401
         except ImportError:
-            raise MtannoError("AnnotationBatch.to_pandas needs pandas (pip install pandas); "
+            raise MtannoError("AnnotationBatch.to_pandas needs pandas (pip install 'mtanno[pandas]'); "
                               "to_arrow() gives the same table without it") from None
         return self.to_arrow().to_pandas()
 
@@ -138,13 +141,13 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                    single_label=False, confidence=None, min_confidence=None):
     """One document of a batch: (document, rows, native frames, sha256, seconds) or the
     message of its failure (a worker sends it back as text). Every row gets its
-    confidence (:func:`mtanno.annotate.confidence.score_document`); rows below the
+    confidence (:func:`mtanno.confidence.score.score_document`); rows below the
     minimum confidence (``min_confidence``, else the tuned one) are dropped."""
     import time
 
-    from mtanno.annotate.confidence import score_document, single_label_by_confidence
+    from mtanno.confidence.score import score_document, single_label_by_confidence
+    from mtanno.features.store import check_layout, read_features
     from mtanno.templates.match import pack_document
-    from mtanno.util.store import check_layout, read_features
 
     bank = confidence.bank if confidence is not None else None
     need_poses = bank is not None and bank.representation == "poses"
@@ -166,6 +169,8 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                       feature_set=layout.feature_set, packed=packed)
             except MtannoError as exc:
                 raise MtannoError(exc.message, path=ff.path) from None
+        # frames without evidence (a marker file's lost joints) are never labelled
+        windows = valid_windows(windows, [m.name for m in models], ff.valid)
         # a tuned confidence decides overlaps itself (the reference path's single label)
         by_confidence = single_label and confidence is not None and not config.resolve
         rows, _, _ = annotate_document(ff.document, ff.X, models, config=config,
@@ -178,6 +183,7 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
                                   models=models, config=config, confidence=confidence)
         except MtannoError as exc:
             raise MtannoError(exc.message, path=exc.path or ff.path) from None
+        rows = valid_rows(rows, ff.valid)
         if by_confidence:
             rows = single_label_by_confidence(rows)
         least = min_confidence if min_confidence is not None else (
@@ -303,7 +309,7 @@ def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
     failure message (None on success). ``single_label`` resolves overlapping segments
     (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
     documents instead of local processes (:class:`mtanno.util.workers.DaskPool`, same results).
-    ``confidence``: the tuned :class:`mtanno.annotate.confidence.ConfidenceModel` (None: the
+    ``confidence``: the tuned :class:`mtanno.confidence.model.ConfidenceModel` (None: the
     uncalibrated confidence); ``min_confidence`` drops rows below it (None: the tuned
     minimum, 0 without one). Rows are sorted by document, start, end and label."""
     batch = AnnotationBatch()
@@ -343,7 +349,7 @@ class AnnotationSetup:
     models: list[ClassModel]
     layout: FeatureLayout
     config: ClassConfig = field(default_factory=ClassConfig)
-    delta: float = DEFAULT_DELTA
+    delta: float = ANNOTATION_DELTA
     dbar_variant: str = "reference"
     match_variant: str = "reference"
     keyframes: dict = field(default_factory=dict)
@@ -378,7 +384,7 @@ class AnnotationSetup:
         class), superclasses, δ, the configuration's methods, the configuration file and its
         SHA-256, variants, feature set, keyframe files, single label, the confidence
         (calibrated or not, evidence, minimum, bank) and the background tune saw."""
-        from mtanno.annotate.confidence import confidence_record
+        from mtanno.confidence.model import confidence_record
         from mtanno.util.tables import provenance
 
         cfg = self.config
@@ -432,20 +438,20 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
     """The :class:`AnnotationSetup` of loaded templates (class name →
     :class:`mtanno.templates.model.MotionTemplate`) and a class configuration, applied as
     ``mtanno annotate --classes`` applies it: checked against the templates' classes, its
-    δ unless ``delta`` is given (else :data:`DEFAULT_DELTA`), its further templates, and
+    δ unless ``delta`` is given (else :data:`ANNOTATION_DELTA`), its further templates, and
     :meth:`ClassConfig.template_warnings` in ``warnings``, its tuned confidence
-    (:func:`mtanno.annotate.confidence.load_confidence`). ``tau`` replaces its default τ
+    (its verification bank read and checked). ``tau`` replaces its default τ
     (on a copy: the object passed is not changed); ``min_confidence`` its minimum
     confidence of an output row (a number in [0, 1])."""
     from dataclasses import replace
 
-    from mtanno.annotate.confidence import check_min_confidence, load_confidence
+    from mtanno.confidence.model import check_min_confidence
 
     config = replace(config) if config is not None else ClassConfig()
     if tau is not None:
         config.default_tau = check_tau(tau)
     if delta is None:
-        delta = config.delta if config.delta is not None else DEFAULT_DELTA
+        delta = config.delta if config.delta is not None else ANNOTATION_DELTA
     models, layout = class_models(templates, delta=delta, where=where)
     config.check([m.name for m in models])
     warnings = config.template_warnings(models)
@@ -454,8 +460,16 @@ def annotation_setup(templates: dict, *, config: ClassConfig | None = None,
         min_confidence = check_min_confidence(min_confidence, what="min_confidence")
     return AnnotationSetup(models, layout, config, delta, dbar_variant, match_variant,
                            single_label=single_label, config_sha256=config_sha256,
-                           warnings=warnings, confidence=load_confidence(config),
+                           warnings=warnings, confidence=_loaded(config.confidence),
                            min_confidence=min_confidence)
+
+
+def _loaded(confidence):
+    """The configuration's tuned confidence with its bank read (so that a missing or
+    changed bank file is refused before any document is annotated)."""
+    if confidence is not None:
+        _ = confidence.bank
+    return confidence
 
 
 def load_annotation_setup(mt_dir: str | os.PathLike, *,
@@ -469,9 +483,9 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
     class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
     of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
     τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
-    :data:`DEFAULT_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
+    :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
     from mtanno.templates.model import load_template_folder
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     setup = annotation_setup(
         load_template_folder(mt_dir),

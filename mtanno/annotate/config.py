@@ -2,8 +2,8 @@
 ([MBS09] §4 thresholds; the issue-10 methods of ``docs/annotation.md``), read from and
 written to TOML (``mtanno annotate --classes``, ``mtanno tune``).
 
-:data:`DEFAULT_TAU` and :data:`DEFAULT_DELTA` are the published method's τ and δ;
-:func:`check_tau` is the one rule for a τ given anywhere (a number ≥ 0; ∞ allowed).
+:data:`~mtanno.templates.params.ANNOTATION_TAU` is the τ of every class a configuration
+does not name; :func:`~mtanno.templates.params.check_tau` checks every τ it holds.
 """
 
 from __future__ import annotations
@@ -11,32 +11,22 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mtanno.errors import MtannoError, read_input
+from mtanno.confidence.model import ConfidenceModel, is_sha256
+from mtanno.errors import MtannoError, read_toml
+from mtanno.templates.params import ANNOTATION_TAU, check_tau
 
 if TYPE_CHECKING:
     from mtanno.annotate.label import ClassModel
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
-__all__ = ["CONFIDENCE_KEYS", "DECODER_KEYS", "DEFAULT_DELTA", "DEFAULT_TAU", "ClassConfig", "check_tau",
+__all__ = ["DECODER_KEYS", "ClassConfig",
            "class_config_text", "load_class_config", "write_class_config"]
 
 
-#: Annotation threshold τ of [MBS09] (used for every class without its own τ).
-DEFAULT_TAU = 0.13
-
-
-#: Quantization δ of the templates for annotation ([MBS09]).
-DEFAULT_DELTA = 0.05
 
 
 @dataclass
@@ -51,8 +41,8 @@ class ClassConfig:
     * ``resolve`` — overlap resolution: the segment decoder (:mod:`mtanno.annotate.decode`) picks
       one least-cost partition into matches instead of Δ̄ labels and extension;
     * ``refine`` — boundary refinement: with ``resolve`` a segment may start up to
-      ``slack`` frames from its match's start; without, the extension of §7 step 4 walks
-      only over frames no other class labels;
+      ``slack`` frames from its match's start; without, the extension of docs/method.md
+      §7 step 4 walks only over frames no other class labels;
     * ``reject`` — rejection ceilings ρ per label (``default_reject`` for the others):
       matches with Δ above it are never taken (segment decoder) or picked (Δ̄);
     * ``frame_weight`` — tie-breaking by frame-wise evidence (segment decoder);
@@ -69,14 +59,12 @@ class ClassConfig:
     to ``annotate`` are other ones. ``background``: the background motions tune saw
     (``tune --background``; file → SHA-256), for the record.
 
-    ``confidence`` (issue 26; written by ``mtanno tune``): the ``[confidence]`` table —
-    ``evidence`` (names of :data:`mtanno.annotate.confidence.EVIDENCE`), ``min_confidence``
-    (rows below it are not output), ``bank`` and ``bank_sha256`` (the verification bank
-    file, relative to the configuration) and ``calibrator`` (the fitted calibrator,
-    :mod:`mtanno.annotate.calibration`); empty: the uncalibrated confidence.
+    ``confidence`` (issue 26; written by ``mtanno tune``): the ``[confidence]`` table as a
+    :class:`mtanno.confidence.model.ConfidenceModel` (evidence, calibrator, minimum
+    confidence, verification bank); None: the uncalibrated confidence.
     """
 
-    default_tau: float = DEFAULT_TAU
+    default_tau: float = ANNOTATION_TAU
     tau: dict[str, float] = field(default_factory=dict)
     superclasses: dict[str, list[str]] = field(default_factory=dict)
     path: str | None = None
@@ -91,7 +79,7 @@ class ClassConfig:
     templates: dict[str, list[str]] = field(default_factory=dict)
     tuned_with: dict[str, str] = field(default_factory=dict)
     background: dict[str, str] = field(default_factory=dict)
-    confidence: dict = field(default_factory=dict)
+    confidence: ConfidenceModel | None = None
     lines: dict[tuple[str, str], int] = field(default_factory=dict, repr=False, compare=False)
 
     def tau_for(self, name: str) -> float:
@@ -178,21 +166,6 @@ class ClassConfig:
         return {c: [base / f for f in files] for c, files in self.templates.items()}
 
 
-def check_tau(tau, *, what: str = "tau", path: str | None = None) -> float:
-    """τ as a float; NaN, a negative value or a non-number is an :class:`MtannoError`
-    (∞ is allowed: every match counts). The one rule for τ wherever it is given: the
-    annotation, retrieval (:func:`mtanno.retrieve.extract_hits`), class configurations and
-    the commands' ``--tau``."""
-    try:
-        value = float(tau)
-    except (TypeError, ValueError):
-        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}", path=path) from None
-    if not value >= 0:
-        nan = " (NaN)" if value != value else ""
-        raise MtannoError(f"{what} must be a number ≥ 0, got {tau!r}{nan}", path=path)
-    return value
-
-
 #: Keys of the ``[decoder]`` section of a class configuration and their types.
 DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": float,
                 "segment_cost": float, "delta": float}
@@ -200,9 +173,6 @@ DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": f
 
 _SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates", "tuned_with",
              "background", "confidence")
-#: Keys of the ``[confidence]`` section (issue 26) and their types.
-CONFIDENCE_KEYS = {"evidence": list, "min_confidence": float, "bank": str,
-                   "bank_sha256": str, "calibrator": dict}
 
 
 def _key_lines(text: str) -> dict[tuple[str, str], int]:
@@ -251,14 +221,7 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     finite number ≥ 0, δ outside [0, 0.5).
     """
     spath = str(path)
-    try:
-        text = read_input(path, what="class configuration").decode("utf-8")
-        data = tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise MtannoError(f"not a valid TOML class configuration: {exc}", path=spath) from None
-    except RecursionError:  # arrays or tables nested thousands deep (tomllib recurses)
-        raise MtannoError("not a valid TOML class configuration: nested too deeply",
-                          path=spath) from None
+    data, text = read_toml(path, what="class configuration")
     cfg = ClassConfig(path=spath, lines=_key_lines(text))
 
     def bad(section: str, key: str | None, msg: str) -> MtannoError:
@@ -280,7 +243,7 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
             raise bad(section, key, exc.message) from None
 
     taus = dict(data.get("tau", {}))
-    cfg.default_tau = number("tau", "default", taus.pop("default", DEFAULT_TAU),
+    cfg.default_tau = number("tau", "default", taus.pop("default", ANNOTATION_TAU),
                              what="[tau] default")
     cfg.tau = {str(k): number("tau", k, v, what=f"[tau] {k}") for k, v in taus.items()}
     for k, v in data.get("superclasses", {}).items():
@@ -299,48 +262,17 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     return cfg
 
 
-def _is_sha256(v) -> bool:
-    return isinstance(v, str) and len(v) == 64 and all(ch in "0123456789abcdef" for ch in v)
-
-
 def _read_confidence(cfg: ClassConfig, data: dict, bad) -> None:
-    """``[background]`` (file → SHA-256) and ``[confidence]`` (keys of
-    :data:`CONFIDENCE_KEYS`, checked here; the calibrator's numbers are checked where it
-    is built, :func:`mtanno.annotate.batch.load_confidence`) into ``cfg``."""
-    from mtanno.annotate.confidence import EVIDENCE
-
+    """``[background]`` (file → SHA-256) and ``[confidence]``
+    (:meth:`ConfidenceModel.from_table`) into ``cfg``."""
     for k, v in data.get("background", {}).items():
-        if not _is_sha256(v):
+        if not is_sha256(v):
             raise bad("background", k, f"[background] {k} must be the SHA-256 (64 lower-case "
                                        f"hex digits) of the background file, got {v!r}")
     cfg.background = {str(k): str(v) for k, v in data.get("background", {}).items()}
-    conf = data.get("confidence", {})
-    for k, v in conf.items():
-        kind = CONFIDENCE_KEYS.get(k)
-        if kind is None:
-            raise bad("confidence", k, f"unknown key {k!r} in [confidence] (known: "
-                                       f"{', '.join(CONFIDENCE_KEYS)})")
-        ok = (isinstance(v, (int, float)) and not isinstance(v, bool)) if kind is float \
-            else isinstance(v, kind)
-        if not ok:
-            raise bad("confidence", k, f"[confidence] {k} has the wrong type: {v!r}")
-    if not conf:
-        return
-    ev = conf.get("evidence", [])
-    if not ev or not all(isinstance(e, str) and e in EVIDENCE for e in ev):
-        raise bad("confidence", "evidence", f"[confidence] evidence must list names of "
-                                            f"{', '.join(EVIDENCE)}, got {ev!r}")
-    m = conf.get("min_confidence", 0.0)
-    if not 0.0 <= m <= 1.0:
-        raise bad("confidence", "min_confidence", f"[confidence] min_confidence must be in "
-                                                  f"[0, 1], got {m!r}")
-    if "calibrator" not in conf:
-        raise bad("", "confidence", "[confidence] needs a [confidence.calibrator] table")
-    if ("bank" in conf) != ("bank_sha256" in conf) or (
-            "bank_sha256" in conf and not _is_sha256(conf["bank_sha256"])):
-        raise bad("confidence", "bank", "[confidence] bank and bank_sha256 (64 lower-case hex "
-                                        "digits) go together")
-    cfg.confidence = dict(conf)
+    if data.get("confidence"):
+        cfg.confidence = ConfidenceModel.from_table(data["confidence"], path=cfg.path,
+                                                    line_of=cfg.line_of)
 
 
 def _read_decoder(cfg: ClassConfig, section: dict, bad) -> None:
@@ -379,7 +311,7 @@ def _read_templates(cfg: ClassConfig, data: dict, bad) -> None:
                                       "template files")
     cfg.templates = {str(k): list(v) for k, v in data.get("templates", {}).items()}
     for k, v in data.get("tuned_with", {}).items():
-        if not _is_sha256(v):
+        if not is_sha256(v):
             raise bad("tuned_with", k, f"[tuned_with] {k} must be the SHA-256 (64 lower-case "
                                        f"hex digits) of the template file tune used, got {v!r}")
     cfg.tuned_with = {str(k): str(v) for k, v in data.get("tuned_with", {}).items()}
@@ -437,8 +369,8 @@ def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
             if isinstance(v, dict):
                 tables(f"{name}.{_toml_key(k)}", v)
 
-    if cfg.confidence:
-        tables("confidence", cfg.confidence)
+    if cfg.confidence is not None:
+        tables("confidence", cfg.confidence.to_table())
     return "\n".join(out) + "\n"
 
 

@@ -1,6 +1,7 @@
-"""The modified distance Δ̄ of a class over a document ([MBS09] §4, algorithms.md §7 step 2):
-each match's cost spread over the frames it covers, in the reference implementation's
-greedy order (the kernels of :mod:`mtanno.annotate._kernels`) or as the paper writes it.
+"""The modified distance Δ̄ of a class over a document ([MBS09] §4, docs/method.md §7
+step 2): each match's cost spread over the frames it covers, in the reference
+implementation's greedy order (the kernels of :mod:`mtanno.annotate._kernels`) or as the
+paper writes it.
 
 Frames are 0-based.
 """
@@ -12,8 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from mtanno.annotate._kernels import reference_dbar_kernel
-from mtanno.annotate.config import DEFAULT_TAU, check_tau
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_TAU, check_tau
 
 __all__ = ["modified_delta"]
 
@@ -53,11 +54,11 @@ def _row_spans(per_row: Sequence[tuple[np.ndarray, np.ndarray] | None], L: int):
             offsets)
 
 
-def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = DEFAULT_TAU,
+def modified_delta(delta: np.ndarray, start: np.ndarray, *, tau: float = ANNOTATION_TAU,
                    variant: str = "reference", max_hits: int | None = None,
                    out: np.ndarray | None = None,
                    spans: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Δ̄ from a distance curve Δ and start frames (algorithms.md §7 step 2; [MBS09] §4).
+    """Δ̄ from a distance curve Δ and start frames (docs/method.md §7 step 2; [MBS09] §4).
 
     ``variant="reference"`` (default, what the reference implementation does): repeatedly
     take the smallest remaining Δ(ℓ) ≤ τ (ties: earliest frame), fill the frames of

@@ -1,13 +1,13 @@
 """The segment decoder of tuned annotation: overlap resolution, boundary refinement,
 rejection and frame-wise tie-breaking (issue 10; ``docs/annotation.md``).
 
-[MBS09]'s annotation (§4, algorithms.md §7) labels every frame with the class of smallest
+[MBS09]'s annotation (§4, docs/method.md §7) labels every frame with the class of smallest
 modified distance Δ̄ and then extends the runs outward, so segments of different classes
 overlap and extended segments run past the true boundaries. The segment decoder instead
 chooses, per document, the cheapest *partition* into matches and unlabelled frames, by
 dynamic programming over the frames:
 
-* a match of label p ends at a frame ℓ whose distance Δ_p(ℓ) (algorithms.md §3.4) is at
+* a match of label p ends at a frame ℓ whose distance Δ_p(ℓ) (docs/method.md §3.4) is at
   most the label's rejection ceiling ρ_p (∞ unless tuned); it starts at the start frame
   a_ℓ of that match, or — boundary refinement — anywhere within ``slack`` frames of it, so
   that neighbouring matches meet instead of overlapping or leaving a sliver between them;

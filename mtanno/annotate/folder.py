@@ -88,27 +88,17 @@ class FolderSummary(Outcomes[DocOutcome]):
 def plan_folder(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
                 fmt: str = "csv", failures: list[str] | None = None) -> list[DocJob]:
     """One job per feature file named by ``inputs`` (files, folders searched recursively;
-    :func:`mtanno.util.store.document_files_below`): a file ``F.parquet`` gives
+    :func:`mtanno.features.inputs.document_files_below`): a file ``F.parquet`` gives
     ``outdir/F.<fmt>``, a file found in folder ``D`` gives ``outdir/<its path below
-    D>`` with the format's suffix (``failures``: as :func:`mtanno.util.store.feature_files`).
-    Jobs are sorted by document name. Parquet tables in a
-    folder inside an input folder would be read as feature files by the next run: refused.
+    D>`` with the format's suffix (``failures``: as :func:`mtanno.features.inputs.feature_files`).
+    Jobs are sorted by document name. (An ``outdir`` inside an input folder is judged with
+    the other outputs: :func:`mtanno.annotate.run.annotate_to`.)
     """
-    from mtanno.util.store import document_files_below
+    from mtanno.features.inputs import document_files_below
 
     if fmt not in FORMATS:
         raise MtannoError(f"unknown table format {fmt!r} (known: {', '.join(FORMATS)})")
     outdir = Path(outdir)
-    inputs = list(inputs)
-    if fmt == "parquet":
-        out = outdir.resolve()
-        for item in inputs:
-            p = Path(item)
-            if p.is_dir() and (out == p.resolve() or p.resolve() in out.parents):
-                raise MtannoError(f"the output folder is inside the input folder {p}: its "
-                                  "Parquet tables would be read as feature files; choose "
-                                  "another folder, or {fmt} csv", path=str(outdir),
-                                  options=("fmt",))
     jobs = [DocJob(src, outdir / rel.with_suffix(FORMATS[fmt]))
             for src, rel in document_files_below(inputs, failures=failures)]
     return sorted(jobs, key=lambda j: j.doc)
@@ -149,8 +139,7 @@ def up_to_date(job: DocJob, expected: dict, *, not_before: int = 0) -> DocOutcom
     names this one document, made from the feature file as it is now (SHA-256), and its
     :func:`recipe` is ``expected``. Returns the ``"skipped"`` outcome (with the feature
     file's SHA-256 and the frame count recorded) when it is up to date, else None."""
-    from mtanno.util.store import sha256_file
-    from mtanno.util.tables import table_provenance
+    from mtanno.util.tables import sha256_file, table_provenance
 
     try:
         made = os.stat(job.dst).st_mtime_ns

@@ -1,4 +1,4 @@
-"""Frame-wise labels of one document ([MBS09] §4–5, algorithms.md §7): every class
+"""Frame-wise labels of one document ([MBS09] §4–5, docs/method.md §7): every class
 template's distance Δ_p over the document (optionally only inside keyframe windows),
 its modified distance Δ̄_p (:mod:`mtanno.annotate.dbar`), the label of each frame (the
 class of smallest Δ̄) and the maximal runs of one label, extended while Δ̄ keeps falling
@@ -18,12 +18,12 @@ import numpy as np
 from mtanno.annotate._kernels import _label_runs
 from mtanno.annotate.config import ClassConfig
 from mtanno.annotate.dbar import _reference_in_spans, _row_spans, modified_delta
-from mtanno.annotate.tables import Annotation
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation
 
 __all__ = ["ClassModel", "Windows", "annotate_document", "class_deltas", "evidence_covered",
            "label_document", "label_frames", "merged_spans", "segments_from_labels",
-           "single_label_segments"]
+           "single_label_segments", "valid_rows", "valid_windows"]
 
 
 #: Candidate windows per class (keyframe preselection): a list of (first, last) frames,
@@ -33,7 +33,7 @@ Windows = dict[str, "list[tuple[int, int]] | tuple[np.ndarray, np.ndarray]"]
 
 def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(label index per frame, −1 where every Δ̄ is ∞; Δ_min per frame). Ties → smallest
-    class index (algorithms.md §7 step 3)."""
+    class index (docs/method.md §7 step 3)."""
     dmin = dbars.min(axis=0)
     labels = np.argmin(dbars, axis=0).astype(np.int64)
     labels[~np.isfinite(dmin)] = -1
@@ -42,7 +42,8 @@ def label_frames(dbars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def segments_from_labels(doc: str, names: Sequence[str], dbars: np.ndarray, *,
                          extend: bool | str = True, row_spans=None) -> list[Annotation]:
-    """Maximal runs of one label, extended (optional) and merged per label (§7 step 4).
+    """Maximal runs of one label, extended (optional) and merged per label (docs/method.md
+    §7 step 4).
     ``extend="unclaimed"`` walks only over frames that no other label has (boundary
     refinement, issue 10). ``row_spans`` (internal, :func:`_row_spans`): (firsts, lasts,
     offsets), the frames where each row holds Δ̄; elsewhere it counts as ∞ and is not read
@@ -75,7 +76,7 @@ def single_label_segments(doc: str, names: Sequence[str], dbars: np.ndarray,
     """Resolve overlapping segments into a partition (``annotate --single-label``).
 
     Every frame covered by one or more of ``rows`` (the segments of one document, possibly
-    overlapping after the extension of algorithms.md §7 step 4) keeps the label, among the
+    overlapping after the extension of docs/method.md §7 step 4) keeps the label, among the
     segments covering it, with the smallest Δ̄ there (ties → the smaller label index, as in
     step 3); frames no segment covers stay unlabelled. The result is the maximal runs of
     one label: no two segments share a frame. ``cost`` is the smallest Δ̄ of the label
@@ -113,6 +114,9 @@ class ClassModel:
     weights: np.ndarray
     path: str | None = None
     sha256: str | None = None
+    #: a further template of the class (a configuration's ``[templates]``), not the base
+    #: template of the template folder
+    extra: bool = False
     _prepared: dict = field(default_factory=dict, repr=False, compare=False)
 
     def record(self) -> dict:
@@ -214,6 +218,60 @@ def merged_spans(spans, L: int) -> tuple[np.ndarray, np.ndarray]:
     first[1:] = a[1:] > reach[:-1]  # a window that starts after every earlier one ended
     last = np.append(first[1:], True)
     return a[first], reach[last]
+
+
+def valid_windows(windows: Windows | None, names: Sequence[str], valid: np.ndarray,
+                  ) -> Windows | None:
+    """``windows`` restricted to the valid frames (``valid``: (frames,) bool, a feature
+    file's :attr:`~mtanno.features.store.FeatureFile.valid`), for every class of ``names``: a
+    class without windows gets the valid stretches, one with windows their intersection.
+    Windows are matched as separate documents (:func:`class_deltas`), so no match, and no
+    label, spans or touches an invalid frame. All frames valid: ``windows`` unchanged."""
+    valid = np.asarray(valid, dtype=bool)
+    if valid.all():
+        return windows
+    L = valid.shape[0]
+    edges = np.flatnonzero(np.diff(np.r_[False, valid, False].astype(np.int8)))
+    vf, vl = edges[::2].astype(np.int64), edges[1::2].astype(np.int64) - 1
+    spans = _class_spans(windows, L)
+    out: Windows = {}
+    for name in dict.fromkeys(names):
+        if name not in spans:
+            out[name] = (vf, vl)
+            continue
+        wf, wl = spans[name]
+        firsts, lasts = [], []
+        i = j = 0
+        while i < wf.size and j < vf.size:  # two sorted disjoint span lists
+            a, b = max(wf[i], vf[j]), min(wl[i], vl[j])
+            if a <= b:
+                firsts.append(a)
+                lasts.append(b)
+            if wl[i] < vl[j]:
+                i += 1
+            else:
+                j += 1
+        out[name] = (np.array(firsts, np.int64), np.array(lasts, np.int64))
+    return out
+
+
+def valid_rows(rows: Sequence[Annotation], valid: np.ndarray) -> list[Annotation]:
+    """``rows`` cut to the valid frames: a row keeps its valid runs (the boundary
+    refinement and run extension may reach a few frames past a window). With
+    :func:`valid_windows` this makes sure no label covers an invalid frame."""
+    valid = np.asarray(valid, dtype=bool)
+    if valid.all():
+        return list(rows)
+    out = []
+    for r in rows:
+        part = valid[r.start:r.end + 1]
+        if part.all():
+            out.append(r)
+            continue
+        edges = np.flatnonzero(np.diff(np.r_[False, part, False].astype(np.int8)))
+        out += [r._replace(start=r.start + int(a), end=r.start + int(b) - 1)
+                for a, b in zip(edges[::2], edges[1::2])]
+    return out
 
 
 def evidence_covered(classes: Sequence[ClassModel]) -> set[int]:
@@ -342,7 +400,7 @@ def label_document(doc: str, names: Sequence[str], matches, n_frames: int, *,
                    matrix: bool = True,
                    rows: tuple[np.ndarray, np.ndarray] | None = None,
                    ) -> tuple[list[Annotation], list[str], np.ndarray | None]:
-    """Segments of one document from its templates' distance functions (algorithms.md
+    """Segments of one document from its templates' distance functions (docs/method.md
     §7 steps 2–4, or the methods of issue 10 that ``config`` switches on).
 
     ``names`` is the class of each template, in order; ``matches`` yields, for each

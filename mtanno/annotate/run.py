@@ -63,24 +63,28 @@ def _check_options(outputs, out_dir, fmt, force, wait) -> None:
 
 
 def _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir, config_path,
-                   kf_dir) -> list:
-    """Every output against the inputs (:func:`mtanno.util.output.check_outputs`); returns
+                   kf_dir, inside_input) -> list:
+    """Every output against the inputs (:func:`mtanno.util.preflight.check_outputs`); returns
     the files the run writes. A document's table that cannot be written fails alone: only
-    the ``outputs`` are tried first; no output where the features are read from, and no
-    ``outputs`` table among the ``out_dir`` tables (`mtanno evaluate OUT/` would read its
-    rows twice)."""
+    the ``outputs`` are tried first; no output where the features are read from (Parquet
+    tables of ``out_dir`` inside a folder of feature files), no ``out_dir`` that is or lies
+    inside an input folder (the feature, template or keyframe folders) unless
+    ``inside_input``, and no ``outputs`` table among the ``out_dir`` tables (`mtanno
+    evaluate OUT/` would read its rows twice)."""
     from mtanno.annotate.tables import ANNOTATION_SUFFIXES
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.model import template_files
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files
 
     tables = [f for out in outputs for f in output_files(out)]
     written = [*(f for j in folder_jobs for f in output_files(j.dst)), *tables]
+    input_folders = {**{f: () for f in (mt_dir, kf_dir) if f and Path(f).is_dir()},
+                     **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     check_outputs(written, [mt_dir, *template_files(mt_dir), config_path, *paths,
                             *(keyframe_files(kf_dir) if kf_dir else [])],
-                  scanned={f: (".parquet",) for f in features if Path(f).is_dir()},
-                  writable=False)
+                  folders={out_dir: []} if out_dir is not None else None,
+                  scanned=input_folders, inside_input=inside_input, writable=False)
     check_outputs(tables, [], scanned={out_dir: ANNOTATION_SUFFIXES} if out_dir else None)
     return written
 
@@ -94,7 +98,7 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
                 delta: float | None = None, dbar_variant: str = "reference",
                 match_variant: str = "reference", single_label: bool = False,
                 min_confidence: float | None = None, n_jobs: int = 1,
-                scheduler: str | None = None,
+                scheduler: str | None = None, inside_input: bool = False,
                 on_start: Callable[[AnnotationSetup, list[str], int], None] | None = None,
                 progress: Callable[[str, str | None], None] | None = None,
                 on_wait: Callable[[str], None] | None = None) -> AnnotateRun:
@@ -110,7 +114,9 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
     ``on_start(setup, missing, n)`` is called once the outputs are checked and the setup is
     read, before the first of ``n`` documents; ``progress(path, error)`` after each
     document (``error``: its failure's message, None when it succeeded or was up to
-    date)."""
+    date). ``out_dir`` may be, or lie inside, a folder of the feature files, templates or
+    keyframe queries only with ``inside_input`` (and never when the next run would read
+    its tables as feature files: Parquet inside a feature folder)."""
     _check_options(outputs, out_dir, fmt, force, wait)
     missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
     if out_dir is not None:
@@ -119,16 +125,16 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
         folder_jobs = plan_folder(features, out_dir, fmt=fmt or "csv", failures=missing)
         paths = [j.src for j in folder_jobs]
     else:
-        from mtanno.util.store import document_files
+        from mtanno.features.inputs import document_files
 
         folder_jobs, paths = [], document_files(features, failures=missing)
     written = _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir,
-                             config_path, keyframes_dir)
+                             config_path, keyframes_dir, inside_input)
     setup = load_annotation_setup(mt_dir, config_path=config_path, keyframes_dir=keyframes_dir,
                                   tau=tau, delta=delta, dbar_variant=dbar_variant,
                                   match_variant=match_variant, single_label=single_label,
                                   min_confidence=min_confidence)
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs(written, setup.files(), writable=False)  # the configuration's templates
     if on_start:

@@ -2,9 +2,10 @@
 cost, confidence``, native frames), written and read in the I/O convention of :mod:`mtanno.util.tables`
 (CSV, Parquet or JSON Lines by suffix, provenance beside).
 
-Frames are 0-based in :class:`Annotation` and 1-based inclusive in every table; the
-conversion happens here only (:func:`annotation_table`, :func:`_annotation_rows`,
-:func:`to_segments`).
+Frames are 0-based in :class:`~mtanno.labels.segments.Annotation` (the row type, with
+:func:`~mtanno.labels.segments.to_segments`, re-exported here) and 1-based inclusive in
+every table; the conversion of whole tables happens here only (:func:`annotation_table`,
+:func:`_annotation_rows`).
 """
 
 from __future__ import annotations
@@ -13,37 +14,15 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.labels.segments import Annotation, to_segments
 
 __all__ = ["ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "Annotation", "annotation_files",
            "annotation_table", "merge_annotation_tables", "read_annotation_table",
            "read_annotation_tables", "read_annotations", "to_segments", "write_annotations"]
-
-
-class Annotation(NamedTuple):
-    """One output segment: 0-based inclusive frames at 30 Hz (a named tuple: documents of
-    hours give thousands, made in a few microseconds each). ``confidence``: the
-    probability that the label is right (:mod:`mtanno.annotate.confidence`); NaN until
-    the annotation gives it."""
-
-    doc: str
-    start: int
-    end: int
-    label: str
-    cost: float
-    confidence: float = math.nan
-
-
-def to_segments(rows: Sequence[Annotation]) -> list:
-    """The rows as :class:`mtanno.evaluation.truth.Segment` (1-based inclusive frames, what
-    the evaluation compares): the one 0-based → 1-based conversion of annotation rows."""
-    from mtanno.evaluation.truth import Segment
-
-    return [Segment(a.doc, a.start + 1, a.end + 1, a.label) for a in rows]
 
 
 ANNOTATION_COLUMNS = ("doc", "start", "end", "label", "cost", "confidence", "start_native",
@@ -114,7 +93,7 @@ def _annotation_rows(table, *, native: bool = True
     """The checked rows of an annotation table (:func:`read_annotations`) and, with
     ``native`` and when it has the columns start_native and end_native, each row's native
     start and end (checked too; else None)."""
-    from mtanno.evaluation.truth import MAX_FRAME
+    from mtanno.labels.truth import MAX_FRAME
     from mtanno.util.tables import parse_int, parse_text
 
     table.require(["doc", "start", "end", "label"])

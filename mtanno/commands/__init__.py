@@ -8,9 +8,10 @@ Modules, in pipeline order: ``features`` (features, info), ``show`` (show), ``te
 (learn-mt, mt …), ``keyframes`` (learn-keyframes, keyframes show), ``index`` (index …,
 query), ``retrieve`` (retrieve), ``annotate`` (annotate), ``tune`` (tune), ``evaluation``
 (evaluate, evaluate-retrieval, compose, truth, report), ``align`` (align), ``skeleton``
-(skeleton guess: a BVH rig's generated skeleton map); ``_common``
+(skeleton guess: a BVH rig's generated skeleton map), ``markers`` (markers guess: a marker
+set for a C3D file's labels); ``_common``
 holds what they share (error reporting, common options, progress bars).
 """
 
 __all__ = ["align", "annotate", "evaluation", "features", "index", "keyframes", "retrieve",
-           "show", "skeleton", "templates", "tune"]
+           "markers", "show", "skeleton", "templates", "tune"]

@@ -73,6 +73,16 @@ def wait_option(fn):
                              "for it to finish instead of exiting with code 3.")(fn)
 
 
+def inside_input_option(fn):
+    """``--inside-input``: allow an output folder that is, or lies inside, an input folder
+    (refused otherwise: :func:`mtanno.util.preflight.check_outputs`, ``inside_input``)."""
+    return click.option("--inside-input", "inside_input", is_flag=True,
+                        help="Allow the output folder to be, or lie inside, an input folder "
+                             "(refused otherwise, so that outputs never land among the input "
+                             "data by mistake); outputs the next run would read as inputs "
+                             "stay refused.")(fn)
+
+
 class Number(click.FloatRange):
     """A float option inside ``[min, max]`` that is a number: NaN is refused always (it
     passes every comparison, so a range alone lets it through), ±∞ unless ``allow_inf``.

@@ -53,7 +53,7 @@ def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plo
     """Align motion B to motion A in time ([MRC05] §7): a coarse alignment of their
     segments, refined by DTW inside the area it spans.
 
-    A and B are motion files (.amc, .bvh) or feature files (.parquet, from `mtanno
+    A and B are motion files (.amc, .bvh, .c3d) or feature files (.parquet, from `mtanno
     features`; --cost features only). Stage 1 cuts both into adaptive segments (maximal runs
     of equal feature vectors over the chosen features) and matches the two segment
     sequences by DTW, where a segment one motion lacks is merged into a neighbouring match;
@@ -68,7 +68,7 @@ def align_cmd(motion_a, motion_b, features, group, band, cost, full, output, plo
     Example: mtanno align walk1.bvh walk2.bvh -o path.csv --plot path.png
     """
     from mtanno.align.core import align_files, summary, write_alignment
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)

@@ -1,4 +1,4 @@
-"""Command: annotate ([MBS09] §4–5, algorithms.md §7)."""
+"""Command: annotate ([MBS09] §4–5, docs/method.md §7)."""
 
 from __future__ import annotations
 
@@ -6,17 +6,18 @@ import sys
 
 import click
 
-from mtanno.annotate import DEFAULT_DELTA, DEFAULT_TAU
 from mtanno.commands._common import (
     DELTA,
     TAU,
     Number,
+    inside_input_option,
     scheduler_option,
     show_progress,
     user_errors,
     wait_option,
     waiting_note,
 )
+from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 
 
 @click.command("annotate")
@@ -41,17 +42,17 @@ from mtanno.commands._common import (
               help="Class configuration (TOML): per-class tau, superclasses, and the methods "
                    "`mtanno tune` writes (docs/annotation.md).")
 @click.option("--tau", type=TAU, default=None,
-              help=f"Threshold tau for every class without its own [default: {DEFAULT_TAU:g}].")
+              help=f"Threshold tau for every class without its own [default: {ANNOTATION_TAU:g}].")
 @click.option("--delta", type=DELTA, default=None,
               help="Quantization delta of the templates [default: [decoder] delta of "
-                   f"--classes, else {DEFAULT_DELTA:g}].")
+                   f"--classes, else {ANNOTATION_DELTA:g}].")
 @click.option("--dbar", "variant", type=click.Choice(["reference", "paper"]),
               default="reference", show_default=True,
-              help="Modified-distance (Δ̄) variant (algorithms.md §7).")
+              help="Modified-distance (Δ̄) variant (docs/annotation.md).")
 @click.option("--variant", "former_variant", type=click.Choice(["reference", "paper"]),
               default=None, hidden=True, help="The former name of --dbar.")
 @click.option("--match", "match_variant", type=click.Choice(["reference", "paper"]),
-              default="reference", show_default=True, help="Matching cost variant (§3.4).")
+              default="reference", show_default=True, help="Matching cost variant (docs/method.md §3.4).")
 @click.option("--single-label", is_flag=True,
               help="One label per frame: where segments overlap, each frame keeps the class "
                    "with the smallest modified distance (with a tuned confidence: the more "
@@ -63,13 +64,14 @@ from mtanno.commands._common import (
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (documents in parallel).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2, flags={"outputs": "-o TABLE", "out_dir": "--output-dir OUT/",
                         "fmt": "--format"})
 def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_path, tau,
                  delta, variant, former_variant, match_variant, single_label, min_confidence,
-                 jobs, quiet, wait, scheduler):
+                 jobs, quiet, inside_input, wait, scheduler):
     """Label every frame of documents with motion classes ([MBS09] §4).
 
     FEATURES are feature files or directories of them. Every template is matched against
@@ -92,7 +94,9 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     SHA-256; tau, delta, variants; mtanno version); --force recomputes every document. The
     run holds OUT/'s lock: another run writing into OUT/ makes it exit with code 3 (or wait,
     with --wait). -o with --output-dir writes the table of all documents, computed and
-    skipped, assembled from their tables. `mtanno evaluate OUT/` reads the folder.
+    skipped, assembled from their tables. `mtanno evaluate OUT/` reads the folder. OUT/ may
+    not be, or lie inside, a folder of FEATURES, --mt or --keyframes unless --inside-input
+    says so (Parquet tables inside a FEATURES folder never: the next run would read them).
 
     Exit codes: 0 success, 1 some documents failed (the others were annotated), 2 bad
     input (nothing written), 3 OUT/ locked by another run, 130 interrupted (finished
@@ -127,7 +131,8 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
             features, mt_dir, outputs=outputs, out_dir=out_dir, fmt=fmt, force=force,
             wait=wait, keyframes_dir=kf_dir, config_path=config_path, tau=tau, delta=delta,
             dbar_variant=variant, match_variant=match_variant, single_label=single_label,
-            min_confidence=min_confidence, n_jobs=jobs, scheduler=scheduler, on_start=start,
+            min_confidence=min_confidence, n_jobs=jobs, scheduler=scheduler,
+            inside_input=inside_input, on_start=start,
             progress=note_failure, on_wait=waiting_note(out_dir))
     finally:
         if bar is not None:

@@ -1,5 +1,5 @@
 """Commands of the evaluation stage: evaluate, evaluate-retrieval, compose, truth and report
-(algorithms.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
+(docs/method.md §8, [MBS09] §7, [MR06] §5.4–5.5)."""
 
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ from pathlib import Path
 import click
 
 from mtanno.annotate import load_class_models
-from mtanno.commands._common import DELTA, TAU, ProgressBar, stack, user_errors
+from mtanno.commands._common import DELTA, TAU, ProgressBar, inside_input_option, stack, user_errors
 from mtanno.errors import MtannoError
 from mtanno.evaluation.compose import DEFAULT_DOCS as COMPOSE_DOCS
 from mtanno.evaluation.retrieval import DEFAULT_MAX_HITS as RETRIEVAL_MAX_HITS
-from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
+from mtanno.features.inputs import document_files
 from mtanno.templates.model import template_files
-from mtanno.util.store import document_files
+from mtanno.templates.params import RETRIEVAL_DELTA
 
 
 def json_and_table_options(*, json_what: str, schema: str, table_what: str):
@@ -61,7 +61,8 @@ def evaluate_cmd(annotations, truth_path, json_path, table_path, all_docs, docs)
     """
     from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
     from mtanno.evaluation.metrics import evaluate_files
-    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.util.output import write_stdout
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
@@ -114,8 +115,9 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
         retrieval_report,
         retrieval_table,
     )
-    from mtanno.evaluation.truth import read_truth
-    from mtanno.util.output import check_outputs, write_stdout
+    from mtanno.labels.truth import read_truth
+    from mtanno.util.output import write_stdout
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
 
     if table_path is not None:
@@ -168,15 +170,18 @@ def evaluate_retrieval_cmd(features, mt_dir, truth_path, delta, max_hits, classe
               help="Keep the manifest order instead of shuffling (e.g. one document of all "
                    "clips, for retrieval tables).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @user_errors(2)
 def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, seed, pause, asf,
-                in_order, quiet):
+                in_order, quiet, inside_input):
     """Build long evaluation documents from labelled clips, with their exact ground truth.
 
     MANIFEST is a CSV with columns file,class[,actor,split] (e.g. the HDM05 clips.csv).
     Clips are drawn in a seeded random order; at every seam the root is turned and moved
     so the next clip starts where and facing how the previous one ended. Writes
-    OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json.
+    OUT/<ASF stem>_docNN.amc, the ASF, OUT/truth.csv (30 Hz) and OUT/compose.json. OUT may
+    not be, or lie inside, a folder holding clips unless --inside-input says so: the
+    documents would be read as clips by the next `mtanno features` over it.
     """
     from mtanno.evaluation.compose import compose_documents, read_clips
 
@@ -185,7 +190,7 @@ def compose_cmd(manifest, out_dir, actor, split, root, n_docs, clips_per_doc, se
         docs, truth = compose_documents(clips, out_dir, n_docs=n_docs,
                                         clips_per_doc=clips_per_doc, seed=seed, pause=pause,
                                         asf=asf, shuffle=not in_order, inputs=[manifest],
-                                        progress=bar)
+                                        progress=bar, inside_input=inside_input)
     if not quiet:
         click.echo(f"compose: {len(docs)} documents, {len(truth)} labelled segments -> "
                    f"{out_dir}", err=True)
@@ -203,8 +208,8 @@ def truth_group():
 @user_errors(2)
 def truth_mocap6(labels, output):
     """CMU mocap6 labels.json → truth table at 30 Hz."""
-    from mtanno.evaluation.truth import truth_from_mocap6, write_truth
-    from mtanno.util.output import check_outputs
+    from mtanno.labels.truth import truth_from_mocap6, write_truth
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format
 
     table_format(output)
@@ -232,7 +237,7 @@ def truth_mocap6(labels, output):
                    "curves; files with poses (features --poses) give the players. "
                    "Repeatable.")
 @click.option("--motions", "motions", multiple=True, type=click.Path(), metavar="PATH",
-              help="Motion files (.amc, .bvh) or folders of them, matched to the documents "
+              help="Motion files (.amc, .bvh, .c3d) or folders of them, matched to the documents "
                    "by file name: a stick-figure player per document (instead of the poses "
                    "of --features). Repeatable.")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
@@ -268,7 +273,7 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf,
     list plays that segment, and #autoplay after the page's address plays them all. In
     the review list a row is accepted, rejected, relabelled or moved by frames, and
     "Download truth" saves the accepted rows as a truth CSV for learn-mt, tune and
-    evaluate --truth (docs/report.md).
+    evaluate --truth (docs/annotation.md, "mtanno report").
 
     ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
     table below a folder, such as the per-document tables of `mtanno annotate

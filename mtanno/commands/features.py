@@ -13,6 +13,7 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import (
+    inside_input_option,
     scheduler_option,
     show_progress,
     user_errors,
@@ -30,6 +31,10 @@ from mtanno.errors import MtannoError
               help="Number of worker processes.")
 @click.option("--skeleton", "skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or map name) instead of the detected one.")
+@click.option("--markers", default=None, metavar="SET",
+              help="Marker set of the C3D inputs (TOML file or built-in name) instead of "
+                   "the recognised one; `mtanno markers guess FILE.c3d` writes a starting "
+                   "point (docs/formats.md).")
 @click.option("--asf", type=click.Path(exists=True, dir_okay=False), default=None,
               help="ASF skeleton for every AMC input (default: found beside or above it).")
 @click.option("-f", "--force", is_flag=True, help="Rewrite outputs that are up to date.")
@@ -38,24 +43,26 @@ from mtanno.errors import MtannoError
               help="ak40: the 40 annotation features ([MR06] + F40); mrc05: the 31 features "
                    "of [MRC05] (reference bugs fixed, docs/index.md); mrc05-reference: as the "
                    "reference implementation computes them.")
-@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True,
+@click.option("--up", type=click.Choice(["y", "z"]), default=None,
               help="The motion files' up axis: y (ASF/AMC, BVH of most tools) or z (e.g. "
-                   "Blender, 3ds Max exports); Z-up data is turned so that Y is up.")
+                   "Blender, 3ds Max exports); Z-up data is turned so that Y is up. Default: "
+                   "y for ASF/AMC and BVH; for C3D the file's POINT:Y_SCREEN, else z.")
 @click.option("--poses", is_flag=True,
               help="Also store the normalised poses of the same 30 Hz frames: 66 float32 "
                    "columns pose.<joint>.<x|y|z> of the 22 canonical joints, root at x=z=0, "
                    "facing +x, in leg lengths (docs/formats.md), for pose evidence without "
                    "rereading the motion files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2, flags={"outdir": "-o"})
-def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, poses, quiet,
-                 wait, scheduler):
-    """Compute the relational features of mocap files (ASF/AMC, BVH): by default the 40
-    annotation features, or the 31 [MRC05] features with --feature-set mrc05.
+def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_set, up, poses,
+                 quiet, inside_input, wait, scheduler):
+    """Compute the relational features of mocap files (ASF/AMC, BVH, C3D): by default the
+    40 annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
-    INPUT is a motion file (.amc, .bvh), a directory (searched recursively) or `-` to read
+    INPUT is a motion file (.amc, .bvh, .c3d), a directory (searched recursively) or `-` to read
     file names from standard input, one per line. A file FILE.amc gives OUTDIR/FILE.parquet;
     a file found in directory DIR gives OUTDIR/<its path below DIR>.parquet. The document
     is named by the file's stem everywhere.
@@ -64,16 +71,24 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
     it: the ASF whose name begins the AMC's name (HDM_bd.asf for HDM_bd_squat1Reps_001_120.amc,
     02.asf for 02_05.amc), else the only ASF there.
 
+    A C3D file holds markers, not joints: its joints come from a marker set (the built-in
+    41-marker Vicon set is recognised whatever the subject prefix; --markers for another).
+    Units, up axis and frame rate come from the file. Markers lost for at most 0.25 s are
+    filled from their segment; frames whose joints still cannot be computed are recorded
+    as invalid in the feature file (a note names their share) and are never labelled.
+
     With --poses every output also holds the poses of its rows, normalised as the pose
     distance of `mtanno align` does (root at x = z = 0, turned to face +x, scaled by the leg
     length), so that later stages can compare poses from the feature files alone.
 
     An output is up to date, and skipped unless --force, when the provenance it records
     matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
-    up axis, the extractor version, and whether it has poses (--poses). Files that fail are
-    reported as `path:line: what is wrong` and the others are still written. Exit code: 0
-    all written or up to date, 1 some files failed, 2 usage error, 3 OUTDIR locked by
-    another run (see --wait), 130 interrupted (finished outputs stay, no partial file).
+    up axis, the extractor version, whether it has poses (--poses), for C3D the marker
+    set. Files that fail, and inputs that yield no motion file (an empty folder), are
+    reported as `path:line: what is wrong` and the others are still written. OUTDIR may not
+    be, or lie inside, an input folder unless --inside-input says so. Exit code: 0 all
+    written or up to date, 1 some files failed, 2 usage error, 3 OUTDIR locked by another
+    run (see --wait), 130 interrupted (finished outputs stay, no partial file).
 
     Example: mtanno features ../shared/data/hdm05_cut -o feats/ --jobs 2
     """
@@ -97,13 +112,18 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
     def progress(outcome):
         bar.update(1)
         if outcome.status == "failed":
+            why = outcome.error.for_command() if outcome.error else outcome.message
+            bar.write(f"mtanno: {why}", file=sys.stderr)
+        elif outcome.message and not quiet:  # a note: the invalid share of a written file
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
     try:
         summary = extract_to(items, outdir, listed=listed, asf=asf, wait=wait,
+                             inside_input=inside_input,
                              on_wait=waiting_note(outdir), on_start=start, n_jobs=jobs,
                              force=force, skeleton=skeleton, progress=progress,
-                             feature_set=feature_set, up=up, scheduler=scheduler, poses=poses)
+                             feature_set=feature_set, up=up, scheduler=scheduler, poses=poses,
+                             markers=markers)
     finally:
         if bar is not None:
             bar.close()
@@ -118,19 +138,25 @@ def features_cmd(inputs, outdir, jobs, skeleton, asf, force, feature_set, up, po
               help="ASF skeleton of an AMC file (default: found beside or above it).")
 @click.option("--skeleton", default=None, metavar="MAP",
               help="Skeleton map (TOML file or name) instead of the detected one.")
+@click.option("--markers", default=None, metavar="SET",
+              help="Marker set of a C3D file (TOML file or built-in name) instead of the "
+                   "recognised one.")
+@click.option("--up", type=click.Choice(["y", "z"]), default=None,
+              help="The file's up axis (default: y for ASF/AMC and BVH; the file's for C3D).")
 @click.option("--features", "list_features", is_flag=True,
               help="Feature file: list its features (id, name, index group) instead.")
 @user_errors(2)
-def info_cmd(file, asf, skeleton, list_features):
-    """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage)
-    or a feature file (.parquet: its metadata; --features lists its features with ids and
-    groups, the names `mtanno show` and `mtanno query --features` take). Exit code 2 for a
-    file that cannot be read."""
+def info_cmd(file, asf, skeleton, markers, up, list_features):
+    """Describe a motion file (rig, frame rate, length, joints, skeleton map coverage;
+    for C3D the marker set, which joints each marker feeds, gaps filled and the share of
+    invalid frames) or a feature file (.parquet: its metadata, with its invalid frames;
+    --features lists its features with ids and groups, the names `mtanno show` and `mtanno
+    query --features` take). Exit code 2 for a file that cannot be read."""
     path = Path(file)
     if list_features and path.suffix.lower() != ".parquet":
         raise MtannoError("--features goes with a feature file (.parquet)", path=str(path))
     if path.suffix.lower() == ".parquet":
-        from mtanno.util.store import read_features
+        from mtanno.features.store import read_features
 
         ff = read_features(path)
         if list_features:
@@ -150,7 +176,8 @@ def info_cmd(file, asf, skeleton, list_features):
     from mtanno.info import describe_motion
     from mtanno.io import read_motion
 
-    for line in describe_motion(read_motion(path, asf=asf, skeleton=skeleton)):
+    for line in describe_motion(read_motion(path, asf=asf, skeleton=skeleton, markers=markers,
+                                            up=up)):
         click.echo(line)
 
 

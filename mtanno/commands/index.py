@@ -141,7 +141,7 @@ def info_cmd(index_dir, as_json, output):
 
     from mtanno.index import open_index
     from mtanno.index.storage import group_sizes, index_files, read_index_manifest
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, provenance, table_format, write_table
 
     if output is not None:
@@ -250,7 +250,7 @@ def query_cmd(index_dir, example, frames, feature_list, query_file, kf_file, win
     from mtanno.index.example import DEFAULT_MIN_SEGMENT, example_file_query
     from mtanno.index.query import warm_up
     from mtanno.index.storage import index_files
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files, table_format
 
     if sum(x is not None for x in (example, query_file, kf_file)) != 1:

@@ -14,6 +14,7 @@ from mtanno.commands._common import (
     ARGUMENT_NAMES,
     EXIT_BAD_INPUT,
     EXIT_PER_CLASS,
+    inside_input_option,
     lock_output,
     scheduler_option,
     show_progress,
@@ -58,12 +59,13 @@ from mtanno.templates.model import class_file
 @click.option("--class", "classes", multiple=True, metavar="NAME",
               help="Learn only this class (repeatable). Default: every class with a template.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2)
 def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split, truth, method,
                         runs, seed, jobs, generations, population, columns, classes, quiet,
-                        wait, scheduler):
+                        inside_input, wait, scheduler):
     """Learn a keyframe query per class ([MBS09] §6): a few key poses, each over one feature
     group, with gap bounds, that the class's training clips share and other classes' clips
     lack. `mtanno annotate --keyframes` matches templates only where they occur.
@@ -72,7 +74,8 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     feature files, or CLASS/ folders); every class's clips are the negatives of the
     others. Writes OUTDIR/CLASS.json (schema mtanno.keyframes/1: keyframes, gap bounds,
     template length, window extension, and how they were learned, with P/R/F2 on the
-    training clips); see `mtanno keyframes show`.
+    training clips); see `mtanno keyframes show`. OUTDIR may not be, or lie inside, a
+    folder of training clips or --mt unless --inside-input says so.
 
     Example: mtanno learn-keyframes --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o kf/ --jobs 2
@@ -83,12 +86,9 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     from mtanno.keyframes.ga import GAParams
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
     from mtanno.templates.model import load_template_folder
-    from mtanno.templates.training import (
-        collect_sources,
-        group_by_class,
-        load_examples,
-    )
-    from mtanno.util.output import check_outputs, output_folder
+    from mtanno.templates.training import collect_sources, group_by_class, input_folders, load_examples
+    from mtanno.util.output import output_folder
+    from mtanno.util.preflight import check_outputs
 
     bad_inputs: list[MtannoError] = []  # training folders without examples: the others go on
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
@@ -118,7 +118,9 @@ def learn_keyframes_cmd(training, mt_dir, outdir, manifest, features_dir, split,
     todo = [c for c in groups if c in templates or classes]
     check_outputs([out / f"{c}.json" for c in todo if c and "/" not in c and "\0" not in c],
                   [*(s.path for s in sources), manifest, truth,
-                   *(t.path for t in templates.values())],
+                   *(t.path for t in templates.values())], folders={out: []},
+                  scanned=input_folders(training, features_dir, also=[mt_dir]),
+                  inside_input=inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     total = len(todo) * (runs if method == "ga" else 1)
     bar = tqdm(total=total, unit="run" if method == "ga" else "class", desc="learn-keyframes",

@@ -12,8 +12,9 @@ from pathlib import Path
 import click
 
 from mtanno.commands._common import DELTA, TAU, show_progress, user_errors
-from mtanno.retrieve import DEFAULT_DELTA, DEFAULT_MAX_HITS, DEFAULT_TAU
-from mtanno.util.store import feature_files
+from mtanno.features.inputs import feature_files
+from mtanno.retrieve import DEFAULT_MAX_HITS
+from mtanno.templates.params import RETRIEVAL_DELTA, RETRIEVAL_TAU
 
 
 @click.command("retrieve", epilog="Exit codes: 0 success, 1 some feature files failed (the "
@@ -24,7 +25,7 @@ from mtanno.util.store import feature_files
                    "with --delta, when it is not quantized yet), or a folder of templates "
                    "(as annotate --mt takes): every class is retrieved, the table gets a "
                    "class column.")
-@click.option("--tau", default=DEFAULT_TAU, show_default=True, type=TAU,
+@click.option("--tau", default=RETRIEVAL_TAU, show_default=True, type=TAU,
               help="Quality threshold: hits have cost Δ ≤ tau ([MR06]: 0.06; the reference "
                    "retrieval driver used 0.175; inf: every local best match).")
 @click.option("--max-hits", default=DEFAULT_MAX_HITS, show_default=True, type=click.IntRange(min=1),
@@ -39,7 +40,7 @@ from mtanno.util.store import feature_files
               default=None, hidden=True, help="The former name of --match.")
 @click.option("--delta", "qdelta", default=None, type=DELTA,
               help="Quantize an unquantized template with this δ (default: the template's "
-                   f"own delta, else {DEFAULT_DELTA:g} as in [MR06]). A quantized template keeps "
+                   f"own delta, else {RETRIEVAL_DELTA:g} as in [MR06]). A quantized template keeps "
                    "its own delta.")
 @click.option("-o", "--output", default="-", show_default=True,
               type=click.Path(dir_okay=False, allow_dash=True),
@@ -53,7 +54,7 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
 
     FEATURES are feature files (.parquet, from `mtanno features`) or folders searched
     recursively. Each file is one document; matches never cross documents. Hits are
-    found greedily by increasing cost Δ (algorithms.md §3.4–3.5) and ranked over all
+    found greedily by increasing cost Δ ([MR06] §5.4–5.5, docs/retrieval.md) and ranked over all
     documents. Output columns: doc, start, end (1-based inclusive 30 Hz frames),
     start_native, end_native (frames of the source motion file), cost, rank. With a
     folder of several templates (--mt MT/, as annotate takes) each class is retrieved and
@@ -68,7 +69,6 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
     variant = former_variant or variant  # --variant: the former name of --match
     from tqdm import tqdm
 
-    from mtanno.annotate import check_tau
     from mtanno.retrieve import (
         retrieval_template,
         retrieve_files,
@@ -76,7 +76,8 @@ def retrieve_cmd(features, mt_path, tau, max_hits, variant, former_variant, qdel
         write_hits,
     )
     from mtanno.templates.model import load_template, load_template_folder, template_files
-    from mtanno.util.output import check_outputs
+    from mtanno.templates.params import check_tau
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import file_record, output_files, provenance, table_format
 
     table_format(output)

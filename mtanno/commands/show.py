@@ -30,9 +30,9 @@ def show_cmd(file, frames, feature_list, width, plot_path):
     features that change there, then `mtanno query INDEX --example FILE --frames A:B
     --features NAME,...`.
     """
+    from mtanno.features.store import read_features
     from mtanno.info import feature_rows, select_features, text_timeline
-    from mtanno.util.output import check_outputs
-    from mtanno.util.store import read_features
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import parse_frame_range
 
     if plot_path is not None:

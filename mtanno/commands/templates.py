@@ -17,6 +17,7 @@ from mtanno.commands._common import (
     EXIT_BAD_INPUT_OR_PLOT,
     EXIT_PER_CLASS,
     Number,
+    inside_input_option,
     show_progress,
     training_argument,
     training_options,
@@ -24,9 +25,9 @@ from mtanno.commands._common import (
     wait_option,
     waiting_note,
 )
-from mtanno.retrieve import DEFAULT_DELTA as RETRIEVAL_DELTA
 from mtanno.templates.describe import TOP_FEATURES
 from mtanno.templates.learn import ITER_MAX, ITER_THRESH
+from mtanno.templates.params import RETRIEVAL_DELTA
 
 
 @click.command("learn-mt", epilog=EXIT_PER_CLASS)
@@ -48,10 +49,11 @@ from mtanno.templates.learn import ITER_MAX, ITER_THRESH
 @click.option("--thresh", default=ITER_THRESH, show_default=True, type=Number(min=0),
               help="Stop once the largest normalised alignment cost is at most this.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @wait_option
 @user_errors(2)
 def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, classes,
-                 iterations, thresh, quiet, wait):
+                 iterations, thresh, quiet, inside_input, wait):
     """Learn one motion template per class from example clips ([MR06] §4.1).
 
     Training examples come from one of:
@@ -74,7 +76,8 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
     Examples of a class are used in file-name order (segments by start frame); the
     template returned is the one learned with the first example as reference. Writes
     OUTDIR/CLASS.json (schema mtanno.template/1: values, weights, training files with
-    SHA-256, parameters, iterations, final cost); see `mtanno mt show`.
+    SHA-256, parameters, iterations, final cost); see `mtanno mt show`. OUTDIR may not be,
+    or lie inside, a TRAINING folder or --features-dir unless --inside-input says so.
 
     Example: mtanno learn-mt --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o mts/
@@ -102,6 +105,7 @@ def learn_mt_cmd(training, outdir, manifest, features_dir, split, truth, hard, c
             training, outdir, manifest=manifest, features_dir=features_dir, split=split,
             truth=truth, classes=classes, hard=hard, iter_max=iterations, thresh=thresh,
             wait=wait, on_wait=waiting_note(outdir), on_start=start, progress=progress,
+            inside_input=inside_input,
             note=None if quiet else lambda m: click.echo(f"learn-mt: {m}", err=True))
     finally:
         if bar is not None:
@@ -166,7 +170,7 @@ def mt_mirror_cmd(template, output, name):
     motion, without new training data.
     """
     from mtanno.templates.model import load_template, mirror, save_template
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     mt = mirror(load_template(template), name=name)
@@ -183,7 +187,7 @@ def mt_mirror_cmd(template, output, name):
               help="Output template file.")
 @user_errors(2)
 def mt_scale_cmd(template, factor, output):
-    """Time-scale a template for faster or slower performers (issue 10).
+    """Time-scale a template for faster or slower performers.
 
     Matching lets a match be half to twice as long as the template (the DTW steps), so a
     performer much faster or slower than every training example is not found at all. The
@@ -195,7 +199,7 @@ def mt_scale_cmd(template, factor, output):
     """
     from mtanno.templates.model import load_template, save_template
     from mtanno.templates.tempo import time_scaled
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     mt = load_template(template)
@@ -215,12 +219,12 @@ def mt_scale_cmd(template, factor, output):
               help="Output template file.")
 @user_errors(2)
 def mt_quantize_cmd(template, delta, output):
-    """Quantize a template to 0, 1 and wildcard entries (algorithms.md §3.3).
+    """Quantize a template to 0, 1 and wildcard entries ([MR06] §5.2, docs/templates.md).
 
     The output records δ; matching uses a quantized template as it is.
     """
     from mtanno.templates.model import load_template, quantize, save_template
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
     mt = quantize(load_template(template), delta)
@@ -243,7 +247,7 @@ def mt_plot_cmd(template, output, delta):
     Needs matplotlib (pip install 'mtanno[plot]')."""
     from mtanno.plot import plot_template, require_matplotlib, save_figure
     from mtanno.templates.model import load_template, quantize
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     require_matplotlib()
     check_outputs([output], [template])

@@ -1,4 +1,4 @@
-"""The ``tune`` command (issue 10): annotation parameters learned by cross-validation inside
+"""The ``tune`` command: annotation parameters learned by cross-validation inside
 the training data, written as the class configuration ``annotate --classes`` reads.
 Exit codes: 0 success, 1 a training folder gave no example (the others were used), 2 usage
 error or bad input, 130 interrupted."""
@@ -12,6 +12,7 @@ import click
 from mtanno.commands._common import (
     ARGUMENT_NAMES,
     Number,
+    inside_input_option,
     scheduler_option,
     training_options,
     user_errors,
@@ -52,7 +53,8 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
               help="Weight w of the unknown-class rate in the objective (F1 + F2)/2 − w·U.")
 @click.option("--ablation", "ablation_dir", type=click.Path(file_okay=False), default=None,
               help="Also tune with each method left out, and with none, on the same folds; "
-                   "write DIR/without-METHOD.toml and DIR/none.toml (an ablation study).")
+                   "write DIR/without-METHOD.toml and DIR/none.toml (an ablation study). DIR "
+                   "may not be, or lie inside, an input folder unless --inside-input says so.")
 @click.option("--background", "background", multiple=True, type=click.Path(),
               metavar="PATH",
               help="Feature files (or folders of them) of motions that hold none of the "
@@ -75,12 +77,13 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes for learning and matching per fold and class.")
 @click.option("-q", "--quiet", is_flag=True, help="No search log and no summary line.")
+@inside_input_option
 @scheduler_option
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
              disabled, unknown_weight, ablation_dir, background, verify, confidence,
-             max_examples, seed, jobs, quiet, scheduler):
-    """Learn the annotation parameters from the training data alone (issue 10).
+             max_examples, seed, jobs, quiet, inside_input, scheduler):
+    """Learn the annotation parameters from the training data alone.
 
     Cross-validation inside the training examples: each performer (manifest actor, or
     truth document) is held out in turn; templates are learned from the others, the
@@ -109,7 +112,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     skipped: list[MtannoError] = []
     result = tune_files(
         training, mt_dir, output, manifest=manifest, features_dir=features_dir, split=split,
-        truth=truth, keyframes_dir=kf_dir, ablation_dir=ablation_dir,
+        truth=truth, keyframes_dir=kf_dir, ablation_dir=ablation_dir, inside_input=inside_input,
         log=None if quiet else lambda line: click.echo(f"tune: {line}", err=True),
         command=command_line(), seed=seed, n_jobs=jobs,
         methods=[m for m in METHODS if m not in disabled], documents=documents,

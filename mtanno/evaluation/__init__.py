@@ -1,10 +1,9 @@
 """The evaluation stage: annotations and retrieval measured against ground truth, the
 documents with exact truth to measure on, and the report a person reads.
 
-Modules:
+The truth it measures against is read by :mod:`mtanno.labels` (an input format, below
+every stage that reads it). Modules:
 
-* :mod:`~mtanno.evaluation.truth` — ground-truth segments (1-based frames at 30 Hz),
-  truth tables and the CMU mocap6 label converter;
 * :mod:`~mtanno.evaluation.metrics` — frame- and segment-level P/R/F of annotations
   ([MBS09] §7), per class, with support counts, in one report with the measures below;
 * :mod:`~mtanno.evaluation.segmentation` — the action-segmentation measures: frame
@@ -25,65 +24,22 @@ Every module's public names are importable from the package, attached on first u
 truth table loads neither the report nor the feature extractor.
 """
 
-_MODULE_OF = {
-    "ClassRetrieval": "retrieval",
-    "EVALUATION_SCHEMA": "metrics",
-    "OVERLAPS": "segmentation",
-    "OverlapCounts": "segmentation",
-    "PRF": "metrics",
-    "RIGHT_IOU": "calibration",
-    "ReliabilityTable": "calibration",
-    "Report": "metrics",
-    "ReportResult": "report",
-    "RetrievalRow": "retrieval",
-    "Segment": "truth",
-    "SegmentationScores": "segmentation",
-    "TAU_GRID": "retrieval",
-    "auroc": "calibration",
-    "check_within": "truth",
-    "confusion_matrix": "report",
-    "edit_score": "segmentation",
-    "evaluate_annotations": "metrics",
-    "expected_calibration_error": "calibration",
-    "frame_level": "metrics",
-    "levenshtein": "segmentation",
-    "read_truth": "truth",
-    "reliability_table": "calibration",
-    "rows_right": "calibration",
-    "segment_right": "calibration",
-    "retrieval_evaluation": "retrieval",
-    "retrieval_report": "retrieval",
-    "retrieval_rows": "retrieval",
-    "retrieval_table": "retrieval",
-    "segment_level": "metrics",
-    "segmentation_scores": "segmentation",
-    "separation_quotient": "retrieval",
-    "top_k_recall": "retrieval",
-    "truth_table": "truth",
-    "write_report": "report",
-    "write_truth": "truth",
-}
+from mtanno.util.lazy import lazy_exports
 
-__all__ = ["EVALUATION_SCHEMA", "OVERLAPS", "PRF", "TAU_GRID", "ClassRetrieval", "OverlapCounts",
-           "RIGHT_IOU", "ReliabilityTable", "Report", "ReportResult", "RetrievalRow", "Segment",
-           "SegmentationScores", "auroc", "check_within", "confusion_matrix", "edit_score",
-           "evaluate_annotations", "expected_calibration_error", "frame_level", "levenshtein",
-           "read_truth", "reliability_table", "rows_right", "segment_right", "segmentation_scores",
-           "retrieval_evaluation", "retrieval_report", "retrieval_rows", "retrieval_table",
-           "segment_level", "separation_quotient", "top_k_recall", "truth_table",
-           "write_report", "write_truth"]
-
-
-def __getattr__(name: str):
-    # the names are attached on first use (PEP 562), so that a module that needs one
-    # of them (a truth table, the P/R/F formulas) does not load the report and the rest
-    if name in _MODULE_OF:
-        import importlib
-
-        value = getattr(importlib.import_module(f"mtanno.evaluation.{_MODULE_OF[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'mtanno.evaluation' has no attribute {name!r}")
+# the names are attached on first use (PEP 562), so that a module that needs one of them
+# (a truth table, the P/R/F formulas) does not load the report and the rest
+__getattr__, __all__ = lazy_exports(__name__, {
+    "calibration": ("RIGHT_IOU", "ReliabilityTable", "auroc", "expected_calibration_error",
+                    "reliability_table", "rows_right", "segment_right"),
+    "metrics": ("EVALUATION_SCHEMA", "PRF", "Report", "evaluate_annotations", "frame_level",
+                "segment_level"),
+    "report": ("ReportResult", "confusion_matrix", "write_report"),
+    "retrieval": ("ClassRetrieval", "RetrievalRow", "TAU_GRID", "retrieval_evaluation",
+                  "retrieval_report", "retrieval_rows", "retrieval_table", "separation_quotient",
+                  "top_k_recall"),
+    "segmentation": ("OVERLAPS", "OverlapCounts", "SegmentationScores", "edit_score",
+                     "levenshtein", "segmentation_scores"),
+})
 
 
 def __dir__() -> list[str]:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mtanno.annotate.calibration import check_labels
+from mtanno.confidence.calibration import check_labels
 from mtanno.errors import MtannoError
 
 __all__ = ["DEFAULT_BINS", "RIGHT_IOU", "ReliabilityTable", "auroc",
@@ -40,7 +40,7 @@ def segment_right(seg: tuple[int, int, int], truth) -> bool:
 
 def rows_right(rows, truth) -> np.ndarray:
     """Per annotation row (0-based frames, :class:`mtanno.annotate.Annotation`) whether
-    its label is right against ``truth`` (:class:`mtanno.evaluation.truth.Segment`,
+    its label is right against ``truth`` (:class:`mtanno.labels.segments.Segment`,
     1-based frames): :func:`segment_right` in its document."""
     by_doc: dict[str, list] = {}
     for s in truth:

@@ -8,7 +8,7 @@ starts where the previous clip's root ended. The root height is kept. Optional p
 repeat the last pose for a number of native frames and are left unlabelled.
 
 The ground truth lists every clip as a segment of 30 Hz frames: exactly the analysis frames
-(features.md §6) whose native frame belongs to the clip.
+(docs/method/features.md §6) whose native frame belongs to the clip.
 """
 
 from __future__ import annotations
@@ -25,11 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.truth import Segment, write_truth
 from mtanno.features.hysteresis import analysis_frames
 from mtanno.io.amc import read_amc_values, write_amc
 from mtanno.io.asf import AsfSkeleton, read_asf
 from mtanno.io.skeleton import euler_matrix
+from mtanno.labels.segments import Segment
+from mtanno.labels.truth import write_truth
 from mtanno.util.output import atomic_path
 
 
@@ -166,6 +167,7 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
                       asf: str | os.PathLike | None = None, prefix: str | None = None,
                       shuffle: bool = True, inputs: Sequence[str | os.PathLike] = (),
                       progress: Callable[[int, int], None] | None = None,
+                      inside_input: bool = False,
                       ) -> tuple[list[Path], list[Segment]]:
     """Write ``n_docs`` composed AMC documents, their ASF and ``truth.csv`` into ``out_dir``.
 
@@ -174,13 +176,16 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     frames of stillness separate the clips. ``shuffle=False`` keeps the clips in the given
     order (the first ``clips_per_doc`` of them). Returns the document paths and the truth.
     Every clip is read and checked before anything is written; no output may be one of the
-    clips, the ASF or the further ``inputs`` (the manifest, say). ``progress(done, total)``
-    is called after each clip read and each document written.
+    clips, the ASF or the further ``inputs`` (the manifest, say), and ``out_dir`` may be, or
+    lie inside, a folder holding clips only with ``inside_input``: composed documents among
+    the clips would be read as clips by the next ``features`` run over it.
+    ``progress(done, total)`` is called after each clip read and each document written.
     """
     if not clips:
         raise MtannoError("no clips to compose")
     from mtanno.io import find_asf
-    from mtanno.util.output import check_outputs, make_folder
+    from mtanno.util.output import make_folder
+    from mtanno.util.preflight import check_outputs
 
     # everything is read and checked before the first byte is written: a bad clip leaves
     # no partial output folder
@@ -197,7 +202,9 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
     planned = [out_dir / f"{prefix}_doc{d:02d}.amc" for d in range(1, n_docs + 1)]
     planned += [out_dir / asf_path.name, out_dir / "truth.csv", out_dir / "truth.csv.meta.json",
                 out_dir / "compose.json"]
-    check_outputs(planned, [asf_path, *(c.path for c in clips), *inputs])
+    check_outputs(planned, [asf_path, *(c.path for c in clips), *inputs],
+                  folders={out_dir: []}, scanned={c.path.parent: () for c in clips},
+                  inside_input=inside_input)
     rng = random.Random(seed)
     loaded = {}
     step = _steps(progress, len(clips) + n_docs)

@@ -2,7 +2,7 @@
 P2/R2/F2 (segments), and in the same :class:`Report` the action-segmentation measures
 (frame accuracy, Edit, F1@{10, 25, 50}: :mod:`mtanno.evaluation.segmentation`).
 
-All frames are 1-based inclusive at 30 Hz in the tables (:class:`mtanno.evaluation.truth.Segment`,
+All frames are 1-based inclusive at 30 Hz in the tables (:class:`mtanno.labels.segments.Segment`,
 :class:`mtanno.annotate.Annotation` uses 0-based frames and is converted on entry).
 """
 
@@ -19,7 +19,7 @@ from mtanno.evaluation.segmentation import (
     SegmentationScores,
     segmentation_scores,
 )
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 #: Schema name of the evaluation JSON (``mtanno evaluate --json``).
 EVALUATION_SCHEMA = "mtanno.evaluation/1"
@@ -321,8 +321,9 @@ def evaluate_files(annotations: Sequence[str], truth: str, *, docs: Sequence[str
     them only) against a truth table file, over :func:`documents_evaluated`; a truth
     segment past the end of a document whose length the annotations record is an error
     naming the truth file."""
-    from mtanno.annotate.tables import read_annotation_tables, to_segments
-    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.annotate.tables import read_annotation_tables
+    from mtanno.labels.segments import to_segments
+    from mtanno.labels.truth import check_within, read_truth
 
     truth_segments = read_truth(truth)
     rows, frames, _ = read_annotation_tables(annotations)

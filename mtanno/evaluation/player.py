@@ -67,10 +67,11 @@ def decode_poses(text: str) -> np.ndarray:
 def motion_files(inputs: Iterable[str | os.PathLike],
                  docs: Iterable[str] | None = None) -> dict[str, Path]:
     """Document name (file stem) → motion file, of files and folders (searched
-    recursively for ``.amc`` and ``.bvh``); with ``docs``, of those documents only. An
+    recursively for motion files, :data:`mtanno.io.formats.SUFFIXES`); with ``docs``, of
+    those documents only. An
     empty name, a missing input, a file that is not a motion file, or two files of one
     document (of ``docs``) are errors naming them."""
-    from mtanno.io import MOCAP_SUFFIXES
+    from mtanno.io.formats import expected, is_motion_path
 
     wanted = None if docs is None else set(docs)
     out: dict[str, Path] = {}
@@ -80,11 +81,10 @@ def motion_files(inputs: Iterable[str | os.PathLike],
                               "one)")
         p = Path(item)
         if p.is_dir():
-            found = sorted(f for f in p.rglob("*") if f.suffix.lower() in MOCAP_SUFFIXES
-                           and f.is_file())
+            found = sorted(f for f in p.rglob("*") if is_motion_path(f) and f.is_file())
         elif p.exists():
-            if p.suffix.lower() not in MOCAP_SUFFIXES:
-                raise MtannoError("not a motion file (.amc, .bvh)", path=str(p))
+            if not is_motion_path(p):
+                raise MtannoError(f"not a motion file ({expected()})", path=str(p))
             found = [p]
         else:
             raise MtannoError("motion file or folder not found", path=str(p))
@@ -106,7 +106,7 @@ def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
     them (``asf``, else the ASF found beside or above an AMC file; skeleton map detected). A
     file that cannot be read is left out, its message appended to ``failures`` (an error
     without it)."""
-    from mtanno.features.extract import poses_at, to_y_up
+    from mtanno.features.extract import poses_at
     from mtanno.features.hysteresis import analysis_frames
     from mtanno.io import canonical_positions, read_motion
 
@@ -116,7 +116,7 @@ def load_motion_poses(files: dict[str, Path], docs: Sequence[str], *,
             continue
         try:
             motion = read_motion(files[d], asf=asf)
-            P = to_y_up(canonical_positions(motion))
+            P = canonical_positions(motion)  # (Y up, as read_motion gives it)
             out[d] = poses_at(P, analysis_frames(P.shape[0], motion.fps))
         except MtannoError as exc:
             if failures is None:

@@ -12,7 +12,7 @@ documents' feature files) :func:`write_report` writes into one folder:
   truth × annotation, with a "none" row and column (frames without a label);
 * ``timeline_<doc>.png``/``.svg`` — per document, truth against annotation;
 * with templates and features: ``template_<class>.png``/``.svg`` (heat maps, [MR06] Fig. 4)
-  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, algorithms.md §3.4);
+  and ``delta_<doc>.png``/``.svg`` (each class's Δ over the document, docs/method.md §3.4);
 * on the page, with the documents' poses, a stick-figure player per document, and always
   the review list with the controls that turn it into a truth CSV
   (:mod:`mtanno.evaluation.player`).
@@ -40,17 +40,17 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
 from mtanno.evaluation.player import review_html
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 if TYPE_CHECKING:
-    from mtanno.annotate.tables import Annotation
+    from mtanno.labels.segments import Annotation
 
 NONE = "none"
 #: Title of a report page.
 REPORT_TITLE = "mtanno annotation report"
 FORMATS = ("png", "svg")
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
-#: after documents and classes), for :func:`mtanno.util.output.check_outputs`.
+#: after documents and classes), for :func:`mtanno.util.preflight.check_outputs`.
 REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
                 "per_class.tex", "confusion.csv", "confusion.csv.meta.json", "summary.csv",
                 "summary.csv.meta.json", "summary.md", "review.csv", "review.csv.meta.json",
@@ -407,7 +407,7 @@ def _scores(w: _Writer, truth, annotation, docs, frames, prov) -> tuple[list[dic
     table's rows and the matrix's labels."""
     import pyarrow as pa
 
-    from mtanno.annotate.tables import to_segments
+    from mtanno.labels.segments import to_segments
     from mtanno.plot import plot_confusion
     from mtanno.util.tables import write_table
 
@@ -517,10 +517,11 @@ def _legend(ax, labels, colours) -> None:
 def _delta_figures(w: _Writer, templates: dict, features: dict[str, np.ndarray],
                    tau: float | None, tau_per_class: dict[str, float],
                    delta: float | None) -> None:
-    from mtanno.annotate import DEFAULT_DELTA, class_deltas, class_models
+    from mtanno.annotate import class_deltas, class_models
     from mtanno.plot import label_colours, plot_delta
+    from mtanno.templates.params import ANNOTATION_DELTA
 
-    models, _ = class_models(templates, delta=DEFAULT_DELTA if delta is None else delta)
+    models, _ = class_models(templates, delta=ANNOTATION_DELTA if delta is None else delta)
     colours = label_colours(sorted(m.name for m in models))
     for d, X in features.items():
         ax = None
@@ -558,17 +559,18 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     (an error without it). Returns the result and the annotation's rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
-        DEFAULT_TAU,
         annotation_files,
         read_annotation_tables,
     )
     from mtanno.evaluation.player import load_motion_poses, motion_files
-    from mtanno.evaluation.truth import check_within, read_truth
+    from mtanno.features.inputs import document_files
+    from mtanno.features.store import read_features
     from mtanno.io import MOCAP_SUFFIXES
+    from mtanno.labels.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
     from mtanno.templates.model import load_template_folder, template_files
-    from mtanno.util.output import check_outputs
-    from mtanno.util.store import document_files, read_features
+    from mtanno.templates.params import ANNOTATION_TAU
+    from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import provenance
 
     require_matplotlib()
@@ -608,7 +610,7 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         poses = load_motion_poses(motion_paths, docs, asf=asf, failures=failures)
     per_class = recorded["tau_per_class"] if tau is None else {}
     if tau is None:  # the annotation's thresholds
-        tau = DEFAULT_TAU if recorded["tau"] is None else recorded["tau"]
+        tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
     result = write_report(
         out_dir, truth, rows, frames=frames,
         templates=load_template_folder(mt_dir) if mt_dir else None,

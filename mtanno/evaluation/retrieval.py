@@ -1,7 +1,7 @@
-"""Evaluation of retrieval against ground truth ([MR06] §5.4–5.5, algorithms.md §8): hits
+"""Evaluation of retrieval against ground truth ([MR06] §5.4–5.5, docs/method.md §8): hits
 and relevant hits per τ, top-k recall, the separation quotient, per class.
 
-Frames are 1-based inclusive at 30 Hz (:class:`mtanno.evaluation.truth.Segment`).
+Frames are 1-based inclusive at 30 Hz (:class:`mtanno.labels.segments.Segment`).
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtanno.evaluation.metrics import overlaps, ratio
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 #: Hit cap per class and document of the retrieval table (the reference driver's).
 DEFAULT_MAX_HITS = 2000
-#: τ grid of the retrieval table (algorithms.md §8, [MR06] Table 2).
+#: τ grid of the retrieval table (docs/method.md §8, [MR06] Table 2).
 TAU_GRID = (0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1)
 
 
@@ -38,7 +38,7 @@ class RetrievalRow:
 def retrieval_rows(label: str, hits: Sequence[Segment], costs: Sequence[float],
                    truth: Sequence[Segment], *, taus: Sequence[float] = TAU_GRID,
                    ) -> list[RetrievalRow]:
-    """|H_τ|, |H_τ⁺| per τ for one class (algorithms.md §8).
+    """|H_τ|, |H_τ⁺| per τ for one class (docs/method.md §8).
 
     ``hits`` are one retrieval run at the largest τ, ranked by cost; since hits are taken
     greedily by increasing cost, the hits with cost ≤ τ are exactly the run at τ. A hit is
@@ -121,7 +121,7 @@ def retrieval_evaluation(label: str, values: np.ndarray, weights: np.ndarray,
                          variant: str = "reference") -> ClassRetrieval:
     """Retrieve one class (quantized template) in every document and score the hits.
 
-    One retrieval run per document at the largest τ (hit rules of algorithms.md §3.5), hits
+    One retrieval run per document at the largest τ (hit rules of docs/method.md §3.5), hits
     of all documents ranked together by cost. Reports |H_τ|, |H_τ⁺|, P, R per τ, the
     top-5/10/20 recall and the separation quotient with the median of all finite Δ.
     """
@@ -201,8 +201,8 @@ def evaluate_retrieval_files(models, layout, paths, truth: Sequence[Segment], *,
     with each such message. A truth segment past the end of its document is an error
     naming ``truth_path``."""
     from mtanno.errors import MtannoError
-    from mtanno.evaluation.truth import check_within
-    from mtanno.util.store import check_layout, read_features
+    from mtanno.features.store import check_layout, read_features
+    from mtanno.labels.truth import check_within
 
     documents, files, failed = [], [], []
     for p in paths:

@@ -7,7 +7,7 @@ count a segment right when it shares one frame with a truth segment of its label
 one-to-one matching; F1@k matches one to one by intersection over union, and the Edit
 score penalises over-segmentation and wrong order.
 
-All frames are 1-based inclusive at 30 Hz (:class:`~mtanno.evaluation.truth.Segment`). The
+All frames are 1-based inclusive at 30 Hz (:class:`~mtanno.labels.segments.Segment`). The
 measures are computed on the segments as the tables list them — adjacent segments of one
 label are not merged. Definitions (``docs/annotation.md``, "mtanno evaluate"):
 
@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mtanno.evaluation.truth import Segment
+from mtanno.labels.segments import Segment
 
 #: The IoU thresholds of F1@k, in percent (Lea et al. 2017; MS-TCN).
 OVERLAPS = (10, 25, 50)

@@ -3,15 +3,15 @@
 The feature tables (:mod:`mtanno.features.table`, :mod:`mtanno.features.table31`) are
 compiled by :mod:`mtanno.features` into integer and float arrays (measure code, joint
 indices, measure parameters, velocity window, interval bounds of the two tests); this kernel
-interprets them row by row: the measure for every frame (features.md §5, features31.md §3–4),
-both tests, and the hysteresis (features.md §4). It performs the same floating-point
-operations in the same order as the readable numpy versions in ``tests/naive_features.py``,
-which the tests hold it to, bit for bit.
+interprets them row by row: the measure for every frame (docs/method/features.md §5,
+docs/method/features31.md §3–4), both tests, and the hysteresis (docs/method/features.md
+§4). It performs the same floating-point operations in the same order as the readable numpy
+versions in ``tests/naive_features.py``, which the tests hold it to, bit for bit.
 
-Capsule ("touch") rows (features31.md §4) are special: their threshold k scales a per-frame
-radius k·c·ℓ(t), so the measure is evaluated once per test, as min over the row's capsule
-tests of d − (k·c)·ℓ, and a test holds where that value is ≤ 0 (the sign of a float
-difference is exact, so this is the same as d ≤ k·c·ℓ).
+Capsule ("touch") rows (docs/method/features31.md §4) are special: their threshold k scales
+a per-frame radius k·c·ℓ(t), so the measure is evaluated once per test, as min over the
+row's capsule tests of d − (k·c)·ℓ, and a test holds where that value is ≤ 0 (the sign of
+a float difference is exact, so this is the same as d ≤ k·c·ℓ).
 """
 
 from __future__ import annotations
@@ -38,7 +38,8 @@ def _reflect(i, m):
 
 @numba.njit(cache=True)
 def _velocity(J, q, p, fps, L, out, u, c):
-    """Velocity of P_q − P_p (p < 0: of P_q) into ``out`` (frames × 3); features.md §3.
+    """Velocity of P_q − P_p (p < 0: of P_q) into ``out`` (frames × 3);
+    docs/method/features.md §3.
 
     ``u`` and ``c`` are scratch arrays of at least max(frames, L) + L + 2 rows."""
     n = J.shape[0]
@@ -122,7 +123,8 @@ def _measure_row(J, heading, fps, kind, jx, L, val, v1, v2, u, c):
     """Fill ``val`` (frames) with the row's measure (NaN where undefined).
 
     ``error_model="numpy"``: a zero-length direction or normal gives NaN (whose tests are
-    false, features.md §5) instead of raising ZeroDivisionError; other values are the same."""
+    false, docs/method/features.md §5) instead of raising ZeroDivisionError; other values
+    are the same."""
     # one kernel: every measure kind in one pass over the frames; split by kind, each
     # frame's joints would be loaded once per kind in the stage's hottest loop
     n = J.shape[0]
@@ -234,7 +236,8 @@ def _measure_row(J, heading, fps, kind, jx, L, val, v1, v2, u, c):
 
 @numba.njit(cache=True, inline="always")
 def _capsule(J, t, a, b, q, c, ball_a, ball_b, k):
-    """d − (k·c)·ℓ for point q and the capsule around segment a→b (features31.md §4).
+    """d − (k·c)·ℓ for point q and the capsule around segment a→b
+    (docs/method/features31.md §4).
 
     ℓ = |P_b − P_a| at frame t; d is the distance of P_q from the segment's line, or from
     an end ball where q projects before a / beyond b (∞ without a ball there)."""

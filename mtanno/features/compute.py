@@ -1,4 +1,4 @@
-"""Feature sets and their evaluation (algorithms.md §2): :class:`FeatureSet` (a feature
+"""Feature sets and their evaluation (docs/method.md §2): :class:`FeatureSet` (a feature
 table compiled once for the kernel), the named sets (:data:`FEATURE_SETS`,
 :func:`get_feature_set`), and :func:`compute_features` / :func:`compute_features_native`
 — joint positions (canonical joints, in the motion's length unit, at its native rate) to
@@ -59,7 +59,7 @@ MEASURE_JOINTS = {
 
 @dataclass(frozen=True)
 class FeatureSet:
-    """A named feature table with its index groups (algorithms.md §2, [MRC05] §5.3).
+    """A named feature table with its index groups (docs/method.md §2, [MRC05] §5.3).
 
     Attributes
     ----------
@@ -129,6 +129,32 @@ def get_feature_set(name: str) -> FeatureSet:
         known = ", ".join(["ak40", *FEATURE_SETS])
         raise MtannoError(f"unknown feature set '{name}' (known: {known})")
     return FEATURE_SETS[key]
+
+
+def feature_set_mismatch(name: str, feature_names) -> str | None:
+    """What is wrong with a file that says its features ``feature_names`` are of the set
+    ``name`` (a template, an index manifest), or None: a set of mtanno's whose table lacks
+    some of them, or a name that is none of mtanno's sets over features that all belong to
+    one of them (``"bogus"`` over the 40 annotation features: no feature file of those
+    features would ever match). A set of the user's own, over features of its own, is
+    fine."""
+    names = list(feature_names)
+    try:
+        fs = get_feature_set(name)
+    except MtannoError:
+        have = set(names)
+        same = next((f.name for f in FEATURE_SETS.values() if have <= set(f.names)), None)
+        if same is None:
+            return None
+        return (f"feature set {name!r} is none of mtanno's ({', '.join(FEATURE_SETS)}), yet "
+                f"every feature is one of {same}: the set must be named as the one its "
+                "features come from")
+    known = set(fs.names)
+    stray = [n for n in names if n not in known]
+    if not stray:
+        return None
+    more = " …" if len(stray) > 3 else ""
+    return f"feature(s) not in the {fs.name} feature set: {', '.join(stray[:3])}{more}"
 
 
 class _Compiled:
@@ -213,7 +239,8 @@ def _compiled(features: tuple[Feature, ...]) -> _Compiled:
 
 def compute_features_native(joints: np.ndarray, heading: np.ndarray, fps: float, *,
                             features: tuple[Feature, ...] = FEATURES) -> np.ndarray:
-    """(features × native frames) uint8 feature matrix at the native rate (features.md §4–5).
+    """(features × native frames) uint8 feature matrix at the native rate
+    (docs/method/features.md §4–5).
 
     Parameters
     ----------

@@ -9,6 +9,7 @@ files that fail.
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,10 +20,12 @@ from mtanno._version import __version__
 from mtanno.errors import MtannoError
 from mtanno.features.compute import FeatureSet, compute_features, get_feature_set
 from mtanno.features.hysteresis import ANALYSIS_FPS
+from mtanno.features.store import write_features
 from mtanno.features.table import FEATURE_SET
-from mtanno.io import MOCAP_SUFFIXES, canonical_positions, find_asf, read_motion
-from mtanno.io.skeleton import Motion
-from mtanno.util.store import sha256_file, write_features
+from mtanno.io import canonical_positions, find_asf, read_motion
+from mtanno.io.formats import SUFFIXES, expected, format_of, is_motion_path
+from mtanno.io.skeleton import Motion, to_y_up
+from mtanno.util.tables import sha256_file
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,
@@ -30,24 +33,8 @@ from mtanno.util.store import sha256_file, write_features
 EXTRACTOR_VERSION = 1
 
 
-#: The world axes a motion file may have pointing up (``features --up``); features are
-#: defined for Y up (algorithms.md §1), Z-up data is turned first.
-UP_AXES = ("y", "z")
-
-
 def _feature_set(feature_set: str | FeatureSet) -> FeatureSet:
     return feature_set if isinstance(feature_set, FeatureSet) else get_feature_set(feature_set)
-
-
-def to_y_up(points: np.ndarray, up: str = "y") -> np.ndarray:
-    """World coordinates (…, 3) of data whose up axis is ``up`` ("y" or "z") turned so that
-    Y is up: for Z up, (x, y, z) → (x, z, −y), a rotation of −90° about X (right-handed
-    frames stay right-handed, so left and right are kept)."""
-    if up not in UP_AXES:
-        raise MtannoError(f"up axis must be one of {', '.join(UP_AXES)}, got {up!r}")
-    if up == "y":
-        return points
-    return np.stack([points[..., 0], points[..., 2], -points[..., 1]], axis=-1)
 
 
 def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
@@ -55,7 +42,8 @@ def features_from_motion(motion: Motion, *, target_fps: float = ANALYSIS_FPS,
                          ) -> tuple[np.ndarray, np.ndarray]:
     """(features × analysis frames) uint8 features and the 1-based native frame of each
     column; ``feature_set`` names the table (default the 40 annotation features); ``up``
-    is the motion's up axis (:func:`to_y_up`)."""
+    is the up axis of the motion's positions (:func:`to_y_up`; a motion from
+    :func:`mtanno.io.read_motion` is already Y up)."""
     X, keep, _ = _motion_features(motion, _feature_set(feature_set), up, target_fps)
     return X, keep + 1
 
@@ -80,6 +68,28 @@ def _motion_features(motion: Motion, fs: FeatureSet, up: str,
     return X, keep, P
 
 
+def analysis_validity(valid: np.ndarray | None, keep: np.ndarray, fps: float) -> np.ndarray:
+    """Validity of the analysis frames (kept native frames ``keep``, 0-based) of a motion
+    whose native frames are ``valid`` (None: all valid): a frame is valid when no native
+    frame within the longest velocity window (250 ms, docs/method/features.md §3) of it is invalid, so
+    that no valid frame's features read interpolated joints."""
+    if valid is None:
+        return np.ones(keep.shape[0], dtype=bool)
+    from mtanno.features.measures import window_samples
+
+    reach = window_samples(250.0, fps)
+    bad = np.convolve(~np.asarray(valid, bool), np.ones(2 * reach + 1), mode="same") > 0
+    return ~bad[keep]
+
+
+def invalid_runs(valid: np.ndarray) -> list[list[int]]:
+    """The invalid rows of a feature file as [first, last] pairs, 1-based inclusive (the
+    ``invalid`` entry of its metadata, docs/formats.md)."""
+    m = np.concatenate([[False], ~np.asarray(valid, bool), [False]])
+    edges = np.flatnonzero(m[1:] != m[:-1])
+    return [[int(a) + 1, int(b)] for a, b in zip(edges[::2], edges[1::2])]
+
+
 def poses_at(positions: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """The pose block of a feature file: (analysis frames × 22 × 3) float32 poses in leg
     lengths, :func:`mtanno.features.poses.normalize_poses` of the canonical joint
@@ -94,12 +104,17 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
                  asf: str | os.PathLike | None = None,
                  skeleton: str | os.PathLike | None = None,
                  feature_set: str | FeatureSet = FEATURE_SET,
-                 up: str = "y", poses: bool = False) -> tuple[np.ndarray, dict]:
+                 up: str | None = None, poses: bool = False,
+                 markers: str | os.PathLike | None = None) -> tuple[np.ndarray, dict]:
     """Compute the features of one motion file; write them to ``dst`` if given.
 
     ``feature_set``: ``mr06-ak40`` (alias ``ak40``, default), ``mrc05`` or
     ``mrc05-reference``; its name is stored in the metadata. ``up``: the file's up axis,
-    "y" (default) or "z" (:func:`to_y_up`), stored in the metadata. ``poses``: also store
+    "y" or "z" (:func:`to_y_up`; None: the format's rule, Y for AMC and BVH, the file's
+    for C3D), stored in the metadata. ``markers``: the marker set of a C3D file (TOML
+    file or name; default the built-in set that fits). A motion with invalid frames (a
+    marker file whose joints cannot all be computed) records them in the metadata's
+    ``invalid`` rows (:func:`analysis_validity`). ``poses``: also store
     the normalised poses of the analysis frames (:func:`poses_at`; the file's pose block,
     described by the metadata's ``poses`` entry, ``docs/formats.md``); without it the file
     holds the features only. Returns the (features × frames) matrix and the metadata
@@ -107,10 +122,12 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
     """
     fs = _feature_set(feature_set)
     src = Path(src)
-    if src.suffix.lower() == ".amc" and asf is None:
+    fmt = format_of(src)
+    if fmt.skeleton_file is not None and asf is None:
         asf = find_asf(src)
-    motion = read_motion(src, asf=asf, skeleton=skeleton, sha256=True)
-    X, keep, positions = _motion_features(motion, fs, up)
+    motion = read_motion(src, asf=asf, skeleton=skeleton, markers=markers, up=up,
+                         sha256=True)
+    X, keep, positions = _motion_features(motion, fs, "y")
     native = keep + 1
     block = None
     if poses:
@@ -134,8 +151,9 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
         "skeleton_map": motion.smap.name,
         "skeleton_map_file": motion.smap.path,
         "skeleton_map_sha256": motion.smap.digest,
-        "rig_nodes": list(motion.rig.names),
-        "up": up,
+        "rig_nodes": list(motion.rig.names) if motion.markers is None else
+        list(motion.markers.markers.values()),
+        "up": motion.up,
         "feature_set": fs.name,
         "feature_set_version": fs.version,
         "feature_table_sha256": fs.digest,
@@ -144,6 +162,13 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
         "groups": {g: [fs.names[i] for i in rows] for g, rows in fs.groups.items()},
         "mtanno_version": __version__,
     }
+    if up is None and fmt.up == "file":
+        meta["up_from"] = "file"
+    if motion.markers is not None or motion.valid is not None:
+        valid = analysis_validity(motion.valid, keep, motion.fps)
+        meta["invalid"] = invalid_runs(valid)
+        if motion.markers is not None:
+            meta["markers"] = _marker_meta(motion.markers)
     if block is not None:
         from mtanno.features.poses import pose_metadata
 
@@ -151,6 +176,13 @@ def extract_file(src: str | os.PathLike, dst: str | os.PathLike | None = None, *
     if dst is not None:
         write_features(dst, X, fs.names, native, meta, poses=block)
     return X, meta
+
+
+def _marker_meta(report) -> dict:
+    """What a marker file's feature file records of its markers (docs/formats.md)."""
+    return {"set": report.set_name, "subject": report.subject, "units": report.units,
+            "filled": report.filled, "lost": report.lost,
+            "invalid_native_frames": report.n_invalid}
 
 
 _DIGESTS: dict[tuple, str] = {}
@@ -184,10 +216,26 @@ class Job:
 
 @dataclass
 class Outcome:
+    """``invalid``: analysis frames of a written file that carry no evidence (a marker
+    file's joints that could not be computed); ``message``: of a failure, or a note on
+    them."""
+
     job: Job
     status: str  # "written", "skipped" or "failed"
     message: str = ""
     frames: int = 0
+    invalid: int = 0
+    #: the failure as raised, when it was an :class:`MtannoError` (a command shows its
+    #: options as flags: :meth:`MtannoError.for_command`)
+    error: MtannoError | None = None
+
+    @classmethod
+    def of(cls, job: Job, status: str, message: str | MtannoError, frames: int,
+           invalid: int = 0) -> Outcome:
+        """The outcome of a job run by :func:`_extract_one`."""
+        if isinstance(message, MtannoError):
+            return cls(job, status, str(message), frames, invalid, message)
+        return cls(job, status, message, frames, invalid)
 
 
 @dataclass
@@ -205,12 +253,14 @@ class Summary:
 
     def line(self) -> str:
         frames = sum(o.frames for o in self.outcomes if o.status == "written")
-        return (f"{self.count('written')} written ({frames} frames at 30 Hz), "
+        invalid = sum(o.invalid for o in self.outcomes if o.status == "written")
+        share = f", {100 * invalid / frames:.1f} % invalid" if invalid else ""
+        return (f"{self.count('written')} written ({frames} frames at 30 Hz{share}), "
                 f"{self.count('skipped')} up to date, {self.count('failed')} failed")
 
 
 def _is_motion(p: Path) -> bool:
-    return p.suffix.lower() in MOCAP_SUFFIXES
+    return is_motion_path(p)
 
 
 def _not_regular(p: Path, mode: int | None = None) -> str | None:
@@ -235,7 +285,7 @@ def _not_regular(p: Path, mode: int | None = None) -> str | None:
 
 
 def _unknown_type(p: Path) -> str:
-    return f"unknown motion file type '{p.suffix}' (expected .amc or .bvh)"
+    return f"unknown motion file type '{p.suffix}' (expected {expected()})"
 
 
 def _folder_jobs(folder: Path, outdir: Path) -> list[Job]:
@@ -262,28 +312,37 @@ def _folder_jobs(folder: Path, outdir: Path) -> list[Job]:
 
 def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
                asf: str | os.PathLike | None = None,
-               listed: Iterable[str | os.PathLike] = ()) -> list[Job]:
+               listed: Iterable[str | os.PathLike] = (),
+               inside_input: bool = False) -> list[Job]:
     """Map inputs to output paths under ``outdir``.
 
     A file gives ``outdir/<stem>.parquet``; a directory is searched recursively for
-    ``.amc``/``.bvh`` files, each giving ``outdir/<path below the directory>.parquet``.
+    motion files (:data:`mtanno.io.formats.SUFFIXES`), each giving
+    ``outdir/<path below the directory>.parquet``.
     An input that is missing or neither a motion file nor a folder is a failed job
-    (reported, the batch goes on: exit code 1), as is an entry of a folder with a motion
-    suffix that is not a regular file (a FIFO is never opened); when no input is usable,
-    the first such input on the command line is raised instead (exit code 2). ``listed``
-    are more inputs, read from a list (``features -``), whose failures are always failed
-    jobs. Raises :class:`MtannoError` for two inputs with the same output, or an output
-    that is one of the inputs (:func:`mtanno.util.output.check_outputs`).
+    (reported, the batch goes on: exit code 1), as is a folder that holds no motion file
+    (an empty folder named like one, ``x.amc/``, too) and an entry of a folder with a
+    motion suffix that is not a regular file (a FIFO is never opened); when no input is
+    usable, the first such input on the command line is raised instead (exit code 2).
+    ``listed`` are more inputs, read from a list (``features -``), whose failures are
+    always failed jobs. Raises :class:`MtannoError` for two inputs with the same output,
+    an output that is one of the inputs, and, unless ``inside_input``, an ``outdir`` that
+    is or lies inside an input folder (:func:`mtanno.util.preflight.check_outputs`).
     """
     outdir = Path(outdir)
+    inputs, listed = list(inputs), list(listed)
     jobs: list[Job] = []
     refused: list[MtannoError] = []  # bad command-line inputs, raised when nothing is usable
     for item, strict in [*((i, True) for i in inputs), *((i, False) for i in listed)]:
         p = Path(item)
         why = _not_regular(p)
         if why is None and p.is_dir():
-            jobs.extend(_folder_jobs(p, outdir))
-            continue
+            found = _folder_jobs(p, outdir)
+            if found:
+                jobs.extend(found)
+                continue
+            why = (f"a folder (named like a motion file) holding no {expected()} file"
+                   if _is_motion(p) else f"no {expected()} files in this folder or below")
         if why is None and not _is_motion(p):
             why = _unknown_type(p)
         if why is not None and strict:
@@ -299,16 +358,19 @@ def plan_batch(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
         if j.dst in seen and seen[j.dst] != j.src:
             raise MtannoError(f"two inputs would write {j.dst}: {seen[j.dst]} and {j.src}")
         seen[j.dst] = j.src
-        if asf is not None and j.src.suffix.lower() == ".amc":
+        if asf is not None and format_of(j.src).skeleton_file is not None:
             j.asf = Path(asf)
     # one job per output (a file given twice, or as a file and in its folder); failed
     # jobs write nothing, so one per input
     unique = list({(j.dst, j.error and str(j.src)): j for j in jobs}.values())
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     good = [j for j in unique if not j.error]
     check_outputs([j.dst for j in good],
                   [*(j.src for j in good), *({j.asf for j in good} - {None})],
+                  folders={outdir: []}, inside_input=inside_input,
+                  scanned={p: SUFFIXES for p in map(Path, [*inputs, *listed])
+                           if p.is_dir()},
                   writable=False)  # a file whose output cannot be written fails alone
     return unique
 
@@ -318,7 +380,7 @@ def _stored_meta(path: Path) -> dict | None:
     import pyarrow.parquet as pq
 
     from mtanno.errors import parse_json
-    from mtanno.util.store import META_KEY
+    from mtanno.features.store import META_KEY
 
     try:
         raw = (pq.read_schema(path).metadata or {}).get(META_KEY)
@@ -329,26 +391,34 @@ def _stored_meta(path: Path) -> dict | None:
 
 
 def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
-               skeleton: str | os.PathLike | None = None, up: str = "y",
-               poses: bool = False) -> bool:
+               skeleton: str | os.PathLike | None = None, up: str | None = None,
+               poses: bool = False, markers: str | os.PathLike | None = None) -> bool:
     """True if ``job.dst`` holds the features this job would compute now, judged by the
     provenance the output records: the same motion file (SHA-256), the same skeleton file
     (the ASF that would be used, SHA-256), the same skeleton map (the one that would be
     chosen for the recorded rig, by content), the same feature set and table, the same up
     axis, the same extractor version, and a pose block exactly when ``poses`` is asked
-    (with the same ``poses`` description: joints, unit, normalisation). Modification times
+    (with the same ``poses`` description: joints, unit, normalisation); for a marker file,
+    the same marker set (by content) and the up axis taken from the file or the same
+    ``up``. Modification times
     are not used: a touched but unchanged input is still up to date, a changed ASF with an
     old time stamp is not."""
     from mtanno.features.poses import pose_metadata
     from mtanno.io.rigs import select_map
 
-    meta = _stored_meta(job.dst) if job.dst.is_file() else None
+    try:  # (a name too long for the file system is no output: written, and failing, later)
+        meta = _stored_meta(job.dst) if stat.S_ISREG(os.stat(job.dst).st_mode) else None
+    except OSError:
+        meta = None
     if meta is None:
         return False
     fs = _feature_set(feature_set)
+    fmt = format_of(job.src)
+    stored_up = "file" if meta.get("up_from") == "file" else meta.get("up", "y")
     if (meta.get("feature_set"), meta.get("feature_set_version"),
             meta.get("feature_table_sha256"), meta.get("extractor_version")) != \
-            (fs.name, fs.version, fs.digest, EXTRACTOR_VERSION) or meta.get("up", "y") != up:
+            (fs.name, fs.version, fs.digest, EXTRACTOR_VERSION) or \
+            stored_up != (up or fmt.up):
         return False
     if meta.get("poses") != (pose_metadata() if poses else None):
         return False
@@ -356,7 +426,7 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
         if meta.get("source_sha256") != sha256_file(job.src):
             return False
         asf = job.asf
-        if asf is None and job.src.suffix.lower() == ".amc":
+        if asf is None and fmt.skeleton_file is not None:
             asf = find_asf(job.src)
         if (None if asf is None else _skeleton_digest(Path(asf))) != \
                 meta.get("skeleton_file_sha256"):
@@ -364,6 +434,11 @@ def up_to_date(job: Job, *, feature_set: str | FeatureSet = FEATURE_SET,
         nodes = meta.get("rig_nodes")
         if not isinstance(nodes, list):
             return False
+        if meta.get("rig") == "c3d":
+            from mtanno.io.markerset import choose_set
+
+            return choose_set([str(n) for n in nodes], markers).digest == \
+                meta.get("skeleton_map_sha256")
         try:
             smap = select_map(str(meta.get("rig")), [str(n) for n in nodes], skeleton)
         except MtannoError:
@@ -388,34 +463,56 @@ def _guessed_digest(src: Path) -> str:
 
 
 def _run_one(job: Job, skeleton: str | None, feature_set: str = FEATURE_SET,
-             up: str = "y", poses: bool = False) -> Outcome:
-    status, message, frames = _extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
-                                           up, poses)
-    return Outcome(job, status, message, frames)
+             up: str | None = None, poses: bool = False, markers: str | None = None,
+             ) -> Outcome:
+    return Outcome.of(job, *_extract_one(job.src, job.dst, job.asf, skeleton, feature_set,
+                                         up, poses, markers))
+
+
+def _invalid_note(src: Path, meta: dict, frames: int) -> tuple[str, int]:
+    """(a note naming the invalid share of a written file and what caused it, invalid
+    analysis frames); ("", 0) when every frame is valid."""
+    invalid = sum(b - a + 1 for a, b in meta.get("invalid", []))
+    if not invalid:
+        return "", 0
+    lost = meta.get("markers", {}).get("lost", {})
+    why = (f" (markers lost beyond filling: {', '.join(sorted(lost)[:6])})" if lost else "")
+    return (f"{src}: note: {invalid} of {frames} frames ({100 * invalid / frames:.1f} %) are "
+            f"invalid: joints could not be computed{why}; annotation leaves them "
+            f"unlabelled", invalid)
 
 
 def _extract_one(src: Path, dst: Path, asf: Path | None, skeleton: str | None,
-                 feature_set: str, up: str, poses: bool = False) -> tuple[str, str, int]:
-    """One document: (status, message, analysis frames); every error is caught and
-    reported for this file alone, so the batch goes on."""
+                 feature_set: str, up: str | None, poses: bool = False,
+                 markers: str | None = None) -> tuple[str, str | MtannoError, int, int]:
+    """One document: (status, message, analysis frames, invalid frames); every error is
+    caught and reported for this file alone, so the batch goes on (an
+    :class:`MtannoError` as it was raised)."""
     try:
-        X, _ = extract_file(src, dst, asf=asf, skeleton=skeleton, feature_set=feature_set,
-                            up=up, poses=poses)
-        return "written", "", int(X.shape[1])
+        X, meta = extract_file(src, dst, asf=asf, skeleton=skeleton, feature_set=feature_set,
+                               up=up, poses=poses, markers=markers)
+        note, invalid = _invalid_note(src, meta, int(X.shape[1]))
+        return "written", note, int(X.shape[1]), invalid
     except MtannoError as exc:
-        return "failed", str(exc), 0
+        return "failed", exc, 0, 0
     except OSError as exc:  # a file system error not caught where it happened
-        return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0
+        return "failed", f"{exc.filename or src}: {exc.strerror or exc}", 0, 0
     except Exception as exc:  # a bug, reported per file so the batch goes on
-        return "failed", f"{src}: internal error: {type(exc).__name__}: {exc}", 0
+        from mtanno.util.workers import interruption_in
+
+        found = interruption_in(exc)  # a signal Python wrapped: the run is interrupted
+        if found is not None:
+            raise found from None
+        return "failed", f"{src}: internal error: {type(exc).__name__}: {exc}", 0, 0
 
 
 def _run_chunk(items: list[tuple[Path, Path, Path | None]], skeleton: str | None,
-               feature_set: str, up: str, poses: bool = False) -> list[tuple[str, str, int]]:
+               feature_set: str, up: str | None, poses: bool = False,
+               markers: str | None = None) -> list[tuple[str, str, int, int]]:
     """A task of a pool: several documents one after another, each failing alone. Tasks
-    carry paths and return (status, message, frames) per document: the parent keeps the
-    jobs, so nothing else crosses between the processes."""
-    return [_extract_one(src, dst, asf, skeleton, feature_set, up, poses)
+    carry paths and return (status, message, frames, invalid frames) per document: the
+    parent keeps the jobs, so nothing else crosses between the processes."""
+    return [_extract_one(src, dst, asf, skeleton, feature_set, up, poses, markers)
             for src, dst, asf in items]
 
 
@@ -442,11 +539,14 @@ def _chunks(n: int, workers: int, most: int = CHUNK_FILES) -> list[tuple[int, in
 def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
               skeleton: str | None = None,
               progress: Callable[[Outcome], None] | None = None,
-              feature_set: str = FEATURE_SET, up: str = "y",
-              scheduler: str | None = None, poses: bool = False) -> Summary:
+              feature_set: str = FEATURE_SET, up: str | None = None,
+              scheduler: str | None = None, poses: bool = False,
+              markers: str | None = None) -> Summary:
     """Extract features for every job; failures are recorded, the batch goes on.
 
-    ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`). ``poses``:
+    ``up`` is the up axis of every motion file ("y" or "z", :func:`to_y_up`; None: each
+    format's rule, :func:`extract_file`); ``markers``: the marker set of C3D files
+    (:func:`extract_file`). ``poses``:
     every output also holds the normalised poses of its frames (:func:`extract_file`); an
     output with a pose block is not up to date without ``poses``, one without is not with
     it.
@@ -464,7 +564,8 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     from mtanno.util.workers import SerialPool, WorkerPool, make_pool
 
     feature_set = get_feature_set(feature_set).name
-    to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work
+    if up is not None:
+        to_y_up(np.zeros(3), up)  # refuse an unknown axis before any work
     summary = Summary()
 
     def record(o: Outcome) -> None:
@@ -477,31 +578,33 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
         if j.error:  # found unusable while planning: reported, never run
             record(Outcome(j, "failed", f"{j.src}: {j.error}"))
         elif not force and up_to_date(j, feature_set=feature_set, skeleton=skeleton, up=up,
-                                      poses=poses):
+                                      poses=poses, markers=markers):
             record(Outcome(j, "skipped"))
         else:
             todo.append(j)
     with make_pool(jobs=n_jobs, scheduler=scheduler, n_tasks=len(todo)) as pool:
         if isinstance(pool, WorkerPool) and todo:
-            record(_run_one(todo[0], skeleton, feature_set, up, poses))
+            record(_run_one(todo[0], skeleton, feature_set, up, poses, markers))
             todo = todo[1:]
         # in this process one document per task, so progress is reported file by file
         chunks = _chunks(len(todo), getattr(pool, "n_jobs", 1),
                          1 if isinstance(pool, SerialPool) else CHUNK_FILES)
-        tasks = [([(j.src, j.dst, j.asf) for j in todo[a:b]], skeleton, feature_set, up, poses)
-                 for a, b in chunks]
+        tasks = [([(j.src, j.dst, j.asf) for j in todo[a:b]], skeleton, feature_set, up, poses,
+                  markers) for a, b in chunks]
         for (a, b), results in zip(chunks, pool.map(_run_chunk, tasks)):
-            for j, (status, message, frames) in zip(todo[a:b], results):
-                record(Outcome(j, status, message, frames))
+            for j, result in zip(todo[a:b], results):
+                record(Outcome.of(j, *result))
     return summary
 
 
 def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
                listed: Iterable[str | os.PathLike] = (), asf: str | os.PathLike | None = None,
-               wait: bool = False, on_wait: Callable[[str], None] | None = None,
+               inside_input: bool = False, wait: bool = False,
+               on_wait: Callable[[str], None] | None = None,
                on_start: Callable[[int], None] | None = None, **options) -> Summary:
     """The whole ``mtanno features`` run: the jobs of :func:`plan_batch` (``inputs``,
-    ``listed``, ``asf``), an error when they hold no motion file, the output folder made
+    ``listed``, ``asf``, ``inside_input``), an error when they hold no motion file, the
+    output folder made
     and locked (:func:`mtanno.util.locks.folder_lock`: busy is
     :class:`~mtanno.util.locks.LockBusy`, or with ``wait`` waited for after one
     ``on_wait(holder)`` call) and :func:`run_batch` (``options`` are its keyword options).
@@ -515,10 +618,10 @@ def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
         raise MtannoError("the output folder name ({outdir}) is empty; name a folder ('.' "
                           "for this one)", options=("outdir",))
     items = list(inputs)
-    jobs = plan_batch(items, outdir, asf=asf, listed=listed)
+    jobs = plan_batch(items, outdir, asf=asf, listed=listed, inside_input=inside_input)
     if not jobs:
         folders = [str(i) for i in items if Path(i).is_dir()]
-        raise MtannoError("no .amc or .bvh files found in the inputs" + (
+        raise MtannoError(f"no motion files ({expected()}) found in the inputs" + (
             f" (searched the folder{'s' if len(folders) > 1 else ''} "
             f"{', '.join(folders[:3])}{' …' if len(folders) > 3 else ''} and below)"
             if folders else ""))

@@ -1,6 +1,7 @@
 """Two-threshold (hysteresis) quantisation and reduction to the 30 Hz analysis rate.
 
-Spec: ``features.md`` §4 (``features_combine_robust``) and §6, ``algorithms.md`` §1–2.
+Spec: ``docs/method/features.md`` §4 (the toolbox's ``features_combine_robust``) and
+``docs/method/features.md`` §6, ``docs/method.md`` §1–2.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ def _hysteresis_kernel(on, off, out):
 
 
 def hysteresis(on: np.ndarray, off: np.ndarray) -> np.ndarray:
-    """Combine a strict test ``on`` and a lenient test ``off`` (features.md §4).
+    """Combine a strict test ``on`` and a lenient test ``off`` (docs/method/features.md §4).
 
     The state starts OFF; it switches on where ``on`` rises (``on`` true at frame 1 counts
     as a rise) and off where ``off`` falls; a rise and a fall in the same frame leave it off.
@@ -59,7 +60,7 @@ def _rate_ratio(fps: float, target_fps: float) -> Fraction:
 
 
 def analysis_frames(n_native: int, fps: float, target_fps: float = ANALYSIS_FPS) -> np.ndarray:
-    """0-based native frame kept for each analysis frame (features.md §6).
+    """0-based native frame kept for each analysis frame (docs/method/features.md §6).
 
     Analysis frame k (time k/target_fps) takes the nearest native frame,
     ``floor(k·fps/target_fps + 1/2)``, computed exactly; at 120 Hz that keeps native frames

@@ -1,4 +1,5 @@
-"""Body units and velocity windows shared by the feature kernel (features.md §2–3).
+"""Body units and velocity windows shared by the feature kernel (docs/method/features.md
+§2–3).
 
 The measures themselves are evaluated by the numba kernel in
 :mod:`mtanno.features._kernels`; ``tests/naive_features.py`` holds readable numpy versions of
@@ -19,8 +20,8 @@ _J = {name: k for k, name in enumerate(CANONICAL_JOINTS)}
 
 
 def body_units(J: np.ndarray) -> dict[str, float]:
-    """Body measures from frame 1 (features.md §2, features31.md §2), in the positions'
-    length unit.
+    """Body measures from frame 1 (docs/method/features.md §2,
+    docs/method/features31.md §2), in the positions' length unit.
 
     ``hl`` right humerus, ``hlL`` left humerus, ``sw`` shoulder width, ``hw`` hip width,
     ``cl`` chest–neck length, ``BL`` body length (sum of seven segments), ``femR``/``femL``

@@ -1,4 +1,4 @@
-"""The 40 annotation features as a data table (features.md §0 and §5).
+"""The 40 annotation features as a data table (docs/method/features.md §0 and §5).
 
 One row per feature, in F01…F40 order. A row names the *measure* (how a real value per
 frame is computed from joint positions, see :mod:`mtanno.features.measures`), the canonical
@@ -8,8 +8,8 @@ milliseconds. Thresholds are ``(op, k)`` meaning ``measure op k·unit``, or
 ``("in", lo, hi)`` meaning ``lo·unit ≤ measure ≤ hi·unit``; angles are in degrees and need no
 unit. Velocity thresholds are in units per second.
 
-Everything here is what the reference implementation computes (features.md §7 lists where
-it differs from the [MR06] paper's Table 6).
+Everything here is what the reference implementation computes (docs/method/features.md §7
+lists where it differs from the [MR06] paper's Table 6).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ class Feature(NamedTuple):
 _F = Feature
 # fmt: off
 FEATURES: tuple[Feature, ...] = (
-    # --- AK upper (F01–F14), features.md §5.2 ---
+    # --- AK upper (F01–F14), docs/method/features.md §5.2 ---
     _F("F01", "rhand_forward", "handRightToFrontRelTorso", "upper", "F02", "move_plane",
        ("neck", "rhip", "lhip", "rwrist"), "hlL", (">", 1.8), (">", 1.3), 250),
     _F("F02", "lhand_forward", "handLeftToFrontRelTorso", "upper", "F01", "move_plane",
@@ -73,7 +73,7 @@ FEATURES: tuple[Feature, ...] = (
        ("rfingers",), "hl", (">=", 2.5), (">=", 2.0), 100),
     _F("F14", "lhand_fast", "handLeftHighVel", "upper", "F13", "fast",
        ("lfingers",), "hl", (">=", 2.5), (">=", 2.0), 100),
-    # --- AK lower (F15–F26), features.md §5.1 ---
+    # --- AK lower (F15–F26), docs/method/features.md §5.1 ---
     _F("F15", "rfoot_behind_lleg", "footRightBackRelLegLeft", "lower", "F16", "plane",
        ("root", "lhip", "lankle", "rankle"), "hl", (">=", 0.375), (">=", 0.0)),
     _F("F16", "lfoot_behind_rleg", "footLeftBackRelLegRight", "lower", "F15", "plane",
@@ -98,7 +98,7 @@ FEATURES: tuple[Feature, ...] = (
        ("rtoes", "rankle"), "hl", (">=", 2.5), (">=", 2.0), 100),
     _F("F26", "lfoot_fast", "footLeftHighVel", "lower", "F25", "fast",
        ("ltoes", "lankle"), "hl", (">=", 2.5), (">=", 2.0), 100),
-    # --- AK mix (F27–F39) and F40, features.md §5.3 ---
+    # --- AK mix (F27–F39) and F40, docs/method/features.md §5.3 ---
     _F("F27", "rhumerus_abducted", "humerusRightAbductRelSpine", "mix", "F28", "angle",
        ("neck", "root", "relbow", "rshoulder"), None, ("<", 150), ("<", 155)),
     _F("F28", "lhumerus_abducted", "humerusLeftAbductRelSpine", "mix", "F27", "angle",
@@ -136,7 +136,7 @@ FEATURES: tuple[Feature, ...] = (
 #: Feature names in F01…F40 order (Parquet column names).
 FEATURE_NAMES: tuple[str, ...] = tuple(f.name for f in FEATURES)
 
-#: Index groups (algorithms.md §2): upper F01–F14, lower F15–F26, mix F27–F40.
+#: Index groups (docs/method.md §2): upper F01–F14, lower F15–F26, mix F27–F40.
 GROUPS: dict[str, tuple[int, ...]] = {
     g: tuple(i for i, f in enumerate(FEATURES) if f.group == g) for g in ("upper", "lower", "mix")
 }

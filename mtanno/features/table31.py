@@ -1,38 +1,40 @@
-"""The 31 relational features of [MRC05] (seed 001, §3 and Table 1) as data tables.
+"""The 31 relational features of [MRC05] (§3 and Table 1) as data tables.
 
 Two tables, in the reference implementation's order (``features_spec.mat`` entries 1–31 =
-lower Fℓ 1–11, upper Fu 12–23, mix Fm 24–31; ``features31.md`` §1):
+lower Fℓ 1–11, upper Fu 12–23, mix Fm 24–31; ``docs/method/features31.md`` §1):
 
 * :data:`FEATURES31_REFERENCE` (feature set ``mrc05-reference``) is what the reference
-  implementation computes, including the bugs of ``features31.md`` §5; it reproduces the
-  golden outputs in ``../shared/data/reference/features31*/`` bit for bit.
+  implementation computes, including the bugs of ``docs/method/features31.md`` §5; it
+  reproduces the golden outputs in ``../shared/data/reference/features31*/`` bit for bit.
 * :data:`FEATURES31` (feature set ``mrc05``, the default) is the same with the three bugs
-  that change results fixed (``docs/index.md`` lists them):
+  that change results fixed (``docs/method/features31.md`` §5.1–5.3, ``docs/index.md``):
 
   1. feet fast (entries 10/11) get the hysteresis the reference meant: switch on above
-     1.25, stay on above 1.0 femur lengths per second (§5.1: the reference passed the 1.25
+     1.25, stay on above 1.0 femur lengths per second (the reference passed the 1.25
      threshold in the wrong argument, so both tests were the 1.0 test);
-  2. left foot raised (entry 4) uses the left femur (§5.2: the reference uses the right);
+  2. left foot raised (entry 4) uses the left femur (the reference uses the right);
   3. root fast (entry 27) uses the 100 ms window and a threshold of 1.0 left humerus length
-     per second (§5.3: the reference read its window of 12 *samples* as 12 ms, L = 2, and
+     per second (the reference read its window of 12 *samples* as 12 ms, L = 2, and
      left the threshold at 1 cm/s unscaled, so the feature is on on ~95 % of all frames).
 
-The quirks of §5.4–5.9 are design choices of the reference, not bugs, and both sets keep
-them; the feature *names* say what is computed (entry 1 is ``rfoot_behind_lleg``, as the
-reference tests "behind", where the paper's Table 1 says "in front").
+The quirks of ``docs/method/features31.md`` §5.4–5.9 are design choices of the reference,
+not bugs, and both sets keep them; the feature *names* say what is computed (entry 1 is
+``rfoot_behind_lleg``, as the reference tests "behind", where the paper's Table 1 says "in
+front").
 
 A row has the fields of :class:`mtanno.features.table.Feature` plus ``params`` (measure
 parameters) and ``paper`` (the Table 1 name, e.g. ``Fl7``). Measures used only here
-(``features31.md`` §4): ``height`` (Y(q) − Y(p), joints (q, p)), ``angle_max`` (larger of two
-angles, joints (a, b, c, d, e, f, g, h): angle(P_a − P_b, P_c − P_d) and angle(P_e − P_f,
-P_g − P_h)) and ``touch`` (capsule tests: joints are (a, b, q) triples — segment a→b, point
-q — and params are (c, ball_a, ball_b) triples: q touches where its distance is ≤ k·c·ℓ(t),
-ℓ(t) = |P_b(t) − P_a(t)|, k the test's threshold; the feature is the OR of the triples).
+(``docs/method/features31.md`` §4): ``height`` (Y(q) − Y(p), joints (q, p)), ``angle_max``
+(larger of two angles, joints (a, b, c, d, e, f, g, h): angle(P_a − P_b, P_c − P_d) and
+angle(P_e − P_f, P_g − P_h)) and ``touch`` (capsule tests: joints are (a, b, q) triples —
+segment a→b, point q — and params are (c, ball_a, ball_b) triples: q touches where its
+distance is ≤ k·c·ℓ(t), ℓ(t) = |P_b(t) − P_a(t)|, k the test's threshold; the feature is the
+OR of the triples).
 Rows whose ``on`` and ``off`` tests are equal have no hysteresis (the hysteresis of two equal
 tests returns the test unchanged). Length units: ``femR``/``femL`` femur, ``hw`` hip width,
 ``hl``/``hlL`` right/left humerus, ``cl`` chest–neck, ``sw`` shoulder width, all from frame 1
-(``features31.md`` §2); speeds are in units per second; ``None`` means an absolute value
-(degrees, or cm/s for the reference's root speed).
+(``docs/method/features31.md`` §2); speeds are in units per second; ``None`` means an
+absolute value (degrees, or cm/s for the reference's root speed).
 """
 
 from __future__ import annotations
@@ -50,8 +52,9 @@ Feature31 = Feature
 
 
 def _leg_touch(q1: str, q2: str) -> tuple[tuple[str, ...], tuple[float, ...]]:
-    """Capsule triples of handRight/LeftAnyLegTouch (features31.md §3.3, entries 24/25):
-    for each hand point, the shins (radius 0.5 × shin) and the feet (1.5 × foot)."""
+    """Capsule triples of handRight/LeftAnyLegTouch (docs/method/features31.md §3.3,
+    entries 24/25): for each hand point, the shins (radius 0.5 × shin) and the feet
+    (1.5 × foot)."""
     joints: list[str] = []
     params: list[float] = []
     for q in (q1, q2):
@@ -73,7 +76,7 @@ _BENT_ON, _BENT_OFF = ("in", 0, 110), ("in", 0, 120)
 # measure, joints, unit, on, off[, window_ms][, params=][, paper=].
 # fmt: off
 FEATURES31_REFERENCE: tuple[Feature31, ...] = (
-    # --- lower body Fℓ (entries 1–11), features31.md §3.1 ---
+    # --- lower body Fℓ (entries 1–11), docs/method/features31.md §3.1 ---
     _F("F01", "rfoot_behind_lleg", "footRightBack", "lower", "F02", "plane", ("root", "lhip", "lankle", "rtoes"), "femR", (">=", 0.25), (">=", 0.0), paper="Fl1"),
     _F("F02", "lfoot_behind_rleg", "footLeftBack", "lower", "F01", "plane", ("root", "rankle", "rhip", "ltoes"), "femL", (">=", 0.25), (">=", 0.0), paper="Fl2"),
     _F("F03", "rfoot_raised", "footRightLift", "lower", "F04", "height", ("rtoes", "root"), "femR", (">=", -1.2), (">=", -1.4), paper="Fl3"),
@@ -85,7 +88,7 @@ FEATURES31_REFERENCE: tuple[Feature31, ...] = (
     _F("F09", "legs_crossed", "footCrossover", "lower", None, "crossover", ("lhip", "rhip", "lankle", "rankle"), "hw", ("<=", -0.125), ("<=", 0.0), paper="Fl11"),
     _F("F10", "rfoot_fast", "footRightHighVel", "lower", "F11", "fast", ("rtoes", "rankle"), "femR", (">", 1.0), (">", 1.0), 100, paper="Fl5"),
     _F("F11", "lfoot_fast", "footLeftHighVel", "lower", "F10", "fast", ("ltoes", "lankle"), "femL", (">", 1.0), (">", 1.0), 100, paper="Fl6"),
-    # --- upper body Fu (entries 12–23), features31.md §3.2 ---
+    # --- upper body Fu (entries 12–23), docs/method/features31.md §3.2 ---
     _F("F12", "rhand_front", "handRightFront", "upper", "F13", "plane", ("root", "lshoulder", "rshoulder", "rwrist"), "hl", (">=", 1.15), (">=", 1.0), paper="Fu1"),
     _F("F13", "lhand_front", "handLeftFront", "upper", "F12", "plane", ("root", "lshoulder", "rshoulder", "lwrist"), "hlL", (">=", 1.15), (">=", 1.0), paper="Fu2"),
     _F("F14", "rhand_raised", "handRightLift", "upper", "F15", "nplane", ("chest", "neck", "rwrist", "neck"), "cl", (">=", 0.15), (">=", -1.0), paper="Fu3"),
@@ -98,7 +101,7 @@ FEATURES31_REFERENCE: tuple[Feature31, ...] = (
     _F("F21", "hands_touching", "handTouch", "upper", None, "touch", _HANDS, None, ("<=", 0.75), ("<=", 1.0), params=_BALLS2, paper="Fu12"),
     _F("F22", "rhand_fast", "handRightHighVel", "upper", "F23", "fast", ("rfingers",), "hl", (">", 1.25), (">", 1.0), 100, paper="Fu9"),
     _F("F23", "lhand_fast", "handLeftHighVel", "upper", "F22", "fast", ("lfingers",), "hlL", (">", 1.25), (">", 1.0), 100, paper="Fu10"),
-    # --- mix Fm (entries 24–31, no hysteresis), features31.md §3.3 ---
+    # --- mix Fm (entries 24–31, no hysteresis), docs/method/features31.md §3.3 ---
     _F("F24", "rhand_touching_leg", "handRightAnyLegTouch", "mix", "F25", "touch", _RLEG, None, ("<=", 1.0), ("<=", 1.0), params=_RLEG_P, paper="Fm1"),
     _F("F25", "lhand_touching_leg", "handLeftAnyLegTouch", "mix", "F24", "touch", _LLEG, None, ("<=", 1.0), ("<=", 1.0), params=_LLEG_P, paper="Fm2"),
     _F("F26", "torso_bent", "torsoBent", "mix", None, "angle_max", ("neck", "root", "lknee", "lhip", "neck", "root", "rknee", "rhip"), None, ("<=", 110), ("<=", 110), paper="Fm7"),
@@ -112,7 +115,7 @@ FEATURES31_REFERENCE: tuple[Feature31, ...] = (
 
 
 def _fixed() -> tuple[Feature31, ...]:
-    """The reference table with the bugs of features31.md §5.1–5.3 fixed."""
+    """The reference table with the bugs of docs/method/features31.md §5.1–5.3 fixed."""
     rows = list(FEATURES31_REFERENCE)
     by_id = {f.id: i for i, f in enumerate(rows)}
     rows[by_id["F04"]] = rows[by_id["F04"]]._replace(unit="femL")

@@ -1,4 +1,4 @@
-"""Relational index and queries ([MRC05] §4–6, algorithms.md §4): the Python API behind
+"""Relational index and queries ([MRC05] §4–6, docs/method.md §4): the Python API behind
 ``mtanno index`` and ``mtanno query``.
 
 * :func:`build_index`, :func:`open_index`, :func:`add_documents`, :func:`remove_documents`
@@ -62,3 +62,6 @@ from mtanno.index.query import (
 )
 from mtanno.index.ranking import rank_by_template, rank_by_template_file, write_query_hits
 from mtanno.index.storage import INDEX_FORMAT, CorruptIndex, group_sizes
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

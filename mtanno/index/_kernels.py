@@ -179,7 +179,7 @@ def overlap_pairs(doc_a, start_a, end_a, doc_b, start_b, end_b, out_a, out_b):
 @numba.njit(cache=True)
 def merge_rows(rows, seg_doc, seg_start, seg_len, out_doc, out_start, out_end):
     """Frame intervals of a sorted set of segment rows, adjacent segments of one document
-    merged (for keyframe search, algorithms.md §5). Returns the number of intervals;
+    merged (for keyframe search, docs/method.md §5). Returns the number of intervals;
     ``out_end`` is inclusive."""
     cnt = 0
     for i in range(rows.shape[0]):

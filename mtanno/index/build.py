@@ -29,7 +29,10 @@ from mtanno.index.core import (
 )
 from mtanno.index.storage import (
     is_index_dir,
+    only_leftovers,
     read_index,
+    read_index_manifest,
+    remove_leftovers,
     write_index,
     write_lock,
 )
@@ -106,15 +109,16 @@ def build_index(feature_files: Iterable[str | os.PathLike], out_dir: str | os.Pa
 
 def _check_target(root: Path, paths: Sequence[Path], folders: Sequence[str | os.PathLike] = (),
                   ) -> None:
-    """An index is written into a new or empty folder, or over an index; never into a
-    folder holding anything else, nor where an input file is, nor inside a folder of
-    feature files it reads (``folders``: the next build would read the index's Parquet
-    files as feature files); and only where it can be written."""
-    from mtanno.util.output import check_outputs
+    """An index is written into a new or empty folder, or over an index, or over what a
+    first build killed before its manifest left (:func:`mtanno.index.storage.only_leftovers`:
+    rebuilt and cleaned); never into a folder holding anything else, nor where an input file
+    is, nor inside a folder of feature files it reads (``folders``: the next build would
+    read the index's Parquet files as feature files); and only where it can be written."""
+    from mtanno.util.preflight import check_outputs
 
     if root.exists() and not root.is_dir():
         raise MtannoError("index path exists and is not a directory", path=str(root))
-    if root.is_dir() and any(p.name != ".lock" for p in root.iterdir()) and not is_index_dir(root):
+    if root.is_dir() and not is_index_dir(root) and not only_leftovers(root):
         raise MtannoError("directory is not empty and holds no index; choose a new directory",
                           path=str(root))
     check_outputs([], paths, folders={root: None}, scanned={f: (".parquet",) for f in folders})
@@ -148,8 +152,8 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
     left alone otherwise. Only the new files are read. With ``failures``, a file that
     cannot be read or does not have the index's features is left out and its message
     appended there; without, it is raised. ``progress(done, total)``: after each file read."""
-    from mtanno.util.output import check_outputs
-    from mtanno.util.store import FeatureLayout
+    from mtanno.features.store import FeatureLayout
+    from mtanno.util.preflight import check_outputs
 
     root = Path(index_dir)
     feature_files = list(feature_files)
@@ -178,7 +182,8 @@ def add_documents(index_dir: str | os.PathLike, feature_files: Iterable[str | os
                 fresh.append(d)
             else:
                 report.unchanged.append(d.name)
-        if not fresh:
+        if not fresh:  # nothing to write: what a killed update left is removed all the same
+            remove_leftovers(root, read_index_manifest(root)["directory"])
             return index, report
         entries.update(_entries(fresh, gs))
         new = assemble(index.feature_set, index.feature_set_version, index.features, index.fps,

@@ -1,6 +1,6 @@
 """The relational index in memory: adaptive segmentation, inverted lists, documents, groups.
 
-[MRC05] §4 and §5.3 (algorithms.md §4): for a feature group F (a named subset of the feature
+[MRC05] §4 and §5.3 (docs/method.md §4): for a feature group F (a named subset of the feature
 set's features, e.g. lower/upper/mix), the F-segments of a document are the maximal runs of
 frames with equal F-feature vectors. A segment's vector is stored as an integer *code*,
 ``Σ_k bit_k · 2^k`` over the group's features in group order (the reference
@@ -26,13 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.util.store import (
-    FeatureLayout,
-    check_layout,
-    common_layout,
-    feature_files,
-    read_features,
-)
+from mtanno.features.inputs import feature_files
+from mtanno.features.store import FeatureLayout, check_layout, common_layout, read_features
 
 #: Most features a group may have (codes are int64).
 MAX_GROUP_FEATURES = 62
@@ -141,7 +136,7 @@ class GroupIndex:
     def intervals(self, patterns: Iterable[tuple[int, int]]):
         """Frame intervals where the group's vector matches a pattern (``(mask, value)``
         pairs, see :meth:`lists_matching`): the union of the matching inverted lists with
-        adjacent segments merged (algorithms.md §5, keyframe search). Returns (doc, start,
+        adjacent segments merged (docs/method.md §5, keyframe search). Returns (doc, start,
         end) arrays, 0-based, ``end`` inclusive, sorted by document and frame."""
         from mtanno.index import _kernels
 
@@ -247,7 +242,7 @@ def read_feature_docs(paths: Sequence[str | os.PathLike], *,
 
 def collect_feature_files(inputs: Iterable[str | os.PathLike], *,
                           failures: list[str] | None = None) -> list[Path]:
-    """Feature files named by ``inputs`` (see :func:`mtanno.util.store.feature_files`; with
+    """Feature files named by ``inputs`` (see :func:`mtanno.features.inputs.feature_files`; with
     ``failures``, an input naming no feature file is reported there and the rest go on)."""
     return feature_files(inputs, failures=failures)
 
@@ -370,7 +365,7 @@ def check_compatible(docs: Sequence[FeatureDoc], *, layout: FeatureLayout | None
                      failures: list[str] | None = None) -> list[FeatureDoc]:
     """The documents that can go into one index: all with the same feature layout (that of
     ``layout``, e.g. an existing index's, or else the layout most of them share, see
-    :func:`mtanno.util.store.common_layout`, so an odd file is the one named) and unique names.
+    :func:`mtanno.features.store.common_layout`, so an odd file is the one named) and unique names.
     With ``failures``, a document that does not fit is left out and its message appended;
     without, the first one is raised. Returns the documents kept."""
     if not docs:

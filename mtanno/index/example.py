@@ -25,8 +25,8 @@ def example_matrix(index: Index, example: str | os.PathLike
     """(features × frames matrix, feature names, label) of a query-by-example source
     (``query --example``): a feature file (checked against the index's feature set, names
     and rate), or the name of an indexed document (its features that some group holds)."""
+    from mtanno.features.store import FeatureLayout, check_layout
     from mtanno.index.core import doc_layout, read_feature_doc
-    from mtanno.util.store import FeatureLayout, check_layout
 
     p = Path(example)
     if p.is_file():
@@ -96,7 +96,7 @@ def drop_short_segments(lengths: np.ndarray, values: np.ndarray, min_segment: in
 def example_query(index: Index, X: np.ndarray, names: Sequence[str], features: Sequence[str], *,
                   frames: tuple[int, int] | None = None, mode: str = "adaptive",
                   mismatches: int = 0, min_segment: int = 1) -> Query:
-    """Query by example ([MRC05] §6.2, algorithms.md §4): the example's segmentation over the
+    """Query by example ([MRC05] §6.2, docs/method.md §4): the example's segmentation over the
     chosen features, per group, becomes a sequence of fuzzy sets that fix the chosen bits
     and leave the group's other features free; segment lengths (frames) go along for the
     ranking. ``X`` is the example's (features × frames) matrix with row ``names`` (the

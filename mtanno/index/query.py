@@ -1,7 +1,7 @@
 """Queries on the relational index: exact, fuzzy, adaptive fuzzy and m-mismatch hits.
 
-[MRC05] §5.1–5.2 and §6.2 (algorithms.md §4). A query over one feature group is a sequence of
-*fuzzy sets* V_1 … V_L of that group's feature vectors. A fuzzy set is written as patterns
+[MRC05] §5.1–5.2 and §6.2 (docs/method.md §4). A query over one feature group is a sequence
+of *fuzzy sets* V_1 … V_L of that group's feature vectors. A fuzzy set is written as patterns
 ``(mask, value)`` over the group's bits: vector v is in the set iff ``v & mask == value`` for
 some pattern (features outside ``mask`` are free, "*"); an exact query has one full-mask
 pattern per position. Adjacent sets that intersect are merged (their union) until neighbours

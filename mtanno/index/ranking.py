@@ -22,8 +22,8 @@ __all__ = ["QUERY_HIT_COLUMNS", "hit_table", "rank_by_template", "rank_by_templa
 def rank_by_template(index: Index, hits: Hits, values: np.ndarray, weights: np.ndarray,
                      features: Sequence[str]) -> Hits:
     """Re-rank hits by the cost of a quantized motion template on each hit's frames only
-    ([MRC05] §6.2, "finer ranking … on the few hits"; algorithms.md §3.4): cost = min Δ over
-    the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
+    ([MRC05] §6.2, "finer ranking … on the few hits"; docs/method.md §3.4): cost = min Δ
+    over the hit, with Δ computed on the hit's frames; ∞ where the hit is too short for the
     template (such hits are ranked last; :attr:`Hits.unfit` counts them). ``values``
     (f × K, 0/1/0.5), ``weights`` (K,), ``features`` the template's feature names (rebuilt
     from the index's groups)."""
@@ -67,10 +67,10 @@ def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
                           ) -> tuple[Hits, int]:
     """:func:`rank_by_template` with a motion-template JSON file (``query --rank-mt``):
     read with :func:`mtanno.templates.model.load_template`, checked against the index's
-    feature set, quantized with the retrieval δ (:data:`mtanno.retrieve.DEFAULT_DELTA`,
+    feature set, quantized with the retrieval δ (:data:`mtanno.templates.params.RETRIEVAL_DELTA`,
     [MR06] §5.2) unless it already is. Returns (ranked hits, the template's columns)."""
-    from mtanno.retrieve import DEFAULT_DELTA
     from mtanno.templates.model import load_template, quantize
+    from mtanno.templates.params import RETRIEVAL_DELTA
 
     mt = load_template(path)
     if mt.feature_set != index.feature_set:
@@ -81,7 +81,7 @@ def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
         raise MtannoError(f"template feature '{missing[0]}' is not in the index's feature set",
                           path=str(path))
     if not mt.quantized:
-        mt = quantize(mt, DEFAULT_DELTA)
+        mt = quantize(mt, RETRIEVAL_DELTA)
     ranked = rank_by_template(index, hits, mt.values, mt.weights, list(mt.feature_names))
     return ranked, int(mt.values.shape[1])
 

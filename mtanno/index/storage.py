@@ -14,7 +14,11 @@ Frames, documents and segment numbers are 1-based in these files; ``rows`` are 0
 numbers of the group's segments table. An update writes a complete new generation
 directory (files fsynced), renames it into place, then replaces ``manifest.json`` with
 ``os.replace`` (atomic), and only then deletes older generations: a crash at any point leaves
-a manifest that names a complete generation. Readers verify every file's size and SHA-256
+a manifest that names a complete generation, or, in the first build, a folder holding
+nothing but the leftovers of that build (:func:`only_leftovers`), which the next build
+takes and cleans. Every write point can be held for a test
+(:func:`mtanno.util.pause.pause_at`: ``index-temporary``, ``index-table``,
+``index-generation``, ``index-manifest``, ``index-switched``). Readers verify every file's size and SHA-256
 against the manifest, so a damaged or half-copied index is reported, never half read.
 Writers hold an exclusive ``fcntl`` lock on ``INDEX/.lock`` (released if the process dies).
 """
@@ -25,6 +29,7 @@ import contextlib
 import hashlib
 import json
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -34,9 +39,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno._version import __version__
-from mtanno.errors import JSONError, MtannoError, read_json
+from mtanno.errors import JSONError, MtannoError, read_input, read_json
 from mtanno.index.core import Document, GroupIndex, Index
 from mtanno.util.output import current_umask
+from mtanno.util.pause import pause_at
 
 INDEX_FORMAT = "mtanno.index/1"
 MANIFEST = "manifest.json"
@@ -54,7 +60,7 @@ def write_lock(root: Path, *, wait: bool = False, on_wait=None):
     naming the run that holds it, or waits with ``wait``)."""
     from mtanno.util.locks import folder_lock
 
-    return folder_lock(root, wait=wait, what="index", name=".lock", on_wait=on_wait)
+    return folder_lock(root, wait=wait, what="index", name=LOCK_FILE, on_wait=on_wait)
 
 
 def _fsync_dir(path: Path) -> None:
@@ -74,15 +80,31 @@ def _write_table(table: pa.Table, path: Path) -> dict:
     return {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
+def _text_column(values: list[str]) -> pa.Array:
+    """A string column; or, when a value holds bytes of a file name that are not UTF-8
+    (``os.fsdecode``'s surrogate escapes, which no Parquet string can hold), a binary
+    column of the exact bytes (:func:`_texts` reads either back)."""
+    try:
+        return pa.array(values, pa.string())
+    except (UnicodeEncodeError, pa.ArrowException):
+        return pa.array([v.encode("utf-8", "surrogateescape") for v in values], pa.binary())
+
+
+def _texts(column) -> list[str]:
+    """The values of a column :func:`_text_column` wrote, as the names they were."""
+    return [v.decode("utf-8", "surrogateescape") if isinstance(v, bytes) else v
+            for v in column.to_pylist()]
+
+
 def _tables(index: Index) -> dict[str, pa.Table]:
     docs = index.documents
     tables = {
         "documents.parquet": pa.table({
             "doc": pa.array(np.arange(1, len(docs) + 1, dtype=np.int32)),
-            "name": pa.array([d.name for d in docs], pa.string()),
+            "name": _text_column([d.name for d in docs]),
             "sha256": pa.array([d.sha256 for d in docs], pa.string()),
             "frames": pa.array([d.frames for d in docs], pa.int32()),
-            "path": pa.array([d.path for d in docs], pa.string()),
+            "path": _text_column([d.path for d in docs]),
         }),
         "groups.parquet": pa.table({
             "group": pa.array(list(index.groups), pa.string()),
@@ -137,7 +159,8 @@ def read_index_manifest(root: Path) -> dict:
         raise MtannoError("index directory not found", path=str(root))
     if not path.is_file():
         if any(p.name.startswith((_GEN_PREFIX, _TMP_PREFIX)) for p in root.iterdir()):
-            raise CorruptIndex("partially written index: manifest.json is missing",
+            raise CorruptIndex("partially written index: manifest.json is missing (a build "
+                               "was stopped before it); build the index again",
                                path=str(root))
         raise MtannoError("not an index directory (no manifest.json)", path=str(root))
     try:
@@ -168,6 +191,11 @@ def read_index_manifest(root: Path) -> dict:
             or fr == float("inf"):
         raise CorruptIndex(f"corrupt index: 'frame_rate' in manifest.json must be a positive "
                            f"number, got {fr!r}", path=str(path))
+    from mtanno.features.compute import feature_set_mismatch
+
+    wrong = feature_set_mismatch(manifest["feature_set"], manifest["features"])
+    if wrong is not None:  # (a manifest edited or copied from another index)
+        raise CorruptIndex(f"corrupt index: manifest.json: {wrong}", path=str(path))
     d = manifest["directory"]
     if "/" in d or "\\" in d or d in (".", "..") or not d.startswith(_GEN_PREFIX):
         raise CorruptIndex(f"corrupt index: 'directory' in manifest.json is {d!r}",
@@ -182,11 +210,12 @@ def read_index_manifest(root: Path) -> dict:
 
 def _read_verified(gen_dir: Path, name: str, entry: dict) -> pa.Table:
     path = gen_dir / name
+    if not path.exists() and not path.is_symlink():
+        raise CorruptIndex("corrupt or partially written index: file missing", path=str(path))
     try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise CorruptIndex("corrupt or partially written index: file missing",
-                           path=str(path)) from None
+        data = read_input(path, what="index file")  # a regular file: a FIFO would block
+    except MtannoError as exc:
+        raise CorruptIndex(f"corrupt index: {exc.message}", path=str(path)) from None
     if len(data) != entry.get("bytes") or hashlib.sha256(data).hexdigest() != entry.get("sha256"):
         raise CorruptIndex("corrupt index: file size or checksum differs from manifest.json",
                            path=str(path))
@@ -231,8 +260,8 @@ def _read_generation(root: Path, gen_dir: Path, manifest: dict) -> Index:
     t = {n: _read_verified(gen_dir, n, files[n]) for n in need}
     dt = t["documents.parquet"]
     docs = [Document(n, h, int(f), p) for n, h, f, p in zip(
-        dt.column("name").to_pylist(), dt.column("sha256").to_pylist(),
-        dt.column("frames").to_pylist(), dt.column("path").to_pylist())]
+        _texts(dt.column("name")), dt.column("sha256").to_pylist(),
+        dt.column("frames").to_pylist(), _texts(dt.column("path")))]
     if [d["name"] for d in manifest["documents"]] != [d.name for d in docs]:
         raise CorruptIndex("corrupt index: documents.parquet and manifest.json disagree",
                            path=where)
@@ -291,12 +320,15 @@ def _write_index(index: Index, root: Path) -> Index:
     os.chmod(tmp, 0o777 & ~current_umask())  # mkdtemp's 0700 would hide a shared index
     mtmp, switched = None, False
     try:
+        pause_at("index-temporary")
         files = {}
         for name, table in _tables(index).items():
             files[name] = _write_table(table, tmp / name)
+            pause_at("index-table")
         _fsync_dir(tmp)
         os.replace(tmp, final)
         _fsync_dir(root)
+        pause_at("index-generation")
         manifest = manifest_of(index, gen, files)
         fd, mtmp = tempfile.mkstemp(prefix=f"{_TMP_PREFIX}manifest-", dir=root)
         os.fchmod(fd, 0o666 & ~current_umask())
@@ -305,9 +337,11 @@ def _write_index(index: Index, root: Path) -> Index:
             fh.write("\n")
             fh.flush()
             os.fsync(fh.fileno())
+        pause_at("index-manifest")
         os.replace(mtmp, root / MANIFEST)
         mtmp, switched = None, True
         _fsync_dir(root)
+        pause_at("index-switched")
     finally:  # after a failure or an interruption: nothing of this write is left
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -316,20 +350,27 @@ def _write_index(index: Index, root: Path) -> Index:
                 os.unlink(mtmp)
         if not switched and final.exists():
             shutil.rmtree(final, ignore_errors=True)
-    for p in root.iterdir():  # older generations and leftovers of interrupted writes
-        if p.name != final.name and p.name.startswith((_GEN_PREFIX, _TMP_PREFIX)):
+    remove_leftovers(root, final.name)
+    index.root, index.generation = root, gen
+    return index
+
+
+def remove_leftovers(root: Path, keep: str) -> None:
+    """Remove every generation folder of the index in ``root`` but ``keep`` (the one its
+    manifest names), and the leftovers of interrupted writes: what a write killed after
+    switching the manifest, or before, leaves. The caller holds :func:`write_lock`."""
+    for p in root.iterdir():
+        if p.name != keep and p.name.startswith((_GEN_PREFIX, _TMP_PREFIX)):
             if p.is_dir():
                 shutil.rmtree(p, ignore_errors=True)
             else:
                 with contextlib.suppress(OSError):
                     p.unlink()
-    index.root, index.generation = root, gen
-    return index
 
 
 def index_files(root: str | os.PathLike) -> list[Path]:
     """The files of the index in ``root`` as it is now (manifest and current generation),
-    for :func:`mtanno.util.output.check_outputs`; empty when there is no readable manifest."""
+    for :func:`mtanno.util.preflight.check_outputs`; empty when there is no readable manifest."""
     root = Path(root)
     try:
         manifest = read_index_manifest(root)
@@ -341,6 +382,41 @@ def index_files(root: str | os.PathLike) -> list[Path]:
 
 def is_index_dir(root: Path) -> bool:
     return (root / MANIFEST).is_file()
+
+
+#: The lock file of an index (:func:`write_lock`).
+LOCK_FILE = ".lock"
+_GEN_RE = re.compile(r"gen-\d{6}")
+_TMP_RE = re.compile(r"\.tmp-(?:gen-\d{6}-|manifest-)[A-Za-z0-9_]+")
+_GEN_FILE_RE = re.compile(r"(?:documents|groups|(?:segments|lists)-.+)\.parquet")
+
+
+def only_leftovers(root: Path) -> bool:
+    """True if folder ``root`` holds nothing but what an index write killed before its
+    first manifest leaves: generation folders of index tables, the write's temporaries and
+    the lock file. The next build takes such a folder (and removes them once its
+    generation is in place), instead of refusing it as a folder holding something else."""
+    try:
+        entries = list(os.scandir(root))
+    except OSError:
+        return False
+    for e in entries:
+        if e.name == LOCK_FILE and e.is_file(follow_symlinks=False):
+            continue
+        if not e.is_dir(follow_symlinks=False):
+            if _TMP_RE.fullmatch(e.name):
+                continue
+            return False
+        if not (_GEN_RE.fullmatch(e.name) or _TMP_RE.fullmatch(e.name)):
+            return False
+        try:
+            inside = list(os.scandir(e.path))
+        except OSError:
+            return False
+        if not all(f.is_file(follow_symlinks=False) and _GEN_FILE_RE.fullmatch(f.name)
+                   for f in inside):
+            return False
+    return True
 
 
 def index_bytes(root: Path, manifest: dict) -> dict[str, int]:

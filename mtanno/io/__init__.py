@@ -1,15 +1,22 @@
-"""Mocap readers: ASF/AMC and BVH files → world joint positions (algorithms.md §1).
+"""Mocap readers: motion files → world joint positions (docs/method.md §1).
 
-:func:`read_motion` is the entry point: it parses a file, picks the skeleton map, runs
-forward kinematics and returns a :class:`~mtanno.io.skeleton.Motion`.
+:func:`read_motion` is the entry point: it finds the file's format in the format table
+(:mod:`~mtanno.io.formats`: suffix → reader) and returns a
+:class:`~mtanno.io.skeleton.Motion` with Y up.
 
-Modules: :mod:`~mtanno.io.asf`, :mod:`~mtanno.io.amc` and :mod:`~mtanno.io.bvh` (the
+Modules: :mod:`~mtanno.io.formats` (the table of motion formats, :class:`ReadOptions`),
+:mod:`~mtanno.io.rigmotion` (the rig formats: channels, skeleton map, kinematics; an AMC's
+ASF), :mod:`~mtanno.io.asf`, :mod:`~mtanno.io.amc` and :mod:`~mtanno.io.bvh` (the
 parsers, text → channel arrays, with file:line errors), ``_numparse`` (their numba number
 parser, private), ``_limits`` (the bounds on every number a header declares, private),
 :mod:`~mtanno.io.skeleton` (rig graph and forward kinematics, vectorised over frames),
-:mod:`~mtanno.io.rigs` (skeleton map files: rig nodes → the 22 canonical joints) and
+:mod:`~mtanno.io.rigs` (skeleton map files: rig nodes → the 22 canonical joints),
 :mod:`~mtanno.io.guess` (skeleton maps made from joint names and the tree, for BVH rigs no
-map file fits).
+map file fits), :mod:`~mtanno.io.topology` (made from the hierarchy and pose alone, where
+the names say nothing), :mod:`~mtanno.io.c3d` (C3D marker files, read with the ``c3d``
+package), :mod:`~mtanno.io.markerset` (marker sets: which markers make which joint;
+recognition, ``markers guess``) and :mod:`~mtanno.io.markerjoints` (markers → joints: gap
+filling, the joint recipes, per-frame validity).
 """
 
 from __future__ import annotations
@@ -20,163 +27,31 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
+from mtanno.io.formats import SUFFIXES, ReadOptions, format_of, read_motion
 from mtanno.io.guess import choose_map
+from mtanno.io.rigmotion import find_asf
 from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap
-from mtanno.io.skeleton import Channels, Motion, Rig, forward_kinematics
+from mtanno.io.skeleton import Channels, Motion, Rig
+from mtanno.util.lazy import submodule_getattr
 
 __all__ = ["MOCAP_SUFFIXES", "read_channels", "read_motion", "canonical_positions",
-           "find_asf", "Motion", "Rig", "Channels", "CANONICAL_JOINTS"]
+           "find_asf", "Motion", "Rig", "Channels", "CANONICAL_JOINTS", "ReadOptions"]
 
-#: File suffixes (lower case) that hold motions.
-MOCAP_SUFFIXES = (".amc", ".bvh")
-
-
-_LISTING_CACHE: dict[tuple[str, int], list[Path]] = {}
-
-
-def _asf_files(folder: Path) -> list[Path]:
-    """The ASF files of a folder, sorted; listings are remembered per folder modification
-    time, so a batch of AMC files in one folder lists it once."""
-    try:
-        key = (str(folder), folder.stat().st_mtime_ns)
-    except OSError:
-        return []
-    if key not in _LISTING_CACHE:
-        if len(_LISTING_CACHE) > 256:
-            _LISTING_CACHE.clear()
-        _LISTING_CACHE[key] = sorted(p for p in folder.glob("*")
-                                     if p.suffix.lower() == ".asf" and p.is_file())
-    return _LISTING_CACHE[key]
-
-
-def find_asf(amc_path: str | os.PathLike) -> Path:
-    """The ASF skeleton belonging to an AMC file when none is given.
-
-    Looks in the AMC's folder, then each ancestor folder in turn, and takes the first folder
-    that has ASF files: the ASF whose stem begins the AMC's stem (``HDM_bd.asf`` for
-    ``HDM_bd_squat1Reps_001_120.amc``, ``02.asf`` for ``02_05.amc``; the longest such
-    stem wins), else the only ASF there. Raises :class:`MtannoError` when none or several fit.
-    """
-    amc = Path(amc_path)
-    stem = amc.stem
-    for folder in _asf_folders(amc):
-        asfs = _asf_files(folder)
-        if not asfs:
-            continue
-        prefixed = [p for p in asfs if stem.startswith(p.stem)]
-        if prefixed:
-            best = max(len(p.stem) for p in prefixed)
-            winners = [p for p in prefixed if len(p.stem) == best]
-            if len(winners) == 1:
-                return winners[0]
-        if len(asfs) == 1:
-            return asfs[0]
-        raise MtannoError(f"several ASF files in {folder} and none is named like the AMC "
-                          f"({', '.join(p.name for p in asfs[:5])}); pass {{asf}} FILE",
-                          path=str(amc_path), options=("asf",))
-    raise MtannoError("no ASF skeleton found in the AMC's folder or above it; pass {asf} FILE",
-                      path=str(amc_path), options=("asf",))
-
-
-def _asf_folders(amc: Path):
-    """Where :func:`find_asf` looks, in order: the AMC's folder as named, then the folders
-    above the folder of the file it resolves to (symbolic links followed only when the
-    first has no ASF)."""
-    yield amc.parent
-    yield from amc.resolve().parent.parents
-
-
-_ASF_CACHE: dict[tuple, object] = {}
-
-
-def _cached_asf(path: Path):
-    """read_asf, remembered per (path, file identity, size, mtime): a batch parses each
-    skeleton once."""
-    from mtanno.io.asf import read_asf
-
-    try:
-        st = os.stat(path)
-        key = (str(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
-    except OSError:
-        return read_asf(path)  # raises the "file not found" error
-    if key not in _ASF_CACHE:
-        if len(_ASF_CACHE) > 64:
-            _ASF_CACHE.clear()
-        _ASF_CACHE[key] = read_asf(path)
-    return _ASF_CACHE[key]
+#: File suffixes (lower case) that hold motions (:data:`mtanno.io.formats.SUFFIXES`).
+MOCAP_SUFFIXES = SUFFIXES
 
 
 def read_channels(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
                   sha256: bool = False) -> tuple[Rig, Channels]:
-    """Parse a motion file into its rig and per-frame channels (no kinematics yet); with
-    ``sha256`` the channels carry the SHA-256 of the file's bytes as parsed."""
+    """Parse a rig motion file (AMC, BVH) into its rig and per-frame channels (no
+    kinematics yet); with ``sha256`` the channels carry the SHA-256 of the file's bytes as
+    parsed. A format without a rig (C3D) is an error."""
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix in MOCAP_SUFFIXES and not path.is_file():
+    fmt = format_of(path)
+    if not path.is_file():
         raise MtannoError("motion file not found" if not path.exists() else
                           "not a file", path=str(path))
-    if suffix == ".amc":
-        from mtanno.io.amc import read_amc
-
-        asf_path = Path(asf) if asf is not None else find_asf(path)
-        skel = _cached_asf(asf_path)
-        return skel.rig, read_amc(path, skel, sha256=sha256)
-    if suffix == ".bvh":
-        from mtanno.io.bvh import read_bvh
-        return read_bvh(path, sha256=sha256)
-    raise MtannoError(f"unknown motion file type '{path.suffix}' (expected .amc or .bvh)",
-                      path=str(path))
-
-
-def read_motion(path: str | os.PathLike, *, asf: str | os.PathLike | None = None,
-                skeleton: str | os.PathLike | None = None, sha256: bool = False) -> Motion:
-    """Read a motion file and compute world positions of every node.
-
-    Parameters
-    ----------
-    path:
-        An ``.amc`` or ``.bvh`` file.
-    asf:
-        The ASF skeleton of an AMC file; by default found with :func:`find_asf`.
-    skeleton:
-        A skeleton map (file or name) to use instead of the automatically detected one
-        (the first map file that fits, else for a BVH rig one made from its joint names
-        and tree: :func:`mtanno.io.guess.choose_map`).
-    sha256:
-        Also give the SHA-256 of the file's bytes as parsed (``Motion.source_sha256``):
-        the file is read once for both.
-    """
-    rig, ch = read_channels(path, asf=asf, sha256=sha256)
-    smap = choose_map(rig, skeleton, ch)
-    _check_needed_bones(rig, ch, smap, str(path))
-    positions, heading = forward_kinematics(
-        rig, ch.angles, ch.trans, ch.has_trans,
-        heading_node=smap.heading_index(rig), heading_axis=smap.heading_axis)
-    if not (np.isfinite(positions).all() and np.isfinite(heading).all()):
-        # (the readers bound every value, so this is a last safeguard)
-        raise MtannoError("joint positions contain NaN or infinite values after forward "
-                          "kinematics", path=str(path))
-    return Motion(rig=rig, positions=positions, heading=heading, fps=ch.fps, source=str(path),
-                  smap=smap, source_sha256=ch.sha256)
-
-
-def _check_needed_bones(rig: Rig, ch: Channels, smap: SkeletonMap, path: str) -> None:
-    """Refuse a motion that gives no values, in any frame, for a bone with rotation dofs
-    that a canonical joint of the skeleton map (or its heading) hangs from: its rotation
-    would silently be zero and every feature of the joints below it wrong."""
-    if not ch.absent:
-        return
-    for joint, node in [*smap.joints.items(), ("heading", smap.heading_node)]:
-        if node not in rig.names:
-            continue  # (a map that lacks the node is reported where the joint is used)
-        j = rig.names.index(node)
-        while j >= 0:  # the node and its ancestors place the joint
-            bone = rig.names[j]
-            if bone in ch.absent:
-                raise MtannoError(f"bone '{bone}' has rotation dofs in the ASF but no values "
-                                  f"in any frame; the skeleton map '{smap.name}' needs it "
-                                  f"for joint '{joint}'", path=path, line=ch.absent[bone])
-            j = int(rig.parents[j])
+    return fmt.load("channels")(path, asf=asf, sha256=sha256)
 
 
 def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
@@ -189,3 +64,6 @@ def canonical_positions(motion: Motion, smap: SkeletonMap | None = None,
     # the middle axis gives a strided copy, several times slower, that the kernels copy
     # again)
     return np.take(motion.positions, smap.indices(motion.rig, joints), axis=1)
+
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -1,8 +1,8 @@
 """AMC motion reader (Acclaim motion capture data).
 
-Spec: ``algorithms.md`` §1, ``features.md`` §1.1 and §1.3. Each frame is a frame number
-followed by one line per bone: the bone name and its values in the order of the bone's ASF
-``dof`` line (the root's in the order of ``:root order``). The rate is
+Spec: ``docs/method.md`` §1, ``docs/method/features.md`` §1.1 and §1.3. Each frame is a
+frame number followed by one line per bone: the bone name and its values in the order of
+the bone's ASF ``dof`` line (the root's in the order of ``:root order``). The rate is
 ``:SAMPLES-PER-SECOND`` when the header has it, else 120 frames/s.
 
 Parsing splits the whole file into tokens once and checks the layout of every frame against
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-from pathlib import Path
 
 import numpy as np
 
@@ -96,7 +95,7 @@ def read_amc_values(path: str | os.PathLike, skel: AsfSkeleton,
     rewrite AMC files (:mod:`mtanno.evaluation.compose`); checks the file like :func:`read_amc`."""
     spath = str(path)
     read_amc(path, skel)  # validates, with path:line errors
-    raw = Path(path).read_bytes()
+    raw = read_text_input(path)
     body_at, header_lines, fps = _header(raw, spath)
     lines = raw.decode("latin-1").splitlines()
     first = _first_layout(raw[body_at:], skel)

@@ -1,6 +1,6 @@
 """ASF skeleton reader (Acclaim skeleton file; CMU and HDM05 rigs).
 
-Spec: ``algorithms.md`` §1, ``features.md`` §1.1–1.3. Lengths are divided by
+Spec: ``docs/method.md`` §1, ``docs/method/features.md`` §1.1–1.3. Lengths are divided by
 ``:units length`` and multiplied by 2.54, so positions come out in centimetres; angles follow
 ``:units angle`` (deg by default). A bone's ``axis ax ay az ORDER`` gives the fixed
 conjugation C (``C = R_{ORDER[2]}·R_{ORDER[1]}·R_{ORDER[0]}``, i.e. ``Rz·Ry·Rx`` for

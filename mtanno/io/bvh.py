@@ -1,9 +1,10 @@
 """BVH reader: hierarchy → :class:`~mtanno.io.skeleton.Rig`, motion → :class:`Channels`.
 
-Spec: ``algorithms.md`` §1 (BVH: any rig, per-joint channel count and Euler order taken from
-the ``CHANNELS`` line, ``Frame Time`` read, never assumed) and ``features.md`` §0 (BVH rigs
-map to canonical joints through a skeleton map). Conventions (the usual reading of BVH,
-and pybvh's; ``scripts/pybvh_peer.py`` checks the two agree):
+Spec: ``docs/method.md`` §1 (BVH: any rig, per-joint channel count and Euler order taken
+from the ``CHANNELS`` line, ``Frame Time`` read, never assumed) and
+``docs/method/features.md`` §0 (BVH rigs map to canonical joints through a skeleton map).
+Conventions (the usual reading of BVH, and pybvh's; ``scripts/pybvh_peer.py`` checks the
+two agree):
 
 * Nodes are the ``ROOT``/``JOINT`` blocks in file order; every ``End Site`` becomes a node
   named ``<parent joint name>_End`` with its file offset and no channels.
@@ -326,7 +327,7 @@ def _line_of(data: bytes, pos: int) -> int:
 
 
 def read_bvh(path: str | os.PathLike, *, sha256: bool = False) -> tuple[Rig, Channels]:
-    """Read a BVH file into its rig and per-frame channels (algorithms.md §1).
+    """Read a BVH file into its rig and per-frame channels (docs/method.md §1).
 
     Parameters
     ----------

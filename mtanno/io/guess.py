@@ -26,19 +26,22 @@ few names and the tree:
   it), as the Bandai map's comment derives it;
 * the sides are checked against the pose: ``cross(up, forward)`` points to the subject's
   left (``up`` = pelvis → neck, ``forward`` = ankles → toes, right-handed coordinates),
-  so joints named left that lie on the right are an error (mirrored naming), for the legs
-  and for the arms separately.
+  so where joints named left lie on the right (mirrored naming), for the legs or for the
+  arms, the pose decides: those limbs' sides are swapped (``method="names"`` refuses
+  them instead).
 
-The result is an ordinary :class:`~mtanno.io.rigs.SkeletonMap`, so the pipeline does not
-change; :func:`map_toml` writes it as a map file (``mtanno skeleton guess``) that
-``--skeleton MAP.toml`` reads back to the same map. A map file that fits the rig always
-wins (:func:`choose_map`).
+Where the names do not place every joint (``Bone01``…, names in another script, two
+joints named like a knee), the map is made from the hierarchy and pose alone
+(:func:`mtanno.io.topology.hierarchy_map`); names come first because they are cheaper and
+say more (a face joint, a prop). The result is an ordinary
+:class:`~mtanno.io.rigs.SkeletonMap`, so the pipeline does not change; :func:`map_toml`
+writes it as a map file (``mtanno skeleton guess``) that ``--skeleton MAP.toml`` reads
+back to the same map. A map file that fits the rig always wins (:func:`choose_map`).
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 from collections.abc import Sequence
@@ -48,9 +51,16 @@ import numpy as np
 
 from mtanno.errors import MtannoError
 from mtanno.io.rigs import CANONICAL_JOINTS, SkeletonMap, available_maps, builtin_dir, select_map
-from mtanno.io.skeleton import Channels, Rig, forward_kinematics
+from mtanno.io.skeleton import Channels, Rig
+from mtanno.io.topology import (
+    HierarchyError,
+    heading_axis,
+    hierarchy_map,
+    sample_positions,
+    side_score,
+)
 
-__all__ = ["choose_map", "guess_map", "map_toml", "classify_name"]
+__all__ = ["choose_map", "guess_map", "map_toml", "classify_name", "METHODS"]
 
 # Name parts -----------------------------------------------------------------------------
 _NAMESPACE = re.compile(r"^.*[:|]")           # mixamorig:, mixamorig1:, Character1:, DAG paths
@@ -69,7 +79,6 @@ _ELBOW = {"forearm", "lowerarm", "armlower", "loarm", "elbow", "radius"}
 #: Canonical joint → its mirror image (``lhip`` ↔ ``rhip``, ...).
 _SWAP = {k: ("r" if k[0] == "l" else "l") + k[1:] for k in CANONICAL_JOINTS
          if k[0] in "lr" and k != "root"}
-_SNAP_DEG = 10.0
 _SIDE_OK = 0.3  # mean cosine needed to confirm (or, negative, to refute) the named sides
 
 
@@ -296,49 +305,17 @@ def _place_trunk(t: _Tree, out: _Placement) -> None:
     out.joints["chest"] = apart[-1] if apart else spine[-1]
 
 
-def _heading_axis(t: _Tree, lhip: int, rhip: int) -> tuple[float, float, float]:
-    """Unit vector from the right to the left hip in the rest pose (the pelvis frame: every
-    rotation is zero there), snapped to a coordinate axis within 10°."""
-    v = t.rest[lhip] - t.rest[rhip]
-    n = float(np.linalg.norm(v))
-    if n == 0.0:
-        raise MtannoError(f"the hips {t.names[lhip]} and {t.names[rhip]} are at the same "
-                          "point in the rest pose: no heading axis; pass {skeleton} MAP.toml",
-                          path=t.rig.source, options=("skeleton",))
-    k = int(np.argmax(np.abs(v)))
-    if abs(v[k]) / n >= math.cos(math.radians(_SNAP_DEG)):
-        axis = [0.0, 0.0, 0.0]
-        axis[k] = 1.0 if v[k] > 0 else -1.0
-        return (axis[0], axis[1], axis[2])
-    u = v / n
-    return (float(u[0]), float(u[1]), float(u[2]))
-
-
 def _side_scores(t: _Tree, j: dict[str, int], channels: Channels | None,
-                 ) -> tuple[float | None, float | None, int]:
+                 ) -> tuple[float | None, float | None, str]:
     """Mean cosine between the named-left minus named-right vector and the subject's left
     (``cross(up, forward)``), for the legs and the arms, over up to 64 frames (the rest
-    pose without channels); None where no frame gives a usable direction."""
-    rig = t.rig
-    if channels is not None and channels.n_frames:
-        idx = np.unique(np.linspace(0, channels.n_frames - 1, min(channels.n_frames, 64))
-                        .astype(np.int64))
-        pos, _ = forward_kinematics(rig, channels.angles[idx], channels.trans[idx],
-                                    channels.has_trans)
-    else:
-        pos = t.rest[None]
+    pose without channels); None where no frame gives a usable direction. Also says which
+    pose was used (``64 frames``, ``the rest pose``)."""
+    pos, where = sample_positions(t.rig, channels)
     up = pos[:, j["neck"]] - pos[:, j["root"]]
     fwd = (pos[:, j["ltoes"]] - pos[:, j["lankle"]]) + (pos[:, j["rtoes"]] - pos[:, j["rankle"]])
-    left = np.cross(up, fwd)
-    out = []
-    for a, b in (("lhip", "rhip"), ("lshoulder", "rshoulder")):
-        side = pos[:, j[a]] - pos[:, j[b]]
-        den = np.linalg.norm(left, axis=1) * np.linalg.norm(side, axis=1)
-        ok = den > 1e-9 * max(float(np.max(den, initial=0.0)), 1e-300)
-        ok &= np.linalg.norm(fwd, axis=1) > 1e-3 * np.linalg.norm(up, axis=1)
-        out.append(float(np.mean(np.sum(left[ok] * side[ok], axis=1) / den[ok]))
-                   if ok.any() else None)
-    return out[0], out[1], len(pos)
+    return (side_score(pos, up, fwd, j["lhip"], j["rhip"]),
+            side_score(pos, up, fwd, j["lshoulder"], j["rshoulder"]), where)
 
 
 _CONVENTIONS = (  # (label, slug, side-free cores or raw names that mark it)
@@ -367,19 +344,28 @@ def _convention(t: _Tree) -> tuple[str, str]:
     return "generic names", "generic"
 
 
-def guess_map(rig: Rig, channels: Channels | None = None, *,
-              swap_sides: bool = False) -> SkeletonMap:
-    """A skeleton map for a BVH rig from its joint names and tree (module docstring).
+#: How :func:`guess_map` places the joints.
+METHODS = ("auto", "names", "hierarchy")
+_LEG_KEYS = ("hip", "knee", "ankle", "toes")
+_ARM_KEYS = ("shoulder", "elbow", "wrist", "fingers")
 
-    ``channels`` (the motion) lets the named sides be checked on up to 64 frames; without
-    them the rest pose is used. ``swap_sides`` maps the joints named left to the right
-    canonical joints and vice versa (a rig whose names are mirrored). Raises one
-    :class:`MtannoError` listing every canonical joint that cannot be placed, or naming the
-    mirrored limbs.
-    """
-    if rig.kind != "bvh":
-        raise MtannoError(f"automatic skeleton maps are made for BVH rigs, not "
-                          f"{rig.kind.upper()}", path=rig.source)
+
+class _NamesFailed(Exception):
+    """The names do not place every canonical joint: ``detail`` lists what and why (the
+    error of the names alone), ``note`` says it in a few words (the ``how`` of a map made
+    from the hierarchy instead, and the error where the hierarchy fails too and the names
+    placed few joints)."""
+
+    def __init__(self, detail: str, note: str, missing: int):
+        super().__init__(detail)
+        self.detail, self.note, self.missing = detail, note, missing
+
+
+def _names_map(rig: Rig, channels: Channels | None, *, swap_sides: bool,
+               strict: bool) -> SkeletonMap:
+    """The map made from the joint names and the tree (module docstring). Sides the pose
+    contradicts are an error with ``strict`` ("mirrored naming"), else swapped (the pose
+    decides)."""
     t = _Tree(rig)
     out = _Placement({}, {})
     _place_limbs(t, out)
@@ -390,20 +376,20 @@ def guess_map(rig: Rig, channels: Channels | None = None, *,
         for k in missing:
             reasons.setdefault(out.problems.get(k, "not found"), []).append(k)
         detail = "; ".join(f"{', '.join(ks)}: {why}" for why, ks in reasons.items())
-        raise MtannoError(f"no skeleton map fits this BVH rig and it cannot be mapped "
-                          f"automatically: could not place {', '.join(missing)} ({detail}); "
-                          "pass {skeleton} MAP.toml (docs/formats.md)", path=rig.source,
-                          options=("skeleton",))
+        placed = len(CANONICAL_JOINTS) - len(missing)
+        raise _NamesFailed(f"could not place {', '.join(missing)} ({detail})",
+                           f"the joint names place none of the {len(CANONICAL_JOINTS)} joints"
+                           if not placed else f"the joint names place {placed} of the "
+                           f"{len(CANONICAL_JOINTS)} joints: {next(iter(reasons))}",
+                           len(missing))
     j = out.joints
     if swap_sides:
         j = {_SWAP.get(k, k): v for k, v in j.items()}
-    legs, arms, frames = _side_scores(t, j, channels)
-    where = f"{frames} frame{'s' if frames != 1 else ''}" if channels is not None \
-        else "the rest pose"
+    legs, arms, where = _side_scores(t, j, channels)
     bad = [(what, a, b) for what, s, a, b in (("legs", legs, "lhip", "rhip"),
                                                ("arms", arms, "lshoulder", "rshoulder"))
            if s is not None and s < -_SIDE_OK]
-    if bad:
+    if bad and strict:
         detail = "; ".join(f"{t.names[j[a]]} lies on the subject's right of {t.names[j[b]]}"
                            for _, a, b in bad)
         raise MtannoError(f"mirrored naming: the {' and '.join(w for w, _, _ in bad)} named "
@@ -411,11 +397,18 @@ def guess_map(rig: Rig, channels: Channels | None = None, *,
                           f"on {where}); fix the names, or write a map with `mtanno skeleton "
                           f"guess FILE --swap-sides -o MAP.toml` and pass --skeleton MAP.toml",
                           path=rig.source)
+    for what, _, _ in bad:  # the pose decides: swap the limbs named the wrong way round
+        keys = _LEG_KEYS if what == "legs" else _ARM_KEYS
+        j = {**j, **{s + k: j[o + k] for k in keys for s, o in (("l", "r"), ("r", "l"))}}
     checked = [w for w, s in (("legs", legs), ("arms", arms)) if s is not None and s > _SIDE_OK]
     label, slug = _convention(t)
-    sides = (f"sides from the names{' (swapped)' if swap_sides else ''}, "
-             + (f"{' and '.join(checked)} confirmed by the pose on {where}" if checked
-                else f"not confirmed by the pose ({where} gave no clear left/right)"))
+    named = f"sides from the names{' (swapped)' if swap_sides else ''}"
+    sides = (f"sides from the pose on {where}: the {' and '.join(w for w, _, _ in bad)} "
+             f"named left lie on the subject's right" + (
+                 f", the {' and '.join(checked)} named as they lie" if checked else "")
+             if bad else
+             f"{named}, {' and '.join(checked)} confirmed by the pose on {where}" if checked
+             else f"{named}, not confirmed by the pose ({where} gave no clear left/right)")
     how = (f"generated from the joint names ({label}) and the tree: limbs anchored on the "
            f"knees and elbows, pelvis where the legs and the spine meet; {sides}; heading "
            f"axis from the hips")
@@ -424,8 +417,55 @@ def guess_map(rig: Rig, channels: Channels | None = None, *,
         name=f"guessed-{slug}", format="bvh", joints=joints,
         detect=tuple(sorted(set(joints.values()))),
         heading_node=joints["root"],
-        heading_axis=_heading_axis(t, j["lhip"], j["rhip"]),
+        heading_axis=heading_axis(t.rest, j["lhip"], j["rhip"], t.names, rig.source),
         path="generated", description=f"generated for a {label} BVH rig", how=how)
+
+
+def guess_map(rig: Rig, channels: Channels | None = None, *, swap_sides: bool = False,
+              method: str = "auto") -> SkeletonMap:
+    """A skeleton map for a BVH rig no map file fits.
+
+    ``method``: ``"names"`` places the joints from their names and the tree (module
+    docstring) and refuses sides the pose contradicts ("mirrored naming");
+    ``"hierarchy"`` from the hierarchy and pose alone
+    (:func:`mtanno.io.topology.hierarchy_map`), for rigs whose names say nothing;
+    ``"auto"`` (what :func:`choose_map` does) from the names, the pose deciding the sides,
+    else from the hierarchy. ``channels`` (the motion) give the pose on up to 64 frames;
+    without them the rest pose is used. ``swap_sides`` maps the joints named left to the
+    right canonical joints and vice versa (names only). Raises one :class:`MtannoError`
+    saying what could not be placed and why.
+    """
+    if rig.kind != "bvh":
+        raise MtannoError(f"automatic skeleton maps are made for BVH rigs, not "
+                          f"{rig.kind.upper()}", path=rig.source)
+    if method not in METHODS:
+        raise MtannoError(f"unknown method '{method}' (known: {', '.join(METHODS)})")
+    if swap_sides and method == "hierarchy":
+        raise MtannoError("{swap_sides} swaps the sides the joint names give; a map made "
+                          "from the hierarchy takes them from the pose",
+                          options=("swap_sides",))
+    fix = "pass {skeleton} MAP.toml (docs/formats.md)"
+    if method == "hierarchy":
+        try:
+            return hierarchy_map(rig, channels)
+        except HierarchyError as exc:
+            raise MtannoError(f"this BVH rig {exc.message}; {fix}", path=rig.source,
+                              options=("skeleton",)) from None
+    try:
+        return _names_map(rig, channels, swap_sides=swap_sides,
+                          strict=method == "names" or swap_sides)
+    except _NamesFailed as names:
+        failed = names
+    head = "no skeleton map fits this BVH rig and it cannot be mapped automatically"
+    if method == "names" or swap_sides:
+        raise MtannoError(f"{head}: {failed.detail}; {fix}", path=rig.source,
+                          options=("skeleton",))
+    try:
+        return hierarchy_map(rig, channels, names_note=failed.note)
+    except HierarchyError as exc:
+        names = failed.note if failed.missing > 8 else f"the joint names {failed.detail}"
+        raise MtannoError(f"{head}: from its hierarchy, {exc.reason}; {names}; {fix}",
+                          path=rig.source, options=("skeleton",)) from None
 
 
 def choose_map(rig: Rig, skeleton: str | os.PathLike | None = None,
@@ -451,7 +491,9 @@ def map_toml(smap: SkeletonMap, *, source: str = "", version: str = "") -> str:
     the same map (name, format, detect nodes, heading and joints), with comments saying
     where it came from and how it was made."""
     def s(x: str) -> str:
-        return json.dumps(x)  # a JSON string is a TOML basic string
+        # a JSON string is a TOML basic string, if characters beyond U+FFFF stay as they
+        # are (JSON's surrogate-pair escapes are no TOML) and DEL is escaped (TOML's rule)
+        return json.dumps(x, ensure_ascii=False).replace("\x7f", "\\u007f")
 
     def lst(xs) -> str:
         return "[" + ", ".join(s(x) for x in xs) + "]"

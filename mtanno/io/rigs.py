@@ -1,7 +1,7 @@
 """Skeleton maps: which node of a rig is which canonical joint.
 
-Spec: ``algorithms.md`` §1 (canonical joints) and ``features.md`` §1.5. A skeleton map is a
-TOML file (see ``mtanno/skeletons/*.toml`` and ``docs/formats.md``)::
+Spec: ``docs/method.md`` §1 (canonical joints) and ``docs/method/features.md`` §1.5. A
+skeleton map is a TOML file (see ``mtanno/skeletons/*.toml`` and ``docs/formats.md``)::
 
     name = "cmu-asf"
     description = "..."
@@ -25,22 +25,16 @@ from __future__ import annotations
 
 import functools
 import os
-import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import MtannoError, read_toml
 from mtanno.io.skeleton import Rig
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
-#: The canonical joints features use, in this order (algorithms.md §1).
+#: The canonical joints features use, in this order (docs/method.md §1).
 CANONICAL_JOINTS: tuple[str, ...] = (
     "root", "lhip", "rhip", "lknee", "rknee", "lankle", "rankle", "ltoes", "rtoes", "belly",
     "chest", "neck", "head", "headtop", "lshoulder", "rshoulder", "lelbow", "relbow", "lwrist",
@@ -135,12 +129,7 @@ class SkeletonMap:
 def load_map(path: str | os.PathLike) -> SkeletonMap:
     """Read one skeleton map file, checking its fields."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise MtannoError("skeleton map file not found", path=str(path)) from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise MtannoError(f"not a valid TOML skeleton map: {exc}", path=str(path)) from None
+    data, _ = read_toml(path, what="skeleton map")
     try:
         joints = data["joints"]
         fmt = data["format"]

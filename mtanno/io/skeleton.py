@@ -1,7 +1,7 @@
 """Rig description and forward kinematics shared by the ASF/AMC and BVH readers.
 
-Spec: ``algorithms.md`` §1 and ``features.md`` §1.3–1.4. Both file formats are reduced to
-one model: a tree of nodes, each with a local rotation
+Spec: ``docs/method.md`` §1 and ``docs/method/features.md`` §1.3–1.4. Both file formats
+are reduced to one model: a tree of nodes, each with a local rotation
 
     L_j = pre_j · R_{a0}(θ0) · R_{a1}(θ1) · R_{a2}(θ2) · post_j
 
@@ -27,6 +27,8 @@ from typing import Any
 
 import numba
 import numpy as np
+
+from mtanno.errors import MtannoError
 
 #: Axis codes used in :attr:`Rig.axes`.
 AXIS_CODES = {"x": 0, "y": 1, "z": 2}
@@ -100,6 +102,16 @@ class Motion:
     source_sha256:
         SHA-256 (hex) of the motion file's bytes as parsed, when the reader was asked for
         it (``read_motion(..., sha256=True)``), else None.
+    up:
+        The file's up axis (``"y"`` or ``"z"``); ``positions`` and ``heading`` are already
+        turned so that Y is up (:func:`to_y_up`).
+    valid:
+        (frames,) bool: frames whose joints could all be computed (marker files with gaps,
+        :mod:`mtanno.io.markerjoints`), or None when every frame is valid. Positions of
+        invalid frames are interpolated from their valid neighbours and carry no evidence.
+    markers:
+        What a marker file's joints were made from (:class:`mtanno.io.markerjoints.MarkerReport`:
+        labels, marker set, which joints each marker feeds, gaps filled), else None.
     """
 
     rig: Rig
@@ -109,10 +121,29 @@ class Motion:
     source: str
     smap: Any = None
     source_sha256: str | None = None
+    up: str = "y"
+    valid: np.ndarray | None = None
+    markers: Any = None
 
     @property
     def n_frames(self) -> int:
         return int(self.positions.shape[0])
+
+
+#: The world axes a motion file may have pointing up (``features --up``); features are
+#: defined for Y up (docs/method.md §1), Z-up data is turned first.
+UP_AXES = ("y", "z")
+
+
+def to_y_up(points: np.ndarray, up: str = "y") -> np.ndarray:
+    """World coordinates (…, 3) of data whose up axis is ``up`` ("y" or "z") turned so that
+    Y is up: for Z up, (x, y, z) → (x, z, −y), a rotation of −90° about X (right-handed
+    frames stay right-handed, so left and right are kept)."""
+    if up not in UP_AXES:
+        raise MtannoError(f"up axis must be one of {', '.join(UP_AXES)}, got {up!r}")
+    if up == "y":
+        return points
+    return np.stack([points[..., 0], points[..., 2], -points[..., 1]], axis=-1)
 
 
 def euler_matrix(axis: int, angle: float) -> np.ndarray:
@@ -218,7 +249,8 @@ def forward_kinematics(rig: Rig, angles: np.ndarray, trans: np.ndarray, has_tran
     has_trans:
         (nodes,) bool: the node's translation comes from ``trans`` instead of its offset.
     heading_node, heading_axis:
-        ``heading[f] = G_heading_node(f) · heading_axis`` (features.md F40).
+        ``heading[f] = G_heading_node(f) · heading_axis`` (F40,
+        docs/method/features.md §5.3).
 
     Returns
     -------

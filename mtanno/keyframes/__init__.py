@@ -1,4 +1,4 @@
-"""Keyframe queries: search and learning ([MBS09] §5–6, thesis ch. 4 and 6, algorithms.md
+"""Keyframe queries: search and learning ([MBS09] §5–6, thesis ch. 4 and 6, docs/method.md
 §5–6) — the preselection stage in front of template matching.
 
 * :mod:`~mtanno.keyframes.model` — :class:`KeyframeQuery` (keyframes over one feature group
@@ -50,3 +50,6 @@ from mtanno.keyframes.search import (
     search_documents,
     search_index,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -1,4 +1,4 @@
-"""Numba kernels of keyframe search (algorithms.md §5): operations on interval lists.
+"""Numba kernels of keyframe search (docs/method.md §5): operations on interval lists.
 
 An *interval list* is three int64 arrays ``doc, start, end`` (frames 0-based, ``end``
 inclusive), sorted by (doc, start), with intervals of one document disjoint and not

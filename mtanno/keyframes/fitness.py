@@ -1,4 +1,4 @@
-"""Fitness of keyframe queries on training clips ([MBS09] §6, algorithms.md §6).
+"""Fitness of keyframe queries on training clips ([MBS09] §6, docs/method.md §6).
 
 [MBS09] scores a query on the training clips: it *retrieves* a clip if it has a hit there;
 with the positives T⁺ (the class's clips) and negatives T⁻ (every other class's clips),

@@ -1,4 +1,4 @@
-"""The genetic algorithm that learns a keyframe query ([MBS09] §6, algorithms.md §6).
+"""The genetic algorithm that learns a keyframe query ([MBS09] §6, docs/method.md §6).
 
 Individuals are keyframe queries: genes ``(position, group, mask, value)`` in template order
 and gap bounds between consecutive genes. One run:

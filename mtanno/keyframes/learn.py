@@ -1,4 +1,4 @@
-"""Learning a keyframe query per class (algorithms.md §6): the genetic algorithm of [MBS09]
+"""Learning a keyframe query per class (docs/method.md §6): the genetic algorithm of [MBS09]
 §6 (``ga``), columns of the hard template (``hard``, thesis ch. 6) and [MR06]'s column
 heuristic (``heuristic``, [MR06] §5.4).
 
@@ -407,7 +407,7 @@ def learn_keyframes(training: TrainingSet, class_name: str, template, *, method:
                     params: GAParams | None = None, columns: int = DEFAULT_COLUMNS,
                     validate: bool = True, scheduler: str | None = None,
                     progress: Callable[[int], None] | None = None) -> KeyframeQuery:
-    """Learn the keyframe query of ``class_name`` (algorithms.md §6).
+    """Learn the keyframe query of ``class_name`` (docs/method.md §6).
 
     Parameters
     ----------

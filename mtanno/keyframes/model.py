@@ -1,6 +1,6 @@
 """Keyframe queries: what they are, their JSON files, and how they read as a table.
 
-A keyframe query ([MBS09] §5; thesis ch. 4; algorithms.md §5) is a sequence of keyframes
+A keyframe query ([MBS09] §5; thesis ch. 4; docs/method.md §5) is a sequence of keyframes
 V_1 … V_n, each a fuzzy feature vector in {0, 1, *} over the features of ONE feature group
 (upper, lower, mix …), taken from template column q_j, and gap bounds
 (dmin_j, dmax_j) in frames at 30 Hz between V_j and V_{j+1}. A document segment is
@@ -66,7 +66,7 @@ MAX_EXTENSION = 1 << 30
 
 def stiffness_bounds(distance: int, stiffness: Fraction | float | str) -> tuple[int, int]:
     """(dmin, dmax) = (⌈s·d⌉, ⌊d/s⌋) for template distance ``distance`` ≥ 0 and stiffness
-    s ∈ (0, 1], computed exactly (algorithms.md §5). A float is read by its shortest
+    s ∈ (0, 1], computed exactly (docs/method.md §5). A float is read by its shortest
     decimal form (0.3 is 3/10)."""
     s = _fraction(stiffness)
     if not 0 < s <= 1:
@@ -546,7 +546,7 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
     without a query; queries of classes not among ``classes``). Queries must be for
     ``feature_set`` and, when ``fps`` is given (the templates' frame rate), at that rate:
     their gaps and extensions count frames at it."""
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     queries, files = {}, []
     for f, q in _load_folder(folder).values():

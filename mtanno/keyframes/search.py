@@ -1,5 +1,5 @@
 """Keyframe search: the frames of documents where a keyframe query has a chain, and the
-candidate windows annotation matches templates in ([MBS09] §5; algorithms.md §5).
+candidate windows annotation matches templates in ([MBS09] §5; docs/method.md §5).
 
 For each keyframe V_j, the frames whose group vector matches V_j form an interval list
 I_j: from an index, the union of the inverted lists of every vector V_j matches with
@@ -321,7 +321,7 @@ def _index_pattern(index, query: KeyframeQuery, j: int) -> tuple[str, int, int]:
 
 def search_index(index, query: KeyframeQuery) -> KeyframeHits:
     """All keyframe hits of ``query`` in an index (:class:`mtanno.index.Index`), through
-    its inverted lists ([MBS09] §5, algorithms.md §5). Each keyframe's features must lie in
+    its inverted lists ([MBS09] §5, docs/method.md §5). Each keyframe's features must lie in
     one of the index's groups (a keyframe over fewer features than the group, e.g. the
     reference's 13-feature AK-mix against the 14-feature mix group, leaves the others
     free)."""

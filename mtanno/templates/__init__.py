@@ -1,10 +1,10 @@
-"""Motion templates (MTs): learning, storage, quantization and mirroring (algorithms.md §3).
+"""Motion templates (MTs): learning, storage, quantization and mirroring (docs/method.md §3).
 
 * :mod:`~mtanno.templates.model` — :class:`MotionTemplate`, its JSON file
-  (:func:`save_template`, :func:`load_template`), :func:`quantize` (§3.3) and
+  (:func:`save_template`, :func:`load_template`), :func:`quantize` (docs/method.md §3.3) and
   :func:`mirror` ([MR06] §5.4).
 * :mod:`~mtanno.templates.learn` — soft MT learning ([MR06] §4.1, exactly as the reference
-  implementation, features.md App. A) and hard MTs (thesis §3.3):
+  implementation, docs/method/features.md §A) and hard MTs (thesis §3.3):
   :func:`mtanno.templates.learn.learn` on matrices, :func:`learn_template` on training
   examples (the function ``learn`` is not re-exported here, so that
   ``mtanno.templates.learn`` stays the module).
@@ -12,8 +12,10 @@
 * :mod:`~mtanno.templates.training` — gathering training examples from a folder tree, a
   manifest CSV or annotated documents.
 * :mod:`~mtanno.templates.match` — matching a template over documents: the streaming
-  masked subsequence DTW of algorithms.md §3.4 (:func:`match_template`,
+  masked subsequence DTW of docs/method.md §3.4 (:func:`match_template`,
   :class:`PreparedTemplate`).
+* :mod:`~mtanno.templates.params` — the published τ and δ of retrieval and annotation,
+  one name each, and :func:`~mtanno.templates.params.check_tau`, the one rule for τ.
 * :mod:`~mtanno.templates.describe` — a template as text for a person (``mtanno mt show``).
 * :mod:`~mtanno.templates.tempo` — time-scaled copies of a template (faster or slower
   performers; ``mtanno mt scale``, and several templates per class in ``tune``).
@@ -51,3 +53,6 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -5,9 +5,9 @@ features the matching relies on most, and optionally the quantized template draw
 
 from __future__ import annotations
 
-from mtanno.retrieve import DEFAULT_DELTA
 from mtanno.templates.match import match_lengths
 from mtanno.templates.model import MotionTemplate, quantize, rank_features
+from mtanno.templates.params import RETRIEVAL_DELTA
 from mtanno.templates.tempo import matched_columns
 
 __all__ = ["format_template"]
@@ -27,7 +27,7 @@ def format_template(mt: MotionTemplate, *, path: str | None = None, delta: float
         q, d = mt, mt.delta
         state = f"quantized, δ = {mt.delta:g}"
     else:
-        d = DEFAULT_DELTA if delta is None else delta
+        d = RETRIEVAL_DELTA if delta is None else delta
         q = quantize(mt, d)
         state = "not quantized"
     w = mt.weights

@@ -1,16 +1,16 @@
 """Classical DTW between weighted templates, and the warping of one template onto another.
 
-This is the alignment step of motion-template learning ([MR06] §4.1; the exact variant of the
-reference implementation is ``features.md`` Appendix A, ``warp``). A *template* here is a
-(features × columns) float64 matrix with one positive weight per column; a training clip
-is a 0/1 matrix at 30 Hz with all weights 1, so "columns" are frames at 30 Hz.
+This is the alignment step of motion-template learning ([MR06] §4.1; the exact variant of
+the reference implementation is ``docs/method/features.md`` §A, ``warp``). A *template*
+here is a (features × columns) float64 matrix with one positive weight per column; a
+training clip is a 0/1 matrix at 30 Hz with all weights 1, so "columns" are frames at 30 Hz.
 
 * Soft local cost ([MR06] §4.1): ``c(i,j) = (Σ_k |V(k,i) − W(k,j)|) / f · (Vw(i) + Ww(j)) / 2``,
   summed term by term in feature order — the rounding of this sum decides DTW ties, and
   the golden templates depend on it.
 * Hard local cost (thesis §3.3.1, eq. 3.2–3.3): ``Σ_k d(V(k,i), W(k,j))`` with ``d = 0`` when
   either entry is the wildcard 0.5, else ``|x − y|``; multiplied by the same weight factor
-  (it is the same learning loop, algorithms.md §3.2).
+  (it is the same learning loop, docs/method.md §3.2).
 * Steps (1,0), (0,1), (1,1); ``D(1,1) = C(1,1)``; first row and column accumulated one step
   at a time. Backtracking from the last cell prefers the diagonal, then the reference's
   horizontal step (the other template advances), then the vertical one; a later choice
@@ -265,7 +265,7 @@ def _backtrack(D, n, m, transposed, pi, pj):
 @numba.njit(cache=True)
 def _warp(vals, wts, nr, o0, pr, po, L, hard, S, wd):
     """Warp template O (columns ``o0 …`` of ``vals``) onto a reference of ``nr`` columns
-    along the path ``(pr[t], po[t])`` (features.md App. A ``warp``).
+    along the path ``(pr[t], po[t])`` (docs/method/features.md §A ``warp``).
 
     Writes ``Wwarp`` into ``S[:, :nr]`` — per reference column b the weighted mean
     ``Σ Ww(j)·W(:,j) / Σ Ww(j)`` of the O columns j matched to b (sums in path order), or
@@ -338,8 +338,10 @@ def _init_sums(vals, wts, hard, num, den):
 
 
 @numba.njit(cache=True)
-def _all_references(vals, wts, off, hard, num, den, cost, D, pi, pj, S, wd):
-    """One learning iteration's sums for every reference at once.
+def _all_references(vals, wts, off, hard, num, den, cmax, csum, D, pi, pj, S, wd):
+    """One learning iteration's sums for every reference at once, and per reference the
+    largest and the summed DTW cost of the examples against it (``cmax``, ``csum``: N
+    values each, so memory grows with N, not N², for classes of many short examples).
 
     Each unordered pair (a, b) is aligned once: the local cost is symmetric bit for bit,
     so the accumulated-cost matrix of (b, a) is the transpose of that of (a, b); only
@@ -349,8 +351,10 @@ def _all_references(vals, wts, off, hard, num, den, cost, D, pi, pj, S, wd):
     tabs = _cost_tables(vals, off)
     scratch = _scratch(vals.shape[0], D.shape[1])
     _init_sums(vals, wts, hard, num, den)
+    for a in range(N):  # the cost of a reference against itself: 0
+        cmax[a] = 0.0
+        csum[a] = 0.0
     for a in range(N):
-        cost[a, a] = 0.0
         a0 = off[a]
         n = off[a + 1] - a0
         for b in range(a + 1, N):
@@ -358,8 +362,10 @@ def _all_references(vals, wts, off, hard, num, den, cost, D, pi, pj, S, wd):
             m = off[b + 1] - b0
             _accumulated_cost(vals, wts, tabs, a0, n, b0, m, b, hard, D, scratch)
             c = D[n - 1, m - 1]
-            cost[a, b] = c
-            cost[b, a] = c
+            cmax[a] = max(cmax[a], c)
+            cmax[b] = max(cmax[b], c)
+            csum[a] += c
+            csum[b] += c
             L = _backtrack(D, n, m, False, pi, pj)
             _warp(vals, wts, n, b0, pi, pj, L, hard, S, wd)
             _accumulate(num, den, a0, n, S, wd, hard)
@@ -449,7 +455,8 @@ def dtw(V: np.ndarray, W: np.ndarray, *, weights_v: np.ndarray | None = None,
 def warp(V: np.ndarray, W: np.ndarray, *, weights_v: np.ndarray | None = None,
          weights_w: np.ndarray | None = None,
          hard: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
-    """Warp template ``W`` onto the length of reference ``V`` (features.md App. A ``warp``).
+    """Warp template ``W`` onto the length of reference ``V`` (docs/method/features.md §A,
+    ``warp``).
 
     Returns ``(Wwarp, Wwt, cost)``: the warped (features × n) matrix (weighted mean of the
     W columns matched to each V column, or their hard sum when ``hard``), the warped

@@ -1,8 +1,8 @@
 """Learning motion templates from example clips: soft MTs ([MR06] §4.1) and hard MTs (thesis §3.3).
 
 Soft MT learning follows the reference implementation ("strategy 5") operation for
-operation, as written down in ``features.md`` Appendix A, so that it reproduces the golden
-templates of ``../shared/data/reference/mt/`` bit for bit:
+operation, as written down in ``docs/method/features.md`` §A, so that it reproduces the
+golden templates of ``../shared/data/reference/mt/`` bit for bit:
 
 1. Every iteration takes each example k in turn as the reference, warps every other
    example onto it with DTW (:mod:`mtanno.templates.dtw`; others in ascending order),
@@ -16,7 +16,7 @@ templates of ``../shared/data/reference/mt/`` bit for bit:
    iterations.
 3. The result is the template built with example 1 as reference in the last iteration.
 
-Hard MTs (thesis §3.3.1, algorithms.md §3.2) use the same loop with the hard sum
+Hard MTs (thesis §3.3.1, docs/method.md §3.2) use the same loop with the hard sum
 (a value is kept where all inputs agree, else 0.5) in place of every weighted mean, and
 the wildcard cost c_H in DTW. One change to the contraction: a light group left at the end
 is merged with the whole previous output column instead of the single input column before
@@ -53,7 +53,8 @@ __all__ = [
 #: Defaults of the reference implementation (``motionTemplatePrecomputeBatch.m``).
 ITER_MAX = 10
 ITER_THRESH = 0.005
-#: Contraction merges columns until their summed weight reaches this (features.md App. A).
+#: Contraction merges columns until their summed weight reaches this
+#: (docs/method/features.md §A).
 CONTRACT_MIN_WEIGHT = 0.75
 
 
@@ -118,7 +119,7 @@ def _merge(V, w, a, b, hard, out, wout, col):
 
 @numba.njit(cache=True)
 def _contract(V, w, hard, min_weight, whole_previous):
-    """Left-to-right contraction (features.md App. A ``contract``).
+    """Left-to-right contraction (docs/method/features.md §A ``contract``).
 
     A light group that reaches the end is merged with the single input column before it
     and replaces the previous output column (the reference implementation; the other
@@ -237,17 +238,18 @@ def _balance(T, Tw, hard):
 
 
 def expand(values: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Expansion operator (thesis §3.3.1; features.md App. A): every column i becomes
-    ``max(1, round(w_i))`` copies (rounding half away from zero) of weight w_i / copies."""
+    """Expansion operator (thesis §3.3.1; docs/method/features.md §A): every column i
+    becomes ``max(1, round(w_i))`` copies (rounding half away from zero) of weight
+    w_i / copies."""
     V, w = _check_templates([values], [weights], False)
     return _expand(np.ascontiguousarray(V[0]), w[0])
 
 
 def contract(values: np.ndarray, weights: np.ndarray, *, hard: bool = False,
              whole_previous: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Contraction operator (features.md App. A): scanning left to right, a column lighter
-    than 0.75 is merged with the following ones until their weight reaches 0.75 (weighted
-    mean, or hard sum when ``hard``).
+    """Contraction operator (docs/method/features.md §A): scanning left to right, a column
+    lighter than 0.75 is merged with the following ones until their weight reaches 0.75
+    (weighted mean, or hard sum when ``hard``).
 
     A light group left at the end is merged with the input column before it and replaces
     the previous output column, dropping that column's other inputs (reference
@@ -271,7 +273,7 @@ def average_step(templates: Sequence[np.ndarray], *, reference: int = 0,
                  weights: Sequence[np.ndarray] | None = None,
                  hard: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One reference-based averaging step (thesis eq. 3.4–3.5; one pass of the loop body
-    of features.md App. A for one reference).
+    of docs/method/features.md §A for one reference).
 
     Every other template is warped onto ``templates[reference]`` (0-based), all are
     averaged (soft: weighted mean; hard: hard sum) and the result is balanced. Returns
@@ -325,7 +327,7 @@ class LearnResult:
 def learn(examples: Sequence[np.ndarray], *, hard: bool = False, iter_max: int = ITER_MAX,
           thresh: float = ITER_THRESH,
           weights: Sequence[np.ndarray] | None = None) -> LearnResult:
-    """Learn a motion template from N examples of one class (algorithms.md §3.1–3.2).
+    """Learn a motion template from N examples of one class (docs/method.md §3.1–3.2).
 
     Parameters
     ----------
@@ -360,20 +362,21 @@ def learn(examples: Sequence[np.ndarray], *, hard: bool = False, iter_max: int =
         vals, wts, off = _pack(U, w)
         maxlen = int(np.diff(off).max())
         buf = _buffers(p, maxlen, vals.shape[1])
-        cost = np.empty((N, N))
-        _all_references(vals, wts, off, hard, buf["num"], buf["den"], cost, buf["D"],
+        # per reference k the largest and the summed cost of the examples against it,
+        # normalised by the weight of its new template: N values, not an N × N matrix
+        cmax, csum, scale = np.empty(N), np.empty(N), np.empty(N)
+        _all_references(vals, wts, off, hard, buf["num"], buf["den"], cmax, csum, buf["D"],
                         buf["pi"], buf["pj"], buf["S"], buf["wd"])
-        Vcost = np.empty((N, N))
         U_new, w_new = [], []
         for k in range(N):
             a, b = off[k], off[k + 1]
             T, Tw = _finish(buf["num"][:, a:b], buf["den"][a:b], N, hard)
-            Vcost[:, k] = cost[k] / _sum_lr(Tw)
+            scale[k] = _sum_lr(Tw)
             U_new.append(T)
             w_new.append(Tw)
-        emax = float(Vcost.max())
+        emax = float((cmax / scale).max())
         cost_max.append(emax)
-        cost_mean.append(float(Vcost.mean()))
+        cost_mean.append(float((csum / scale).sum() / (N * N)))
         U, w = U_new, w_new
     return LearnResult(values=U[0], weights=w[0], iterations=it, cost_max=cost_max,
                        cost_mean=cost_mean)
@@ -486,13 +489,15 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
                     note: Callable[[str], None] | None = None,
                     on_start: Callable[[int], None] | None = None,
                     progress: Callable[[ClassLearned, str | None], None] | None = None,
-                    ) -> LearnRun:
+                    inside_input: bool = False) -> LearnRun:
     """The whole ``mtanno learn-mt`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them (``note`` receives its
     notes), grouped by class (only ``classes``, if given), every output checked against the
     inputs, and one template per class learned (:func:`learn_classes`) and written to
     ``outdir/CLASS.json`` under the folder's lock (:func:`mtanno.util.locks.folder_lock`;
-    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder). A class
+    ``wait``/``on_wait`` as there; a run that writes nothing leaves no new folder; an
+    ``outdir`` that is or lies inside a folder of training files only with
+    ``inside_input``). A class
     that fails fails alone, as does a training folder that gives no example
     (:attr:`LearnRun.skipped`). ``on_start(n)`` is called
     before the first of ``n`` classes, ``progress(done, error)`` after each (``error``: why
@@ -500,9 +505,10 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     import time
 
     from mtanno.templates.model import class_file, save_template
-    from mtanno.templates.training import collect_sources, group_by_class
+    from mtanno.templates.training import collect_sources, group_by_class, input_folders
     from mtanno.util.locks import folder_lock
-    from mtanno.util.output import check_outputs, output_folder
+    from mtanno.util.output import output_folder
+    from mtanno.util.preflight import check_outputs
 
     run = LearnRun()
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
@@ -510,7 +516,8 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     groups = group_by_class(sources, classes=list(classes) or None)
     out = Path(outdir)
     check_outputs([out / f"{c}.json" for c in groups if c and "/" not in c and "\0" not in c],
-                  [*(s.path for s in sources), manifest, truth],
+                  [*(s.path for s in sources), manifest, truth], folders={out: []},
+                  scanned=input_folders(training, features_dir), inside_input=inside_input,
                   writable=False)  # a class whose file cannot be written fails alone
     t0 = time.perf_counter()
     if on_start:

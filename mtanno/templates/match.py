@@ -1,15 +1,15 @@
 """Matching a quantized motion template against documents: the distance function Δ.
 
-Subsequence DTW with a masked local cost ([MR06] §5.2, [MBS09] §4; algorithms.md §3.4). For a
-quantized template X (f × K, entries 0, 1 and the wildcard 0.5) and a document Y (f × L,
-0/1, one column per 30 Hz frame), Δ(ℓ) is the cost of the cheapest warping path that ends at
-document frame ℓ and covers the whole template, starting at any frame a_ℓ ≤ ℓ. Small values
-mark the END of a match; ``start`` holds a_ℓ.
+Subsequence DTW with a masked local cost ([MR06] §5.2, [MBS09] §4; docs/method.md §3.4).
+For a quantized template X (f × K, entries 0, 1 and the wildcard 0.5) and a document Y
+(f × L, 0/1, one column per 30 Hz frame), Δ(ℓ) is the cost of the cheapest warping path
+that ends at document frame ℓ and covers the whole template, starting at any frame
+a_ℓ ≤ ℓ. Small values mark the END of a match; ``start`` holds a_ℓ.
 
 Two variants:
 
 ``"reference"`` (default)
-    What the reference implementation computes (features.md Appendix A, last paragraphs;
+    What the reference implementation computes (docs/method/features.md §A, last paragraphs;
     ``../shared/data/reference/retrieval/README.md``): the template is first expanded by its
     weights (column i repeated max(1, round(w_i)) times, round half away from zero, each copy
     of weight w_i / copies); the local cost of expanded column i against a document frame is
@@ -18,7 +18,7 @@ Two variants:
     with the smallest D among the steps is chosen (ties: the first step) and the chosen
     step's weight times C(i, ℓ) is added; Δ(ℓ) = D(n, ℓ).
 ``"paper"``
-    algorithms.md §3.4 as written: c(k, ℓ) = mean disagreement over the non-wildcard rows
+    docs/method.md §3.4 as written: c(k, ℓ) = mean disagreement over the non-wildcard rows
     (0 for an all-wildcard column), no expansion, no weight factor; D(k, ℓ) = min over the
     steps of D(predecessor) + weight(step) · c(k, ℓ) (ties: the first step); Δ(ℓ) = D(K, ℓ)/K.
 
@@ -344,10 +344,11 @@ def _check_steps(steps, step_weights) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def column_repeats(weights: np.ndarray) -> np.ndarray:
-    """How often the reference matching repeats each template column (features.md App. A):
-    max(1, round(w_i)), round half away from zero (weights are non-negative). Their sum is
-    the number of columns matched, what matching costs per document frame. Floats: a
-    template with absurd weights can be told (and refused) before counting overflows."""
+    """How often the reference matching repeats each template column
+    (docs/method/features.md §A): max(1, round(w_i)), round half away from zero (weights
+    are non-negative). Their sum is the number of columns matched, what matching costs per
+    document frame. Floats: a template with absurd weights can be told (and refused) before
+    counting overflows."""
     w = np.asarray(weights, dtype=np.float64)
     return np.maximum(1.0, np.floor(w + 0.5))
 
@@ -406,8 +407,9 @@ class PreparedTemplate:
         self.di, self.dj, sw = _check_steps(steps, step_weights)
         self.f = V.shape[0]
         if variant == "reference":
-            # expand (features.md App. A): column i repeated max(1, round(w_i)) times, round
-            # half away from zero (weights are non-negative), each copy of weight w_i / r_i
+            # expand (docs/method/features.md §A): column i repeated max(1, round(w_i))
+            # times, round half away from zero (weights are non-negative), each copy of
+            # weight w_i / r_i
             reps = column_repeats(w)
             if reps.sum() > MAX_TEMPLATE_COLUMNS:
                 raise MtannoError(f"template weights (largest {w.max():.3g}) expand it to "
@@ -549,7 +551,8 @@ def match_template(values: np.ndarray, weights: np.ndarray, X: np.ndarray, *,
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Distance function Δ and match start frames of a quantized template on one document.
 
-    [MR06] §5.2, [MBS09] §4, algorithms.md §3.4 (the module docstring describes both variants).
+    [MR06] §5.2, [MBS09] §4, docs/method.md §3.4 (the module docstring describes both
+    variants).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 An MT of a motion class ([MR06] §4) is a (features × K) matrix with entries in [0, 1] and one
 weight per column; columns are time steps at the 30 Hz analysis rate, and the weights sum
 to about the mean length of the training examples in frames. A *quantized* MT
-(algorithms.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
+(docs/method.md §3.3) has entries 0, 1 or the wildcard 0.5; the matching stage (§3.4)
 ignores wildcard entries.
 
 JSON file (``docs/templates.md`` has the full schema), schema ``mtanno.template/1``: one
@@ -31,7 +31,7 @@ from mtanno.util.output import atomic_path
 from mtanno.util.tables import json_compact, json_list_lines, json_object_lines
 
 if TYPE_CHECKING:
-    from mtanno.util.store import FeatureLayout
+    from mtanno.features.store import FeatureLayout
 
 __all__ = [
     "SCHEMA", "KINDS", "MIRROR_SUFFIX", "FeatureRank", "MotionTemplate", "load_template",
@@ -123,10 +123,10 @@ class MotionTemplate:
         return int(self.values.shape[0])
 
     def layout(self, source: str | None = None) -> FeatureLayout:
-        """The template's :class:`~mtanno.util.store.FeatureLayout` (feature set, feature
-        names, frame rate), what :func:`~mtanno.util.store.check_layout` compares;
+        """The template's :class:`~mtanno.features.store.FeatureLayout` (feature set, feature
+        names, frame rate), what :func:`~mtanno.features.store.check_layout` compares;
         ``source`` names it in messages (default: ``template CLASS``)."""
-        from mtanno.util.store import FeatureLayout
+        from mtanno.features.store import FeatureLayout
 
         return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
                              source if source is not None else f"template {self.class_name}")
@@ -252,24 +252,25 @@ def _is_number(x: Any) -> bool:
 
 
 def check_feature_names(mt: MotionTemplate, path: str | None = None,
-                        line: int | None = None) -> None:
+                        line: int | None = None, *, set_line: int | None = None) -> None:
     """A template of a built-in feature set names only features of that set (its table
     says which names it has; matching, mirroring and keyframes rely on them): checked when
     a template file is read or written, so ``mt quantize`` refuses what ``mt mirror``
     refuses. A feature set of the caller's own (API) has no table here to check against,
-    nor have templates made in memory for a test or a plot."""
+    nor have templates made in memory for a test or a plot; but a set named as none of
+    mtanno's whose features all belong to one of them is a wrong name (``feature_set =
+    "bogus"`` over the 40 annotation features), refused (``set_line``: the line that
+    names it), since no feature file of those features would ever match it."""
     from mtanno.features import get_feature_set
+    from mtanno.features.compute import feature_set_mismatch
 
-    try:
-        fs = get_feature_set(mt.feature_set)
-    except MtannoError:
-        return
-    known = set(fs.names)
-    unknown = [n for n in mt.feature_names if n not in known]
-    if unknown:
-        more = " …" if len(unknown) > 3 else ""
-        raise MtannoError(f"feature(s) not in the {mt.feature_set} feature set: "
-                          f"{', '.join(unknown[:3])}{more}", path=path, line=line)
+    wrong = feature_set_mismatch(mt.feature_set, mt.feature_names)
+    if wrong is not None:
+        try:  # a set of mtanno's: a feature is wrong; else the set's name is
+            get_feature_set(mt.feature_set)
+        except MtannoError:
+            line = set_line
+        raise MtannoError(wrong, path=path, line=line)
 
 
 # --------------------------------------------------------------------------- JSON I/O
@@ -380,7 +381,8 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
     mt.history = d.get("history", {})
     mt.path = spath
     _validate(mt, spath, line_of=line_of)
-    check_feature_names(mt, spath, _line_of(text, "feature_names"))
+    check_feature_names(mt, spath, _line_of(text, "feature_names"),
+                        set_line=_line_of(text, "feature_set"))
     mt.fps = float(mt.fps)
     mt.final_cost = float(mt.final_cost)
     mt.delta = None if mt.delta is None else float(mt.delta)
@@ -391,7 +393,7 @@ def load_template(path: str | os.PathLike) -> MotionTemplate:
 
 
 def quantize(mt: MotionTemplate, delta: float) -> MotionTemplate:
-    """Quantized copy of ``mt`` (algorithms.md §3.3; [MR06] §5.2): entries ≤ δ become 0,
+    """Quantized copy of ``mt`` (docs/method.md §3.3; [MR06] §5.2): entries ≤ δ become 0,
     entries ≥ 1 − δ become 1, the rest the wildcard 0.5.
 
     Both comparisons are inclusive and tested in that order, so δ = 0 keeps exactly the
@@ -432,16 +434,17 @@ def rank_features(q: MotionTemplate) -> list[FeatureRank]:
     return [FeatureRank(q.feature_names[r], int(fixed[r]), int(ones[r])) for r in order]
 
 
-def mirror_names(feature_set: str) -> dict[str, str]:
+def mirror_names(feature_set: str, *, path: str | None = None) -> dict[str, str]:
     """Feature name → name of its left/right partner (itself when unpaired) for a known
-    feature set ([MR06] Table 6 / [MRC05] Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`)."""
+    feature set ([MR06] Table 6 / [MRC05] Table 1; :attr:`mtanno.features.FeatureSet.mirror_pairs`);
+    an unknown set is an error naming ``path`` (the template's file)."""
     from mtanno.features import FEATURE_SETS, get_feature_set
 
     try:
         fs = get_feature_set(feature_set)
     except MtannoError:
         raise MtannoError(f"no mirror table for feature set {feature_set!r} (known: "
-                          f"{', '.join(FEATURE_SETS)})") from None
+                          f"{', '.join(FEATURE_SETS)})", path=path) from None
     names = fs.names
     table = {n: n for n in names}
     for a, b in fs.mirror_pairs:
@@ -458,16 +461,16 @@ def mirror(mt: MotionTemplate, *, name: str | None = None) -> MotionTemplate:
     The class name is ``name`` if given; otherwise :data:`MIRROR_SUFFIX` is appended, or
     removed when already present, so mirroring twice gives back the original template.
     """
-    table = mirror_names(mt.feature_set)
+    table = mirror_names(mt.feature_set, path=mt.path)
     unknown = [n for n in mt.feature_names if n not in table]
     if unknown:
         raise MtannoError(f"features not in the {mt.feature_set} mirror table: "
-                          f"{', '.join(unknown)}")
+                          f"{', '.join(unknown)}", path=mt.path)
     index = {n: i for i, n in enumerate(mt.feature_names)}
     lonely = [n for n in mt.feature_names if table[n] not in index]
     if lonely:
         raise MtannoError("cannot mirror: the template lacks the partner of "
-                          + ", ".join(f"{n} ({table[n]})" for n in lonely))
+                          + ", ".join(f"{n} ({table[n]})" for n in lonely), path=mt.path)
     perm = [index[table[n]] for n in mt.feature_names]
     if name is None:
         cn = mt.class_name
@@ -514,7 +517,7 @@ def load_template_folder(path: str | os.PathLike, *,
     sorted by class name; with ``classes`` only those (each must have a template). All
     templates must share feature set, names and frame rate (a difference is an error
     naming the file); two files of one class are an error."""
-    from mtanno.util.store import check_layout
+    from mtanno.features.store import check_layout
 
     files = template_files(path)
     if not files or not files[0].exists():

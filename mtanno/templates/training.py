@@ -8,7 +8,7 @@ Three ways to say which frames are an example of which class (issue 3, ``learn-m
   as ``hdm05_cut/clips.csv`` whose ``file`` is ``class/HDM_..._120.amc``; the feature file
   of an entry is ``FEATURES_DIR/<file with suffix .parquet>``, the path ``mtanno features``
   writes for that motion file (:func:`sources_from_manifest`);
-* annotated documents: a truth table (``mtanno.evaluation.truth.read_truth``: doc, start, end,
+* annotated documents: a truth table (``mtanno.labels.truth.read_truth``: doc, start, end,
   label at 30 Hz, 1-based inclusive) and the documents' feature files; every labelled
   segment is cut out as one example of its label (:func:`sources_from_truth`).
 
@@ -29,13 +29,15 @@ from pathlib import Path
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.truth import read_truth
-from mtanno.util.store import FeatureLayout, feature_files, read_features, sha256_file
+from mtanno.features.inputs import feature_files
+from mtanno.features.store import FeatureLayout, read_features
+from mtanno.labels.truth import read_truth
+from mtanno.util.tables import sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
-    "few_examples_warning", "group_by_class", "ignored_documents_note", "load_examples",
-    "sources_from_manifest", "sources_from_tree", "sources_from_truth",
+    "few_examples_warning", "group_by_class", "ignored_documents_note", "input_folders",
+    "load_examples", "sources_from_manifest", "sources_from_tree", "sources_from_truth",
 ]
 
 
@@ -86,7 +88,7 @@ class TrainingExample:
     poses: np.ndarray | None = None
 
     def layout(self) -> FeatureLayout:
-        """The example's :class:`~mtanno.util.store.FeatureLayout` (named after its file)."""
+        """The example's :class:`~mtanno.features.store.FeatureLayout` (named after its file)."""
         return FeatureLayout(self.feature_set, tuple(self.feature_names), float(self.fps),
                              f"feature file {self.file}")
 
@@ -221,6 +223,20 @@ def sources_from_truth(truth: str | os.PathLike, features: Iterable[str | os.Pat
                           performer=s.doc) for s in segments if s.doc in by_doc]
 
 
+def input_folders(training: Sequence[str | os.PathLike] = (),
+                  features_dir: str | os.PathLike | None = None, *,
+                  also: Sequence[str | os.PathLike | None] = (),
+                  ) -> dict[str | os.PathLike, tuple[str, ...]]:
+    """The folders training examples are read from (``TRAINING`` folders,
+    ``features_dir``), each with the suffix read there, and the folders of ``also`` (the
+    templates' or keyframe queries' folder: no suffix, nothing in them is scanned), as
+    :func:`mtanno.util.preflight.check_outputs` takes them (``scanned``): no output folder
+    among the inputs unless the user says so."""
+    return {**{f: () for f in also if f is not None and Path(f).is_dir()},
+            **{f: (".parquet",) for f in [*training, features_dir]
+               if f is not None and Path(f).is_dir()}}
+
+
 def collect_sources(training: Sequence[str | os.PathLike] = (), *,
                     manifest: str | os.PathLike | None = None,
                     features_dir: str | os.PathLike | None = None, split: str | None = None,
@@ -331,7 +347,7 @@ def check_consistent(examples: Sequence[TrainingExample], *,
     frame rate; otherwise an error names the first file that differs."""
     if not examples:
         return
-    from mtanno.util.store import check_layout, common_layout
+    from mtanno.features.store import check_layout, common_layout
 
     ref = like.layout() if like is not None else common_layout([e.layout() for e in examples])
     for ex in examples:

@@ -2,11 +2,12 @@
 ``annotate --classes`` by cross-validation inside the training data.
 
 * :mod:`~mtanno.tuning.cv` — folds (one performer held out), held-out documents built
-  from the held-out examples only.
+  from the held-out examples only, the examples a template is learned from (at most N).
 * :mod:`~mtanno.tuning.cluster` — several templates per class: groups of similar examples.
 * :mod:`~mtanno.tuning.score` — the evaluation counts of [MBS09] §7 on frame arrays.
-* :mod:`~mtanno.tuning.search` — learning and matching per fold, the objective and the
-  coordinate search.
+* :mod:`~mtanno.tuning.folddata` — learning and matching per fold and class, the fold
+  data the search keeps (issue 34: the runs with a class left out read it, no copies).
+* :mod:`~mtanno.tuning.search` — the objective and the coordinate search.
 * :mod:`~mtanno.tuning.confidence` — the confidence of the segments (issue 26): evidence
   of the held-out segments, calibration, the minimum confidence of an output row.
 * :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run), :func:`tune_files` (the run as
@@ -22,3 +23,6 @@ __all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder
 
 from mtanno.tuning.run import TuneResult, template_folder_of, tune, tune_files, write_tuned
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params
+from mtanno.util.lazy import submodule_getattr
+
+__getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -3,13 +3,17 @@ tuned annotation outputs on the held-out documents of the cross-validation — s
 known classes, segments over a class left out of the templates (each class in turn: its
 motions are unknown there), segments on the background documents — with whether its label
 is right (a truth segment of its label overlaps it with IoU ≥ :data:`RIGHT_IOU`), a
-calibrator fitted on them (:func:`mtanno.annotate.calibration.fit_calibrated`, grouped by
+calibrator fitted on them (:func:`mtanno.confidence.calibration.fit_calibrated`, grouped by
 held-out document), and the minimum confidence of an output row chosen on the calibrator's
 out-of-fold probabilities by the tuning objective J = (F1 + F2)/2 − w·U, every label on a
 background document a false positive, the background weighted as half of the archive
 (:data:`BACKGROUND_SHARE`).
 
-The verification bank of a fold (:mod:`mtanno.annotate.verify`) holds the fold's training
+The evidence and its inputs are built as ``mtanno annotate`` builds them
+(:func:`mtanno.confidence.evidence.label_facts`, :func:`~mtanno.confidence.evidence.
+document_evidence`), so that the calibrator is applied to what it was fitted on.
+
+The verification bank of a fold (:mod:`mtanno.confidence.verify`) holds the fold's training
 examples and the background documents that are not held out in it, so that no segment is
 verified against its own motion.
 """
@@ -22,9 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mtanno.annotate.confidence import BANK_EVIDENCE, EVIDENCE, segment_evidence
-from mtanno.annotate.tables import Annotation
+from mtanno.confidence.evidence import BANK_EVIDENCE, EVIDENCE, document_evidence, label_facts
 from mtanno.evaluation.calibration import segment_right
+from mtanno.labels.segments import Annotation
 from mtanno.tuning.score import Counts, _count, _covered_fraction
 
 __all__ = ["BACKGROUND_SHARE", "MIN_CONFIDENCE_GRID", "ConfidenceFit", "bank_of",
@@ -76,21 +80,21 @@ def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=N
     verification sequence of every background document (indexed as
     :attr:`mtanno.tuning.cv.Fold.background`); ``representation``: what the bank holds
     (None: no bank, evidence ``cost`` and ``length`` only)."""
-    from mtanno.annotate.calibration import fit_calibrated
+    from mtanno.confidence.calibration import fit_calibrated
 
     names = tuple(n for n in EVIDENCE if (representation is not None or n not in BANK_EVIDENCE)
                   and (n != "background" or background_seqs))
     if not params.resolve:
         names = tuple(n for n in names if n != "cost")
-    lengths = {c: float(mt.values.shape[1]) for c, mt in templates.items()}
     taus = dict(params.tau)
+    facts = label_facts({c: mt.values.shape[1] for c, mt in templates.items()},
+                        tau_for=lambda c: taus.get(c, math.nan))
     rows_E, right, kinds, groups, runs, owners = [], [], [], [], [], []
     for j, (f, fd) in enumerate(zip(folds, tuner.folds)):
         bank = _fold_bank(f, background_seqs, representation) if representation else None
         for run in _runs(tuner, fd, params, j):
             runs.append(run)
-            E, ok, kind, doc = _run_evidence(run, f, fd, tuner, bank, names, taus, lengths,
-                                             representation)
+            E, ok, kind, doc = _run_evidence(run, f, fd, tuner, bank, names, facts)
             rows_E.append(E)
             right.extend(ok)
             kinds.extend(kind)
@@ -116,7 +120,7 @@ def learn_confidence(tuner, params, folds, *, templates: dict, background_seqs=N
 def bank_of(examples, background_seqs, representation: str):
     """The verification bank of training ``examples`` (their performer, else their
     document, as the performer) and the background sequences ``background_seqs``."""
-    from mtanno.annotate.verify import build_bank, sequence
+    from mtanno.confidence.verify import build_bank, sequence
 
     items = [(e.class_name, str(e.performer if e.performer is not None else e.document),
               sequence(X=e.X, poses=e.poses, representation=representation))
@@ -135,16 +139,16 @@ def _fold_bank(fold, background_seqs, representation):
 def _runs(tuner, fd, params, j: int):
     """The fold's output segments with all its classes, and per class left out those over
     the documents holding it."""
-    arrays = tuner._arrays(fd, params) if params.resolve else None
-    segs = tuner._segments(fd, params, fd.classes, arrays)
+    arrays = tuner.decoder_arrays(fd, params) if params.resolve else None
+    segs = tuner.fold_segments(fd, params, fd.classes, arrays)
     yield _Run(j, segs, _costs(tuner, fd, segs, arrays), None, scored=[True] * len(segs))
     for c, sub in fd.hidden.items():
         rest = [x for x in fd.classes if x != c]
         if not rest:
             continue
-        sub_arrays = arrays if sub is fd else (tuner._arrays(sub, params) if params.resolve
+        sub_arrays = arrays if sub is fd else (tuner.decoder_arrays(sub, params) if params.resolve
                                                else None)
-        s2 = tuner._segments(sub, params, rest, sub_arrays)
+        s2 = tuner.fold_segments(sub, params, rest, sub_arrays)
         frame_of = None if sub is fd else _frames_of(fd, sub, c)
         yield _Run(j, s2, _costs(tuner, sub, s2, sub_arrays), frame_of, c,
                    [_over(sub.truth_by_class[c], a, b) for _, a, b in s2])
@@ -165,10 +169,9 @@ def _costs(tuner, fd, segs, arrays) -> list[float]:
     return [float(mat[rows[p], b]) for p, _, b in segs]
 
 
-def _run_evidence(run: _Run, fold, fd, tuner, bank, names, taus, lengths, representation):
-    """Evidence rows, rightness, kind and document of every segment of a run."""
-    from mtanno.annotate.verify import sequence
-
+def _run_evidence(run: _Run, fold, fd, tuner, bank, names, facts):
+    """Evidence rows, rightness, kind and document of every segment of a run (frames of
+    the fold's held-out documents, which the rows index as annotate's index a document)."""
     sub = fd if run.hidden is None else fd.hidden[run.hidden]
     truth = sub.truth if run.hidden is None else []  # over a left-out class: all wrong
     ho = fold.held_out
@@ -180,19 +183,12 @@ def _run_evidence(run: _Run, fold, fd, tuner, bank, names, taus, lengths, repres
         A, B = (a, b) if run.frame_of is None else (int(run.frame_of[a]), int(run.frame_of[b]))
         d = int(np.searchsorted(ho.offsets, A, side="right")) - 1
         label = tuner.names[p]
-        rows.append(Annotation(str(d), A, B, label, cost * taus.get(label, 1.0)))
+        rows.append(Annotation(str(d), A, B, label, cost * facts.taus.get(label, 1.0)))
         is_bg = d >= n_known
         ok.append((not is_bg) and run.hidden is None and segment_right((p, a, b), truth))
         kind.append("background" if is_bg else "unknown" if run.hidden else "known")
         doc.append(d)
-
-    def query(r: Annotation) -> np.ndarray:
-        return sequence(X=ho.X[:, r.start:r.end + 1] if representation == "features" else None,
-                        poses=ho.poses[r.start:r.end + 1] if representation == "poses"
-                        else None, representation=representation)
-
-    E = segment_evidence(rows, taus=taus, lengths=lengths, bank=bank,
-                         query=query if bank is not None else None, names=names)
+    E = document_evidence(rows, facts, X=ho.X, poses=ho.poses, bank=bank, names=names)
     return E, ok, kind, doc
 
 

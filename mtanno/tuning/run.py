@@ -19,12 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from mtanno._version import __version__
-from mtanno.annotate import DEFAULT_TAU, ClassConfig, class_config_text
+from mtanno.annotate import ClassConfig, class_config_text
 from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
+from mtanno.templates.params import ANNOTATION_TAU
 from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
 from mtanno.tuning.cv import DOCUMENT_MODES, MAX_EXAMPLES, learning_subset, make_folds
+from mtanno.tuning.folddata import learn_fold_class, match_fold_class
 from mtanno.tuning.search import (
     GROUPS,
     METHODS,
@@ -33,8 +35,6 @@ from mtanno.tuning.search import (
     Params,
     Tuner,
     check_methods,
-    learn_fold_class,
-    match_fold_class,
 )
 
 __all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "template_folder_of", "tune",
@@ -184,20 +184,12 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
-    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn,
-                        max_examples=max_examples, seed=seed)
-    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
-                                                          scheduler=scheduler, shared=shared)))
-    columns = {c: matched_columns(templates[c].weights) for c in classes}
-    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
-                    for c in classes for f in TEMPO_SCALES})
-    fetch = _fetch_matches(tasks, prepared, n_jobs=n_jobs, scheduler=scheduler, shared=shared)
-    tuner = Tuner(folds, prepared, classes=classes, methods=methods,
-                  unknown_weight=unknown_weight, log=log, columns=columns, fetch=fetch,
-                  jobs=n_jobs if scheduler is None else 1)
+    tuner = _tuner(folds, examples, templates, queries, layout, methods, learn, shared,
+                   n_jobs=n_jobs, scheduler=scheduler, max_examples=max_examples, seed=seed,
+                   unknown_weight=unknown_weight, log=log)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
-    reference = tuner.evaluate(tuner._with_tau(Params(delta=delta0), DEFAULT_TAU), per_class=True)
+    reference = tuner.evaluate(tuner.with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
     variants = {}
     if ablation:
         for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
@@ -233,31 +225,36 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
                features_dir: str | os.PathLike | None = None, split: str | None = None,
                truth: str | os.PathLike | None = None,
                keyframes_dir: str | os.PathLike | None = None,
-               ablation_dir: str | os.PathLike | None = None,
+               ablation_dir: str | os.PathLike | None = None, inside_input: bool = False,
                log: Callable[[str], None] | None = None, command: Sequence[str] = (),
                failures: list[MtannoError] | None = None, **options) -> TuneResult:
     """The whole ``mtanno tune`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them, every output checked
-    against the inputs before any work (:func:`mtanno.util.output.check_outputs`),
+    against the inputs before any work (:func:`mtanno.util.preflight.check_outputs`),
     :func:`tune` (``options`` are its keyword options), and the configuration written to
     ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
-    ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there. ``log`` receives
+    ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
+    or lies inside, a folder of the inputs only with ``inside_input``). ``log`` receives
     the notes on the inputs and the search log, a line each; ``failures`` receives the
     training folders that give no example (the others are used; without it such a folder is
     an error)."""
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.model import template_files
-    from mtanno.templates.training import collect_sources
-    from mtanno.util.output import check_outputs, make_folder
+    from mtanno.templates.training import collect_sources, input_folders
+    from mtanno.util.output import make_folder
+    from mtanno.util.preflight import check_outputs
 
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth, note=log, failures=failures)
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
     planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
+    scanned = input_folders(training, features_dir, also=[mt_dir, keyframes_dir])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
                             *(s.path for s in sources), *options.get("background", ()),
-                            *(keyframe_files(keyframes_dir) if keyframes_dir else [])])
+                            *(keyframe_files(keyframes_dir) if keyframes_dir else [])],
+                  folders={ablation_dir: []} if ablation_dir else None, scanned=scanned,
+                  inside_input=inside_input)
     if log:
         files = {s.path for s in sources}
         log(f"training inputs: {len(sources)} examples in {len(files)} feature files"
@@ -294,7 +291,7 @@ def _check_options(methods, documents, unknown_weight, verify) -> list[str]:
 def _read_document(path):
     """The features and poses (None without) of a whole training document (examples cut
     from annotated ones)."""
-    from mtanno.util.store import read_features
+    from mtanno.features.store import read_features
 
     ff = read_features(path, poses=True)
     return ff.X, ff.poses
@@ -319,7 +316,8 @@ def _background_inputs(background, layout, examples, *, poses: bool):
     file."""
     if not background:
         return [], []
-    from mtanno.util.store import check_layout, feature_files, read_features
+    from mtanno.features.inputs import feature_files
+    from mtanno.features.store import check_layout, read_features
 
     training = {e.sha256: e.file for e in examples}
     docs, records = [], []
@@ -340,7 +338,7 @@ def _background_inputs(background, layout, examples, *, poses: bool):
 def _learn_confidence(tuner, params, folds, templates, examples, bg_docs, representation,
                       unknown_weight, seed, log):
     """The confidence fitted on the folds and the verification bank of everything."""
-    from mtanno.annotate.verify import sequence
+    from mtanno.confidence.verify import sequence
     from mtanno.tuning.confidence import bank_of, learn_confidence
 
     seqs = None
@@ -360,9 +358,9 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     """The templates of ``mt_dir``, their feature layout, the training examples (each of
     that layout; every class must have some) and the keyframe queries of
     ``keyframes_dir`` (empty without)."""
+    from mtanno.features.store import check_layout
     from mtanno.templates.model import load_template_folder
     from mtanno.templates.training import group_by_class, load_examples
-    from mtanno.util.store import check_layout
 
     templates = load_template_folder(mt_dir)
     classes = list(templates)
@@ -383,6 +381,26 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
         queries, _, _, _ = load_class_keyframes(keyframes_dir, classes,
                                                 feature_set=layout.feature_set, fps=layout.fps)
     return templates, layout, examples, queries
+
+
+def _tuner(folds, examples, templates, queries, layout, methods, learn, shared, *, n_jobs,
+           scheduler, max_examples, seed, unknown_weight, log) -> Tuner:
+    """The :class:`mtanno.tuning.search.Tuner` of the folds: per fold and class its
+    templates learned and template (1, 0) matched at every δ in the workers
+    (:func:`_fold_tasks`), the others matched when the search asks
+    (:func:`_fetch_matches`)."""
+    classes = list(templates)
+    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn,
+                        max_examples=max_examples, seed=seed)
+    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
+                                                          scheduler=scheduler, shared=shared)))
+    columns = {c: matched_columns(templates[c].weights) for c in classes}
+    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
+                    for c in classes for f in TEMPO_SCALES})
+    fetch = _fetch_matches(tasks, prepared, n_jobs=n_jobs, scheduler=scheduler, shared=shared)
+    return Tuner(folds, prepared, classes=classes, methods=methods,
+                 unknown_weight=unknown_weight, log=log, columns=columns, fetch=fetch,
+                 jobs=n_jobs if scheduler is None else 1)
 
 
 def _fold_tasks(folds, examples, templates, queries, layout, methods, learn, *,
@@ -461,7 +479,7 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
     each with SHA-256) for the provenance, and the SHA-256 of each class's template (the
     configuration's ``[tuned_with]``)."""
     from mtanno.templates.model import template_files
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     shas = {i["path"]: i["sha256"] for i in inputs}
@@ -480,10 +498,10 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
 
 
 def _deltas(methods: Sequence[str], templates) -> list[float]:
-    from mtanno.annotate import DEFAULT_DELTA
+    from mtanno.templates.params import ANNOTATION_DELTA
     from mtanno.tuning.search import DELTA_GRID
 
-    return [float(d) for d in DELTA_GRID] if "delta" in methods else [DEFAULT_DELTA]
+    return [float(d) for d in DELTA_GRID] if "delta" in methods else [ANNOTATION_DELTA]
 
 
 def _run_tasks(tasks: list, n_jobs: int, fn, *, scheduler: str | None = None,
@@ -567,22 +585,22 @@ def bank_path_of(config_path: str | os.PathLike) -> Path:
 def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> list[str]:
     """``[confidence]`` and ``[background]`` of the configuration (the bank written beside
     it) and header lines on how well the confidence did out of fold."""
-    from mtanno.annotate.verify import write_bank
+    from mtanno.confidence.model import ConfidenceModel
+    from mtanno.confidence.verify import write_bank
     from mtanno.evaluation.calibration import auroc, expected_calibration_error
-    from mtanno.util.store import sha256_file
+    from mtanno.util.tables import sha256_file
 
     fit = result.confidence
     cfg.background = {r["path"]: r["sha256"] for r in result.background}
     if fit is None:
         return []
-    conf: dict = {"evidence": list(fit.evidence), "min_confidence": fit.min_confidence}
+    bank_file = sha = None
     if result.bank is not None:
         bpath = bank_path_of(path)
         write_bank(bpath, result.bank)
-        conf["bank"] = bpath.name
-        conf["bank_sha256"] = sha256_file(bpath)
-    conf["calibrator"] = fit.calibrator.to_dict()
-    cfg.confidence = conf
+        bank_file, sha = bpath.name, sha256_file(bpath)
+    cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
+                                     bank_file, sha, str(path.parent))
     kinds = np.array(fit.kinds)
     lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
              f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "
@@ -636,7 +654,7 @@ def write_tuned(path: str | os.PathLike, result: TuneResult, *,
         "folds (held-out performer: examples): "
         + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
         f"cross-validated, tuned:    {_fmt(ev)}",
-        f"cross-validated, reference (tau {DEFAULT_TAU}, no methods): {_fmt(result.reference)}",
+        f"cross-validated, reference (tau {ANNOTATION_TAU}, no methods): {_fmt(result.reference)}",
         "search:",
         *(f"  {s}" for s in result.steps),
         *_confidence_section(cfg, result, path),

@@ -1,5 +1,5 @@
 """Fast scores of annotations on the held-out documents of cross-validation: the counts of
-[MBS09] §7 (algorithms.md §8) that ``mtanno evaluate`` reports, computed on frame arrays.
+[MBS09] §7 (docs/method.md §8) that ``mtanno evaluate`` reports, computed on frame arrays.
 
 Segments are (label index, first, last) with 0-based inclusive frames of one array of
 ``n_frames`` frames (the held-out documents concatenated); labels are indices into one list

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
+import hashlib
 import io
 import json
 import math
@@ -37,7 +38,7 @@ from typing import Any
 
 import pyarrow as pa
 
-from mtanno.errors import JSONError, MtannoError, parse_json, read_input, read_json
+from mtanno.errors import JSONError, MtannoError, open_regular, parse_json, read_input, read_json
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
 __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
@@ -54,6 +55,16 @@ PROVENANCE_SCHEMA = "mtanno.provenance/1"
 _META_KEY = b"mtanno"
 
 _COMMAND_LINE: list[str] | None = None
+
+
+def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open_regular(path) as fh:  # a regular file: a FIFO would block (OSError else)
+        while block := fh.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
 
 
 def set_command_line(argv: Sequence[str]) -> None:
@@ -93,7 +104,7 @@ def sidecar_path(path: str | os.PathLike) -> Path | None:
 
 def output_files(path: str | os.PathLike | None) -> list[str]:
     """Every file that writing the table ``path`` creates (the table and its sidecar), for
-    :func:`mtanno.util.output.check_outputs`."""
+    :func:`mtanno.util.preflight.check_outputs`."""
     if path is None or str(path) == "-":
         return []
     side = sidecar_path(path)
@@ -103,7 +114,7 @@ def output_files(path: str | os.PathLike | None) -> list[str]:
 def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
     """``{"path": ..., "sha256": ...}`` of an input file (hashed unless given)."""
     if sha256 is None:
-        from mtanno.util.store import sha256_file
+        from mtanno.util.tables import sha256_file
 
         try:
             sha256 = sha256_file(path)
@@ -438,7 +449,8 @@ def table_provenance(path: str | os.PathLike) -> dict | None:
     import pyarrow.parquet as pq
 
     try:
-        with open(path, "rb") as fh:  # a file object: pyarrow cannot open non-UTF-8 names
+        # a file object: pyarrow cannot open non-UTF-8 names (and a FIFO would block)
+        with open_regular(path) as fh:
             raw = (pq.read_schema(fh).metadata or {}).get(_META_KEY)
         prov = parse_json(raw) if raw else None
     except (OSError, ValueError, TypeError, pa.ArrowException, JSONError):

@@ -11,6 +11,13 @@
   ignored on calling ctypes callback") and dropped by ctypes. :func:`interruptible` and the
   workers catch that :class:`Interrupted` in ``sys.unraisablehook`` and send the signal
   again, so it is raised at the next point outside the callback.
+* **An interruption wrapped in another exception is still one.** Python 3.11 wraps an
+  exception raised in a descriptor's ``__set_name__`` while a class is created in
+  ``RuntimeError("Error calling __set_name__ …")`` (an :class:`enum.Enum` creates its
+  members that way): a signal that lands while a module defining such a class is imported
+  late (numba's typing modules, the pool's) came out as that RuntimeError, a traceback and
+  exit code 1. :func:`interruption_in` finds the interruption in an exception's chain;
+  :func:`interruptible`, the workers and the per-file error reports raise it as itself.
 * **Workers never outlive the parent.** A :class:`WorkerPool` worker asks the Linux kernel
   for SIGTERM when its parent dies (``prctl(PR_SET_PDEATHSIG)`` through :mod:`ctypes`) and,
   as a fallback on every system, watches the parent's pid from a thread: when the parent
@@ -40,8 +47,8 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-__all__ = ["DaskPool", "Interrupted", "SerialPool", "WorkerPool", "interruptible", "make_pool",
-           "must_hard_exit", "scheduler_address", "shared"]
+__all__ = ["DaskPool", "Interrupted", "SerialPool", "WorkerPool", "interruptible",
+           "interruption_in", "make_pool", "must_hard_exit", "scheduler_address", "shared"]
 
 #: How often a worker checks that its parent is alive (seconds).
 WATCHDOG_INTERVAL = 0.2
@@ -78,6 +85,22 @@ class Interrupted(KeyboardInterrupt):
     @property
     def exit_code(self) -> int:
         return exit_code(self.signum)
+
+
+def interruption_in(exc: BaseException) -> KeyboardInterrupt | None:
+    """The interruption (:class:`Interrupted`, or Ctrl-C's :class:`KeyboardInterrupt`) that
+    ``exc`` is or wraps, following its ``__cause__`` and ``__context__`` chain; None when
+    there is none. Python wraps an exception raised inside some of its hooks (3.11: a
+    descriptor's ``__set_name__`` while a class is created, ``RuntimeError("Error calling
+    __set_name__ …")``), so a signal handled there arrives as another exception."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
 
 
 #: The process that installed :func:`_raise_interrupted` (a forked worker inherits it).
@@ -157,6 +180,12 @@ def interruptible() -> Iterator[None]:
     except Interrupted:
         _cancel_redeliveries()  # handled: a late copy must not meet the default handler
         raise
+    except Exception as exc:  # an interruption Python wrapped (module docstring)
+        found = interruption_in(exc)
+        if found is None:
+            raise
+        _cancel_redeliveries()
+        raise found from None
     finally:
         sys.unraisablehook = old_hook
         for s, handler in old.items():
@@ -230,6 +259,10 @@ def _run_task(fn: Callable[..., Any], args: tuple) -> Any:
         return fn(*args)
     except KeyboardInterrupt:
         os._exit(128 + signal.SIGTERM)
+    except Exception as exc:  # an interruption Python wrapped (module docstring)
+        if interruption_in(exc) is not None:
+            os._exit(128 + signal.SIGTERM)
+        raise
     finally:
         _IN_TASK = False
 

@@ -16,7 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 
 # --------------------------------------------------------------------- feature files
 
@@ -353,4 +353,9 @@ INDEXES = {
     "file missing": _index_maker(lambda r: _gen_file(r).unlink()),
     "file changed": _index_maker(lambda r: _flip(_gen_file(r))),
     "manifest missing": _index_maker(lambda r: (r / "manifest.json").unlink()),
+    # issue 31: `index remove` took a copy whose manifest lists another feature set
+    "another feature set": _index_maker(_manifest_edit(
+        lambda m: m.__setitem__("feature_set", "mrc05"))),
+    "feature set misnamed": _index_maker(_manifest_edit(
+        lambda m: m.__setitem__("feature_set", "bogus"))),
 }

@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from held import held_pids, start_held
 from world import checksums, children, cli, temporaries, wait_for
 
 from mtanno import synthetic
@@ -156,6 +157,74 @@ def test_a_signal_before_the_command_or_after_it_is_one_line(world, tmp_path, mo
     assert (rc, err.splitlines()) == (code, [LINE.format(name)]), err
 
 
+# --------------------------------------------------------------------- an index killed
+
+#: The points of an index write where a kill is tried (mtanno.index.storage).
+INDEX_WRITES = ["index-temporary", "index-table", "index-generation", "index-manifest",
+                "index-switched"]
+
+
+def _killed_at(moment: str, args, tmp_path) -> None:
+    """Run mtanno ARGS held at ``moment`` (the test hook) and kill it there (SIGKILL: no
+    cleanup of any kind, as a power cut)."""
+    mark = tmp_path / f"mark-{moment}"
+    env = {**os.environ, "MTANNO_TEST_PAUSE": f"{moment}:{mark}"}
+    proc = subprocess.Popen([*PROGRAM, *map(str, args)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    wait_for(mark.exists, proc, moment)
+    rc, _ = _signalled(proc, signal.SIGKILL)
+    assert rc == -signal.SIGKILL
+
+
+def _one_clean_generation(idx: Path) -> None:
+    """The index reads, and holds its manifest and one generation: no temporary, no
+    older generation, no lock left."""
+    r = cli("index", "info", idx)
+    assert r.exit_code == 0, r.output
+    names = sorted(p.name for p in idx.iterdir())
+    assert len(names) == 2 and names[1] == "manifest.json" and names[0].startswith("gen-"), \
+        names
+
+
+@pytest.mark.parametrize("moment", INDEX_WRITES)
+def test_an_index_killed_in_its_first_build_is_built_by_the_next_run(world, tmp_path, moment):
+    """Issue 31: a build killed while writing its first generation left a folder the rerun
+    refused ("directory is not empty and holds no index"), with the lock and `.tmp-gen-*`
+    left behind. Killed at each write point, the folder is either an index or reported as
+    a partial one (one line), and the rerun builds it and removes every leftover."""
+    idx = tmp_path / "idx"
+    args = ["index", world.docfeats, "-o", idx, "-q"]
+    _killed_at(moment, args, tmp_path)
+    r = cli("index", "info", idx)
+    if moment == "index-switched":
+        assert r.exit_code == 0, r.output
+    else:
+        assert r.exit_code == 2 and "partially written index" in r.output, r.output
+    r = cli(*args)  # the next run (in this process: only the killed one must be a process)
+    assert r.exit_code == 0, r.output
+    _one_clean_generation(idx)
+
+
+@pytest.mark.parametrize("moment", INDEX_WRITES)
+def test_an_index_update_killed_at_any_write_leaves_a_readable_index(world, tmp_path,
+                                                                      moment):
+    """An update killed at each write point leaves the index as it was or as it was to
+    become (SQLite's standard), never a broken one, and the next update cleans up."""
+    idx, part = tmp_path / "idx", tmp_path / "part"
+    part.mkdir()
+    world.copy(world.doc_files[0], part / world.doc_files[0].name)
+    assert cli("index", part, "-o", idx, "-q").exit_code == 0
+    args = ["index", "add", idx, world.docfeats, "-q"]
+    _killed_at(moment, args, tmp_path)
+    r = cli("index", "info", idx)
+    assert r.exit_code == 0, r.output
+    r = cli(*args)
+    assert r.exit_code == 0, r.output
+    _one_clean_generation(idx)
+    info = cli("index", "info", idx).output.splitlines()
+    assert f"documents      {len(world.doc_files)}" in info, info
+
+
 def _loaded(pid: int, library: str) -> bool:
     try:
         return library in Path(f"/proc/{pid}/maps").read_text()
@@ -164,15 +233,19 @@ def _loaded(pid: int, library: str) -> bool:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_sigint_while_python_imports_numpy_is_one_line(world):
-    """No hook: the installed console script, SIGINT the moment numpy's library is mapped
-    (the imports go on for most of a second after it). It printed a KeyboardInterrupt
-    traceback and exited −2."""
+def test_sigint_while_python_imports_numpy_is_one_line(world, tmp_path):
+    """The installed console script, SIGINT the moment numpy's library is mapped (the
+    imports go on for most of a second after it). It printed a KeyboardInterrupt traceback
+    and exited −2. The run is held at its shutdown (``MTANNO_TEST_PAUSE``), so it cannot
+    end before the signal: on a loaded machine the signal may arrive after the imports, and
+    the answer must be the same line."""
     script = Path(sys.executable).with_name("mtanno")
     if not script.exists():
         pytest.skip("no installed mtanno console script beside the interpreter")
+    env = {**os.environ, "MTANNO_TEST_PAUSE": f"shutdown:{tmp_path / 'mark'}"}
     proc = subprocess.Popen([sys.executable, str(script), "index", "info", str(world.index)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
     wait_for(lambda: _loaded(proc.pid, "_multiarray_umath"), proc, "numpy's import")
     rc, err = _signalled(proc, signal.SIGINT)
     assert (rc, err.splitlines()) == (130, [LINE.format("SIGINT")]), err
@@ -245,6 +318,98 @@ def test_a_worker_forked_before_its_initializer_ignores_sigint_and_hangs_up_quie
     assert (r.returncode, r.stdout.split(), r.stderr) == (0, ["0", "0", "143"], ""), r.stderr
 
 
+#: The program, with a module imported late by the command (annotate --output-dir imports
+#: mtanno.annotate.folder once it runs) that first creates a class whose descriptor's
+#: ``__set_name__`` is held by the MTANNO_TEST_PAUSE hook (moment ``late-import``) until
+#: the signal: where a signal landed while Python 3.11 created an Enum of numba's
+#: late-imported typing modules.
+LATE_IMPORT = """if True:
+    import importlib.abc, sys
+    from mtanno.util.pause import pause_at
+
+    class Held:
+        def __set_name__(self, owner, name):
+            pause_at("late-import")
+
+    class Late(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path, target=None):
+            if name == "mtanno.annotate.folder":
+                sys.meta_path.remove(self)
+                type("Module", (), {"member": Held()})  # type creation: __set_name__
+            return None
+
+    sys.meta_path.insert(0, Late())
+    from mtanno.__main__ import main
+    sys.argv[0] = "mtanno"
+    main()
+"""
+
+
+@pytest.mark.parametrize("name,code", SIGS, ids=[s for s, _ in SIGS])
+def test_a_signal_during_a_late_import_is_one_line(world, tmp_path, name, code):
+    """Issue 31: SIGTERM while the command imported a module late (annotate --output-dir
+    --jobs 2, 1 run in 32) was a traceback, "RuntimeError: Error calling `__set_name__`",
+    and exit 1: Python 3.11 wraps an exception raised in ``__set_name__`` (the handler's
+    interruption) in a RuntimeError. Held inside ``__set_name__`` of that import: one line,
+    130 (129 for SIGHUP), no output and no temporary left."""
+    mark, out = tmp_path / "mark", tmp_path / "od"
+    env = {**os.environ, "MTANNO_TEST_PAUSE": f"late-import:{mark}"}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", LATE_IMPORT, "annotate", "--mt", str(world.mt),
+         str(world.docfeats), "--output-dir", str(out), "--jobs", "2", "-q"], env=env,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for(mark.exists, proc, "the late import")
+    rc, err = _signalled(proc, getattr(signal, name))
+    assert (rc, err.splitlines()) == (code, [LINE.format(name)]), err
+    assert temporaries(tmp_path) == [] and not list(out.glob("*.csv"))
+
+
+def test_a_worker_stopped_during_a_late_import_exits_silently():
+    """The same in a worker: the wrapped interruption ends the task silently (143), as an
+    unwrapped one does; it was the task's RuntimeError, sent to the parent."""
+    code = """if True:
+        import os, signal, mtanno.util.workers as w
+
+        class Held:
+            def __set_name__(self, owner, name):
+                os.kill(os.getpid(), signal.SIGTERM)
+                for _ in range(1000):  # the handler runs here, inside __set_name__
+                    pass
+
+        def task():
+            try:
+                type("Module", (), {"member": Held()})
+                print("not interrupted", flush=True)
+            finally:
+                print("unwound", flush=True)
+
+        w._init_worker(os.getppid())
+        w._run_task(task, ())
+    """
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=HANG)
+    assert (r.returncode, r.stdout.split(), r.stderr) == (143, ["unwound"], ""), r.stderr
+
+
+def test_a_wrapped_interruption_is_not_a_failed_file(tmp_path, monkeypatch):
+    """A batch's per-file report of unexpected errors ("internal error", the batch goes on)
+    raises an interruption Python wrapped instead of reporting it as the file's failure."""
+    from mtanno.features import extract
+    from mtanno.util.workers import Interrupted, interruption_in
+
+    def wrapped(*args, **kwargs):
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted as exc:
+            raise RuntimeError("Error calling __set_name__") from exc
+
+    monkeypatch.setattr(extract, "extract_file", wrapped)
+    with pytest.raises(Interrupted):
+        extract._extract_one(tmp_path / "a.amc", tmp_path / "a.parquet", None, None, "ak40",
+                             "y")
+    assert interruption_in(ValueError("x")) is None
+
+
 def test_sighup_stops_a_command_like_sigint_with_exit_129(world, tmp_path):
     """SIGHUP (the terminal closed) was not handled: no cleanup, exit −1. Now: workers
     stopped, no temporary left, one line, exit 129."""
@@ -255,8 +420,9 @@ def test_sighup_stops_a_command_like_sigint_with_exit_129(world, tmp_path):
     (d / "base.amc").write_text(synthetic.amc_text(3000, 1))
     for i in range(60):
         os.symlink("base.amc", d / f"m{i:03d}.amc")
-    proc = subprocess.Popen([*PROGRAM, "features", str(d), "-o", str(out), "--jobs", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    gate = tmp_path / "gate"  # each worker held after one file: the run cannot finish first
+    proc = start_held(["features", d, "-o", out, "--jobs", "2"], gate=gate, after=1,
+                      hold="mtanno.features.extract:_extract_one", start_new_session=False)
     wait_for(lambda: len(list(out.glob("*.parquet"))) >= 2, proc, "the first outputs")
     rc, err = _signalled(proc, signal.SIGHUP)
     assert rc == 129 and err.splitlines()[-1] == LINE.format("SIGHUP"), err
@@ -267,12 +433,12 @@ def test_an_interrupted_tune_prints_one_line(world, tmp_path):
     """Ctrl-C (SIGINT to the process group) while tune --jobs 2 forks its pools: exactly
     one line after the command's (none from workers), exit 130, nothing written."""
     out = tmp_path / "t.toml"
-    proc = subprocess.Popen([*PROGRAM, "tune", "--mt", str(world.mt), "--manifest",
-                             str(world.manifest), "--features-dir", str(world.feats),
-                             "--split", "train", "-o", str(out), "--jobs", "2", "-q"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    wait_for(lambda: children(proc.pid), proc, "its workers started")
+    gate = tmp_path.parent / f"{tmp_path.name}.gate"  # outside the folder checked below
+    proc = start_held(["tune", "--mt", world.mt, "--manifest", world.manifest,
+                       "--features-dir", world.feats, "--split", "train", "-o", out,
+                       "--jobs", "2", "-q"], gate=gate, after=0,
+                      hold="mtanno.tuning.run:_call")  # every task held: tune cannot end
+    wait_for(lambda: children(proc.pid) and held_pids(gate), proc, "its workers started")
     os.killpg(proc.pid, signal.SIGINT)
     try:
         _, err = proc.communicate(timeout=HANG)

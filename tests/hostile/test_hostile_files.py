@@ -19,10 +19,10 @@ import pytest
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno.errors import MtannoError
+from mtanno.features.store import read_features
 from mtanno.index import open_index
 from mtanno.keyframes import Gap, Keyframe, KeyframeQuery, load_keyframes, save_keyframes
 from mtanno.keyframes.model import feature_groups_of
-from mtanno.util.store import read_features
 from mtanno.util.tables import read_table
 
 #: JSON text nested far deeper than any parser's recursion allows.
@@ -370,6 +370,50 @@ def test_template_features_outside_their_feature_set(world, tmp_path, command):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("command", ["mt quantize", "mt mirror", "mt show", "mt scale",
+                                     "retrieve", "annotate"])
+def test_a_template_whose_feature_set_is_misnamed(world, tmp_path, command):
+    """Issue 31: `feature_set = "bogus"` over the 40 annotation features was written by
+    `mt quantize` (and refused by `mt mirror` without naming the file): no feature file
+    would ever match it. A set that is none of mtanno's, over features all of one of
+    mtanno's sets, is refused by the template reader for every command, at its line."""
+    d = json.loads(world.template.read_text())
+    d["feature_set"] = "bogus"
+    mts = world.copy(world.mt, tmp_path / "mts")
+    bad = mts / "squat.json"
+    bad.write_text(json.dumps(d, indent=1))
+    out = tmp_path / "out"
+    before = checksums(mts, world.root)
+    args = {"mt quantize": ["mt", "quantize", bad, "--delta", "0.1", "-o", out / "q.json"],
+            "mt mirror": ["mt", "mirror", bad, "-o", out / "m.json"],
+            "mt show": ["mt", "show", bad],
+            "mt scale": ["mt", "scale", bad, "--factor", "0.6", "-o", out / "s.json"],
+            "retrieve": ["retrieve", "--mt", bad, world.doc_files[0], "-o", out / "h.csv"],
+            "annotate": ["annotate", "--mt", mts, world.doc_files[0], "-o", out / "a.csv"],
+            }[command]
+    line = _checked(cli(*args), bad, before, [mts, world.root])
+    set_line = next(k for k, x in enumerate(bad.read_text().splitlines(), 1)
+                    if '"feature_set"' in x)
+    assert line.startswith(f"mtanno: {bad}:{set_line}: feature set 'bogus' is none of "), line
+    assert not out.exists()
+
+
+def test_mirroring_a_template_of_a_set_of_ones_own_names_the_file(world, tmp_path):
+    """A template of a feature set of the user's own (its features none of mtanno's) is
+    read and quantized; `mt mirror` has no mirror table for it and says so naming the
+    file (it named none)."""
+    d = json.loads(world.template.read_text())
+    d["feature_set"] = "lab-set"
+    d["feature_names"] = [f"f{i}" for i in range(len(d["feature_names"]))]
+    bad = tmp_path / "lab.json"
+    bad.write_text(json.dumps(d, indent=1))
+    assert cli("mt", "quantize", bad, "--delta", "0.1", "-o", tmp_path / "q.json").exit_code == 0
+    line = _checked(cli("mt", "mirror", bad, "-o", tmp_path / "m.json"), bad, checksums(bad),
+                    [bad])
+    assert line.startswith(f"mtanno: {bad}: no mirror table for feature set 'lab-set'"), line
+    assert not (tmp_path / "m.json").exists()
+
+
 # --------------------------------------------------------------------- 6. index --groups
 
 
@@ -482,3 +526,152 @@ def test_a_deeply_nested_class_configuration_is_one_line(world, tmp_path):
             tmp_path / "a.csv")
     assert "nested too deeply" in _checked(r, bad, checksums(bad, world.root), [bad, world.root])
     assert not (tmp_path / "a.csv").exists()
+
+
+# --------------------------------------------------------------------- 6. maps, banks, FIFOs
+
+
+#: TOML nested far deeper than tomllib's recursion allows: arrays, and inline tables.
+DEEP_TOML = {"arrays": "name = 'x'\ndetect = " + "[" * 10000 + "]" * 10000 + "\n",
+             "tables": "name = 'x'\nheading = " + "{ a = " * 10000 + "1" + " }" * 10000 + "\n"}
+
+
+def _cmu_bvh(path: Path, rename=lambda name: name) -> Path:
+    """A one-frame BVH of the CMU layout, its joints renamed by ``rename``."""
+    import re
+
+    from test_bvh import CGSPEED_LIKE
+
+    text = re.sub(r"(ROOT|JOINT) (\S+)", lambda m: f"{m.group(1)} {rename(m.group(2))}",
+                  CGSPEED_LIKE)
+    path.write_text(text + " ".join(["0"] * 96) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("nesting", list(DEEP_TOML))
+@pytest.mark.parametrize("command", ["info --skeleton", "features --skeleton",
+                                     "info, a map on the search path",
+                                     "skeleton guess, a map on the search path"])
+def test_a_deeply_nested_skeleton_map_is_one_line(tmp_path, monkeypatch, command, nesting):
+    """Issue 31: a skeleton map nested 10 000 deep ended in "internal error:
+    RecursionError" naming the motion file (features) or a traceback (info, skeleton
+    guess). Now one line naming the map: "nested too deeply"."""
+    from mtanno import synthetic
+
+    amc = synthetic.write_pair(tmp_path / "in", "walk", n_frames=24)
+    bvh = _cmu_bvh(tmp_path / "in" / "c.bvh")
+    bad = tmp_path / "maps" / "deep.toml"
+    bad.parent.mkdir()
+    bad.write_text(DEEP_TOML[nesting])
+    before = checksums(tmp_path)
+    if "search path" in command:
+        monkeypatch.setenv("MTANNO_SKELETON_PATH", str(bad.parent))
+    if command == "info --skeleton":
+        r = cli("info", amc, "--skeleton", bad)
+    elif command == "features --skeleton":
+        r = cli("features", amc, "-o", tmp_path / "out", "--skeleton", bad)
+    elif command.startswith("info"):
+        r = cli("info", amc)
+    else:
+        r = cli("skeleton", "guess", bvh, "-o", tmp_path / "m.toml")
+    line = _checked(r, bad, before, [tmp_path], codes=(1,) if "features" in command else (2,))
+    assert "nested too deeply" in line, line
+    assert not (tmp_path / "out").exists() and not (tmp_path / "m.toml").exists()
+
+
+def test_a_deeply_nested_bank_metadata_is_one_line(tmp_path):
+    """The verification bank's metadata (JSON in the Parquet file) was read with plain
+    json.loads: nested thousands deep, a RecursionError. It goes through the one bounded
+    JSON reader now: one error naming the bank."""
+    from mtanno.confidence.verify import build_bank, read_bank, write_bank
+
+    rng = np.random.default_rng(0)
+    bank = build_bank([("kick", "a", rng.random((12, 6)).astype(np.float32))],
+                      representation="features")
+    path = tmp_path / "b.verify.parquet"
+    write_bank(path, bank)
+    assert read_bank(path).labels == ["kick"]
+    table = pq.read_table(path)
+    pq.write_table(table.replace_schema_metadata({b"mtanno": DEEP.encode()}), path)
+    with pytest.raises(MtannoError, match="nested too deeply") as e:
+        read_bank(path)
+    assert str(e.value).startswith(f"{path}: verification bank metadata is malformed")
+
+
+def _hang_safe(args, env=None):
+    """Run mtanno ARGS as a process (a reader that blocked on a FIFO would hang this
+    process, not the suite: the run is bounded by a generous timeout)."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import sys; from mtanno.cli import main; sys.exit(main(prog_name='mtanno'))"
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, **(env or {})})
+
+
+READERS = ["skeleton guess", "features --skeleton", "info --skeleton", "a map on the search path",
+           "info --asf", "annotate --classes", "evaluate --truth", "mt show"]
+
+
+@pytest.mark.parametrize("reader,what", [*((r, "FIFO") for r in READERS),
+                                         *((r, "/dev/zero") for r in READERS[:4])])
+def test_a_fifo_or_a_device_where_a_file_is_expected_is_refused(world, tmp_path, reader, what):
+    """Issue 31: a FIFO (or /dev/zero) where a file is expected hung skeleton guess,
+    features --skeleton and every command reading a map on the search path. Every reader
+    opens its file through one helper (mtanno.errors.open_regular), which refuses what is not
+    a regular file before reading a byte: one line naming it, no hang."""
+    import os
+
+    from mtanno import synthetic
+
+    if what == "FIFO" and not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs here")
+    if what == "/dev/zero" and not Path("/dev/zero").exists():
+        pytest.skip("no /dev/zero here")
+    amc = synthetic.write_pair(tmp_path / "in", "walk", n_frames=24)
+    suffix = {"skeleton guess": ".bvh", "info --asf": ".asf", "evaluate --truth": ".csv",
+              "mt show": ".json"}.get(reader, ".toml")
+    bad = tmp_path / "bad" / f"x{suffix}"
+    bad.parent.mkdir()
+    if what == "FIFO":
+        os.mkfifo(bad)
+    else:
+        bad.symlink_to("/dev/zero")
+    env = {"MTANNO_SKELETON_PATH": str(bad.parent)} if "search path" in reader else None
+    args = {"skeleton guess": ["skeleton", "guess", bad],
+            "features --skeleton": ["features", amc, "-o", tmp_path / "out", "--skeleton",
+                                    bad],
+            "info --skeleton": ["info", amc, "--skeleton", bad],
+            "a map on the search path": ["info", amc],
+            "info --asf": ["info", amc, "--asf", bad],
+            "annotate --classes": ["annotate", "--mt", world.mt, world.doc_files[0],
+                                   "--classes", bad, "-o", tmp_path / "a.csv"],
+            "evaluate --truth": ["evaluate", world.annotation, "--truth", bad],
+            "mt show": ["mt", "show", bad]}[reader]
+    r = _hang_safe(args, env)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == (1 if reader.startswith("features") else 2), r.stderr
+    assert "Traceback" not in r.stderr and len([x for x in lines if x.startswith("mtanno:")]) \
+        == 1, r.stderr
+    line = next(x for x in lines if x.startswith("mtanno:"))
+    assert str(bad) in line and "not a regular file" in line, line
+    assert not (tmp_path / "out").exists() and not (tmp_path / "a.csv").exists()
+
+
+def test_skeleton_guess_writes_names_beyond_the_bmp_its_reader_reads(tmp_path):
+    """Issue 31: joint names with characters beyond U+FFFF (emoji) were written as JSON's
+    surrogate-pair escapes, which TOML (and so --skeleton) refuses; now as themselves, and
+    the map reads back to the one the features use."""
+    from mtanno.io import read_motion
+    from mtanno.io.rigs import load_map
+
+    src = _cmu_bvh(tmp_path / "e.bvh", lambda name: f"{name}\U0001F600\x7f")
+    out = tmp_path / "map.toml"
+    r = cli("skeleton", "guess", src, "-o", out)
+    assert r.exit_code == 0, r.output
+    smap = load_map(out)
+    assert smap.joints["root"] == "Hips\U0001F600\x7f"
+    assert smap.digest == read_motion(src).smap.digest
+    r = cli("info", src, "--skeleton", out)
+    assert r.exit_code == 0, r.output

@@ -158,6 +158,39 @@ def test_broken_truth_table(world, tmp_path, kind, command):
         assert not out.exists()
 
 
+def test_many_one_frame_truth_rows_learn_in_linear_memory(world, tmp_path):
+    """Issue 31: 300 000 one-frame truth rows for learn-mt --truth ended in a MemoryError
+    traceback: each learning iteration kept the N × N matrix of alignment costs (671 GiB).
+    Only each reference's largest and summed cost is needed (N values): here 1 500
+    one-frame examples learn with far less than one N × N matrix allocated, through the
+    command line, and the learning itself is checked to stay below it."""
+    import tracemalloc
+
+    import numpy as np
+
+    from mtanno.templates.learn import learn
+
+    n = 1500
+    rng = np.random.default_rng(0)
+    examples = [rng.integers(0, 2, (40, 1)).astype(float) for _ in range(n)]
+    learn(examples[:3], iter_max=1)  # the kernels compiled (or loaded) first
+    tracemalloc.start()
+    try:
+        result = learn(examples, iter_max=1)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < n * n * 8 / 4, f"{peak / 1e6:.1f} MB: an N × N matrix came back"
+    assert result.cost_max[0] >= result.cost_mean[0] >= 0
+    doc = world.doc_files[0]
+    truth = tmp_path / "truth.csv"
+    truth.write_text("doc,start,end,label\n" + "".join(
+        f"{doc.stem},{1 + i % 500},{1 + i % 500},c{i % 2}\n" for i in range(600)))
+    r = cli("learn-mt", "--truth", truth, doc, "-o", tmp_path / "mt", "-q")
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "mt").iterdir()) == ["c0.json", "c1.json"]
+
+
 @pytest.mark.parametrize("kind", list(ANNOTATION_TABLES))
 @pytest.mark.parametrize("command", ["evaluate", "report"])
 def test_broken_annotation_table(world, tmp_path, kind, command):
@@ -203,7 +236,7 @@ def test_broken_class_configuration(world, tmp_path, kind):
 
 
 @pytest.mark.parametrize("kind", list(INDEXES))
-@pytest.mark.parametrize("command", ["index info", "query", "index add"])
+@pytest.mark.parametrize("command", ["index info", "query", "index add", "index remove"])
 def test_corrupt_index(world, tmp_path, kind, command):
     c = Case(world, tmp_path, INDEXES[kind])
     root = tmp_path / "in" / "idx"
@@ -211,6 +244,7 @@ def test_corrupt_index(world, tmp_path, kind, command):
         "index info": ["index", "info", root],
         "query": ["query", root, "--example", c.good, "--features", "rknee_bent"],
         "index add": ["index", "add", root, c.good],
+        "index remove": ["index", "remove", root, world.doc_files[1].stem],
     }[command]
     c.check(cli(*args), codes=(2,), named=root)
 

@@ -27,8 +27,8 @@ from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno import synthetic
 from mtanno.errors import MtannoError
+from mtanno.features.store import read_features
 from mtanno.io.asf import read_asf
-from mtanno.util.store import read_features
 
 #: Channels of the CGSPEED_LIKE hierarchy (root 6, 30 joints × 3).
 N_CHANNELS = 6 + 3 * 30
@@ -330,6 +330,45 @@ def test_skeleton_map_bad_heading(tmp_path, heading):
     assert "heading" in msg
 
 
+# --------------------------------------------------------------------- rigs that are not humanoid
+
+@pytest.mark.parametrize("kind", ["quadruped", "chain", "hand", "legs-only", "short-spine"])
+def test_rig_that_is_not_humanoid(tmp_path, kind):
+    """A BVH rig whose names say nothing and whose hierarchy is not a humanoid's (issue 31,
+    finding 5): one line naming the file and saying why, in a batch that goes on, in
+    ``info`` and in ``skeleton guess`` (which writes nothing)."""
+    from test_rig_topology import NOT_HUMANOID, not_humanoid_file
+
+    src, _ = batch(tmp_path, "placeholder.bvh", "")
+    (src / "placeholder.bvh").unlink()
+    bad = not_humanoid_file(src, kind)
+    why = NOT_HUMANOID[kind][1]
+    for msg in (check_batch(tmp_path, src, bad), check_info(bad)):
+        assert f"mapped automatically: from its hierarchy, {why}; the joint names " in msg
+        assert msg.endswith("; pass --skeleton MAP.toml (docs/formats.md)")
+    out = tmp_path / "map.toml"
+    msg = assert_one_line(no_runtime_warning("skeleton", "guess", bad, "-o", out), bad,
+                          codes=(2,))
+    assert why in msg and not out.exists() and temporaries(tmp_path) == []
+
+
+def test_bvh_with_two_roots(tmp_path):
+    """Two skeletons in one file (two ROOT blocks): one line at the second ROOT."""
+    from test_rig_topology import humanoid, write_bvh
+
+    one = write_bvh(tmp_path / "one.bvh", humanoid()).read_text()
+    head, motion = one.split("MOTION\n")
+    rows = motion.splitlines()
+    text = (head + head.replace("HIERARCHY\n", "") + "MOTION\n" + "\n".join(
+        rows[:2] + [f"{r} {r}" for r in rows[2:]]) + "\n")
+    src, bad = batch(tmp_path, "two.bvh", text)
+    line = head.count("\n") + 1
+    for msg in (check_batch(tmp_path, src, bad, line=line), check_info(bad, line=line)):
+        assert "a second ROOT: only one skeleton per file is supported" in msg
+    msg = assert_one_line(no_runtime_warning("skeleton", "guess", bad), bad, codes=(2,))
+    assert "a second ROOT" in msg
+
+
 # --------------------------------------------------------------------- messages name the file
 
 def test_motion_without_frames_is_named_in_a_batch(tmp_path):
@@ -376,6 +415,46 @@ def test_folder_named_like_a_motion_file(tmp_path):
     r = cli("features", full, "-o", tmp_path / "out2")
     assert r.exit_code == 0, r.output
     read_features(tmp_path / "out2" / "clip.parquet")
+
+
+@pytest.mark.parametrize("how", ["argument", "stdin"])
+def test_an_input_that_yields_nothing_is_a_failed_input(tmp_path, how):
+    """Issue 31 (7): beside a good input, an empty folder named like a motion file
+    (``empty.amc/``) or any empty folder was skipped without a word (exit 0). Each is a
+    failed input: one line naming it, counted in "failed", exit 1, the good one written."""
+    good = synthetic.write_pair(tmp_path / "in", "good", n_frames=24)
+    for name, what in (("empty.amc", "a folder (named like a motion file) holding no"),
+                       ("empty", "no .amc, .bvh or .c3d files in this folder or below")):
+        empty = tmp_path / name
+        empty.mkdir()
+        out = tmp_path / f"out-{name}"
+        r = (cli("features", good, empty, "-o", out) if how == "argument" else
+             cli("features", "-", "-o", out, input=f"{good}\n{empty}\n"))
+        line = assert_one_line(r, empty, codes=(1,))
+        assert what in line and "1 written" in r.output and "1 failed" in r.output, r.output
+        read_features(out / "good.parquet")
+        assert sorted(p.name for p in out.iterdir()) == ["good.parquet"]
+
+
+def test_an_output_name_too_long_fails_alone(tmp_path):
+    """Issue 31: one motion file whose output name is longer than a folder entry may be
+    (NAME_MAX, 255 bytes: ``<250 characters>.parquet``) stopped the whole features batch
+    (exit 2, nothing written). It is one failed input now, the others written; and a name
+    just short enough is written, although its temporary name is longer (cut to fit)."""
+    src = tmp_path / "in"
+    synthetic.write_pair(src, "good", n_frames=24)
+    too_long, near = src / ("a" * 250 + ".amc"), src / ("b" * 240 + ".amc")
+    for p in (too_long, near):
+        p.write_text(synthetic.amc_text(24, 1))
+    out = tmp_path / "out"
+    for _ in range(2):  # the rerun: the others up to date, the long one fails again
+        r = cli("features", src, "-o", out)
+        line = assert_one_line(r, out / ("a" * 250 + ".parquet"), codes=(1,))
+        assert "File name too long" in line, line
+        assert "1 failed" in r.output
+    read_features(out / "good.parquet")
+    read_features(out / ("b" * 240 + ".parquet"))
+    assert "2 up to date" in r.output and temporaries(out) == []
 
 
 # --------------------------------------------------------------------- batch inputs
@@ -428,11 +507,11 @@ def test_empty_output_name_is_refused(tmp_path, monkeypatch):
 
 
 def test_unknown_file_type_is_exit_2_in_features_as_in_info(tmp_path):
-    c3d = tmp_path / "take.c3d"
+    c3d = tmp_path / "take.fbx"
     c3d.write_bytes(b"\x02\x50" + bytes(510))
     for args in (["info", c3d], ["features", c3d, "-o", tmp_path / "out"]):
         line = assert_one_line(cli(*args), c3d, codes=(2,))
-        assert "unknown motion file type '.c3d'" in line
+        assert "unknown motion file type '.fbx'" in line
     assert not (tmp_path / "out").exists()
 
 

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from world import assert_one_line, checksums, cli, temporaries
 
 from mtanno import synthetic
-from mtanno.util.store import read_features
+from mtanno.features.store import read_features
 from mtanno.util.tables import read_table
 
 SETTINGS = settings(max_examples=10, deadline=None, database=None,

@@ -101,9 +101,9 @@ def test_no_output_replaces_an_inputs_sidecar(world, tmp_path, case):
 
 
 def test_check_outputs_counts_input_sidecars_and_folder_names(tmp_path):
-    """The one place (mtanno.util.output.check_outputs): inputs' sidecars, names and patterns
+    """The one place (mtanno.util.preflight.check_outputs): inputs' sidecars, names and patterns
     written inside output folders, and folders the command owns."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     (tmp_path / "rep").mkdir()
     ann = tmp_path / "rep" / "timeline_d1.png"
@@ -192,6 +192,103 @@ def test_outputs_beside_what_a_scan_reads_are_fine(world, tmp_path):
     del s
 
 
+# ------------------------------------------- 2b: an output folder among the input data
+
+
+INSIDE = ["features DATA -o DATA", "features DATA -o DATA/feats", "annotate --output-dir FEATS",
+          "annotate --output-dir FEATS/ann", "annotate --output-dir MT",
+          "learn-mt -o FEATS/mt", "learn-mt -o TRAINING", "learn-keyframes -o MT/kf",
+          "tune --ablation FEATS/abl", "compose -o CLIPS/docs"]
+
+
+def _inside_case(world, tmp_path, case):
+    """(arguments, the output folder named) of an INSIDE case, on copies of the world."""
+    data, feats = tmp_path / "data", tmp_path / "feats"
+    if case.startswith(("features", "compose")):
+        world.copy(world.clips, data)
+    if not case.startswith(("features", "compose")):
+        world.copy(world.feats, feats)
+    mt = world.copy(world.mt, tmp_path / "mt")
+    out = {"features DATA -o DATA": data, "features DATA -o DATA/feats": data / "feats",
+           "annotate --output-dir FEATS": feats, "annotate --output-dir FEATS/ann": feats / "ann",
+           "annotate --output-dir MT": mt, "learn-mt -o FEATS/mt": feats / "mt",
+           "learn-mt -o TRAINING": feats, "learn-keyframes -o MT/kf": mt / "kf",
+           "tune --ablation FEATS/abl": feats / "abl",
+           "compose -o CLIPS/docs": data / "squat" / "docs"}[case]
+    train = ["--manifest", world.manifest, "--features-dir", feats, "--split", "train"]
+    args = {"features": ["features", data, "-o", out, "-q"],
+            "annotate": ["annotate", "--mt", mt, feats, "--output-dir", out, "-q"],
+            "learn-mt": (["learn-mt", *train, "-o", out, "-q"] if case.endswith("mt") else
+                         ["learn-mt", feats, "-o", out, "-q"]),
+            "learn-keyframes": ["learn-keyframes", "--mt", mt, *train, "--method", "hard",
+                                "-o", out, "-q"],
+            "tune": ["tune", "--mt", mt, *train, "-o", tmp_path / "t.toml", "--ablation", out,
+                     "-q"],
+            "compose": ["compose", data / "clips.csv", "--actor", "c", "--docs", "1", "-o",
+                        out]}[case.split()[0]]
+    return args, out
+
+
+@pytest.mark.parametrize("case", INSIDE)
+def test_an_output_folder_inside_an_input_folder_is_refused(world, tmp_path, case):
+    """Issue 31 (6): `features DATA -o DATA` wrote feature files into a read-only data set
+    and `annotate --output-dir` took the input folder. An output folder that is, or lies
+    inside, a folder the command reads inputs from is refused before any work, in one line
+    that names --inside-input, the flag that says it is meant (exit 2, nothing written)."""
+    s = Scene(world, tmp_path)
+    args, out = _inside_case(world, tmp_path, case)
+    s.snapshot()
+    line = s.refused(cli(*args), out, what="--inside-input")
+    assert "the output folder is the input folder" in line or \
+        "the output folder lies inside the input folder" in line, line
+
+
+@pytest.mark.parametrize("case", ["features DATA -o DATA/feats", "annotate --output-dir FEATS",
+                                  "learn-mt -o FEATS/mt", "compose -o CLIPS/docs"])
+def test_inside_input_says_an_output_folder_among_the_inputs_is_meant(world, tmp_path, case):
+    """With --inside-input the same runs write, and the next run over the input folder
+    reads what it read before (the outputs are not among what it reads)."""
+    args, out = _inside_case(world, tmp_path, case)
+    r = cli(*args, "--inside-input")
+    assert r.exit_code == 0, r.output
+    assert any(out.iterdir())
+    r = cli(*args, "--inside-input")
+    assert r.exit_code == 0, r.output
+
+
+def test_inside_input_never_lets_the_next_run_read_an_output(world, tmp_path):
+    """--inside-input allows a folder among the inputs, not an output the next run reads:
+    Parquet annotation tables inside a folder of feature files stay refused (it was
+    annotate's own rule; now the one of every command, mtanno.util.output)."""
+    s = Scene(world, tmp_path)
+    fd = s.features(tmp_path / "fd")
+    s.snapshot()
+    r = cli("annotate", "--mt", world.mt, fd, "--output-dir", fd / "ann", "--format",
+            "parquet", "--inside-input")
+    line = s.refused(r, fd / "ann")
+    assert "the next run over that folder would read this output" in line, line
+    r = cli("index", fd, "-o", fd / "idx")  # an index inside its features: never
+    s.refused(r, fd / "idx")
+
+
+def test_check_outputs_inside_input(tmp_path):
+    """The API's words: inside_input=; None (an index's folder) leaves the rule out."""
+    from mtanno.util.preflight import check_outputs
+
+    data = tmp_path / "data"
+    data.mkdir()
+    for out in (data, data / "a" / "b"):
+        with pytest.raises(MtannoError, match="inside_input="):
+            check_outputs([], [data], folders={out: []}, scanned={data: ()},
+                          inside_input=False)
+        check_outputs([], [data], folders={out: []}, scanned={data: ()}, inside_input=True)
+        check_outputs([], [data], folders={out: []}, scanned={data: ()})
+    # beside the input folder, or holding it: fine
+    check_outputs([], [data], folders={tmp_path / "out": []}, scanned={data: ()},
+                  inside_input=False)
+    check_outputs([], [data], folders={tmp_path: []}, scanned={data: ()}, inside_input=False)
+
+
 # --------------------------------------------------------- 3: written despite an error
 
 
@@ -247,7 +344,7 @@ def test_a_command_that_fails_on_an_output_writes_nothing(world, tmp_path, case)
 def test_preflight_leaves_nothing_and_creates_no_folder(tmp_path):
     """The preflight tries the nearest existing folder with a temporary file it removes;
     it creates no folder."""
-    from mtanno.util.output import check_outputs
+    from mtanno.util.preflight import check_outputs
 
     check_outputs([tmp_path / "a" / "b" / "x.csv"], [], folders={tmp_path / "c": None})
     assert list(tmp_path.iterdir()) == []
@@ -311,6 +408,33 @@ def test_tables_of_documents_named_by_non_utf8_file_names(world, tmp_path, case)
         assert r.exit_code == 0 and "2 up to date" in r.output, r.output
         r = cli("evaluate", od, "--truth", world.truth, "--all-docs")
         assert r.exit_code == 0, r.output
+
+
+def test_an_index_of_documents_named_by_non_utf8_file_names(world, tmp_path):
+    """Issue 31: index build and add crashed on a feature file whose name is not UTF-8
+    (UnicodeEncodeError writing documents.parquet). The name and path are kept exactly
+    (as bytes where no Parquet string can hold them): the index reads back, the document
+    is found by its name, in query hits as \\xNN, and removed by its name."""
+    from mtanno.index import open_index
+    from mtanno.util.tables import read_table
+
+    _non_utf8_folder(world, tmp_path / "in")
+    name = os.fsdecode(b"caf\xe9")
+    r = cli("index", tmp_path / "in", "-o", tmp_path / "idx", "-q")
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    docs = {d.name: d for d in open_index(tmp_path / "idx").documents}
+    assert name in docs and os.fsencode(docs[name].path).endswith(b"/caf\xe9.parquet")
+    world.copy(world.index, tmp_path / "idx2")
+    r = cli("index", "add", tmp_path / "idx2", tmp_path / "in", "-q")
+    assert r.exit_code == 0 and r.exception is None, (r.exception, r.output)
+    assert name in [d.name for d in open_index(tmp_path / "idx2").documents]
+    r = cli("query", tmp_path / "idx2", "--example", name, "--features", "rknee_bent", "-o",
+            tmp_path / "h.csv", "-q")
+    assert r.exit_code == 0, r.output
+    assert "caf\\xe9" in {row["doc"] for row in read_table(tmp_path / "h.csv").rows}
+    r = cli("index", "remove", tmp_path / "idx2", name)
+    assert r.exit_code == 0, r.output
+    assert name not in [d.name for d in open_index(tmp_path / "idx2").documents]
 
 
 def test_json_of_non_utf8_names_is_valid_utf8(tmp_path):
@@ -383,20 +507,31 @@ def test_an_output_on_a_full_device_names_it(world, tmp_path, case):
 @needs_full
 def test_standard_output_on_a_full_device_says_so(world, tmp_path):
     """`-o -` (and the printed report) on a full device: one line saying it is standard
-    output, exit code 2."""
+    output, exit code 2. Issue 31: what commands print with click (info, show, mt show,
+    index info, keyframes show, --help, --version) said "No space left on device" naming
+    nothing, and a help text was a traceback."""
     import subprocess
     import sys
 
     cmd = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
            "sys.argv[0] = 'mtanno'; main()"]
+    kf = tmp_path / "kf"
+    assert cli("learn-keyframes", "--mt", world.mt, "--manifest", world.manifest,
+               "--features-dir", world.feats, "--method", "hard", "-o", kf,
+               "-q").exit_code == 0
     for args in (["evaluate", world.annotation, "--truth", world.truth, "-o", "-"],
-                 ["evaluate", world.annotation, "--truth", world.truth]):
+                 ["evaluate", world.annotation, "--truth", world.truth],
+                 ["info", world.doc_files[0]], ["show", world.doc_files[0]],
+                 ["mt", "show", world.template], ["index", "info", world.index],
+                 ["keyframes", "show", next(kf.glob("*.json"))], ["--help"],
+                 ["features", "--help"], ["--version"]):
         with open(FULL, "w") as full:
             p = subprocess.run([*cmd, *map(str, args)], stdout=full, stderr=subprocess.PIPE,
                                text=True)
         lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
         assert p.returncode == 2 and lines == [
-            "mtanno: cannot write to standard output: No space left on device"], p.stderr
+            "mtanno: cannot write to standard output: No space left on device"], (args,
+                                                                                  p.stderr)
 
 
 def test_a_write_that_fails_in_place_or_to_stdout_names_it(tmp_path, monkeypatch):

@@ -4,8 +4,10 @@ run may be alive a second after the parent ended, no output may be partial (ever
 file present reads as a complete file, none has a temporary left), and the rerun
 completes. SIGINT and SIGTERM end the run with exit code 130 and one line.
 
-These tests start real processes and send real signals; the one time limit they check is
-the one the issue sets (workers gone within a second of their parent).
+These tests start real processes and send real signals. The runs are held at a known point
+(:mod:`held`: each worker stops before a given document until released, which these tests
+never do), so the signal always reaches a run that is still working, however loaded the
+machine; no time limit is checked.
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from held import held_pids, start_held
 from world import build_world, children, temporaries
 
 from mtanno import synthetic
-from mtanno.util.store import read_features, write_features
+from mtanno.features.store import read_features, write_features
 
 MTANNO = [sys.executable, "-c", "import sys; from mtanno.cli import main; "
           "sys.exit(main(prog_name='mtanno'))"]
@@ -54,15 +57,17 @@ def _wait_until(condition, proc, what: str) -> None:
         time.sleep(0.02)
 
 
-def _interrupt(args, sig, ready, *, group=False, work=None):
-    """Start mtanno ARGS, wait for ``ready()`` and two workers, send ``sig`` (to the whole
-    process group with ``group``, as Ctrl-C in a terminal does). Returns the exit code, the
+def _interrupt(args, sig, ready, *, hold, gate, group=False, work=None):
+    """Start mtanno ARGS with every worker held after some documents (``hold``: the
+    function and how many calls go through, see :func:`held.start_held`; never released),
+    wait for ``ready()`` and two workers, send ``sig`` (to the whole process group with
+    ``group``, as Ctrl-C in a terminal does). Returns the exit code, the
     standard error and how much work the workers did after the parent ended: ``work()``
     (e.g. the outputs written) once they are gone, less its value when the parent ended
     (issue 8: workers die with their parent; no wall-clock bound, which a loaded machine
     would break: a worker that went on would keep writing)."""
-    proc = subprocess.Popen([*MTANNO, *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    function, after = hold
+    proc = start_held(args, hold=function, after=after, gate=gate)
     try:
         _wait_until(lambda: len(children(proc.pid)) >= 2, proc, "its workers started")
         _wait_until(ready, proc, "it was busy")
@@ -108,7 +113,8 @@ def test_features_jobs_2(motion_batch, tmp_path, name, group):
     written = lambda: len(list(out.glob("*.parquet")))  # noqa: E731
     code, err, after = _interrupt(
         ["features", motion_batch, "-o", out, "--jobs", "2"], sig,
-        lambda: written() >= 3, group=group, work=written)
+        lambda: written() >= 3, hold=("mtanno.features.extract:_extract_one", 2),
+        gate=tmp_path / "gate", group=group, work=written)
     # at most the file each worker was renaming into place when its parent ended
     assert after <= 2, f"the workers wrote {after} files after their parent ended"
     if sig == signal.SIGKILL:
@@ -151,14 +157,10 @@ def test_annotate_jobs_2(long_documents, tmp_path, name, group):
     mt, docs = long_documents
     out = tmp_path / "a.parquet"
     sig = getattr(signal, name)
-    started = []
-
-    def busy():  # the workers have had some time to work
-        started.append(time.monotonic())
-        return time.monotonic() - started[0] >= 0.5
-
+    gate = tmp_path.parent / f"{tmp_path.name}.gate"  # outside the folder checked below
     code, err, _ = _interrupt(["annotate", "--mt", mt, docs, "-o", out, "--jobs", "2"],
-                              sig, busy, group=group)
+                              sig, lambda: held_pids(gate), group=group, gate=gate,
+                              hold=("mtanno.annotate.batch:_annotate_file", 1))
     assert code == (-signal.SIGKILL if sig == signal.SIGKILL else 130), err
     if sig != signal.SIGKILL:
         assert err.strip().splitlines()[-1].startswith(f"mtanno: interrupted ({name})")

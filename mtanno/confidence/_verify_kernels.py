@@ -1,6 +1,6 @@
-"""The numba kernel of segment verification (issue 26; :mod:`mtanno.annotate.verify`): the
+"""The numba kernel of segment verification (issue 26; :mod:`mtanno.confidence.verify`): the
 subsequence DTW cost of a query sequence inside each item of a bank (private; wrapped by
-:func:`mtanno.annotate.verify.subsequence_costs`, tested against a slow reference in
+:func:`mtanno.confidence.verify.subsequence_costs`, tested against a slow reference in
 ``tests/naive_verify.py``).
 
 Sequences are (frames × dims) float32 rows. The local cost of two rows is their mean

@@ -12,7 +12,7 @@ A file may end with float32 columns (the pose block of ``mtanno features --poses
 ``docs/formats.md``), encoded the same way: one PLAIN page of little-endian floats each.
 
 The result must be byte for byte what :func:`pyarrow.parquet.write_table` writes with the
-options of :func:`mtanno.util.store.write_features`. :func:`available` checks that once per
+options of :func:`mtanno.features.store.write_features`. :func:`available` checks that once per
 process, on reference tables encoded both ways with the pyarrow in use; when they differ (a
 pyarrow that writes another footer), every file is written by pyarrow. Files with float
 columns are checked apart (:func:`available_floats`), so that a pyarrow whose float columns

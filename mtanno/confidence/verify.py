@@ -5,7 +5,7 @@ classes, and background motions that belong to no class.
 The motion templates of [MR06] keep, per frame, only what the class's examples share, so
 a long document of unknown motions offers every template a window that fits. The examples
 themselves say more: a segment is compared with each example by subsequence DTW
-(:mod:`mtanno.annotate._verify_kernels`; free start and end inside the example, cost per
+(:mod:`mtanno.confidence._verify_kernels`; free start and end inside the example, cost per
 segment frame) on one of two representations —
 
 * ``poses``: the normalised poses that ``mtanno features --poses`` stores (root at the
@@ -29,11 +29,10 @@ import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from mtanno.errors import MtannoError
+from mtanno.errors import JSONError, MtannoError, parse_json, read_input
 
 __all__ = ["BANK_FORMAT", "MAX_QUERY", "POSE_JOINTS", "REPRESENTATIONS", "VERIFY_FPS",
            "VERIFY_STEP", "Bank", "build_bank", "read_bank", "sequence", "subsequence_costs",
@@ -97,8 +96,8 @@ def subsequence_costs(query: np.ndarray, items: np.ndarray, offsets: np.ndarray
     """Subsequence DTW cost of ``query`` (rows × dims) inside each item of ``items``
     (rows ``offsets[k]:offsets[k+1]``): (items,) costs per query row, the local cost the
     mean absolute difference of two rows (∞ for an empty item;
-    :mod:`mtanno.annotate._verify_kernels`)."""
-    from mtanno.annotate._verify_kernels import _subsequence_costs
+    :mod:`mtanno.confidence._verify_kernels`)."""
+    from mtanno.confidence._verify_kernels import _subsequence_costs
 
     Q = np.ascontiguousarray(query, dtype=np.float32)
     B = np.ascontiguousarray(items, dtype=np.float32)
@@ -150,7 +149,7 @@ class Bank:
         """Cost of a query sequence inside every item (:func:`subsequence_costs`). The
         bank's own arrays are checked once, not with every query (issue 34: a segment of
         a short clip cost as much in checks as in matching)."""
-        from mtanno.annotate._verify_kernels import _subsequence_costs
+        from mtanno.confidence._verify_kernels import _subsequence_costs
 
         Q = np.ascontiguousarray(_query(query), dtype=np.float32)
         if not self._checked():
@@ -276,13 +275,16 @@ def read_bank(path: str | os.PathLike) -> Bank:
     import pyarrow.parquet as pq
 
     spath = str(path)
-    if not Path(path).is_file():
-        raise MtannoError("verification bank not found", path=spath)
+    data = read_input(path, what="verification bank")  # a regular file, never a FIFO
     try:
-        table = pq.read_table(path)
-        meta = json.loads((table.schema.metadata or {}).get(b"mtanno", b"null"))
+        table = pq.ParquetFile(pa.BufferReader(data), pre_buffer=False).read(use_threads=False)
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise MtannoError(f"not a readable verification bank: {exc}", path=spath) from None
+    try:  # the one bounded JSON reader: depth, size, encoding checked (mtanno.errors)
+        meta = parse_json((table.schema.metadata or {}).get(b"mtanno", b"null"), path=spath)
+    except JSONError as exc:
+        raise MtannoError(f"verification bank metadata is malformed ({exc.message})",
+                          path=spath) from None
     if not isinstance(meta, dict) or meta.get("format") != BANK_FORMAT:
         raise MtannoError("not a verification bank (no mtanno bank metadata)", path=spath)
     if meta.get("version") != 1 or meta.get("step") != VERIFY_STEP:

@@ -1,4 +1,4 @@
-"""The pose block of feature files (private to :mod:`mtanno.util.store`): column names and
+"""The pose block of feature files (private to :mod:`mtanno.features.store`): column names and
 the checks of the metadata's ``poses`` entry and of the pose columns against it, from the
 schema alone (``docs/formats.md``; ``mtanno features --poses``, issue 26 part 3).
 

@@ -1,11 +1,12 @@
-"""Ground-truth and annotation segment tables (CSV), and converters into them.
+"""Truth tables — the labelled segments of documents a user gives (ground truth, reviewed
+annotations) — read and written, and converters into them.
 
 A segment table (CSV, Parquet or JSON Lines: :mod:`mtanno.util.tables`) has one row per
 labelled segment: ``doc`` (document name = feature file
 stem), ``start`` and ``end`` (1-based inclusive frames), ``label`` and optionally ``fps``
 (the rate the frames are given at; 30 when absent). Inside mtanno every table is at the
 30 Hz analysis rate: frames given at another rate are converted with
-``ceil(frame / ratio)`` (algorithms.md §8), ratio = fps / 30.
+``ceil(frame / ratio)`` (docs/method.md §8), ratio = fps / 30.
 """
 
 from __future__ import annotations
@@ -13,25 +14,11 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable
-from dataclasses import dataclass
 from fractions import Fraction
 
 from mtanno.errors import MtannoError, read_json
+from mtanno.labels.segments import Segment
 from mtanno.util.units import ANALYSIS_FPS
-
-
-@dataclass(frozen=True, order=True)
-class Segment:
-    """A labelled frame range of one document: 1-based inclusive frames at 30 Hz."""
-
-    doc: str
-    start: int
-    end: int
-    label: str
-
-    @property
-    def length(self) -> int:
-        return self.end - self.start + 1
 
 
 def to_analysis_frame(frame: int, fps: float) -> int:
@@ -155,13 +142,3 @@ def check_within(segments: Iterable[Segment], frames: dict[str, int], *,
             raise MtannoError(f"segment {s.start}..{s.end} ({s.label}) of document {s.doc!r} "
                               f"ends after its {n} frames (wrong fps column, or truth of "
                               f"another document?)", path=None if path is None else str(path))
-
-
-def by_document(segments: Iterable[Segment]) -> dict[str, list[Segment]]:
-    """Segments grouped by document, each list sorted by start frame."""
-    out: dict[str, list[Segment]] = {}
-    for s in segments:
-        out.setdefault(s.doc, []).append(s)
-    for v in out.values():
-        v.sort()
-    return out

@@ -1,4 +1,7 @@
-"""Files that pass between pipeline stages: Parquet feature matrices, atomic writes.
+"""Feature files, the format the features stage writes and every later stage reads: the one
+validating reader, the writer, :class:`FeatureLayout` and :func:`check_layout` (the one
+compatibility check). Finding the feature files an input names is
+:mod:`mtanno.features.inputs`.
 
 Feature file (``docs/formats.md`` has the full schema): one row per analysis frame (30 Hz),
 column ``native_frame`` (int32, 1-based frame of the source file the row was taken from) and
@@ -8,7 +11,10 @@ came from (source path and SHA-256, frame rates, frame mapping, skeleton map, fe
 mtanno version). Optionally (``mtanno features --poses``) a pose block follows: float32
 columns ``pose.<joint>.<x|y|z>`` holding the normalised canonical joint positions of every
 row (:mod:`mtanno.features.poses`, in leg lengths), described by the metadata's ``poses``
-entry; readers skip it unless asked (``read_features(..., poses=True)``).
+entry; readers skip it unless asked (``read_features(..., poses=True)``). The metadata's
+optional ``invalid`` entry lists the rows that carry no evidence (a marker file's frames
+whose joints could not be computed) as [first, last] pairs, 1-based inclusive; a file
+without it has every row valid (:attr:`FeatureFile.valid`).
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,8 +31,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from mtanno.errors import JSONError, MtannoError, parse_json, read_input
-from mtanno.util import _parquet
-from mtanno.util._poseblock import (
+from mtanno.features import _parquet
+from mtanno.features._poseblock import (
     POSE_PREFIX,
     check_pose_columns,
     check_pose_meta,
@@ -36,23 +42,13 @@ from mtanno.util._poseblock import (
 from mtanno.util.output import write_bytes
 
 __all__ = ["FEATURES_SCHEMA", "POSE_PREFIX", "FeatureFile", "FeatureLayout",
-           "check_layout", "common_layout", "document_files", "document_files_below",
-           "feature_files", "pose_columns", "read_feature_matrix", "read_features",
-           "sha256_file", "write_features"]
+           "check_layout", "common_layout", "pose_columns", "read_feature_matrix",
+           "read_features", "write_features"]
 
 FEATURES_SCHEMA = "mtanno.features/1"
 #: Feature files of documents with at least this many frames are zstd-compressed.
 COMPRESS_FROM_FRAMES = 1024
 META_KEY = b"mtanno"
-
-
-def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(chunk):
-            h.update(block)
-    return h.hexdigest()
 
 
 @dataclass
@@ -92,6 +88,15 @@ class FeatureFile:
         """True if the file has a pose block (read or not; its metadata says so and its
         columns were checked when the file was read)."""
         return isinstance(self.meta.get("poses"), dict)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(frames,) bool: the rows that carry evidence (all, unless the metadata's
+        ``invalid`` runs say otherwise; checked when the file was read)."""
+        out = np.ones(self.X.shape[1], dtype=bool)
+        for a, b in self.meta.get("invalid") or ():
+            out[a - 1:b] = False
+        return out
 
     @property
     def document(self) -> str:
@@ -174,7 +179,7 @@ def common_layout(layouts: Sequence[FeatureLayout]) -> FeatureLayout:
         first.setdefault(lay.key(), lay)
 
     def standard(lay: FeatureLayout) -> bool:
-        from mtanno.features import FEATURE_SETS
+        from mtanno.features.compute import FEATURE_SETS
 
         fs = FEATURE_SETS.get(lay.feature_set)
         return lay.fps == 30.0 and fs is not None and tuple(fs.names) == lay.names
@@ -324,85 +329,6 @@ def _schema(names: tuple[str, ...], pose_names: tuple[str, ...] = ()) -> pa.Sche
     return schema
 
 
-def _found_feature_files(inputs: Iterable[str | os.PathLike], failures: list[str] | None = None,
-                         ) -> list[tuple[Path, Path]]:
-    """(file, its path below the folder it was found in — its name for a file given as
-    such) for every feature file named by ``inputs`` (see :func:`feature_files`)."""
-    out: list[tuple[Path, Path]] = []
-    problems: list[MtannoError] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            found, odd = [], []
-            for q in sorted(p.rglob("*.parquet")):
-                if q.is_file():
-                    found.append(q)
-                elif not q.is_dir():  # a FIFO (reading it would block), device, broken link
-                    odd.append(q)
-            problems += [MtannoError("not a regular file (a FIFO, device or broken link)",
-                                     path=str(q)) for q in odd]
-            if not found and not odd:
-                problems.append(MtannoError("no feature files (*.parquet) in this folder",
-                                            path=str(p)))
-            out.extend((q, q.relative_to(p)) for q in found)
-        elif p.is_file():
-            out.append((p, Path(p.name)))
-        elif p.exists() or p.is_symlink():
-            problems.append(MtannoError("not a regular file (a FIFO, device or broken link)",
-                                        path=str(p)))
-        else:
-            problems.append(MtannoError("no such feature file or folder", path=str(p)))
-        if problems and failures is None:
-            raise problems[0]
-    if not out:
-        raise problems[0] if problems else MtannoError("no feature files (*.parquet) in the "
-                                                       "inputs")
-    if failures is not None:
-        failures.extend(str(e) for e in problems)
-    return out
-
-
-def feature_files(inputs: Iterable[str | os.PathLike], *,
-                  failures: list[str] | None = None) -> list[Path]:
-    """Feature files named by ``inputs``: files as given, directories searched recursively
-    for ``*.parquet`` (sorted). The one expansion of every command's feature inputs.
-
-    An input that names no feature file — missing, a folder without feature files (also
-    one named ``x.parquet``), a FIFO or other non-regular file given or found — is an
-    error; with ``failures``, a batch goes on past it: its message is appended there and
-    the others are returned. No feature file at all is an error either way (the first
-    problem, naming its input)."""
-    return [f for f, _ in _found_feature_files(inputs, failures)]
-
-
-def document_files_below(inputs: Iterable[str | os.PathLike], *,
-                         failures: list[str] | None = None) -> list[tuple[Path, Path]]:
-    """:func:`document_files` with each file's path below the folder it was found in (its
-    name for a file given as such): for outputs that mirror the inputs' tree
-    (``annotate --output-dir``)."""
-    out: list[tuple[Path, Path]] = []
-    names: dict[str, Path] = {}
-    seen: set[Path] = set()
-    for p, rel in _found_feature_files(inputs, failures):
-        key = p.resolve()
-        if key in seen:  # the same file given twice (a folder and a file in it)
-            continue
-        seen.add(key)
-        if p.stem in names:
-            raise MtannoError(f"two feature files name the same document '{p.stem}': "
-                              f"{names[p.stem]} and {p}")
-        names[p.stem] = p
-        out.append((p, rel))
-    return out
-
-
-def document_files(inputs: Iterable[str | os.PathLike], *,
-                   failures: list[str] | None = None) -> list[Path]:
-    """:func:`feature_files`, where no two files may name the same document (file stem):
-    for commands whose outputs are keyed by document name."""
-    return [p for p, _ in document_files_below(inputs, failures=failures)]
-
-
 #: Largest native frame number (and frame count) a feature file may give: the column is
 #: int32 (docs/formats.md), and tables refuse frames beyond 2³¹.
 MAX_NATIVE_FRAME = 2**31 - 1
@@ -455,6 +381,7 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
             and all(isinstance(i, str) and i for i in ids) and len(set(ids)) == len(ids)):
         raise bad(f"feature_ids in the mtanno metadata must list one distinct id per feature "
                   f"column ({len(names)})")
+    _check_invalid(meta, rows, bad)
     groups = meta.get("groups") or {}
     columns = set(names)
     for g, members in groups.items():
@@ -466,7 +393,7 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
         if stray:
             raise bad(f"group '{g}' in the mtanno metadata names '{stray[0]}', which is not "
                       "a feature column of the file")
-    from mtanno.features import FEATURE_SETS
+    from mtanno.features.compute import FEATURE_SETS
 
     fs = FEATURE_SETS.get(meta["feature_set"])
     if fs is not None and tuple(names) == fs.names:  # the set's own columns: its own table
@@ -478,6 +405,23 @@ def _check_against_rows(meta: dict, names: list[str], native: np.ndarray, spath:
         if "groups" in meta and meta["groups"] != want:
             raise bad(f"groups in the mtanno metadata differ from those of {fs.name} "
                       f"({', '.join(want)})")
+
+
+def _check_invalid(meta: dict, rows: int, bad) -> None:
+    """``invalid`` (optional): [first, last] row pairs, 1-based inclusive, ascending and
+    disjoint, within the file's rows."""
+    if "invalid" not in meta:
+        return
+    runs = meta["invalid"]
+    if not (isinstance(runs, list) and all(
+            isinstance(r, list) and len(r) == 2 and all(_is_int(x) for x in r) for r in runs)):
+        raise bad("invalid in the mtanno metadata must be a list of [first, last] row pairs")
+    last = 0
+    for a, b in runs:
+        if not last < a <= b <= rows:
+            raise bad(f"invalid in the mtanno metadata: rows {a}-{b} are not ascending, "
+                      f"disjoint rows within 1..{rows}")
+        last = b
 
 
 def _rows(mask: np.ndarray) -> str:
@@ -503,22 +447,12 @@ def _column(table: pa.Table, name: str, kind: str, spath: str, note: str = "",
     return col
 
 
-#: Suffixes of the motion files ``mtanno features`` reads (:data:`mtanno.io.MOCAP_SUFFIXES`).
-_MOTION_SUFFIXES = (".amc", ".bvh")
-#: How the first line of a BVH or an AMC file (after ``#`` comments) begins.
-_MOTION_HEADS = (b"HIERARCHY", b":FULLY-SPECIFIED", b":DEGREES", b":RADIANS")
-
-
 def _is_motion_file(path: str, data) -> bool:
     """True if a file that is no Parquet file is a motion file (by its suffix, or by its
-    first line: BVH's ``HIERARCHY``, AMC's ``:FULLY-SPECIFIED``/``:DEGREES``)."""
-    if Path(path).suffix.lower() in _MOTION_SUFFIXES:
-        return True
-    for line in bytes(memoryview(data)[:4096]).splitlines():
-        line = line.strip()
-        if line and not line.startswith(b"#"):
-            return line.upper().startswith(_MOTION_HEADS)
-    return False
+    first bytes: :func:`mtanno.io.formats.looks_like_motion`)."""
+    from mtanno.io.formats import looks_like_motion  # (on this error path only)
+
+    return looks_like_motion(path, bytes(memoryview(data)[:4096]))
 
 
 def read_features(path: str | os.PathLike, *, sha256: bool = False,
