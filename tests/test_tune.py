@@ -781,3 +781,95 @@ def test_the_best_candidate_is_found_without_scoring_every_run(jobs):
                 assert got is None and ev is None
     finally:
         tuner._close_pool()
+
+
+# ------------------------------------------------------------------ issue 34: one thing
+
+
+def test_a_configuration_folder_moves_and_is_renamed_as_one(world, tmp_path):
+    """tune -o DIR/: the configuration, its extra templates and its bank in one folder,
+    named relative to each other; moved and renamed it annotates as before; rewritten, it
+    keeps no template of the earlier run; a folder of other files is refused."""
+    import shutil
+
+    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.tempo import time_scaled
+    from mtanno.tuning.write import check_tuned_output
+
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", f"{tmp_path / 'cli'}/", "--seed", "1", "-q")
+    assert r.exit_code == 0, r.output
+    assert {p.name for p in (tmp_path / "cli").iterdir()} <= {"classes.toml", "templates",
+                                                              "verify.parquet"}
+    result = tune(_sources(world), world.mt, seed=1, n_jobs=1)
+    mts = load_template_folder(world.mt)
+    cls = sorted(mts)[0]
+    result.extra_templates = {cls: [time_scaled(mts[cls], 0.6)]}  # a template to refer to
+    out = tmp_path / "a" / "tuned"
+    write_tuned(f"{out}/", result)
+    assert {p.name for p in out.iterdir()} == {"classes.toml", "templates", "verify.parquet"}
+    cfg = load_class_config(out)  # the folder itself
+    assert cfg.path == str(out / "classes.toml") and cfg.confidence.bank_file == "verify.parquet"
+    assert cfg.templates == {cls: [f"templates/{cls}.1.json"]}
+    assert cfg.poses is False and cfg.feature_set == "mr06-ak40"  # the world has no poses
+    first = tmp_path / "first.csv"
+    assert cli("annotate", "--mt", world.mt, "--classes", out, world.docfeats, "-o",
+               first, "-q").exit_code == 0
+    moved = tmp_path / "b" / "renamed"
+    moved.parent.mkdir()
+    shutil.move(out, moved)
+    again = tmp_path / "again.csv"
+    r = cli("annotate", "--mt", world.mt, "--classes", moved, world.docfeats, "-o", again, "-q")
+    assert r.exit_code == 0, r.output
+    assert again.read_text() == first.read_text()
+    # rewritten in place without extra templates: none of the earlier run stays
+    result.extra_templates = {}
+    write_tuned(f"{moved}/", result)
+    assert not (moved / "templates").exists()
+    assert "[templates]" not in (moved / "classes.toml").read_text()
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    with pytest.raises(MtannoError, match="folder of other files"):
+        check_tuned_output(other)
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", other, "-q")
+    assert r.exit_code == 2 and "folder of other files" in r.output
+    assert_one_line(r, other)
+
+
+def test_the_configuration_says_what_its_inputs_need(world, tmp_path):
+    """[inputs] round trips; a bad one is one line naming it; a folder without
+    classes.toml is not a configuration."""
+    from mtanno.annotate import class_config_text
+
+    cfg = ClassConfig(poses=True, feature_set="ak40")
+    path = tmp_path / "c.toml"
+    path.write_text(class_config_text(cfg))
+    back = load_class_config(path)
+    assert back.poses is True and back.feature_set == "ak40" and back.needs_poses
+    for text, msg in (("[inputs]\nposes = 1\n", "poses must be true or false"),
+                      ("[inputs]\nlegs = true\n", "unknown key 'legs' in \\[inputs\\]")):
+        path.write_text(text)
+        with pytest.raises(MtannoError, match=msg):
+            load_class_config(path)
+    with pytest.raises(MtannoError, match="no classes.toml in it"):
+        load_class_config(tmp_path)
+
+
+def test_features_follow_the_configuration(world, tmp_path):
+    """features --classes CONFIG computes what the configuration's [inputs] need."""
+    from mtanno.annotate import class_config_text
+    from mtanno.features.store import read_features
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(class_config_text(ClassConfig(poses=True, feature_set="ak40")))
+    clip = sorted(world.clips.rglob("*.amc"))[0]
+    r = cli("features", clip, "-o", tmp_path / "f", "--classes", cfg, "-q")
+    assert r.exit_code == 0, r.output
+    got = next((tmp_path / "f").glob("*.parquet"))
+    assert read_features(got, poses=True).poses is not None
+    r = cli("features", clip, "-o", tmp_path / "g", "--classes", cfg, "--feature-set",
+            "mrc05", "-q")
+    assert r.exit_code == 2 and "is not the feature set of the class configuration" in r.output
+    assert_one_line(r, cfg)

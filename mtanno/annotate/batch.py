@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mtanno.annotate.config import ClassConfig, load_class_config
+from mtanno.annotate.config import ClassConfig, config_file, load_class_config
 from mtanno.annotate.label import ClassModel, annotate_document, valid_rows, valid_windows
 from mtanno.errors import MtannoError
 from mtanno.labels.segments import Annotation
@@ -150,14 +150,14 @@ def _annotate_file(path, models, layout, config, dbar_variant, match_variant, ke
     from mtanno.templates.match import pack_document
 
     bank = confidence.bank if confidence is not None else None
-    need_poses = bank is not None and bank.representation == "poses"
+    need_poses = (bank is not None and bank.representation == "poses") or bool(config.poses)
     try:
         ff = read_features(path, sha256=True, poses=need_poses)
         check_layout(ff, layout)
         if need_poses and ff.poses is None:
-            raise MtannoError("the class configuration verifies segments by their poses, "
-                              "but this feature file has none (run mtanno features --poses)",
-                              path=ff.path)
+            raise MtannoError("the class configuration needs poses in the feature files (its "
+                              "[inputs]), but this one has none: run mtanno features --poses "
+                              f"(or features --classes {config.path})", path=ff.path)
         t0 = time.perf_counter()
         windows = None
         packed = pack_document(ff.X, ff.X.shape[0])  # once, for keyframes and templates
@@ -490,7 +490,7 @@ def load_annotation_setup(mt_dir: str | os.PathLike, *,
     setup = annotation_setup(
         load_template_folder(mt_dir),
         config=load_class_config(config_path) if config_path else None,
-        config_sha256=sha256_file(config_path) if config_path else None, tau=tau,
+        config_sha256=sha256_file(config_file(config_path)) if config_path else None, tau=tau,
         delta=delta, dbar_variant=dbar_variant, match_variant=match_variant,
         single_label=single_label, where=f"the templates in {mt_dir}",
         min_confidence=min_confidence)

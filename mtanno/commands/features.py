@@ -52,13 +52,18 @@ from mtanno.errors import MtannoError
                    "columns pose.<joint>.<x|y|z> of the 22 canonical joints, root at x=z=0, "
                    "facing +x, in leg lengths (docs/formats.md), for pose evidence without "
                    "rereading the motion files.")
+@click.option("--classes", "config_path", type=click.Path(), default=None, metavar="CONFIG",
+              help="The class configuration the features are for (`annotate --classes "
+                   "CONFIG`; a file or a folder from `mtanno tune`): compute what its "
+                   "[inputs] say the feature files need — poses (as --poses) and its "
+                   "feature set.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2, flags={"outdir": "-o"})
 def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_set, up, poses,
-                 quiet, inside_input, wait, scheduler):
+                 config_path, quiet, inside_input, wait, scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH, C3D): by default the
     40 annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
@@ -80,6 +85,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     With --poses every output also holds the poses of its rows, normalised as the pose
     distance of `mtanno align` does (root at x = z = 0, turned to face +x, scaled by the leg
     length), so that later stages can compare poses from the feature files alone.
+    --classes CONFIG computes what a class configuration of `mtanno tune` needs (its
+    [inputs]: poses when it verifies segments by them, its feature set).
 
     An output is up to date, and skipped unless --force, when the provenance it records
     matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
@@ -95,6 +102,9 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     from tqdm import tqdm
 
     from mtanno.features.extract import extract_to
+
+    if config_path is not None:
+        feature_set, poses = _for_classes(config_path, feature_set, poses)
 
     items: list[str] = []
     listed: list[str] = []  # names read from standard input: one that fails is reported
@@ -130,6 +140,23 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     if not quiet:
         click.echo(f"features: {summary.line()} -> {outdir}", err=True)
     sys.exit(1 if summary.failed else 0)
+
+
+def _for_classes(config_path, feature_set: str, poses: bool) -> tuple[str, bool]:
+    """(feature set, poses) of ``features --classes CONFIG``: what the configuration's
+    ``[inputs]`` need (issue 34); a --feature-set given that differs is an error."""
+    from mtanno.annotate.config import load_class_config
+
+    cfg = load_class_config(config_path)
+    wanted = {"mr06-ak40": "ak40"}.get(cfg.feature_set, cfg.feature_set)  # the option's name
+    if wanted is not None and wanted != feature_set:
+        source = click.get_current_context().get_parameter_source("feature_set")
+        if source is not None and source.name != "DEFAULT":
+            raise MtannoError(f"{{feature_set}} {feature_set} is not the feature set of the "
+                              f"class configuration ({wanted}; its [inputs])",
+                              path=cfg.path, options=("feature_set",))
+        feature_set = wanted
+    return feature_set, poses or cfg.needs_poses
 
 
 @click.command("info")

@@ -32,9 +32,11 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
               help="Folder of keyframe queries (learn-keyframes): held-out documents are "
                    "matched only inside their windows, as annotate --keyframes does.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="Class configuration to write (TOML); extra templates go to "
-                   "CONFIG.templates/ beside it.")
+@click.option("-o", "--output", required=True, type=click.Path(),
+              help="Configuration folder to write (DIR/: classes.toml, templates/, "
+                   "verify.parquet, named relative to each other: move or rename it as one; "
+                   "`annotate --classes DIR`), or CONFIG.toml with CONFIG.templates/ and "
+                   "CONFIG.verify.parquet beside it.")
 @training_options(
     manifest_help="Manifest CSV (file,class[,actor,split]) listing the training clips; the "
                   "actor column names the performers held out in turn.",
@@ -98,12 +100,16 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
 
     Training examples come as for learn-mt (a manifest with --features-dir, --truth with
     feature files, or CLASS/ folders; with --truth, segments of documents that are not
-    among TRAINING are ignored and a note names those documents). Writes CONFIG (TOML:
-    [decoder], [tau], [reject], [templates], with the cross-validated scores and the
-    training files as comments; docs/annotation.md) for `mtanno annotate --mt MT/ --classes CONFIG`.
+    among TRAINING are ignored and a note names those documents). Writes the class
+    configuration (TOML: [decoder], [tau], [reject], [templates], [confidence], [inputs] —
+    what the documents' feature files need, e.g. poses —, with the cross-validated scores
+    and the training files as comments; docs/annotation.md) for `mtanno annotate --mt MT/
+    --classes CONFIG`: a configuration folder for any OUTPUT not ending in .toml (its
+    files named relative to each other, so that it moves as one), else the TOML file with
+    its side files beside it.
 
     Example: mtanno tune --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
-    --features-dir feats/ --split train -o tuned.toml --jobs 2
+    --features-dir feats/ --split train -o tuned/ --jobs 2
     """
     from mtanno.tuning import template_folder_of
     from mtanno.tuning.run import tune_files

@@ -11,8 +11,10 @@
 * :mod:`~mtanno.tuning.confidence` — the confidence of the segments (issue 26): evidence
   of the held-out segments, calibration, the minimum confidence of an output row.
 * :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run), :func:`tune_files` (the run as
-  the command does it, from file names to files) and :func:`write_tuned` (the
-  configuration, its extra templates and its verification bank).
+  the command does it, from file names to files).
+* :mod:`~mtanno.tuning.write` — :func:`write_tuned`: the configuration, its extra templates
+  and its verification bank, as a configuration folder (``tune -o DIR/``, issue 34) or a
+  ``.toml`` file with its side files.
 
 The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
 :mod:`mtanno.annotate.decode`.
@@ -21,8 +23,9 @@ The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
 __all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder_of", "tune",
            "tune_files", "write_tuned"]
 
-from mtanno.tuning.run import TuneResult, template_folder_of, tune, tune_files, write_tuned
+from mtanno.tuning.run import TuneResult, tune, tune_files
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params
+from mtanno.tuning.write import template_folder_of, write_tuned
 from mtanno.util.lazy import submodule_getattr
 
 __getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

@@ -18,8 +18,6 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno._version import __version__
-from mtanno.annotate import ClassConfig, class_config_text
 from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
 from mtanno.templates.params import ANNOTATION_TAU
@@ -36,9 +34,16 @@ from mtanno.tuning.search import (
     Tuner,
     check_methods,
 )
+from mtanno.tuning.write import (
+    bank_path_of,
+    check_tuned_output,
+    template_folder_of,
+    tuned_paths,
+    write_tuned,
+)
 
 __all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "template_folder_of", "tune",
-           "tune_files", "write_tuned"]
+           "tune_files", "write_tuned"]  # the last from mtanno.tuning.write, for callers
 
 
 @dataclass
@@ -74,6 +79,8 @@ class TuneResult:
     bank: object = None
     #: the most examples a template was learned from (None: all; issue 34)
     max_examples: int | None = None
+    #: the templates' feature set (what the documents' feature files must hold)
+    feature_set: str | None = None
 
     @property
     def not_validated(self) -> list[str]:
@@ -210,13 +217,15 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
                         folds_held, seed, methods, documents, unknown_weight, seconds,
                         template_sha256=shas, background=bg_records, confidence=fit,
-                        bank=bank, max_examples=max_examples or None)
+                        bank=bank, max_examples=max_examples or None,
+                        feature_set=layout.feature_set)
     for name, (p, ev, st) in variants.items():
         subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
                                            folds_held, seed, subset, documents, unknown_weight,
                                            seconds, template_sha256=shas,
-                                           max_examples=max_examples or None)
+                                           max_examples=max_examples or None,
+                                           feature_set=layout.feature_set)
     return result
 
 
@@ -232,7 +241,8 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     :func:`mtanno.templates.training.collect_sources` takes them, every output checked
     against the inputs before any work (:func:`mtanno.util.preflight.check_outputs`),
     :func:`tune` (``options`` are its keyword options), and the configuration written to
-    ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
+    ``output`` by :func:`mtanno.tuning.write.write_tuned` (a configuration folder, or a
+    ``.toml`` file with its bank and extra templates beside it); with
     ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
     or lies inside, a folder of the inputs only with ``inside_input``). ``log`` receives
     the notes on the inputs and the search log, a line each; ``failures`` receives the
@@ -247,7 +257,9 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth, note=log, failures=failures)
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
-    planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
+    check_tuned_output(output)
+    planned = [tuned_paths(output)[0],
+               *([bank_path_of(output)] if options.get("confidence", True) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
     scanned = input_folders(training, features_dir, also=[mt_dir, keyframes_dir])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
@@ -566,125 +578,3 @@ def _final_groups_task(cls: str, idx: list[int], k: int, learn: dict) -> list:
     from mtanno.util.workers import shared
 
     return _final_groups(cls, [shared()["examples"][i] for i in idx], k, learn)
-
-
-def template_folder_of(config_path: str | os.PathLike) -> Path:
-    """Where :func:`write_tuned` puts a configuration's extra templates:
-    ``CONFIG.templates/`` beside ``CONFIG.toml``."""
-    p = Path(config_path)
-    return p.with_name(p.stem + ".templates")
-
-
-def bank_path_of(config_path: str | os.PathLike) -> Path:
-    """Where :func:`write_tuned` puts a configuration's verification bank:
-    ``CONFIG.verify.parquet`` beside ``CONFIG.toml``."""
-    p = Path(config_path)
-    return p.with_name(p.stem + ".verify.parquet")
-
-
-def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> list[str]:
-    """``[confidence]`` and ``[background]`` of the configuration (the bank written beside
-    it) and header lines on how well the confidence did out of fold."""
-    from mtanno.confidence.model import ConfidenceModel
-    from mtanno.confidence.verify import write_bank
-    from mtanno.evaluation.calibration import auroc, expected_calibration_error
-    from mtanno.util.tables import sha256_file
-
-    fit = result.confidence
-    cfg.background = {r["path"]: r["sha256"] for r in result.background}
-    if fit is None:
-        return []
-    bank_file = sha = None
-    if result.bank is not None:
-        bpath = bank_path_of(path)
-        write_bank(bpath, result.bank)
-        bank_file, sha = bpath.name, sha256_file(bpath)
-    cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
-                                     bank_file, sha, str(path.parent))
-    kinds = np.array(fit.kinds)
-    lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
-             f"{fit.representation or 'nothing'}), out of fold on {len(fit.right)} held-out "
-             f"segments ({int((kinds == 'known').sum())} of known classes, "
-             f"{int((kinds == 'unknown').sum())} over a class left out, "
-             f"{int((kinds == 'background').sum())} on background): AUROC "
-             f"{auroc(fit.oof, fit.right):.3f}, ECE {expected_calibration_error(fit.oof, fit.right):.3f}"]
-    lines += [f"  min confidence {t['min_confidence']:g}: F1 {t['F1']:.3f} F2 {t['F2']:.3f} "
-              f"unknown-class rate {t['U']:.3f} background labelled {t['background']:.3f}"
-              for t in fit.table]
-    return lines
-
-
-def _fmt(ev: Evaluation) -> str:
-    p1, r1, f1 = ev.counts.frame()
-    p2, r2, f2 = ev.counts.segment()
-    return (f"P1 {p1:.3f} R1 {r1:.3f} F1 {f1:.3f}, P2 {p2:.3f} R2 {r2:.3f} F2 {f2:.3f}, "
-            f"unknown-class rate {ev.unknown:.3f}")
-
-
-def write_tuned(path: str | os.PathLike, result: TuneResult, *,
-                command: Sequence[str] = ()) -> ClassConfig:
-    """Write the tuned class configuration to ``path`` (TOML, cross-validated scores as
-    comments) and its extra templates into :func:`template_folder_of` ``(path)``; returns
-    the configuration as written."""
-    from mtanno.templates.model import save_template
-    from mtanno.util.output import atomic_path, make_folder
-
-    path = Path(path)
-    cfg = result.params.config()
-    cfg.path = str(path)
-    cfg.tuned_with = dict(result.template_sha256)
-    if result.extra_templates:
-        folder = template_folder_of(path)
-        make_folder(folder)
-        for c, mts in sorted(result.extra_templates.items()):
-            files = []
-            for i, mt in enumerate(mts, 1):
-                target = folder / f"{c}.{i}.json"
-                save_template(target, mt)
-                files.append(f"{folder.name}/{target.name}")
-            cfg.templates[c] = files
-    ev = result.evaluation
-    header = [
-        f"class configuration written by mtanno {__version__} tune "
-        f"({' '.join(command) if command else 'API'})",
-        f"seed {result.seed}; methods: {', '.join(result.methods) or 'none'}; held-out "
-        f"documents: {result.documents}; unknown-class weight {result.unknown_weight:g}; "
-        + (f"templates learned from at most {result.max_examples} examples each"
-           if result.max_examples else "templates learned from all examples"),
-        "folds (held-out performer: examples): "
-        + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
-        f"cross-validated, tuned:    {_fmt(ev)}",
-        f"cross-validated, reference (tau {ANNOTATION_TAU}, no methods): {_fmt(result.reference)}",
-        "search:",
-        *(f"  {s}" for s in result.steps),
-        *_confidence_section(cfg, result, path),
-        "the training inputs this file was tuned on are listed at its end",
-    ]
-    comments = {}
-    unscored = set(result.not_validated)
-    for c in result.classes:
-        pc = ev.per_class.get(c)
-        hit, n = ev.per_class_unknown.get(c, (0, 0))
-        if c in unscored:
-            note = "not cross-validated (no fold has both its template and held-out examples)"
-        else:
-            note = (f"CV F1 {pc.frame()[2]:.3f} ({pc.frame_support} frames), F2 "
-                    f"{pc.segment()[2]:.3f} ({pc.seg_support} segments)")
-        if n:
-            note += f", unknown-class rate {hit / n:.3f}"
-        if c in cfg.tau:
-            comments[("tau", c)] = note
-        elif c in cfg.reject:
-            comments[("reject", c)] = note
-        else:
-            comments[("classes", c)] = note
-    text = class_config_text(cfg, header=header, comments=comments)
-    plain = [c for c in result.classes if ("classes", c) in comments and comments[("classes", c)]]
-    if plain:
-        text += "\n# cross-validated scores of the classes at the default tau:\n" + "".join(
-            f"#   {c}: {comments[('classes', c)]}\n" for c in plain)
-    text += f"\n# training inputs ({len(result.inputs)} files; SHA-256, path):\n" + "".join(
-        f"#   {i['sha256']}  {i['path']}\n" for i in result.inputs)
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
-    return cfg
