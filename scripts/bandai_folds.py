@@ -37,6 +37,17 @@ writes
   ``reviewed.csv`` appended as downloaded.
 
 K = 0 gives the fold itself: ``train.csv`` and ``truth.csv`` are byte for byte the fold's.
+
+    bandai_folds.py pooled FEATS OUT.csv [--per 12] [--seed 0]
+
+``pooled`` (issue 34, the training set of real size of scripts/bench_tune.py) writes one
+training manifest of all five styles (columns ``file,class,actor,take``, actor = the style):
+``--per`` clips per content and style, 10 contents × 5 styles × ``--per`` clips (600 for
+12). Each (style, content) draws as ``folds`` does (``random.Random("SEED:STYLE:CONTENT")``,
+so ``--per 12`` holds exactly the clips of the folds' training sets); where a content of a
+style has fewer clips than ``--per`` (elderly has 17 of some), the draw goes round again
+(each round a seeded shuffle, ``random.Random("SEED:STYLE:CONTENT:ROUND")``): clips repeat,
+so that every size has the same five performers (folds) and the same classes.
 """
 
 from __future__ import annotations
@@ -96,6 +107,28 @@ def folds(feats: Path, out: Path, per: int, seed: int) -> None:
         (d / "truth.csv").write_text("\n".join(truth) + "\n")
         print(f"bandai_folds: {held}: {len(rows) - 1} training clips, {len(truth) - 1} "
               f"documents -> {d}", file=sys.stderr)
+
+
+def pooled(feats: Path, out: Path, per: int, seed: int) -> None:
+    """Write the pooled manifest of all five styles (module docstring)."""
+    if per < 1:
+        raise SystemExit(f"bandai_folds: --per must be >= 1 (got {per})")
+    data = clips(feats)
+    rows = ["file,class,actor,take"]
+    for (style, content), items in sorted(data.items()):
+        got = sorted(random.Random(f"{seed}:{style}:{content}").sample(items,
+                                                                        min(per, len(items))))
+        rnd = 0
+        while len(got) < per:
+            rnd += 1
+            again = list(items)
+            random.Random(f"{seed}:{style}:{content}:{rnd}").shuffle(again)
+            got += again[:per - len(got)]
+        rows += [f"{rel}.bvh,{content},{style},{take}" for rel, take, _ in got]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(rows) + "\n")
+    print(f"bandai_folds: pooled, {per} per content and style: {len(rows) - 1} training clips "
+          f"-> {out}", file=sys.stderr)
 
 
 def draw_reviewed(truth: list[dict[str, str]], style: str, k: int,
@@ -181,7 +214,15 @@ def main(argv=None) -> int:
     r.add_argument("--k", type=int, required=True)
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--features", type=Path, default=None)
+    p = sub.add_parser("pooled")
+    p.add_argument("feats", type=Path)
+    p.add_argument("out", type=Path)
+    p.add_argument("--per", type=int, default=12)
+    p.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
+    if a.cmd == "pooled":
+        pooled(a.feats, a.out, a.per, a.seed)
+        return 0
     if a.cmd == "review":
         review(a.fold, a.out, a.k, a.seed, a.features)
         return 0

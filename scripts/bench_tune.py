@@ -14,6 +14,19 @@ configuration no slower than 1.2× the untuned one).
   the ratio with less of the noise of other jobs on a 2-core machine.
 
     .venv/bin/python scripts/bench_tune.py [--repeats 3] [--out .cache/bench/annotate]
+
+With ``--growth`` (issue 34) it measures instead how ``tune`` grows with the training set:
+the pooled Bandai set-2 training sets of ``bandai_folds.py pooled`` (all five styles; 3, 6,
+12 and 24 clips per content and style: 150, 300, 600 and 1 200 clips, 10 classes, five
+folds; 1 200 repeats clips where a style has fewer than 24 of a content), feature files with
+poses, templates learned from each set; the issue's command ``mtanno tune --mt MT --manifest
+train.csv --features-dir FEATS --seed 5 --jobs 2``, whole command, median of ``--repeats``
+(wall, CPU of the command and its workers, peak RSS of the largest process, the load
+before each run); then the exponents of wall and CPU time fitted on log–log (least
+squares over the sizes) and the cross-validated F1/F2 of each size.
+
+    .venv/bin/python scripts/bench_tune.py --growth [--repeats 3] [--sizes 3 6 12 24]
+        [--bandai-out .cache/bench/bandai] [--max-examples N]
 """
 
 from __future__ import annotations
@@ -38,7 +51,83 @@ from bench_annotate import (  # noqa: E402
 )
 
 
+def _run_timed(args: list[str]) -> tuple[float, float, float, float]:
+    """(wall s, CPU s of the command and its workers, peak RSS MB, load before)."""
+    import os
+    import resource
+
+    load = os.getloadavg()[0]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t = time.perf_counter()
+    proc = subprocess.run(["/usr/bin/time", "-f", "%M", str(REPO / ".venv" / "bin" / "mtanno"),
+                           *args], check=True, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    return wall, cpu, int(proc.stderr.strip().splitlines()[-1]) / 1024, load
+
+
+def _exponent(sizes: list[int], values: list[float]) -> float:
+    """Slope of log(value) against log(size), least squares."""
+    import numpy as np
+
+    return float(np.polyfit(np.log(sizes), np.log(values), 1)[0])
+
+
+def growth(argv: list[str]) -> int:
+    """The growth curve of ``tune`` on the pooled Bandai training sets (module docstring)."""
+    import argparse
+    import re
+
+    from _bandai_bench import available, training, tune_args
+
+    ap = argparse.ArgumentParser(description="tune's growth curve (bench_tune.py --growth)")
+    ap.add_argument("--growth", action="store_true")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[3, 6, 12, 24])
+    ap.add_argument("--bandai-out", default=str(REPO / ".cache" / "bench" / "bandai"))
+    ap.add_argument("--max-examples", type=int, default=None)
+    args = ap.parse_args(argv)
+    if not available():
+        print("bench_tune: the Bandai set-2 archives are missing; --growth needs them")
+        return 2
+    out = Path(args.bandai_out)
+    for per in args.sizes:
+        training(out, per)  # features, manifest and templates made before any timing
+    print(f"machine: {machine()}")
+    extra = [] if args.max_examples is None else ["--max-examples", str(args.max_examples)]
+    print(f"tune --seed 5 --jobs 2{' ' + ' '.join(extra) if extra else ''}, whole command, "
+          f"median of {args.repeats}; CPU = user + system of the command and its workers; "
+          "peak RSS of the largest process")
+    rows = []
+    for per in args.sizes:
+        cfg = out / f"growth{per}.toml"
+        runs = [_run_timed([*tune_args(out, per), *extra, "-o", str(cfg), "-q"])
+                for _ in range(args.repeats)]
+        wall = statistics.median(r[0] for r in runs)
+        cpu = statistics.median(r[1] for r in runs)
+        peak = max(r[2] for r in runs)
+        text = cfg.read_text()
+        f1 = re.search(r"cross-validated, tuned: .*?F1 ([0-9.]+), .*?F2 ([0-9.]+)", text)
+        clips = 50 * per
+        rows.append((clips, wall, cpu, peak))
+        print(f"  {clips:5d} clips: {wall:7.1f} s wall ({', '.join(f'{r[0]:.1f}' for r in runs)}), "
+              f"{cpu:7.1f} s CPU, peak RSS {peak:6.0f} MB, load before "
+              f"{', '.join(f'{r[3]:.2f}' for r in runs)}; cross-validated F1 {f1[1]} F2 "
+              f"{f1[2]}", flush=True)
+    if len(rows) > 1:
+        n = [r[0] for r in rows]
+        print(f"fitted exponents over {', '.join(map(str, n))} clips: wall "
+              f"{_exponent(n, [r[1] for r in rows]):.2f}, CPU "
+              f"{_exponent(n, [r[2] for r in rows]):.2f}, peak RSS "
+              f"{_exponent(n, [r[3] for r in rows]):.2f} (target: time ≤ 1.2)")
+    return 0
+
+
 def main() -> int:
+    if "--growth" in sys.argv[1:]:
+        return growth(sys.argv[1:])
     got = bench_setup("bench_tune", __doc__)
     if got is None:
         return 2

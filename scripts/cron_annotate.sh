@@ -9,13 +9,16 @@
 #         Optional: INBOX/truth.csv, ground truth of some documents.
 # WORK/   mt/             class templates (mtanno learn-mt -o WORK/mt), required
 #         keyframes/      keyframe queries (mtanno learn-keyframes), optional
-#         classes.toml    class configuration (mtanno tune), optional
+#         classes/        class configuration folder (mtanno tune -o WORK/classes/; a folder
+#                         tuned elsewhere, moved or copied here whole), optional; or
+#         classes.toml    a class configuration file (its side files beside it)
 #         truth.csv       ground truth, optional (used when INBOX/truth.csv is absent)
 #         written here:   features/, index/, annotations/ (one table per document),
 #                         reports/YYYY-MM-DD.json (today's evaluation)
 #
 # Stages, one log line or more each on standard output ("TIME cron_annotate: STAGE: ..."):
-#   features   features of the motion files (files that are up to date are skipped)
+#   features   features of the motion files (files that are up to date are skipped), with
+#              what the class configuration needs (features --classes: poses, feature set)
 #   index      index add into WORK/index (index build when there is no index yet)
 #   annotate   annotate --output-dir WORK/annotations (only documents whose table is
 #              missing or out of date are computed)
@@ -76,7 +79,12 @@ if [ -z "$(find "$INBOX" -type f \( -iname '*.amc' -o -iname '*.bvh' \) -print -
   exit 0
 fi
 
-stage features . features "$INBOX" -o "$WORK/features" --jobs "$JOBS"
+classes=()
+if [ -d "$WORK/classes" ]; then classes=(--classes "$WORK/classes")
+elif [ -f "$WORK/classes.toml" ]; then classes=(--classes "$WORK/classes.toml"); fi
+
+stage features . features "$INBOX" -o "$WORK/features" --jobs "$JOBS" \
+  ${classes[@]+"${classes[@]}"}
 
 if [ -f "$WORK/index/manifest.json" ]; then
   stage index . index add "$WORK/index" "$WORK/features"
@@ -86,9 +94,9 @@ fi
 
 extra=()
 [ -d "$WORK/keyframes" ] && extra+=(--keyframes "$WORK/keyframes")
-[ -f "$WORK/classes.toml" ] && extra+=(--classes "$WORK/classes.toml")
-stage annotate . annotate --mt "$WORK/mt" ${extra[@]+"${extra[@]}"} "$WORK/features" \
-  --output-dir "$WORK/annotations" --jobs "$JOBS"
+stage annotate . annotate --mt "$WORK/mt" ${extra[@]+"${extra[@]}"} \
+  ${classes[@]+"${classes[@]}"} "$WORK/features" --output-dir "$WORK/annotations" \
+  --jobs "$JOBS"
 
 truth=
 for t in "$INBOX/truth.csv" "$WORK/truth.csv"; do

@@ -413,6 +413,9 @@ SEVERAL_CALLS = {
     # tune_files' result is to carry it, when tuning/ is free (another branch changes
     # tuning/run.py now)
     "mtanno.commands.tune.tune_cmd",
+    # --classes CONFIG: the configuration's [inputs] (annotate, a layer above features)
+    # choose the options of extract_to
+    "mtanno.commands.features.features_cmd",
 }
 
 
@@ -527,8 +530,9 @@ LONG_MODULES = {
     "mtanno.templates.model": "four jobs, to split as keyframes/model.py was: MotionTemplate, "
                               "its JSON file, quantize/mirror, folders of templates (its "
                               "readers include modules other branches change now)",
-    "mtanno.tuning.run": "two jobs: the tune run (in named steps), and the class "
-                         "configuration it writes; another branch changes it now",
+    "mtanno.tuning.run": "the tune run, in named steps (inputs, folds, search, further "
+                         "templates, confidence) and their worker tasks; the configuration "
+                         "it writes is tuning/write.py's",
     "mtanno.tuning.search": "the per-fold, per-class search of tune: templates, Δ on held-out "
                             "documents, objective, coordinate search",
     "mtanno.util.tables": "three jobs: tables by suffix, provenance, and small readers (clip "

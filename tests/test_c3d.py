@@ -325,8 +325,9 @@ def test_validity_in_feature_files_is_checked_and_old_files_are_all_valid(tmp_pa
 def test_annotation_never_labels_an_invalid_stretch(world, tmp_path):
     """A document labelled all through, then the same features with a stretch marked
     invalid: no segment touches it (reference labels and the tuned decoder alike)."""
-    from mtanno.annotate.batch import annotate_files, load_class_models
+    from mtanno.annotate.batch import annotate_files
     from mtanno.annotate.config import ClassConfig
+    from mtanno.annotate.setup import load_class_models
 
     src = world.doc_files[0]
     ff = read_features(src)

@@ -109,3 +109,33 @@ def test_a_bad_motion_file_fails_alone(setup, world):
     n = len(world.doc_files)
     assert any(ln.startswith(f"annotate: {n} documents: {n} computed") for ln in log)
     assert any(ln.startswith(f"evaluate: {n} documents with truth") for ln in log)
+
+
+def test_the_recipe_with_a_tuned_configuration_moved_and_renamed(setup, world, tmp_path):
+    """Issue 34: `tune -o DIR/` (a configuration that verifies segments by poses, with its
+    bank, tuned elsewhere), moved and renamed to WORK/classes/: the recipe computes the
+    features it needs (poses, by features --classes) and annotates every document with it."""
+    from world import cli
+
+    from mtanno.features.store import read_features
+
+    inbox, work, exe = setup
+    feats = tmp_path / "posed"
+    assert cli("features", world.clips, "-o", feats, "--poses", "-q").exit_code == 0
+    tuned = tmp_path / "elsewhere" / "tuned"
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir", feats,
+            "--split", "train", "-o", f"{tuned}/", "-q")
+    assert r.exit_code == 0, r.output
+    text = (tuned / "classes.toml").read_text()
+    assert 'bank = "verify.parquet"' in text and "[inputs]" in text and "poses = true" in text
+    shutil.move(tuned, work / "classes")  # moved and renamed as one
+    r, log = run(inbox, work, exe)
+    assert r.returncode == 0, r.stdout + r.stderr
+    n = len(world.doc_files)
+    assert log[2].startswith(f"annotate: {n} documents: {n} computed"), log
+    for f in (work / "features").glob("*.parquet"):
+        assert read_features(f, poses=True).poses is not None
+    table = next((work / "annotations").glob("*.csv"))
+    prov = json.loads(Path(f"{table}.meta.json").read_text())
+    assert prov["classes"]["path"] == str(work / "classes" / "classes.toml")
+    assert prov["confidence"]["bank"]["path"] == str(work / "classes" / "verify.parquet")

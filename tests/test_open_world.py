@@ -202,6 +202,34 @@ def test_tune_invariance_and_evidence_are_recorded_and_used(world, tmp_path):
     assert r.exit_code != 0 and "invariance" in r.output and "Traceback" not in r.output
 
 
+def test_a_configuration_folder_holds_the_frame_classifier_bank(world, tmp_path):
+    """``tune -o DIR/ --evidence classifier`` keeps the frame classifier's bank in the
+    folder (``frames.parquet``), so the folder moved and renamed annotates alike."""
+    import shutil
+
+    from mtanno.annotate import load_class_config
+
+    feats = tmp_path / "docsP"
+    assert cli("features", world.docs, "-o", feats, "--poses", "-q").exit_code == 0
+    r = cli("tune", "--mt", world.mt, "--truth", world.truth, feats, "-o",
+            tmp_path / "tuned", "-q", "--evidence", "verify", "--evidence", "classifier")
+    assert r.exit_code == 0, r.output
+    conf = load_class_config(tmp_path / "tuned").confidence
+    assert conf.frames_file == "frames.parquet" and (tmp_path / "tuned/frames.parquet").is_file()
+    assert not list(tmp_path.glob("*.frames.parquet"))
+    outs = []
+    for where in (tmp_path / "tuned", tmp_path / "elsewhere" / "renamed"):
+        if not where.exists():
+            where.parent.mkdir()
+            shutil.move(tmp_path / "tuned", where)
+        out = tmp_path / f"{where.name}.csv"
+        r = cli("annotate", "--mt", world.mt, "--classes", where, feats, "-o", out,
+                "--min-confidence", "0", "-q")
+        assert r.exit_code == 0, r.output
+        outs.append(read_annotation_table(out)[0])
+    assert outs[0] == outs[1]
+
+
 def test_bad_invariance_and_evidence_are_usage_errors(world, tmp_path):
     train = ["--manifest", world.manifest, "--features-dir", world.feats, "--split", "train"]
     for opt, value in (("--invariance", "scale"), ("--evidence", "speed")):

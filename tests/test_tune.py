@@ -605,3 +605,271 @@ def test_annotate_skips_the_evidence_that_a_copy_cannot_change():
     with pytest.raises(MtannoError, match="evidence of a template of every class"):
         label_document("d", ["a"], iter([("a", full[0][1], full[0][2], None)]), X.shape[1],
                        config=cfg)
+
+
+# ------------------------------------------------------------------ issue 34: size
+
+
+def test_the_search_matches_all_templates_only_at_the_delta_it_chose(world, monkeypatch):
+    """tune keeps template (1, 0) at every δ and the other templates only at the δ the
+    search chose (fetched then), and finds what a tuner given everything at once finds."""
+    from mtanno.tuning import run
+    from mtanno.tuning.search import GROUPS, prepare_fold_class
+
+    seen = {}
+    original = Tuner.search
+
+    def search(self, **kw):
+        got = original(self, **kw)
+        seen["tuner"], seen["result"] = self, got
+        return got
+
+    monkeypatch.setattr(Tuner, "search", search)
+    result = tune(_sources(world), world.mt, seed=2, n_jobs=1, confidence=False)
+    monkeypatch.setattr(Tuner, "search", original)
+    tuner = seen["tuner"]
+    chosen = result.params.delta
+    for fd in tuner.folds:
+        for delta, _c, k, i in fd.match:
+            assert delta == chosen or (k, i) == (1, 0)
+        assert {(k, i) for d, c, k, i in fd.match if d == chosen and c == fd.classes[0]} \
+            > {(1, 0)}
+    # the same search with every template matched at every δ beforehand
+    templates, layout, examples, _ = run._tune_inputs(_sources(world), world.mt, None)
+    folds = make_folds(examples, seed=2)
+    learn = {c: run._learn_params(templates[c]) for c in templates}
+    prepared = {}
+    for f in folds:
+        for c in templates:
+            train = [e for e in f.train if e.class_name == c]
+            if train:
+                prepared[(f.name, c)] = prepare_fold_class(
+                    c, train, f.held_out.X, f.held_out.offsets, deltas=run._deltas(METHODS, {}),
+                    groups=GROUPS, learn=learn[c], spans=None, evidence=True,
+                    scales=run.TEMPO_SCALES)
+    columns = {k: v for k, v in (tuner.columns or {}).items()}
+    whole = Tuner(folds, prepared, classes=list(templates), columns=columns)
+    params, ev, steps = whole.search(delta=0.05)
+    assert params == result.params and steps == result.steps
+    assert ev.J == result.evaluation.J
+
+
+def _old_subset(fd, docs):
+    """The materialised subset of a fold (what tune built before issue 34): every array
+    of every template sliced up front."""
+    idx = np.concatenate([np.arange(fd.offsets[d], fd.offsets[d + 1]) for d in docs])
+    lengths = [int(fd.offsets[d + 1] - fd.offsets[d]) for d in docs]
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    shift = np.concatenate([np.full(n, offsets[j] - fd.offsets[d])
+                            for j, (d, n) in enumerate(zip(docs, lengths))])
+    return {key: (d[idx], np.where(st[idx] >= 0, st[idx] + shift, -1),
+                  None if ev is None else ev[idx]) for key, (d, st, ev) in fd.match.items()}
+
+
+def test_a_class_left_out_reads_its_documents_from_the_fold_arrays():
+    """The run with a class left out sees the fold's arrays sliced to the documents that
+    hold the class (no copies kept), exactly the arrays a materialised subset held."""
+    from mtanno.tuning.folddata import _sub_arrays
+
+    fold, prepared = _fold_data()
+    fold.held_out.X = np.zeros((3, 90), np.uint8)
+    fold.held_out.offsets = np.array([0, 30, 60, 90])
+    fold.held_out.names = ["d1", "d2", "d3"]
+    fold.held_out.truth = [("a", 0, 14), ("b", 15, 29), ("b", 30, 44), ("b", 45, 59),
+                           ("a", 60, 89)]
+    for got in prepared.values():  # Δ curves of 90 frames with matches in every document
+        for key, (d, s, ev) in got["match"].items():
+            d2, s2 = np.concatenate([d, d[:30]]), np.concatenate([s, np.where(s[:30] >= 0,
+                                                                             s[:30] + 60, -1)])
+            got["match"][key] = (d2, s2, np.concatenate([ev, ev[:30]]))
+    tuner = Tuner([fold], prepared, classes=["a", "b"])
+    fd = tuner.folds[0]
+    sub = fd.hidden["a"]
+    assert sub is not fd and sub.n_frames == 60 and list(sub.offsets) == [0, 30, 60]
+    old = _old_subset(fd, [0, 2])
+    for key, (d, s, ev) in old.items():
+        d2, s2, ev2 = sub.match[key]
+        assert np.array_equal(d, d2) and np.array_equal(s, s2) and np.array_equal(ev, ev2)
+    p = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 2, "b": 1},
+               frame_weight=0.3)
+    for want, got in zip(tuner.decoder_arrays(sub, p), _sub_arrays(sub, tuner.decoder_arrays(fd, p))):
+        assert np.array_equal(want, got)
+    # the run without a class is scored once for the candidates that differ only in it
+    ev = tuner.evaluate(p, per_class=True)
+    cached = dict(tuner._hidden)
+    p2 = p.copy(tau={"a": 0.3, "b": 0.5})
+    tuner.evaluate(p2)
+    assert len(tuner._hidden) == len(cached) + 1  # b's run again, a's (without a) reused
+    tuner._hidden.clear()
+    assert tuner.evaluate(p, per_class=True) == ev
+
+
+def test_learning_subset_spreads_over_the_performers(world):
+    from mtanno.templates.training import load_examples
+    from mtanno.tuning.cv import learning_subset
+
+    examples = load_examples(_sources(world))
+    one = [e for e in examples if e.class_name == examples[0].class_name]
+    assert learning_subset(one, None) == list(range(len(one)))
+    assert learning_subset(one, 0) == list(range(len(one)))
+    assert learning_subset(one, len(one)) == list(range(len(one)))
+    got = learning_subset(one, 2, seed=1)
+    assert len(got) == 2 and got == sorted(got)
+    assert len({one[i].performer for i in got}) == 2  # one of each performer first
+    assert learning_subset(one, 2, seed=1) == got
+    # the same draw in a fold that holds only some of the examples: a nested order
+    part = [e for e in one if e.performer == one[got[0]].performer]
+    assert [part[i] for i in learning_subset(part, 1, seed=1)] == [one[got[0]]]
+    with pytest.raises(MtannoError, match="max examples"):
+        learning_subset(one, -1)
+
+
+def test_tune_learns_each_template_from_at_most_max_examples(world, monkeypatch, tmp_path):
+    """--max-examples bounds the examples every template of the search is learned from,
+    and the configuration says so."""
+    from mtanno.tuning import run
+
+    sizes = []
+    original = run.learn_fold_class
+
+    def learn_fold_class(cls, train, **kw):
+        sizes.append(len(train))
+        return original(cls, train, **kw)
+
+    monkeypatch.setattr(run, "learn_fold_class", learn_fold_class)
+    r = tune(_sources(world), world.mt, seed=1, n_jobs=1, confidence=False, max_examples=1)
+    assert sizes and max(sizes) == 1 and r.max_examples == 1
+    write_tuned(tmp_path / "t.toml", r)
+    assert "templates learned from at most 1 examples each" in (tmp_path / "t.toml").read_text()
+    sizes.clear()
+    r = tune(_sources(world), world.mt, seed=1, n_jobs=1, confidence=False, max_examples=0)
+    assert max(sizes) > 1 and r.max_examples is None
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_the_best_candidate_is_found_without_scoring_every_run(jobs):
+    """_best scores the runs with a class left out only while a candidate can still win,
+    and returns what scoring everything returns: the first of the highest J, or nothing
+    when none beats the current point by eps."""
+    fold, prepared = _fold_data()
+    fold.held_out.truth.append(("c", 0, 0))
+    tuner = Tuner([fold], prepared, classes=["a", "b"], unknown_weight=0.5, jobs=jobs)
+    base = Params(delta=0.05, resolve=True, tau={"a": 0.5, "b": 0.5}, groups={"a": 1, "b": 1})
+    cands = [base.copy(tau={"a": ta, "b": tb}, resolve=r, groups={"a": g, "b": 1})
+             for ta in (0.05, 0.1, 0.3, 0.5) for tb in (0.05, 0.13, 0.5) for r in (True, False)
+             for g in (1, 2)]
+    cands += cands[:5]  # equals later in the list: the first must win
+    full = [tuner.evaluate(c) for c in cands]
+    top = max(e.J for e in full)
+    first = next(i for i, e in enumerate(full) if e.J == top)
+    runs = []
+    if jobs == 1:  # count the runs scored (in this process)
+        segments = tuner.fold_segments
+        tuner.fold_segments = lambda fd, p, classes, arrays=None: runs.append(len(classes)) or \
+            segments(fd, p, classes, arrays)
+    try:
+        tuner._hidden.clear()
+        got, ev = tuner._best(cands)
+        assert got == cands[first] and ev == full[first]
+        if jobs == 1:  # every run with all classes, and far fewer with one left out
+            assert runs.count(2) == len(cands) and 0 < runs.count(1) < len(cands)
+        for current, eps in ((full[first], 0.0), (full[-1], 0.0), (full[-1], 0.01)):
+            got, ev = tuner._best(cands, current, eps)
+            if top > current.J + eps:
+                assert got == cands[first] and ev == full[first]
+            else:
+                assert got is None and ev is None
+    finally:
+        tuner._close_pool()
+
+
+# ------------------------------------------------------------------ issue 34: one thing
+
+
+def test_a_configuration_folder_moves_and_is_renamed_as_one(world, tmp_path):
+    """tune -o DIR/: the configuration, its extra templates and its bank in one folder,
+    named relative to each other; moved and renamed it annotates as before; rewritten, it
+    keeps no template of the earlier run; a folder of other files is refused."""
+    import shutil
+
+    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.tempo import time_scaled
+    from mtanno.tuning.write import check_tuned_output
+
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", f"{tmp_path / 'cli'}/", "--seed", "1", "-q")
+    assert r.exit_code == 0, r.output
+    assert {p.name for p in (tmp_path / "cli").iterdir()} <= {"classes.toml", "templates",
+                                                              "verify.parquet"}
+    result = tune(_sources(world), world.mt, seed=1, n_jobs=1)
+    mts = load_template_folder(world.mt)
+    cls = sorted(mts)[0]
+    result.extra_templates = {cls: [time_scaled(mts[cls], 0.6)]}  # a template to refer to
+    out = tmp_path / "a" / "tuned"
+    write_tuned(f"{out}/", result)
+    assert {p.name for p in out.iterdir()} == {"classes.toml", "templates", "verify.parquet"}
+    cfg = load_class_config(out)  # the folder itself
+    assert cfg.path == str(out / "classes.toml") and cfg.confidence.bank_file == "verify.parquet"
+    assert cfg.templates == {cls: [f"templates/{cls}.1.json"]}
+    assert cfg.poses is False and cfg.feature_set == "mr06-ak40"  # the world has no poses
+    first = tmp_path / "first.csv"
+    assert cli("annotate", "--mt", world.mt, "--classes", out, world.docfeats, "-o",
+               first, "-q").exit_code == 0
+    moved = tmp_path / "b" / "renamed"
+    moved.parent.mkdir()
+    shutil.move(out, moved)
+    again = tmp_path / "again.csv"
+    r = cli("annotate", "--mt", world.mt, "--classes", moved, world.docfeats, "-o", again, "-q")
+    assert r.exit_code == 0, r.output
+    assert again.read_text() == first.read_text()
+    # rewritten in place without extra templates: none of the earlier run stays
+    result.extra_templates = {}
+    write_tuned(f"{moved}/", result)
+    assert not (moved / "templates").exists()
+    assert "[templates]" not in (moved / "classes.toml").read_text()
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    with pytest.raises(MtannoError, match="folder of other files"):
+        check_tuned_output(other)
+    r = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
+            world.feats, "--split", "train", "-o", other, "-q")
+    assert r.exit_code == 2 and "folder of other files" in r.output
+    assert_one_line(r, other)
+
+
+def test_the_configuration_says_what_its_inputs_need(world, tmp_path):
+    """[inputs] round trips; a bad one is one line naming it; a folder without
+    classes.toml is not a configuration."""
+    from mtanno.annotate import class_config_text
+
+    cfg = ClassConfig(poses=True, feature_set="ak40")
+    path = tmp_path / "c.toml"
+    path.write_text(class_config_text(cfg))
+    back = load_class_config(path)
+    assert back.poses is True and back.feature_set == "ak40" and back.needs_poses
+    for text, msg in (("[inputs]\nposes = 1\n", "poses must be true or false"),
+                      ("[inputs]\nlegs = true\n", "unknown key 'legs' in \\[inputs\\]")):
+        path.write_text(text)
+        with pytest.raises(MtannoError, match=msg):
+            load_class_config(path)
+    with pytest.raises(MtannoError, match="no classes.toml in it"):
+        load_class_config(tmp_path)
+
+
+def test_features_follow_the_configuration(world, tmp_path):
+    """features --classes CONFIG computes what the configuration's [inputs] need."""
+    from mtanno.annotate import class_config_text
+    from mtanno.features.store import read_features
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(class_config_text(ClassConfig(poses=True, feature_set="ak40")))
+    clip = sorted(world.clips.rglob("*.amc"))[0]
+    r = cli("features", clip, "-o", tmp_path / "f", "--classes", cfg, "-q")
+    assert r.exit_code == 0, r.output
+    got = next((tmp_path / "f").glob("*.parquet"))
+    assert read_features(got, poses=True).poses is not None
+    r = cli("features", clip, "-o", tmp_path / "g", "--classes", cfg, "--feature-set",
+            "mrc05", "-q")
+    assert r.exit_code == 2 and "is not the feature set of the class configuration" in r.output
+    assert_one_line(r, cfg)

@@ -11,8 +11,9 @@ Modules, in the order the data flows through them:
   steps 3–4; :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
 * :mod:`~mtanno.annotate.decode` — the segment decoder of tuned annotation (issue 10);
 * :mod:`~mtanno.annotate.tables` — annotation tables (0-based rows, 1-based files);
-* :mod:`~mtanno.annotate.batch` — batches of feature files (:class:`AnnotationSetup`,
-  :func:`annotate_files`);
+* :mod:`~mtanno.annotate.setup` — what shapes an annotation, loaded once for a batch
+  (:class:`AnnotationSetup`, :func:`load_annotation_setup`, class models);
+* :mod:`~mtanno.annotate.batch` — batches of feature files (:func:`annotate_files`);
 * :mod:`~mtanno.annotate.folder` — resumable annotation into a folder (``--output-dir``);
 * :mod:`~mtanno.annotate.run` — the whole ``mtanno annotate`` run, from file names to
   files (:func:`annotate_to`);
@@ -39,16 +40,7 @@ __all__ = [
     "write_class_config",
 ]
 
-from mtanno.annotate.batch import (
-    AnnotationBatch,
-    AnnotationSetup,
-    annotate_files,
-    annotation_setup,
-    class_models,
-    load_annotation_setup,
-    load_class_models,
-    load_config_templates,
-)
+from mtanno.annotate.batch import AnnotationBatch, annotate_files
 from mtanno.annotate.config import (
     DECODER_KEYS,
     ClassConfig,
@@ -70,6 +62,14 @@ from mtanno.annotate.label import (
     single_label_segments,
 )
 from mtanno.annotate.run import AnnotateRun, annotate_to
+from mtanno.annotate.setup import (
+    AnnotationSetup,
+    annotation_setup,
+    class_models,
+    load_annotation_setup,
+    load_class_models,
+    load_config_templates,
+)
 from mtanno.annotate.tables import (
     ANNOTATION_COLUMNS,
     ANNOTATION_SUFFIXES,

@@ -23,8 +23,13 @@ from mtanno.templates.params import ANNOTATION_TAU, check_tau
 if TYPE_CHECKING:
     from mtanno.annotate.label import ClassModel
 
-__all__ = ["DECODER_KEYS", "ClassConfig",
-           "class_config_text", "load_class_config", "write_class_config"]
+__all__ = ["CONFIG_FILE", "DECODER_KEYS", "INPUT_KEYS", "ClassConfig", "class_config_text",
+           "config_file", "feature_inputs", "load_class_config", "write_class_config"]
+
+#: The configuration's file in a configuration folder (``tune -o DIR/``, issue 34): the
+#: folder holds it, its extra templates (``templates/``) and its verification bank, named
+#: relative to it, so it moves and is renamed as one.
+CONFIG_FILE = "classes.toml"
 
 
 
@@ -80,6 +85,11 @@ class ClassConfig:
     tuned_with: dict[str, str] = field(default_factory=dict)
     background: dict[str, str] = field(default_factory=dict)
     confidence: ConfidenceModel | None = None
+    #: ``[inputs]`` (issue 34; written by tune): what the documents' feature files need —
+    #: ``poses`` (a pose block: ``mtanno features --poses``) and ``feature_set``; None:
+    #: not said
+    poses: bool | None = None
+    feature_set: str | None = None
     lines: dict[tuple[str, str], int] = field(default_factory=dict, repr=False, compare=False)
 
     def tau_for(self, name: str) -> float:
@@ -160,6 +170,13 @@ class ClassConfig:
             out["delta"] = self.delta
         return out
 
+    @property
+    def needs_poses(self) -> bool:
+        """Whether the documents' feature files need poses: ``[inputs] poses``, or a
+        verification bank of poses (a configuration written before ``[inputs]``)."""
+        bank = getattr(self.confidence, "bank", None)
+        return bool(self.poses) or getattr(bank, "representation", None) == "poses"
+
     def template_paths(self) -> dict[str, list[Path]]:
         """``[templates]`` as paths (relative ones taken from the configuration's folder)."""
         base = Path(self.path).parent if self.path else Path(".")
@@ -171,8 +188,23 @@ DECODER_KEYS = {"resolve": bool, "refine": bool, "slack": int, "frame_weight": f
                 "segment_cost": float, "delta": float}
 
 
+#: Keys of the ``[inputs]`` section and their types.
+INPUT_KEYS = {"poses": bool, "feature_set": str}
+
 _SECTIONS = ("tau", "superclasses", "decoder", "reject", "templates", "tuned_with",
-             "background", "confidence")
+             "background", "confidence", "inputs")
+
+
+def config_file(path: str | os.PathLike) -> Path:
+    """The file of a class configuration given as ``path``: the file itself, or the
+    :data:`CONFIG_FILE` of a configuration folder (``tune -o DIR/``)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / CONFIG_FILE
+        if not p.is_file():
+            raise MtannoError(f"not a class configuration folder: no {CONFIG_FILE} in it "
+                              "(mtanno tune -o DIR/ writes one)", path=str(path))
+    return p
 
 
 def _key_lines(text: str) -> dict[tuple[str, str], int]:
@@ -188,6 +220,23 @@ def _key_lines(text: str) -> dict[tuple[str, str], int]:
             key = s.split("=", 1)[0].strip().strip('"\'')
             out.setdefault((section, key), i)
     return out
+
+
+def feature_inputs(path: str | os.PathLike, *, feature_set: str, poses: bool,
+                   given: bool = False) -> tuple[str, bool]:
+    """(feature set, poses) that ``mtanno features --classes CONFIG`` computes: what the
+    configuration's ``[inputs]`` need (issue 34), else ``feature_set`` and ``poses`` as
+    given. ``given``: ``feature_set`` was chosen by the user, so one that differs from the
+    configuration's is an error rather than replaced."""
+    cfg = load_class_config(path)
+    wanted = {"mr06-ak40": "ak40"}.get(cfg.feature_set, cfg.feature_set)  # the option's name
+    if wanted is not None and wanted != feature_set:
+        if given:
+            raise MtannoError(f"{{feature_set}} {feature_set} is not the feature set of the "
+                              f"class configuration ({wanted}; its [inputs])",
+                              path=cfg.path, options=("feature_set",))
+        feature_set = wanted
+    return feature_set, poses or cfg.needs_poses
 
 
 def load_class_config(path: str | os.PathLike) -> ClassConfig:
@@ -220,6 +269,7 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     ≥ 0, a slack that is not an integer ≥ 0, a frame weight or segment cost that is not a
     finite number ≥ 0, δ outside [0, 0.5).
     """
+    path = config_file(path)
     spath = str(path)
     data, text = read_toml(path, what="class configuration")
     cfg = ClassConfig(path=spath, lines=_key_lines(text))
@@ -259,7 +309,21 @@ def load_class_config(path: str | os.PathLike) -> ClassConfig:
     cfg.reject = {str(k): number("reject", k, v, what=f"[reject] {k}") for k, v in rej.items()}
     _read_templates(cfg, data, bad)
     _read_confidence(cfg, data, bad)
+    _read_inputs(cfg, data.get("inputs", {}), bad)
     return cfg
+
+
+def _read_inputs(cfg: ClassConfig, section: dict, bad) -> None:
+    """``[inputs]`` (:data:`INPUT_KEYS`) into ``cfg``."""
+    for k, v in section.items():
+        kind = INPUT_KEYS.get(k)
+        if kind is None:
+            raise bad("inputs", k, f"unknown key {k!r} in [inputs] (known: "
+                                   f"{', '.join(INPUT_KEYS)})")
+        if not isinstance(v, kind) or (kind is str and not v):
+            want = "true or false" if kind is bool else "a feature set name"
+            raise bad("inputs", k, f"[inputs] {k} must be {want}, got {v!r}")
+        setattr(cfg, k, v)
 
 
 def _read_confidence(cfg: ClassConfig, data: dict, bad) -> None:
@@ -362,6 +426,7 @@ def class_config_text(cfg: ClassConfig, *, header: Sequence[str] = (),
     section("templates", sorted(cfg.templates.items()))
     section("tuned_with", sorted(cfg.tuned_with.items()))
     section("background", sorted(cfg.background.items()))
+    section("inputs", [(k, getattr(cfg, k)) for k in INPUT_KEYS if getattr(cfg, k) is not None])
 
     def tables(name: str, table: dict) -> None:  # nested tables as [a.b] sections
         section(name, [(k, v) for k, v in table.items() if not isinstance(v, dict)])

@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from mtanno.annotate.batch import AnnotationSetup
+from mtanno.annotate.setup import AnnotationSetup
 from mtanno.errors import MtannoError
 from mtanno.util.outcomes import Outcomes
 
@@ -175,7 +175,6 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
     (unreadable, other features than the templates, unwritable output) is recorded and
     the batch goes on. ``progress`` is called once per job. Hold the output folder's lock
     (:func:`mtanno.util.locks.folder_lock`) around this call."""
-    from mtanno.annotate import write_annotations
     from mtanno.util.tables import provenance_as_read
 
     summary = FolderSummary()
@@ -189,22 +188,17 @@ def annotate_folder(jobs: Sequence[DocJob], setup: AnnotationSetup, *, force: bo
             summary.record(skipped, progress)
         else:
             todo.append(job)
-    for job, (_, result) in zip(todo, setup.iter_annotate([j.src for j in todo],
-                                                          n_jobs=n_jobs, scheduler=scheduler)):
+    # each table is written where its document is annotated (in the workers)
+    for job, (_, result) in zip(todo, setup.iter_annotate(
+            [j.src for j in todo], n_jobs=n_jobs, scheduler=scheduler,
+            outputs=[j.dst for j in todo])):
         if isinstance(result, str):
             summary.record(DocOutcome(job, "failed", result), progress)
             continue
-        doc, rows, native, digest, seconds = result
+        _, n_rows, frames, digest, seconds = result
         summary.seconds += seconds
-        frames = int(native.shape[0])
-        try:
-            write_annotations(job.dst, rows, {doc: native}, provenance=setup.provenance(
-                inputs=[{"path": str(job.src), "sha256": digest}], documents={doc: frames}))
-        except MtannoError as exc:
-            summary.record(DocOutcome(job, "failed", str(exc)), progress)
-            continue
         summary.record(DocOutcome(job, "computed", sha256=digest, frames=frames,
-                                  segments=len(rows)), progress)
+                                  segments=n_rows), progress)
     summary.outcomes.sort(key=lambda o: o.job.doc)
     return summary
 

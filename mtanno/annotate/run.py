@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mtanno.annotate.batch import AnnotationSetup, load_annotation_setup
+from mtanno.annotate.setup import AnnotationSetup, load_annotation_setup
 from mtanno.errors import MtannoError
 
 __all__ = ["AnnotateRun", "annotate_to"]

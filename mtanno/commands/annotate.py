@@ -39,9 +39,10 @@ from mtanno.templates.params import ANNOTATION_DELTA, ANNOTATION_TAU
 @click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
               help="Folder of keyframe queries (CLASS.json from learn-keyframes): a class's "
                    "template is matched only inside its candidate windows ([MBS09] §5).")
-@click.option("--classes", "config_path", type=click.Path(dir_okay=False), default=None,
-              help="Class configuration (TOML): per-class tau, superclasses, and the methods "
-                   "`mtanno tune` writes (docs/annotation.md).")
+@click.option("--classes", "config_path", type=click.Path(), default=None,
+              help="Class configuration: a TOML file, or a configuration folder that `mtanno "
+                   "tune -o DIR/` writes (its classes.toml): per-class tau, superclasses, and "
+                   "the methods tune learns (docs/annotation.md).")
 @click.option("--tau", type=TAU, default=None,
               help=f"Threshold tau for every class without its own [default: {ANNOTATION_TAU:g}].")
 @click.option("--delta", type=DELTA, default=None,

@@ -50,13 +50,18 @@ from mtanno.commands._common import (
                    "columns pose.<joint>.<x|y|z> of the 22 canonical joints, root at x=z=0, "
                    "facing +x, in leg lengths (docs/formats.md), for pose evidence without "
                    "rereading the motion files.")
+@click.option("--classes", "config_path", type=click.Path(), default=None, metavar="CONFIG",
+              help="The class configuration the features are for (`annotate --classes "
+                   "CONFIG`; a file or a folder from `mtanno tune`): compute what its "
+                   "[inputs] say the feature files need — poses (as --poses) and its "
+                   "feature set.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
 @inside_input_option
 @wait_option
 @scheduler_option
 @user_errors(2, flags={"outdir": "-o"})
 def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_set, up, poses,
-                 quiet, inside_input, wait, scheduler):
+                 config_path, quiet, inside_input, wait, scheduler):
     """Compute the relational features of mocap files (ASF/AMC, BVH, C3D): by default the
     40 annotation features, or the 31 [MRC05] features with --feature-set mrc05.
 
@@ -78,6 +83,8 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     With --poses every output also holds the poses of its rows, normalised as the pose
     distance of `mtanno align` does (root at x = z = 0, turned to face +x, scaled by the leg
     length), so that later stages can compare poses from the feature files alone.
+    --classes CONFIG computes what a class configuration of `mtanno tune` needs (its
+    [inputs]: poses when it verifies segments by them, its feature set).
 
     An output is up to date, and skipped unless --force, when the provenance it records
     matches the inputs now: the motion file, its ASF, the skeleton map, the feature set, the
@@ -93,6 +100,14 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     from tqdm import tqdm
 
     from mtanno.features.extract import extract_to
+
+    if config_path is not None:  # what the configuration's [inputs] need
+        from mtanno.annotate.config import feature_inputs
+
+        source = click.get_current_context().get_parameter_source("feature_set")
+        feature_set, poses = feature_inputs(config_path, feature_set=feature_set, poses=poses,
+                                            given=source is not None
+                                            and source.name != "DEFAULT")
 
     items: list[str] = []
     listed: list[str] = []  # names read from standard input: one that fails is reported

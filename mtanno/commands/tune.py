@@ -20,7 +20,7 @@ from mtanno.commands._common import (
 from mtanno.confidence.evidence import EVIDENCE
 from mtanno.confidence.verify import INVARIANCES
 from mtanno.errors import MtannoError
-from mtanno.tuning.cv import DOCUMENT_MODES
+from mtanno.tuning.cv import DOCUMENT_MODES, MAX_EXAMPLES
 from mtanno.tuning.run import VERIFY_MODES
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 
@@ -34,9 +34,11 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("--keyframes", "kf_dir", type=click.Path(), default=None,
               help="Folder of keyframe queries (learn-keyframes): held-out documents are "
                    "matched only inside their windows, as annotate --keyframes does.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="Class configuration to write (TOML); extra templates go to "
-                   "CONFIG.templates/ beside it.")
+@click.option("-o", "--output", required=True, type=click.Path(),
+              help="Configuration folder to write (DIR/: classes.toml, templates/, "
+                   "verify.parquet, named relative to each other: move or rename it as one; "
+                   "`annotate --classes DIR`), or CONFIG.toml with CONFIG.templates/ and "
+                   "CONFIG.verify.parquet beside it.")
 @training_options(
     manifest_help="Manifest CSV (file,class[,actor,split]) listing the training clips; the "
                   "actor column names the performers held out in turn.",
@@ -79,6 +81,11 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @click.option("--confidence/--no-confidence", default=True, show_default=True,
               help="Learn the confidence of each segment and the minimum confidence of an "
                    "output row ([confidence], bank CONFIG.verify.parquet beside CONFIG).")
+@click.option("--max-examples", default=MAX_EXAMPLES, show_default=True,
+              type=click.IntRange(min=0),
+              help="Learn each template of the cross-validation (and each group template) "
+                   "from at most N examples of its class, drawn evenly over the performers "
+                   "(learning costs grow with the square of the examples); 0: all.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the held-out document composition (same seed, same file).")
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
@@ -89,7 +96,7 @@ from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT
 @user_errors(2)
 def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, truth, documents,
              disabled, unknown_weight, ablation_dir, background, verify, invariance, evidence,
-             confidence, seed, jobs, quiet, inside_input, scheduler):
+             confidence, max_examples, seed, jobs, quiet, inside_input, scheduler):
     """Learn the annotation parameters from the training data alone.
 
     Cross-validation inside the training examples: each performer (manifest actor, or
@@ -105,12 +112,16 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
 
     Training examples come as for learn-mt (a manifest with --features-dir, --truth with
     feature files, or CLASS/ folders; with --truth, segments of documents that are not
-    among TRAINING are ignored and a note names those documents). Writes CONFIG (TOML:
-    [decoder], [tau], [reject], [templates], with the cross-validated scores and the
-    training files as comments; docs/annotation.md) for `mtanno annotate --mt MT/ --classes CONFIG`.
+    among TRAINING are ignored and a note names those documents). Writes the class
+    configuration (TOML: [decoder], [tau], [reject], [templates], [confidence], [inputs] —
+    what the documents' feature files need, e.g. poses —, with the cross-validated scores
+    and the training files as comments; docs/annotation.md) for `mtanno annotate --mt MT/
+    --classes CONFIG`: a configuration folder for any OUTPUT not ending in .toml (its
+    files named relative to each other, so that it moves as one), else the TOML file with
+    its side files beside it.
 
     Example: mtanno tune --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
-    --features-dir feats/ --split train -o tuned.toml --jobs 2
+    --features-dir feats/ --split train -o tuned/ --jobs 2
     """
     from mtanno.tuning import template_folder_of
     from mtanno.tuning.run import tune_files
@@ -125,7 +136,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
         methods=[m for m in METHODS if m not in disabled], documents=documents,
         unknown_weight=unknown_weight, scheduler=scheduler, background=background,
         verify=verify, confidence=confidence, invariance=invariance,
-        evidence=evidence or None, failures=skipped)
+        evidence=evidence or None, max_examples=max_examples, failures=skipped)
     for exc in skipped:
         click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     if result.not_validated:

@@ -225,6 +225,8 @@ class Bank:
     #: what the comparison is blind to (:data:`INVARIANCES`): the bank's sequences were
     #: made so, and every query must be (:func:`sequence`)
     invariance: tuple[str, ...] = ()
+    #: what :meth:`_checked` found once (None: not yet)
+    _facts: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def classes(self) -> list[str]:
@@ -236,22 +238,60 @@ class Bank:
 
     def costs(self, query: np.ndarray) -> np.ndarray:
         """Cost of a query sequence inside every item (:func:`subsequence_costs`); with
-        the ``mirror`` invariance the smaller of the query's and its mirror's."""
+        the ``mirror`` invariance the smaller of the query's and its mirror's. The bank's
+        own arrays are checked once, not with every query (a segment of a short clip cost
+        as much in checks as in matching)."""
         q = _query(query)
-        c = subsequence_costs(q, self.items, self.offsets)
+        c = self._costs(q)
         if "mirror" in self.invariance:
-            c = np.minimum(c, subsequence_costs(mirror_rows(q), self.items, self.offsets))
+            c = np.minimum(c, self._costs(mirror_rows(q)))
         return c
+
+    def _costs(self, query: np.ndarray) -> np.ndarray:
+        from mtanno.confidence._verify_kernels import _subsequence_costs
+
+        Q = np.ascontiguousarray(query, dtype=np.float32)
+        if not self._checked():
+            return subsequence_costs(Q, self.items, self.offsets)
+        if Q.ndim != 2 or Q.shape[0] == 0 or Q.shape[1] != self.items.shape[1] \
+                or not np.all(np.isfinite(Q)):
+            return subsequence_costs(Q, self.items, self.offsets)  # says what is wrong
+        out = np.empty(self.offsets.size - 1)
+        _subsequence_costs(Q, self.items, self.offsets, out)
+        out[self._empty] = np.inf
+        return out
+
+    def _checked(self) -> bool:
+        """Whether the items and offsets are what :func:`subsequence_costs` checks
+        (contiguous float32, finite; int64 offsets rising from 0 to the rows), checked
+        once; with it, the empty items and the label of every item by number."""
+        if self._facts is None:
+            items, off = self.items, self.offsets
+            ok = (isinstance(items, np.ndarray) and items.dtype == np.float32
+                  and items.ndim == 2 and items.flags.c_contiguous
+                  and isinstance(off, np.ndarray) and off.dtype == np.int64
+                  and off.ndim == 1 and off.flags.c_contiguous and off.size >= 1
+                  and off[0] == 0 and off[-1] == items.shape[0]
+                  and not np.any(np.diff(off) < 0) and bool(np.all(np.isfinite(items))))
+            names = list(dict.fromkeys(self.labels))
+            codes = np.array([names.index(lab) for lab in self.labels], dtype=np.int64)
+            empty = np.diff(off) == 0 if ok else None
+            self._facts = (ok, empty, names, codes)
+        return self._facts[0]
+
+    @property
+    def _empty(self) -> np.ndarray:
+        return self._facts[1]
 
     def nearest(self, query: np.ndarray) -> dict[str, float]:
         """Per class (and ``""`` for background) the smallest cost of ``query`` inside its
-        items."""
+        items (a class whose items all cost ∞ is left out)."""
         c = self.costs(query)
-        out: dict[str, float] = {}
-        for lab, v in zip(self.labels, c.tolist()):
-            if v < out.get(lab, np.inf):
-                out[lab] = v
-        return out
+        self._checked()
+        _, _, names, codes = self._facts
+        best = np.full(len(names), np.inf)
+        np.minimum.at(best, codes, c)
+        return {lab: v for lab, v in zip(names, best.tolist()) if v < np.inf}
 
     def metadata(self) -> dict:
         return {"format": BANK_FORMAT, "version": 1, "representation": self.representation,

@@ -16,6 +16,13 @@ documents are built from the held-out examples only:
 * examples cut from annotated documents (``--truth``): the held-out performer's documents
   themselves, with every truth segment they hold.
 
+Issue 34 (training sets of real size): learning a template aligns every pair of its
+examples in every iteration ([MR06] §4.1, the reference's "strategy 5"), so its cost grows
+with the square of the examples; each template ``tune`` learns in a fold (and each of the
+final group templates) is learned from at most ``max_examples`` of the class's examples
+(:func:`learning_subset`: a seeded draw spread evenly over the performers), which bounds
+the learning whatever the size of the training set.
+
 Nothing outside the training examples is read: the documents are made of their feature
 matrices, and a document's truth is the training truth. Background documents (``tune
 --background``, issue 26) are spread over the folds in turn (the k-th to fold k mod the
@@ -25,6 +32,7 @@ there is wrong.
 
 from __future__ import annotations
 
+import hashlib
 import random
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -34,8 +42,8 @@ import numpy as np
 from mtanno.errors import MtannoError
 from mtanno.templates.training import TrainingExample
 
-__all__ = ["CLIPS_PER_DOC", "DOCUMENT_MODES", "FALLBACK_FOLDS", "REPEATS", "Fold",
-           "HeldOut", "make_folds"]
+__all__ = ["CLIPS_PER_DOC", "DOCUMENT_MODES", "FALLBACK_FOLDS", "MAX_EXAMPLES", "REPEATS",
+           "Fold", "HeldOut", "learning_subset", "make_folds"]
 
 #: How held-out clips become documents.
 DOCUMENT_MODES = ("composed", "separate")
@@ -45,6 +53,11 @@ CLIPS_PER_DOC = 20
 REPEATS = 2
 #: Folds when the examples name fewer than two performers.
 FALLBACK_FOLDS = 3
+#: Examples a template of ``tune`` is learned from at most (per class and fold; ``tune
+#: --max-examples``): the learning's cost grows with their square (module docstring).
+#: Twice the largest class of the papers' data (26 examples): the bound leaves training
+#: sets of that kind alone (and the 48 examples per class and fold of 600 Bandai clips).
+MAX_EXAMPLES = 48
 
 
 @dataclass
@@ -185,6 +198,39 @@ def _with_background(ho: HeldOut, background: Sequence, idx: Sequence[int]) -> H
         np.concatenate(poses), dtype=np.float32)
     return HeldOut(np.ascontiguousarray(np.concatenate(parts, axis=1)),
                    np.array(offsets, np.int64), names, list(ho.truth), P)
+
+
+def learning_subset(examples: Sequence[TrainingExample], limit: int | None, *,
+                    seed: int = 0) -> list[int]:
+    """Indices, ascending, of at most ``limit`` of ``examples`` (all of them when there are
+    no more, or ``limit`` is None or 0): the performers (:attr:`TrainingExample.performer`,
+    else the document) take turns in the order they first appear, each giving its
+    examples in a seeded order — a hash of the seed, the class and the example's content
+    and frames, so that the draw is the same in every fold and wherever the files lie."""
+    n = len(examples)
+    if not limit or n <= limit:
+        return list(range(n))
+    if limit < 0:
+        raise MtannoError(f"max examples must be ≥ 0 (0: all), got {limit!r}")
+
+    def order(i: int) -> tuple[bytes, int]:
+        e = examples[i]
+        key = f"{seed}:{e.class_name}:{e.sha256}:{e.start}:{e.end}".encode()
+        return hashlib.sha256(key).digest(), i
+
+    queues: dict[str, list[int]] = {}
+    for i, e in enumerate(examples):
+        queues.setdefault(str(e.performer if e.performer is not None else e.document),
+                          []).append(i)
+    lists = [sorted(q, key=order) for q in queues.values()]
+    picked: list[int] = []
+    depth = 0
+    while len(picked) < limit:
+        for q in lists:
+            if depth < len(q) and len(picked) < limit:
+                picked.append(q[depth])
+        depth += 1
+    return sorted(picked)
 
 
 def make_folds(examples: Sequence[TrainingExample], *, documents: str = "composed",

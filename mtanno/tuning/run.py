@@ -18,14 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from mtanno._version import __version__
-from mtanno.annotate import ClassConfig, class_config_text
 from mtanno.annotate.decode import EVIDENCE_MARGIN
 from mtanno.errors import MtannoError
 from mtanno.templates.params import ANNOTATION_TAU
 from mtanno.templates.tempo import TEMPO_SCALES, matched_columns, time_scaled
 from mtanno.templates.training import ExampleSource, TrainingExample
-from mtanno.tuning.cv import DOCUMENT_MODES, make_folds
+from mtanno.tuning.cv import DOCUMENT_MODES, MAX_EXAMPLES, learning_subset, make_folds
+from mtanno.tuning.folddata import learn_fold_class, match_fold_class
 from mtanno.tuning.search import (
     GROUPS,
     METHODS,
@@ -34,11 +33,19 @@ from mtanno.tuning.search import (
     Params,
     Tuner,
     check_methods,
-    prepare_fold_class,
+)
+from mtanno.tuning.write import (
+    bank_path_of,
+    check_tuned_output,
+    frame_bank_path_of,
+    template_folder_of,
+    tuned_paths,
+    write_tuned,
 )
 
 __all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "frame_bank_path_of",
-           "template_folder_of", "tune", "tune_files", "write_tuned"]
+           "template_folder_of", "tune", "tune_files", "write_tuned"]  # the paths and
+# write_tuned from mtanno.tuning.write, for callers
 
 
 @dataclass
@@ -74,6 +81,10 @@ class TuneResult:
     bank: object = None
     #: the frame classifier's bank of the same (None: the confidence does not use it)
     frame_bank: object = None
+    #: the most examples a template was learned from (None: all; issue 34)
+    max_examples: int | None = None
+    #: the templates' feature set (what the documents' feature files must hold)
+    feature_set: str | None = None
 
     @property
     def not_validated(self) -> list[str]:
@@ -109,7 +120,8 @@ def _spans(windows_per_doc: list[list[tuple[int, int]]], offsets: np.ndarray, ma
 
 
 def _final_groups(cls: str, examples: list[TrainingExample], k: int, learn: dict) -> list:
-    """The group templates of a class learned from all its training examples."""
+    """The group templates of a class learned from its training examples (all of them, or
+    the :func:`mtanno.tuning.cv.learning_subset` the caller drew)."""
     from mtanno.templates.learn import learn_template
     from mtanno.tuning.cluster import example_distances, group_examples
 
@@ -128,7 +140,8 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
          log: Callable[[str], None] | None = None, scheduler: str | None = None,
          background: Sequence[str | os.PathLike] = (), verify: str = "auto",
          confidence: bool = True, invariance: Sequence[str] = (),
-         evidence: Sequence[str] | None = None) -> TuneResult:
+         evidence: Sequence[str] | None = None,
+         max_examples: int | None = MAX_EXAMPLES) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
     collect_sources`): see :mod:`mtanno.tuning.search` for the search and
@@ -158,7 +171,11 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     them, else features). ``invariance`` (issue 35): what the pose verification is blind
     to (:data:`mtanno.confidence.verify.INVARIANCES`; needs verification by poses);
     ``evidence``: the kinds of evidence the confidence may use (:data:`mtanno.confidence.
-    evidence.EVIDENCE`; None: all that the inputs allow).
+    evidence.EVIDENCE`; None: all that the inputs allow). Issue 34: ``max_examples`` —
+    every template learned here is learned from at most that many of the class's examples
+    (:func:`mtanno.tuning.cv.learning_subset`; None or 0: all), as learning costs the
+    square of the examples; the search keeps template (1, 0)'s distance functions at
+    every δ and the others' only at the δ it chose (memory linear in training frames).
     """
     t0 = time.perf_counter()
     methods = _check_options(methods, documents, unknown_weight, verify, evidence)
@@ -181,14 +198,9 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
-    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn)
-    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
-                                                          scheduler=scheduler, shared=shared)))
-    columns = {c: matched_columns(templates[c].weights) for c in classes}
-    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
-                    for c in classes for f in TEMPO_SCALES})
-    tuner = Tuner(folds, prepared, classes=classes, methods=methods,
-                  unknown_weight=unknown_weight, log=log, columns=columns)
+    tuner = _tuner(folds, examples, templates, queries, layout, methods, learn, shared,
+                   n_jobs=n_jobs, scheduler=scheduler, max_examples=max_examples, seed=seed,
+                   unknown_weight=unknown_weight, log=log)
     delta0 = _deltas(methods, templates)[0]
     params, evaluation, steps = tuner.search(delta=delta0)
     reference = tuner.evaluate(tuner.with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
@@ -201,24 +213,25 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             variants[name] = tuner.search(delta=delta0, methods=subset)
     extra_of = _further_templates([params, *(v[0] for v in variants.values())], examples,
                                   templates, learn, n_jobs=n_jobs, scheduler=scheduler,
-                                  shared=shared)
-    fit = bank = frame_bank = None
-    if confidence:
-        fit, bank, frame_bank = _learn_confidence(tuner, params, folds, templates, examples, bg_docs,
-                                      representation, unknown_weight, seed, log,
-                                      tuple(invariance), evidence)
+                                  shared=shared, max_examples=max_examples, seed=seed)
+    fit, bank, frame_bank = _learn_confidence(
+        tuner, params, folds, templates, examples, bg_docs, representation, unknown_weight,
+        seed, log, tuple(invariance), evidence) if confidence else (None, None, None)
     inputs, shas = _input_records(mt_dir, templates, keyframes_dir, examples)
     folds_held = {f.name: len(f.held_examples) for f in folds}
     seconds = time.perf_counter() - t0
     result = TuneResult(params, evaluation, reference, steps, classes, extra_of(params), inputs,
                         folds_held, seed, methods, documents, unknown_weight, seconds,
                         template_sha256=shas, background=bg_records, confidence=fit,
-                        bank=bank, frame_bank=frame_bank)
+                        bank=bank, frame_bank=frame_bank, max_examples=max_examples or None,
+                        feature_set=layout.feature_set)
     for name, (p, ev, st) in variants.items():
         subset = [x for x in methods if f"without-{x}" != name] if name != "none" else []
         result.ablation[name] = TuneResult(p, ev, reference, st, classes, extra_of(p), inputs,
                                            folds_held, seed, subset, documents, unknown_weight,
-                                           seconds, template_sha256=shas)
+                                           seconds, template_sha256=shas,
+                                           max_examples=max_examples or None,
+                                           feature_set=layout.feature_set)
     return result
 
 
@@ -234,7 +247,8 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     :func:`mtanno.templates.training.collect_sources` takes them, every output checked
     against the inputs before any work (:func:`mtanno.util.preflight.check_outputs`),
     :func:`tune` (``options`` are its keyword options), and the configuration written to
-    ``output`` by :func:`write_tuned` (its bank and extra templates beside it); with
+    ``output`` by :func:`mtanno.tuning.write.write_tuned` (a configuration folder, or a
+    ``.toml`` file with its bank and extra templates beside it); with
     ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
     or lies inside, a folder of the inputs only with ``inside_input``). ``log`` receives
     the notes on the inputs and the search log, a line each; ``failures`` receives the
@@ -249,7 +263,9 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth, note=log, failures=failures)
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
-    planned = [output, *([bank_path_of(output)] if options.get("confidence", True) else []),
+    check_tuned_output(output)
+    planned = [tuned_paths(output)[0],
+               *([bank_path_of(output)] if options.get("confidence", True) else []),
                *([frame_bank_path_of(output)] if options.get("confidence", True)
                  and "classifier" in (options.get("evidence") or ()) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
@@ -413,12 +429,36 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     return templates, layout, examples, queries
 
 
-def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> list:
+def _tuner(folds, examples, templates, queries, layout, methods, learn, shared, *, n_jobs,
+           scheduler, max_examples, seed, unknown_weight, log) -> Tuner:
+    """The :class:`mtanno.tuning.search.Tuner` of the folds: per fold and class its
+    templates learned and template (1, 0) matched at every δ in the workers
+    (:func:`_fold_tasks`), the others matched when the search asks
+    (:func:`_fetch_matches`)."""
+    classes = list(templates)
+    tasks = _fold_tasks(folds, examples, templates, queries, layout, methods, learn,
+                        max_examples=max_examples, seed=seed)
+    prepared = dict(zip([t[0] for t in tasks], _run_tasks(tasks, n_jobs, _fold_class_task,
+                                                          scheduler=scheduler, shared=shared)))
+    columns = {c: matched_columns(templates[c].weights) for c in classes}
+    columns.update({(c, float(f)): matched_columns(time_scaled(templates[c], f).weights)
+                    for c in classes for f in TEMPO_SCALES})
+    fetch = _fetch_matches(tasks, prepared, n_jobs=n_jobs, scheduler=scheduler, shared=shared)
+    return Tuner(folds, prepared, classes=classes, methods=methods,
+                 unknown_weight=unknown_weight, log=log, columns=columns, fetch=fetch,
+                 jobs=n_jobs if scheduler is None else 1)
+
+
+def _fold_tasks(folds, examples, templates, queries, layout, methods, learn, *,
+                max_examples: int | None = None, seed: int = 0) -> list:
     """One task per fold and class with training examples in it (:func:`_fold_class_task`):
-    the class's templates learned on the fold's training examples, matched over its
-    held-out documents (inside the keyframe windows where the class has a query)."""
+    the class's templates learned on the fold's training examples (at most
+    ``max_examples`` of them, :func:`mtanno.tuning.cv.learning_subset`), matched over its
+    held-out documents (inside the keyframe windows where the class has a query). The
+    tasks come largest first (examples × frames², what learning costs), for an even load
+    of the workers."""
     index = {id(e): i for i, e in enumerate(examples)}
-    tasks = []
+    tasks, cost = [], []
     for f in folds:
         windows = None
         if queries:
@@ -431,6 +471,7 @@ def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> 
             train = [e for e in f.train if e.class_name == c]
             if not train:
                 continue
+            train = [train[i] for i in learning_subset(train, max_examples, seed=seed)]
             spans = ev_spans = None
             if windows is not None and c in queries:
                 wins = [w.get(c, []) for w in windows]
@@ -442,17 +483,24 @@ def _fold_tasks(folds, examples, templates, queries, layout, methods, learn) -> 
                 "evidence": "frames" in methods and "resolve" in methods,
                 "evidence_spans": ev_spans,
                 "scales": TEMPO_SCALES if "templates" in methods else ()}))
-    return tasks
+            cost.append(sum(e.X.shape[1] for e in train))  # √ of the learning's cost
+    order = sorted(range(len(tasks)), key=lambda j: -cost[j])
+    return [tasks[j] for j in order]
 
 
 def _further_templates(chosen: Sequence[Params], examples, templates, learn, *, n_jobs,
-                       scheduler, shared) -> Callable[[Params], dict]:
+                       scheduler, shared, max_examples: int | None = None,
+                       seed: int = 0) -> Callable[[Params], dict]:
     """``extra_of(params)``: per class its further templates under ``params`` (one of
-    ``chosen``): the groups' templates, learned here from all the class's training
-    examples for every group count that ``chosen`` uses, then the time-scaled copies of
-    its template."""
+    ``chosen``): the groups' templates, learned here from the class's training examples
+    (at most ``max_examples``, :func:`mtanno.tuning.cv.learning_subset`) for every group
+    count that ``chosen`` uses, then the time-scaled copies of its template."""
     classes = list(templates)
-    by_class = {c: [i for i, e in enumerate(examples) if e.class_name == c] for c in classes}
+    by_class = {}
+    for c in classes:
+        idx = [i for i, e in enumerate(examples) if e.class_name == c]
+        by_class[c] = [idx[j] for j in learning_subset([examples[i] for i in idx], max_examples,
+                                                       seed=seed)]
     wanted = sorted({(c, p.groups[c]) for p in chosen for c in classes
                      if p.groups.get(c, 1) > 1})
     got = _run_tasks([(key, (key[0], by_class[key[0]], key[1], learn[key[0]]), {})
@@ -518,154 +566,49 @@ def _call(fn, args, kwargs):
     return fn(*args, **kwargs)
 
 
-def _fold_class_task(cls: str, train: list[int], fold: str, **kwargs) -> dict:
-    """:func:`prepare_fold_class` of one fold and class, from the shared examples (by
-    index) and the fold's held-out documents."""
+def _fold_class_task(cls: str, train: list[int], fold: str, *, deltas, groups, learn, spans,
+                     evidence, evidence_spans, scales) -> dict:
+    """The templates of one fold and class (:func:`mtanno.tuning.search.learn_fold_class`)
+    from the shared examples (by index), and the matches of template (1, 0) on the fold's
+    held-out documents at every δ, without evidence (:func:`mtanno.tuning.search.
+    match_fold_class`): what the search's first step needs. The other templates are
+    matched later at the δ the search chose (:func:`_match_task`)."""
     from mtanno.util.workers import shared
 
     data = shared()
     held_X, offsets = data["held"][fold]
-    return prepare_fold_class(cls, [data["examples"][i] for i in train], held_X, offsets,
-                              **kwargs)
+    mts, made = learn_fold_class(cls, [data["examples"][i] for i in train], groups=groups,
+                                 learn=learn, scales=scales)
+    match = match_fold_class({(1, 0): mts[(1, 0)]}, held_X, offsets, deltas=deltas,
+                             spans=spans, evidence=False)
+    return {"groups": made, "templates": mts, "match": match}
+
+
+def _match_task(templates: dict, fold: str, delta: float, *, spans, evidence,
+                evidence_spans) -> dict:
+    """All templates of one fold and class matched at ``delta``, with their evidence."""
+    from mtanno.util.workers import shared
+
+    held_X, offsets = shared()["held"][fold]
+    return {"match": match_fold_class(templates, held_X, offsets, deltas=[delta], spans=spans,
+                                      evidence=evidence, evidence_spans=evidence_spans)}
+
+
+def _fetch_matches(tasks, prepared, *, n_jobs, scheduler, shared):
+    """``fetch(δ)`` of :class:`mtanno.tuning.search.Tuner`: every fold and class's templates
+    matched at δ, in the workers (:func:`_match_task`)."""
+
+    def fetch(delta: float) -> dict:
+        jobs = [(key, (prepared[key]["templates"], key[0], float(delta)),
+                 {k: kwargs[k] for k in ("spans", "evidence", "evidence_spans")})
+                for key, _, kwargs in tasks]
+        return dict(zip([t[0] for t in jobs], _run_tasks(jobs, n_jobs, _match_task,
+                                                         scheduler=scheduler, shared=shared)))
+
+    return fetch
 
 
 def _final_groups_task(cls: str, idx: list[int], k: int, learn: dict) -> list:
     from mtanno.util.workers import shared
 
     return _final_groups(cls, [shared()["examples"][i] for i in idx], k, learn)
-
-
-def template_folder_of(config_path: str | os.PathLike) -> Path:
-    """Where :func:`write_tuned` puts a configuration's extra templates:
-    ``CONFIG.templates/`` beside ``CONFIG.toml``."""
-    p = Path(config_path)
-    return p.with_name(p.stem + ".templates")
-
-
-def frame_bank_path_of(config_path: str | os.PathLike) -> Path:
-    """Where :func:`write_tuned` puts a configuration's frame classifier bank (when its
-    confidence uses it): ``CONFIG.frames.parquet`` beside ``CONFIG.toml``."""
-    p = Path(config_path)
-    return p.with_name(p.stem + ".frames.parquet")
-
-
-def bank_path_of(config_path: str | os.PathLike) -> Path:
-    """Where :func:`write_tuned` puts a configuration's verification bank:
-    ``CONFIG.verify.parquet`` beside ``CONFIG.toml``."""
-    p = Path(config_path)
-    return p.with_name(p.stem + ".verify.parquet")
-
-
-def _confidence_section(cfg: ClassConfig, result: TuneResult, path: Path) -> list[str]:
-    """``[confidence]`` and ``[background]`` of the configuration (the bank written beside
-    it) and header lines on how well the confidence did out of fold."""
-    from mtanno.confidence.model import ConfidenceModel
-    from mtanno.confidence.verify import write_bank
-    from mtanno.evaluation.calibration import auroc, expected_calibration_error
-    from mtanno.util.tables import sha256_file
-
-    fit = result.confidence
-    cfg.background = {r["path"]: r["sha256"] for r in result.background}
-    if fit is None:
-        return []
-    bank_file = sha = frames_file = frames_sha = None
-    if result.bank is not None:
-        bpath = bank_path_of(path)
-        write_bank(bpath, result.bank)
-        bank_file, sha = bpath.name, sha256_file(bpath)
-    if result.frame_bank is not None:
-        from mtanno.confidence.frames import write_frame_bank
-
-        fpath = frame_bank_path_of(path)
-        write_frame_bank(fpath, result.frame_bank)
-        frames_file, frames_sha = fpath.name, sha256_file(fpath)
-    cfg.confidence = ConfidenceModel(tuple(fit.evidence), fit.calibrator, fit.min_confidence,
-                                     bank_file, sha, str(path.parent),
-                                     tuple(fit.invariance) if bank_file else (),
-                                     frames_file=frames_file, frames_sha256=frames_sha)
-    kinds = np.array(fit.kinds)
-    blind = f" blind to {', '.join(fit.invariance)}" if fit.invariance else ""
-    lines = [f"confidence ({', '.join(fit.evidence)}; verified by "
-             f"{fit.representation or 'nothing'}{blind}), out of fold on {len(fit.right)} held-out "
-             f"segments ({int((kinds == 'known').sum())} of known classes, "
-             f"{int((kinds == 'unknown').sum())} over a class left out, "
-             f"{int((kinds == 'background').sum())} on background): AUROC "
-             f"{auroc(fit.oof, fit.right):.3f}, ECE {expected_calibration_error(fit.oof, fit.right):.3f}"]
-    lines += [f"  min confidence {t['min_confidence']:g}: F1 {t['F1']:.3f} F2 {t['F2']:.3f} "
-              f"unknown-class rate {t['U']:.3f} background labelled {t['background']:.3f}"
-              for t in fit.table]
-    return lines
-
-
-def _fmt(ev: Evaluation) -> str:
-    p1, r1, f1 = ev.counts.frame()
-    p2, r2, f2 = ev.counts.segment()
-    return (f"P1 {p1:.3f} R1 {r1:.3f} F1 {f1:.3f}, P2 {p2:.3f} R2 {r2:.3f} F2 {f2:.3f}, "
-            f"unknown-class rate {ev.unknown:.3f}")
-
-
-def write_tuned(path: str | os.PathLike, result: TuneResult, *,
-                command: Sequence[str] = ()) -> ClassConfig:
-    """Write the tuned class configuration to ``path`` (TOML, cross-validated scores as
-    comments) and its extra templates into :func:`template_folder_of` ``(path)``; returns
-    the configuration as written."""
-    from mtanno.templates.model import save_template
-    from mtanno.util.output import atomic_path, make_folder
-
-    path = Path(path)
-    cfg = result.params.config()
-    cfg.path = str(path)
-    cfg.tuned_with = dict(result.template_sha256)
-    if result.extra_templates:
-        folder = template_folder_of(path)
-        make_folder(folder)
-        for c, mts in sorted(result.extra_templates.items()):
-            files = []
-            for i, mt in enumerate(mts, 1):
-                target = folder / f"{c}.{i}.json"
-                save_template(target, mt)
-                files.append(f"{folder.name}/{target.name}")
-            cfg.templates[c] = files
-    ev = result.evaluation
-    header = [
-        f"class configuration written by mtanno {__version__} tune "
-        f"({' '.join(command) if command else 'API'})",
-        f"seed {result.seed}; methods: {', '.join(result.methods) or 'none'}; held-out "
-        f"documents: {result.documents}; unknown-class weight {result.unknown_weight:g}",
-        "folds (held-out performer: examples): "
-        + ", ".join(f"{k}: {v}" for k, v in result.folds.items()),
-        f"cross-validated, tuned:    {_fmt(ev)}",
-        f"cross-validated, reference (tau {ANNOTATION_TAU}, no methods): {_fmt(result.reference)}",
-        "search:",
-        *(f"  {s}" for s in result.steps),
-        *_confidence_section(cfg, result, path),
-        "the training inputs this file was tuned on are listed at its end",
-    ]
-    comments = {}
-    unscored = set(result.not_validated)
-    for c in result.classes:
-        pc = ev.per_class.get(c)
-        hit, n = ev.per_class_unknown.get(c, (0, 0))
-        if c in unscored:
-            note = "not cross-validated (no fold has both its template and held-out examples)"
-        else:
-            note = (f"CV F1 {pc.frame()[2]:.3f} ({pc.frame_support} frames), F2 "
-                    f"{pc.segment()[2]:.3f} ({pc.seg_support} segments)")
-        if n:
-            note += f", unknown-class rate {hit / n:.3f}"
-        if c in cfg.tau:
-            comments[("tau", c)] = note
-        elif c in cfg.reject:
-            comments[("reject", c)] = note
-        else:
-            comments[("classes", c)] = note
-    text = class_config_text(cfg, header=header, comments=comments)
-    plain = [c for c in result.classes if ("classes", c) in comments and comments[("classes", c)]]
-    if plain:
-        text += "\n# cross-validated scores of the classes at the default tau:\n" + "".join(
-            f"#   {c}: {comments[('classes', c)]}\n" for c in plain)
-    text += f"\n# training inputs ({len(result.inputs)} files; SHA-256, path):\n" + "".join(
-        f"#   {i['sha256']}  {i['path']}\n" for i in result.inputs)
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
-    return cfg

@@ -113,10 +113,12 @@ def count(truth: Sequence[tuple[int, int, int]], output: Sequence[tuple[int, int
     return _count(truth, output, n_labels, n_frames, ignore)
 
 
-def _count(truth, output, n_labels: int, n_frames: int, ignore=None) -> Counts:
+def _count(truth, output, n_labels: int, n_frames: int, ignore=None,
+           truth_cover: np.ndarray | None = None) -> Counts:
     """:func:`count` of segments made by the tuner (not checked again: it scores
-    thousands of candidates)."""
-    ct = _cover(truth, n_labels, n_frames)
+    thousands of candidates); ``truth_cover``: ``_cover(truth, …)`` when the caller keeps
+    it (the truth of a fold is scored against every candidate)."""
+    ct = _cover(truth, n_labels, n_frames) if truth_cover is None else truth_cover
     co = _cover(output, n_labels, n_frames)
     keep = None if ignore is None else ~ignore
     both = predicted = 0

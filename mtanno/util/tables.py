@@ -46,7 +46,7 @@ __all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table"
            "json_object_lines", "output_files", "parse_frame_range", "provenance",
            "provenance_as_read", "read_clip_manifest", "read_provenance", "read_table",
            "set_command_line", "sidecar_path", "string_array", "table_format",
-           "table_provenance", "text", "write_json", "write_table"]
+           "table_provenance", "text", "utc_now", "write_json", "write_table"]
 
 #: Table formats by file suffix.
 FORMATS = {".csv": "csv", ".parquet": "parquet", ".jsonl": "jsonl"}
@@ -123,6 +123,11 @@ def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
     return {"path": str(path), "sha256": sha256}
 
 
+def utc_now() -> str:
+    """The time of a provenance's ``created``: UTC, ISO 8601, to the second."""
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
 def provenance(*, inputs: Iterable[dict | str | os.PathLike] = (),
                templates: Iterable[dict] = (), **params: Any) -> dict:
     """The provenance object of an output table: schema, mtanno version, command line, UTC
@@ -134,7 +139,7 @@ def provenance(*, inputs: Iterable[dict | str | os.PathLike] = (),
     recs = [i if isinstance(i, dict) else file_record(i) for i in inputs]
     out = {"schema": PROVENANCE_SCHEMA, "mtanno_version": __version__,
            "command": command_line(),
-           "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+           "created": utc_now(),
            "inputs": recs}
     templates = list(templates)
     if templates:
