@@ -39,7 +39,7 @@ from _machine import machine  # noqa: E402
 
 def clip_set(out: Path, feats: Path, n: int) -> tuple[Path, Path, int]:
     """(folder of links to ``n`` drawn clips, the long document of the same clips, frames)."""
-    from mtanno.util.store import read_features, write_features
+    from mtanno.features.store import read_features, write_features
 
     every = sorted(feats.glob("*/*.parquet"))
     chosen = random.Random(0).sample(every, n)
@@ -64,7 +64,7 @@ def clip_set(out: Path, feats: Path, n: int) -> tuple[Path, Path, int]:
         meta.pop("schema", None)
         write_features(long, X, ff.names, np.arange(1, X.shape[1] + 1), meta,
                        poses=np.concatenate(Ps))
-    from mtanno.util.store import read_features as rf
+    from mtanno.features.store import read_features as rf
 
     frames = rf(long).X.shape[1]
     return folder, long, frames

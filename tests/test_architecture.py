@@ -550,3 +550,35 @@ def test_long_modules_are_listed_with_their_job():
                           f"seams, or list their one job in LONG_MODULES: {unlisted}")
     stale = sorted(set(LONG_MODULES) - long)
     assert not stale, f"remove from LONG_MODULES (now {MAX_JOB_LINES} lines or fewer): {stale}"
+
+
+def test_the_scripts_import_what_exists():
+    """Every ``from mtanno.X import Y`` and ``import mtanno.X`` in ``scripts/`` names a
+    module and a name that exist: a rename in the package that missed a benchmark script
+    (which no other test runs) fails here, not in the next person's benchmark."""
+    import importlib
+
+    missing = []
+    for path in sorted((PACKAGE.parent / "scripts").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mtanno"):
+                try:
+                    module = importlib.import_module(node.module)
+                except ImportError as exc:
+                    missing.append(f"{path.name}:{node.lineno}: {exc}")
+                    continue
+                for alias in node.names:
+                    if not hasattr(module, alias.name):
+                        try:
+                            importlib.import_module(f"{node.module}.{alias.name}")
+                        except ImportError:
+                            missing.append(f"{path.name}:{node.lineno}: "
+                                           f"{node.module}.{alias.name}")
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith("mtanno"):
+                        try:
+                            importlib.import_module(alias.name)
+                        except ImportError as exc:
+                            missing.append(f"{path.name}:{node.lineno}: {exc}")
+    assert not missing, missing
