@@ -163,11 +163,11 @@ def test_poses_go_to_data_files_beside_a_small_page(world, tmp_path):
     assert len(page.encode()) < 60_000  # the poses are not in the page
     # one file per document on request (the benchmark's other way)
     from mtanno.annotate import read_annotation_table
-    from mtanno.evaluation.report import write_report
+    from mtanno.evaluation.report import ReportOptions, write_report
 
     rows, prov = read_annotation_table(world.annotation)
     res = write_report(tmp_path / "per_doc", None, rows, frames=prov["documents"],
-                       poses=own, chunk_bytes=0)
+                       poses=own, options=ReportOptions(chunk_bytes=0))
     assert len(list((res.folder / "data").glob("*.js"))) == len(docs)
 
 
