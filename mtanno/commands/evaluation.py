@@ -240,18 +240,16 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf,
 
     failures: list[str] = []  # inputs that could not be used: reported, the report goes on
     with ProgressBar("report", "step", quiet=quiet) as bar:
-        result, rows = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
-                                    features=features, motions=motions, asf=asf,
-                                    options=ReportOptions(tau=tau, delta=delta, title=title),
-                                    inside_input=inside_input, jobs=jobs, progress=bar,
-                                    failures=failures)
+        result, _ = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
+                                 features=features, motions=motions, asf=asf,
+                                 options=ReportOptions(tau=tau, delta=delta, title=title),
+                                 inside_input=inside_input, jobs=jobs, progress=bar,
+                                 failures=failures)
     for message in failures:
         click.echo(f"mtanno: {message}", err=True)
-    if not quiet:
-        what = (f"{len(result.evaluation.documents)} documents, F1 "
-                f"{result.evaluation.frame.F:.3f}" if result.evaluation is not None else
-                f"{len({r.doc for r in rows})} documents, {len(rows)} rows, no truth")
-        click.echo(f"report: {what}, {len(result.files)} files -> {result.page}", err=True)
+    if not quiet:  # the page's summary: documents annotated, those with rows, rows, F1
+        click.echo(f"report: {result.summary}; {len(result.files)} files -> {result.page}",
+                   err=True)
     sys.exit(1 if failures else 0)
 
 

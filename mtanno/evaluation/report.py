@@ -99,8 +99,10 @@ class ReportOptions:
 @dataclass
 class ReportResult:
     """What :func:`write_report` wrote: the folder, the HTML page, every file, the
-    evaluation, the confusion matrix with its labels, notes shown on the page, and per
-    document why its motion is not shown (a motion that is not the annotated one)."""
+    evaluation, the confusion matrix with its labels, notes shown on the page, per
+    document why its motion is not shown (a motion that is not the annotated one), the
+    number of figures drawn (not reused), and the page's summary line (documents, those
+    with rows, rows, classes, frame F1: the command prints it)."""
 
     folder: Path
     page: Path
@@ -111,6 +113,7 @@ class ReportResult:
     notes: list[str] = field(default_factory=list)
     motion_notes: dict[str, str] = field(default_factory=dict)
     figures_drawn: int = 0
+    summary: str = ""
 
 
 def _by_doc(items, key=lambda x: x.doc) -> dict[str, list]:
@@ -301,10 +304,12 @@ def _write_page(result: ReportResult, title: str, data: dict, sections, n_with_r
     from mtanno.evaluation.page import page_html
     from mtanno.util.output import write_text
 
-    summary = (f"{len(data['docs']['name'])} documents ({n_with_rows} with rows), "
-               f"{len(annotation)} rows, {len({a.label for a in annotation})} classes; frames "
-               "at 30 Hz" + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation
-                             else "; no truth given: no scores"))
+    result.summary = (
+        f"{len(data['docs']['name'])} documents ({n_with_rows} with rows), {len(annotation)} "
+        f"rows, {len({a.label for a in annotation})} classes"
+        + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation
+           else "; no truth given: no scores"))
+    summary = result.summary + "; frames at 30 Hz"
     write_text(result.page, page_html(title=title, summary=html.escape(summary),
                                       notes=result.notes, sections=sections, data=data))
     result.files.append(result.page)
