@@ -390,6 +390,12 @@ def test_ten_thousand_documents_stay_virtual(tmp_path, browser):
                      " l.scrollTop = l.scrollHeight; mtanno.render(); })()")
     last = browser.evaluate("mtanno.data.docs.name[mtanno.shown[mtanno.shown.length - 1]]")
     assert last in _rendered(browser) and len(_rendered(browser)) < 100
+    # a deep link to a document far down the list: selected, scrolled to, at its frame
+    far = sorted({r[0] for r in rows})[-3]
+    browser.open(f"{(out / 'index.html').as_uri()}#doc={far}&frame=5")
+    _shown(browser, far)
+    assert browser.evaluate(f"{P}.dataset.frame") == "5"
+    assert browser.evaluate("document.querySelector('.doc.current').dataset.mtannoDoc") == far
 
 
 @needs_chromium
