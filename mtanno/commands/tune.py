@@ -125,7 +125,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     """
     from mtanno.tuning import template_folder_of
     from mtanno.tuning.run import tune_files
-    from mtanno.util.tables import command_line
+    from mtanno.util.provenance import command_line
 
     skipped: list[MtannoError] = []
     result = tune_files(
