@@ -448,7 +448,6 @@ MANY_OPTIONS = {
     # annotate/run.py, annotate/batch.py, tuning/, evaluation/report.py and
     # features/extract.py are being changed on other branches: they get their options
     # dataclasses once those are merged
-    "mtanno.annotate.run.annotate_to", "mtanno.annotate.batch.annotate_files",
     "mtanno.tuning.run.tune", "mtanno.tuning.run.tune_files",  # tune_files: **options
     "mtanno.evaluation.report.write_report", "mtanno.evaluation.report.report_files",
     "mtanno.features.extract.extract_to",  # **options (run_batch's)
