@@ -156,7 +156,7 @@ def test_annotate_options_are_checked_and_shared(world, tmp_path):
 def test_extract_to_is_the_features_command(world, tmp_path):
     """``mtanno.features.extract.extract_to`` writes the world's feature files, and a run
     that writes nothing leaves no folder behind."""
-    from mtanno.features.extract import extract_to
+    from mtanno.features.extract import ExtractOptions, extract_to
 
     clip = world.clips / "squat" / "SYN_a_squat_001.amc"
     started = []
@@ -173,3 +173,16 @@ def test_extract_to_is_the_features_command(world, tmp_path):
     bad.write_text("not a motion\n")
     assert extract_to([bad], tmp_path / "new" / "out").failed
     assert not (tmp_path / "new").exists()
+    # the options: an up-to-date output skipped, rewritten with force; bad values refused
+    # when the options are made
+    seen = []
+    again = extract_to([clip], tmp_path / "f", ExtractOptions(force=False),
+                       progress=lambda o: seen.append(o.status))
+    assert again.line().startswith("0 written") and seen == ["skipped"]
+    forced = extract_to([clip], tmp_path / "f", options=ExtractOptions(force=True, n_jobs=2))
+    assert forced.line().startswith("1 written")
+    for bad_options, message in ((dict(feature_set="ak41"), "unknown feature set 'ak41'"),
+                                 (dict(up="x"), "up axis must be one of y, z"),
+                                 (dict(n_jobs=0), r"n_jobs= must be a positive integer")):
+        with pytest.raises(mtanno.MtannoError, match=message):
+            ExtractOptions(**bad_options)

@@ -441,11 +441,9 @@ MAX_OPTIONS = 10
 
 #: Public functions with more options for now, each with why.
 MANY_OPTIONS = {
-    # annotate/run.py, annotate/batch.py, tuning/, evaluation/report.py and
-    # features/extract.py are being changed on other branches: they get their options
-    # dataclasses once those are merged
+    # evaluation/report.py is being changed on another branch: it gets its options
+    # dataclass once that is merged
     "mtanno.evaluation.report.write_report", "mtanno.evaluation.report.report_files",
-    "mtanno.features.extract.extract_to",  # **options (run_batch's)
 }
 
 
