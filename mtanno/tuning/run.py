@@ -79,7 +79,8 @@ class TuneOptions:
     ``evidence``: the kinds of evidence the confidence may use (:data:`mtanno.confidence.
     evidence.EVIDENCE`; None: all that the inputs allow). Issue 34: ``max_examples`` —
     every template learned is learned from at most that many of the class's examples
-    (:func:`mtanno.tuning.cv.learning_subset`; None or 0: all)."""
+    (:func:`mtanno.tuning.cv.learning_subset`; None or 0: all), as learning costs the
+    square of the examples."""
 
     keyframes_dir: str | os.PathLike | None = None
     seed: int = 0
@@ -97,12 +98,12 @@ class TuneOptions:
     max_examples: int | None = MAX_EXAMPLES
 
     def __post_init__(self):
+        for name in ("methods", "background", "invariance",
+                     *(("evidence",) if self.evidence is not None else ())):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
         methods = _check_options(self.methods, self.documents, self.unknown_weight,
                                  self.verify, self.evidence)
-        object.__setattr__(self, "methods", tuple(methods))
-        for name in ("background", "invariance", *(("evidence",) if self.evidence is not None
-                                                   else ())):
-            object.__setattr__(self, name, tuple(getattr(self, name)))
+        object.__setattr__(self, "methods", tuple(methods))  # in METHODS order
         for name, least in (("seed", 0), ("n_jobs", 1)):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < least:
