@@ -88,8 +88,8 @@ def learn_templates(training: Sequence[PathLike] = (), *, manifest: PathLike | N
 
 def load_templates(folder: PathLike, *, classes: Sequence[str] = ()) -> dict[str, MotionTemplate]:
     """Class name → template of every ``*.json`` in a folder written by ``learn-mt``
-    (:func:`mtanno.templates.model.load_template_folder`)."""
-    from mtanno.templates.model import load_template_folder
+    (:func:`mtanno.templates.store.load_template_folder`)."""
+    from mtanno.templates.store import load_template_folder
 
     return load_template_folder(folder, classes=classes)
 

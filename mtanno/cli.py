@@ -56,8 +56,8 @@ class _Main(click.Group):
 
     def main(self, args=None, prog_name=None, **extra):
         from mtanno.errors import MtannoError
+        from mtanno.util.provenance import set_command_line
         from mtanno.util.stdout import guarded_stdout
-        from mtanno.util.tables import set_command_line
 
         set_command_line(["mtanno", *(sys.argv[1:] if args is None else args)])
         try:  # a full device under standard output says so (help texts too)

@@ -241,7 +241,7 @@ def feature_timeline(path: str | os.PathLike, *, frames: str | None = None,
     default all), only ``features`` (names, ids or aliases; default all), at most ``width``
     columns (:func:`text_timeline`)."""
     from mtanno.features.store import read_features
-    from mtanno.util.tables import parse_frame_range
+    from mtanno.util.clips import parse_frame_range
 
     ff = read_features(path)
     a, b = parse_frame_range(frames, ff.X.shape[1]) or (0, ff.X.shape[1] - 1)

@@ -221,7 +221,8 @@ def plot_template_file(template: str | os.PathLike, output: str | os.PathLike, *
     """The run of ``mtanno mt plot``: the template of file ``template`` (quantized with
     ``delta`` first, if given) drawn by :func:`plot_template` into the picture ``output``
     (checked against the input first); returns the template drawn."""
-    from mtanno.templates.model import load_template, quantize
+    from mtanno.templates.model import quantize
+    from mtanno.templates.store import load_template
     from mtanno.util.preflight import check_outputs
 
     require_matplotlib()

@@ -385,9 +385,10 @@ def retrieve_to(features: Sequence[str | os.PathLike], mt_path: str | os.PathLik
     messages of the inputs that named no feature file; ``progress(path, error)`` after each
     file (``error``: why it could not be used, None when it was searched)."""
     from mtanno.features.inputs import feature_files
-    from mtanno.templates.model import load_template, load_template_folder, template_files
+    from mtanno.templates.store import load_template, load_template_folder, template_files
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import file_record, output_files, provenance, table_format
+    from mtanno.util.provenance import file_record, provenance
+    from mtanno.util.tables import output_files, table_format
 
     table_format(output)
     tau = check_tau(tau)

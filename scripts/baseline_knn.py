@@ -142,7 +142,7 @@ def main(argv=None) -> int:
     from mtanno.features.inputs import document_files
     from mtanno.features.store import read_features
     from mtanno.templates.training import collect_sources, load_examples
-    from mtanno.util.tables import provenance
+    from mtanno.util.provenance import provenance
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("docs", nargs="+", help="feature files or folders of the documents")

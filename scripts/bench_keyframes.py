@@ -96,7 +96,7 @@ def bench_command(cls: str, runs: int, jobs: int) -> None:
 
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
     from mtanno.templates import group_by_class, load_examples, sources_from_manifest
-    from mtanno.templates.model import load_template
+    from mtanno.templates.store import load_template
 
     feats = features_dir("hdm05", sources("hdm05"), "ak40")
     manifest = HDM05 / "clips.csv"

@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 
 from mtanno.features.store import read_features
-from mtanno.templates.model import load_template_folder
+from mtanno.templates.store import load_template_folder
 from mtanno.templates.tempo import TEMPO_SCALES
 from mtanno.templates.training import collect_sources, group_by_class, load_examples
 from mtanno.tuning.cv import Fold, _documents, _separate  # the held-out documents tune builds

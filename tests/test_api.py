@@ -12,7 +12,7 @@ import pytest
 import mtanno
 from mtanno.annotate import read_annotations
 from mtanno.features.store import read_features
-from mtanno.templates.model import load_template_folder
+from mtanno.templates.store import load_template_folder
 
 
 def test_import_is_light_and_names_the_api():
@@ -68,9 +68,9 @@ def test_annotate_documents_applies_a_class_configuration_as_the_command_does(wo
 
     from mtanno.annotate import load_class_config, read_annotations
     from mtanno.cli import main
-    from mtanno.templates.model import save_template
+    from mtanno.templates.store import save_template
     from mtanno.templates.tempo import time_scaled
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     names = sorted(p.stem for p in world.mt.glob("*.json"))
     mts = load_template_folder(world.mt)

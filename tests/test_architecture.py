@@ -519,16 +519,11 @@ LONG_MODULES = {
     "mtanno.keyframes.search": "searching keyframe queries (through an index or a scan) and "
                                "their candidate windows",
     "mtanno.templates.match": "streaming masked subsequence DTW of a template over documents",
-    "mtanno.templates.model": "four jobs, to split as keyframes/model.py was: MotionTemplate, "
-                              "its JSON file, quantize/mirror, folders of templates (its "
-                              "readers include modules other branches change now)",
     "mtanno.tuning.run": "the tune run, in named steps (inputs, folds, search, further "
                          "templates, confidence) and their worker tasks; the configuration "
                          "it writes is tuning/write.py's",
     "mtanno.tuning.search": "the per-fold, per-class search of tune: templates, Δ on held-out "
                             "documents, objective, coordinate search",
-    "mtanno.util.tables": "three jobs: tables by suffix, provenance, and small readers (clip "
-                          "manifest, frame ranges)",
 }
 
 

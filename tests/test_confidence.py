@@ -170,7 +170,7 @@ def test_tune_and_annotate_build_the_same_evidence_inputs(world, tmp_path):
     from mtanno.confidence.evidence import document_evidence
     from mtanno.confidence.score import annotation_facts
     from mtanno.features.store import read_features
-    from mtanno.templates.model import load_template_folder, save_template
+    from mtanno.templates.store import load_template_folder, save_template
     from mtanno.templates.tempo import time_scaled
 
     templates = load_template_folder(world.mt)

@@ -168,7 +168,8 @@ def test_query_and_info_report_corrupt_index(feats, tmp_path):
 
 
 def test_query_rank_by_template(feats, tmp_path):
-    from mtanno.templates.model import MotionTemplate, save_template
+    from mtanno.templates.model import MotionTemplate
+    from mtanno.templates.store import save_template
 
     idx = tmp_path / "idx"
     run(["index", feats, "-o", idx, "-q"])
@@ -221,7 +222,8 @@ def test_query_output_to_fifo_is_not_replaced(feats, tmp_path):
 
 
 def test_query_rank_mt_says_when_the_template_cannot_fit(feats, tmp_path):
-    from mtanno.templates.model import MotionTemplate, save_template
+    from mtanno.templates.model import MotionTemplate
+    from mtanno.templates.store import save_template
 
     idx = tmp_path / "idx"
     run(["index", feats, "-o", idx, "-q"])

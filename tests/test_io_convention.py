@@ -11,7 +11,8 @@ import pyarrow.parquet as pq
 import pytest
 from world import cli
 
-from mtanno.util.tables import _cell, read_table, sha256_file
+from mtanno.util.provenance import sha256_file
+from mtanno.util.tables import _cell, read_table
 
 
 def _commands(w, tmp):

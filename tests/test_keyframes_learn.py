@@ -20,7 +20,8 @@ from mtanno.keyframes.learn import (
     run_seeds,
     validation_folds,
 )
-from mtanno.templates.model import MotionTemplate, load_template_folder
+from mtanno.templates.model import MotionTemplate
+from mtanno.templates.store import load_template_folder
 
 NAMES = ["a", "b", "c", "d"]
 GROUPS = {"g": ("a", "b"), "h": ("c", "d")}

@@ -39,7 +39,7 @@ def tuned(world, tmp_path_factory):
 def test_tune_records_the_background_and_the_confidence(tuned):
     from mtanno.annotate import load_class_config
     from mtanno.confidence.verify import read_bank
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     root, mt, _, config, background = tuned
     cfg = load_class_config(config)
@@ -90,7 +90,7 @@ def test_a_pose_bank_needs_feature_files_with_poses(world, tuned, tmp_path):
     """A configuration verifying by poses, given feature files without them: each file
     fails with one line saying how to make them; exit code 1."""
     from mtanno.confidence.verify import POSE_JOINTS, build_bank, read_bank, write_bank
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     root, mt, _, config, _ = tuned
     old = read_bank(root / "tuned.verify.parquet")
@@ -163,7 +163,7 @@ def test_tune_invariance_and_evidence_are_recorded_and_used(world, tmp_path):
     the configuration's is refused in one line."""
     from mtanno.annotate import load_class_config
     from mtanno.confidence.verify import build_bank, read_bank, write_bank
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     feats = tmp_path / "docsP"
     r = cli("features", world.docs, "-o", feats, "--poses", "-q")

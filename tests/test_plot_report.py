@@ -228,7 +228,7 @@ def test_report_takes_the_annotations_delta_and_taus(world, tmp_path):
     from mtanno.annotate import class_deltas, class_models
     from mtanno.evaluation.player import decode_curves
     from mtanno.features.store import read_features
-    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.store import load_template_folder
 
     names = sorted(p.stem for p in world.mt.glob("*.json"))
     own, extra = names[0], names[1]

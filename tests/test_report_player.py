@@ -178,7 +178,7 @@ def test_rerun_draws_no_figure_and_writes_no_data_file_again(world, tmp_path):
     from mtanno.annotate import read_annotation_table
     from mtanno.evaluation.report import write_report
     from mtanno.labels.truth import read_truth
-    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.store import load_template_folder
 
     rows, prov = read_annotation_table(world.annotation)
     truth, mts = read_truth(world.truth), load_template_folder(world.mt)
@@ -208,7 +208,7 @@ def test_delta_curves_in_the_data_files_are_the_annotations(world, tmp_path):
     templates quantized with the annotation's δ, and the page the classes' τ."""
     from mtanno.annotate import class_deltas, class_models
     from mtanno.features.store import read_features
-    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.store import load_template_folder
 
     cfg = tmp_path / "c.toml"
     names = sorted(p.stem for p in world.mt.glob("*.json"))

@@ -15,7 +15,8 @@ from naive_match import hits_naive, match_naive
 from mtanno.cli import main
 from mtanno.features import FEATURE_NAMES
 from mtanno.features.store import write_features
-from mtanno.templates.model import MotionTemplate, quantize, save_template
+from mtanno.templates.model import MotionTemplate, quantize
+from mtanno.templates.store import save_template
 
 
 def run(args):

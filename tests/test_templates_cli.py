@@ -12,7 +12,8 @@ from conftest import HDM05, REFERENCE, require_data
 from mtanno.cli import main
 from mtanno.features import FEATURE_NAMES
 from mtanno.features.store import write_features
-from mtanno.templates.model import load_template, mirror, quantize
+from mtanno.templates.model import mirror, quantize
+from mtanno.templates.store import load_template
 
 
 def run(args):

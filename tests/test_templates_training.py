@@ -18,7 +18,7 @@ from mtanno.templates.training import (
     sources_from_tree,
     sources_from_truth,
 )
-from mtanno.util.tables import sha256_file
+from mtanno.util.provenance import sha256_file
 
 
 def write_doc(path, X, *, names=FEATURE_NAMES, fps=30.0, feature_set="mr06-ak40"):

@@ -23,7 +23,7 @@ from mtanno.tuning import METHODS, TuneOptions, tune, tune_files, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
-from mtanno.util.tables import sha256_file
+from mtanno.util.provenance import sha256_file
 
 
 def _sources(world):
@@ -537,7 +537,7 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
                                                                    monkeypatch):
     """The chosen tempo factors become further templates of the class: its template from
     MT/ time-scaled, written beside the configuration and read back by annotate."""
-    from mtanno.templates.model import load_template, load_template_folder
+    from mtanno.templates.store import load_template, load_template_folder
     from mtanno.templates.tempo import time_scaled
 
     original = Tuner.search
@@ -819,7 +819,7 @@ def test_a_configuration_folder_moves_and_is_renamed_as_one(world, tmp_path):
     keeps no template of the earlier run; a folder of other files is refused."""
     import shutil
 
-    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.store import load_template_folder
     from mtanno.templates.tempo import time_scaled
     from mtanno.tuning.write import check_tuned_output
 

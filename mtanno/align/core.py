@@ -213,7 +213,8 @@ def align_to(path_a: str | os.PathLike, path_b: str | os.PathLike,
     matplotlib) are checked before any work."""
     from mtanno.align.plot import check_plot_path, save_alignment_plot
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import file_record, output_files, provenance, table_format
+    from mtanno.util.provenance import file_record, provenance
+    from mtanno.util.tables import output_files, table_format
 
     table_format(output)
     if plot_path is not None:

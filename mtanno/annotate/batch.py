@@ -154,7 +154,7 @@ def _annotate_into(path: str, dst: str, setup: tuple, base: dict):
     one after another by the parent): ``(document, rows written, frames, sha256,
     seconds)``, or the message of its failure."""
     from mtanno.annotate.tables import write_annotations
-    from mtanno.util.tables import utc_now
+    from mtanno.util.provenance import utc_now
 
     got = _annotate_file(path, *setup)
     if isinstance(got, str):

@@ -139,7 +139,8 @@ def up_to_date(job: DocJob, expected: dict, *, not_before: int = 0) -> DocOutcom
     names this one document, made from the feature file as it is now (SHA-256), and its
     :func:`recipe` is ``expected``. Returns the ``"skipped"`` outcome (with the feature
     file's SHA-256 and the frame count recorded) when it is up to date, else None."""
-    from mtanno.util.tables import sha256_file, table_provenance
+    from mtanno.util.provenance import sha256_file
+    from mtanno.util.tables import table_provenance
 
     try:
         made = os.stat(job.dst).st_mtime_ns

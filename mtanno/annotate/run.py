@@ -75,7 +75,7 @@ def _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir, confi
     evaluate OUT/` would read its rows twice)."""
     from mtanno.annotate.tables import ANNOTATION_SUFFIXES
     from mtanno.keyframes import keyframe_files
-    from mtanno.templates.model import template_files
+    from mtanno.templates.store import template_files
     from mtanno.util.preflight import check_outputs
     from mtanno.util.tables import output_files
 

@@ -29,10 +29,10 @@ __all__ = ["AnnotationSetup", "annotation_setup", "class_models", "load_annotati
 def load_class_models(mt_dir: str | os.PathLike, *, delta: float = ANNOTATION_DELTA,
                       classes: Sequence[str] = ()) -> tuple[list[ClassModel], FeatureLayout]:
     """The templates of a folder (``*.json``; or one template file;
-    :func:`mtanno.templates.model.load_template_folder`), quantized with ``delta``, as
+    :func:`mtanno.templates.store.load_template_folder`), quantized with ``delta``, as
     :class:`ClassModel` records (with their file and SHA-256), and the feature layout
     (set, names, rate) they all share. ``classes`` keeps only those."""
-    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.store import load_template_folder
 
     return class_models(load_template_folder(mt_dir, classes=classes), delta=delta,
                         where=f"the templates in {mt_dir}")
@@ -46,7 +46,7 @@ def class_models(templates: dict, *, delta: float = ANNOTATION_DELTA,
     (``where`` names them in messages)."""
     from mtanno.features.store import check_layout
     from mtanno.templates.model import quantize
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     if not templates:
         raise MtannoError("no class templates to annotate with")
@@ -73,8 +73,9 @@ def load_config_templates(config: ClassConfig, layout: FeatureLayout, *,
     :class:`ClassModel` records, quantized with ``delta``: each file must hold a template
     of the class it is listed under, with the ``layout`` of the other templates."""
     from mtanno.features.store import check_layout
-    from mtanno.templates.model import load_template, quantize
-    from mtanno.util.tables import sha256_file
+    from mtanno.templates.model import quantize
+    from mtanno.templates.store import load_template
+    from mtanno.util.provenance import sha256_file
 
     out = []
     for cls, paths in config.template_paths().items():
@@ -147,7 +148,7 @@ class AnnotationSetup:
         SHA-256, variants, feature set, keyframe files, single label, the confidence
         (calibrated or not, evidence, minimum, bank) and the background tune saw."""
         from mtanno.confidence.model import confidence_record
-        from mtanno.util.tables import provenance
+        from mtanno.util.provenance import provenance
 
         cfg = self.config
         return provenance(inputs=inputs, templates=[m.record() for m in self.models],
@@ -253,8 +254,8 @@ def load_annotation_setup(mt_dir: str | os.PathLike,
     :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence;
     the variants and ``single_label`` are recorded in the setup (``n_jobs`` and
     ``scheduler`` are :meth:`AnnotationSetup.annotate`'s)."""
-    from mtanno.templates.model import load_template_folder
-    from mtanno.util.tables import sha256_file
+    from mtanno.templates.store import load_template_folder
+    from mtanno.util.provenance import sha256_file
 
     o = options or AnnotateOptions()
     config_path, keyframes_dir = o.config_path, o.keyframes_dir

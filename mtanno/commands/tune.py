@@ -124,7 +124,7 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     --features-dir feats/ --split train -o tuned/ --jobs 2
     """
     from mtanno.tuning.run import TuneOptions, tune_files
-    from mtanno.util.tables import command_line
+    from mtanno.util.provenance import command_line
 
     skipped: list[MtannoError] = []
     result = tune_files(

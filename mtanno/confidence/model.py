@@ -182,7 +182,7 @@ class ConfidenceModel:
         one), read once; it must be the file tune wrote (its SHA-256)."""
         if self._bank is None and self.bank_file is not None:
             from mtanno.confidence.verify import read_bank
-            from mtanno.util.tables import sha256_file
+            from mtanno.util.provenance import sha256_file
 
             where = {"path": self.config_path, "line": self.bank_line}
             path = self.bank_path
@@ -206,7 +206,7 @@ class ConfidenceModel:
         without one), read once; it must be the file tune wrote (its SHA-256)."""
         if self._frames is None and self.frames_file is not None:
             from mtanno.confidence.frames import read_frame_bank
-            from mtanno.util.tables import sha256_file
+            from mtanno.util.provenance import sha256_file
 
             where = {"path": self.config_path, "line": self.frames_line}
             path = str(Path(self.base or ".") / self.frames_file)

@@ -45,10 +45,10 @@ class Clip:
 
 def read_clips(path: str | os.PathLike, *, root: str | os.PathLike | None = None,
                   actor: str | None = None, split: str | None = None) -> list[Clip]:
-    """Clips of a manifest (:func:`mtanno.util.tables.read_clip_manifest`: columns
+    """Clips of a manifest (:func:`mtanno.util.clips.read_clip_manifest`: columns
     ``file,class[,actor,split]``, file relative to ``root``, by default the manifest's
     folder), filtered by actor and split. Every clip file must exist."""
-    from mtanno.util.tables import read_clip_manifest as read_rows
+    from mtanno.util.clips import read_clip_manifest as read_rows
 
     table, rows = read_rows(path)
     root = Path(root) if root is not None else Path(path).parent
@@ -244,7 +244,7 @@ def compose_documents(clips: list[Clip], out_dir: str | os.PathLike, *, n_docs: 
         docs.append(path)
         plan.append({"document": name, "clips": [str(clips[i].path) for i in order]})
         step()
-    from mtanno.util.tables import provenance
+    from mtanno.util.provenance import provenance
 
     write_truth(out_dir / "truth.csv", truth, provenance=provenance(
         inputs=[asf_path, *inputs], seed=seed, pause=pause, documents=plan))

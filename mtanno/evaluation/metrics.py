@@ -358,7 +358,8 @@ def evaluate_to(annotations: Sequence[str], truth_path: str, *,
     from mtanno.annotate import ANNOTATION_SUFFIXES, annotation_files
     from mtanno.util.output import write_stdout
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.util.provenance import provenance
+    from mtanno.util.tables import output_files, table_format, write_json, write_table
 
     if table_path is not None:
         table_format(table_path)

@@ -585,10 +585,10 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     from mtanno.io import MOCAP_SUFFIXES
     from mtanno.labels.truth import check_within, read_truth
     from mtanno.plot import require_matplotlib
-    from mtanno.templates.model import load_template_folder, template_files
     from mtanno.templates.params import ANNOTATION_TAU
+    from mtanno.templates.store import load_template_folder, template_files
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import provenance
+    from mtanno.util.provenance import provenance
 
     require_matplotlib()
     if any(Path(a).suffix.lower() in MOCAP_SUFFIXES for a in annotations):

@@ -256,10 +256,11 @@ def evaluate_retrieval_to(features: Sequence[str | os.PathLike], mt_dir: str | o
     from mtanno.evaluation.metrics import check_one_stdout
     from mtanno.features.inputs import document_files
     from mtanno.labels.truth import read_truth
-    from mtanno.templates.model import template_files
+    from mtanno.templates.store import template_files
     from mtanno.util.output import write_stdout
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import output_files, provenance, table_format, write_json, write_table
+    from mtanno.util.provenance import provenance
+    from mtanno.util.tables import output_files, table_format, write_json, write_table
 
     if table_path is not None:
         table_format(table_path)

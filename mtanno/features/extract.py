@@ -26,7 +26,7 @@ from mtanno.features.table import FEATURE_SET
 from mtanno.io import canonical_positions, find_asf, read_motion
 from mtanno.io.formats import SUFFIXES, expected, format_of, is_motion_path
 from mtanno.io.skeleton import Motion, to_y_up
-from mtanno.util.tables import sha256_file
+from mtanno.util.provenance import sha256_file
 
 #: Version of the extraction code (kinematics, measures, hysteresis, frame selection) apart
 #: from the feature tables; raised when a change alters features. Feature files record it,

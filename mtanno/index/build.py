@@ -261,7 +261,8 @@ def index_info(index_dir: str | os.PathLike, output: str | os.PathLike | None = 
     there (suffix picks the format, ``-`` is CSV on standard output) with its provenance,
     the output checked against the index's files first."""
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import output_files, provenance, table_format, write_table
+    from mtanno.util.provenance import provenance
+    from mtanno.util.tables import output_files, table_format, write_table
 
     if output is not None:
         table_format(output)

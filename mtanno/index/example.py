@@ -293,7 +293,7 @@ def example_file_query(index: Index, example: str | os.PathLike, features: Seque
     aliases of the index's feature set (:func:`resolve_features`), ``frames`` the range
     ``'A:B'`` of the example (1-based inclusive, either side may be empty; None: all of
     it) — ``mtanno query --example FILE --frames A:B --features ...``."""
-    from mtanno.util.tables import parse_frame_range
+    from mtanno.util.clips import parse_frame_range
 
     X, names, _ = example_matrix(index, example)
     return example_query(index, X, names, resolve_features(index, features),

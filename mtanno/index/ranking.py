@@ -66,11 +66,12 @@ def _check_hits(index: Index, hits: Hits) -> None:
 def rank_by_template_file(index: Index, hits: Hits, path: str | os.PathLike
                           ) -> tuple[Hits, int]:
     """:func:`rank_by_template` with a motion-template JSON file (``query --rank-mt``):
-    read with :func:`mtanno.templates.model.load_template`, checked against the index's
+    read with :func:`mtanno.templates.store.load_template`, checked against the index's
     feature set, quantized with the retrieval δ (:data:`mtanno.templates.params.RETRIEVAL_DELTA`,
     [MR06] §5.2) unless it already is. Returns (ranked hits, the template's columns)."""
-    from mtanno.templates.model import load_template, quantize
+    from mtanno.templates.model import quantize
     from mtanno.templates.params import RETRIEVAL_DELTA
+    from mtanno.templates.store import load_template
 
     mt = load_template(path)
     if mt.feature_set != index.feature_set:
@@ -93,7 +94,8 @@ def write_query_hits(path: str | os.PathLike, index: Index, hits: Hits, *,
     in the format of ``path``'s suffix (``-``: CSV on standard output), with its provenance:
     the query's ``inputs`` and the index generation, the ranking template ``ranked_by``
     (its cost column is written when the hits were ranked), ``top`` and ``record``."""
-    from mtanno.util.tables import file_record, provenance, write_table
+    from mtanno.util.provenance import file_record, provenance
+    from mtanno.util.tables import write_table
 
     rows = hits.rows(index)
     if top is not None:

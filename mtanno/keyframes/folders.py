@@ -56,7 +56,7 @@ def load_class_keyframes(folder: str | os.PathLike, classes: Sequence[str], *,
     without a query; queries of classes not among ``classes``). Queries must be for
     ``feature_set`` and, when ``fps`` is given (the templates' frame rate), at that rate:
     their gaps and extensions count frames at it."""
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     queries, files = {}, []
     for f, q in _load_folder(folder).values():

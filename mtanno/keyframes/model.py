@@ -33,6 +33,7 @@ from fractions import Fraction
 from typing import Any
 
 from mtanno.errors import MtannoError
+from mtanno.templates.model import is_number
 
 __all__ = [
     "SCHEMA", "Extension", "Gap", "Keyframe", "KeyframeQuery", "check_features_known",
@@ -292,7 +293,7 @@ def _validate(q: KeyframeQuery, text: str | None = None, path: str | None = None
         raise bad("class must be a non-empty string", "class")
     if not isinstance(q.feature_set, str) or not q.feature_set:
         raise bad("feature_set must be a non-empty string", "feature_set")
-    if not _is_number(q.fps) or not math.isfinite(q.fps) or q.fps <= 0:
+    if not is_number(q.fps) or not math.isfinite(q.fps) or q.fps <= 0:
         raise bad(f"fps must be a positive number, got {q.fps!r}", "fps")
     K = q.template_length
     if not isinstance(K, int) or isinstance(K, bool) or not 1 <= K <= MAX_TEMPLATE_LENGTH:
@@ -343,10 +344,6 @@ def _validate(q: KeyframeQuery, text: str | None = None, path: str | None = None
         prev = p
     if q.keyframes and all(kf.fixed == 0 for kf in q.keyframes):
         raise bad("every keyframe is all wildcards: the query constrains nothing", "keyframes")
-
-
-def _is_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
 def _recorded_length(prov: Any) -> tuple[str, int] | None:

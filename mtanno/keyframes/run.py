@@ -112,7 +112,7 @@ def learn_keyframes_to(training: Sequence[str | os.PathLike], mt_dir: str | os.P
     the column methods, is done (1 step)."""
     from mtanno.keyframes.learn import keyframe_training_set, learn_keyframes
     from mtanno.keyframes.store import save_keyframes
-    from mtanno.templates.model import class_file, load_template_folder
+    from mtanno.templates.store import class_file, load_template_folder
     from mtanno.templates.training import (
         collect_sources,
         group_by_class,

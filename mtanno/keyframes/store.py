@@ -34,10 +34,10 @@ from mtanno.keyframes.model import (
     Gap,
     Keyframe,
     KeyframeQuery,
-    _is_number,
     _line_of,
     _validate,
 )
+from mtanno.templates.model import is_number
 
 __all__ = ["dumps", "load_keyframes", "parse_keyframes", "save_keyframes"]
 
@@ -120,7 +120,7 @@ def parse_keyframes(d: Any, *, text: str | None = None, path: str | None = None,
                     raise MtannoError(f"position {p1} is before the previous keyframe's "
                                       f"{p0} (positions may not decrease)")
                 s = k["stiffness"]
-                if not (_is_number(s) or isinstance(s, str)):
+                if not (is_number(s) or isinstance(s, str)):
                     raise MtannoError(f"stiffness must be a number in (0, 1], got {s!r}")
                 gaps.append(Gap.from_stiffness(p1 - p0, s))
             else:

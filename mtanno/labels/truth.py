@@ -137,7 +137,8 @@ def mocap6_to(labels: str | os.PathLike, output: str | os.PathLike) -> list[Segm
     output) with its provenance, the output checked against the input first; returns the
     segments."""
     from mtanno.util.preflight import check_outputs
-    from mtanno.util.tables import output_files, provenance, table_format
+    from mtanno.util.provenance import provenance
+    from mtanno.util.tables import output_files, table_format
 
     table_format(output)
     check_outputs(output_files(output), [labels])

@@ -1,8 +1,9 @@
 """Motion templates (MTs): learning, storage, quantization and mirroring (docs/method.md §3).
 
-* :mod:`~mtanno.templates.model` — :class:`MotionTemplate`, its JSON file
-  (:func:`save_template`, :func:`load_template`), :func:`quantize` (docs/method.md §3.3) and
-  :func:`mirror` ([MR06] §5.4).
+* :mod:`~mtanno.templates.model` — :class:`MotionTemplate`, :func:`quantize`
+  (docs/method.md §3.3) and :func:`mirror` ([MR06] §5.4).
+* :mod:`~mtanno.templates.store` — its JSON file (:func:`save_template`,
+  :func:`load_template`) and folders of template files.
 * :mod:`~mtanno.templates.learn` — soft MT learning ([MR06] §4.1, exactly as the reference
   implementation, docs/method/features.md §A) and hard MTs (thesis §3.3):
   :func:`mtanno.templates.learn.learn` on matrices, :func:`learn_template` on training
@@ -41,15 +42,9 @@ __all__ = [
 ]
 
 from mtanno.templates.learn import LearnResult, learn_template
-from mtanno.templates.model import (
-    SCHEMA,
-    MotionTemplate,
-    load_template,
-    mirror,
-    quantize,
-    save_template,
-)
+from mtanno.templates.model import SCHEMA, MotionTemplate, mirror, quantize
 from mtanno.templates.run import LearnOptions, LearnRun, learn_to_folder
+from mtanno.templates.store import load_template, save_template
 from mtanno.templates.training import (
     ExampleSource,
     TrainingExample,

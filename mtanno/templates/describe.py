@@ -78,7 +78,7 @@ def format_template(mt: MotionTemplate, *, path: str | None = None, delta: float
 def format_template_file(path: str, *, delta: float | None = None, top: int = TOP_FEATURES,
                          picture: bool = False, files: bool = False) -> str:
     """:func:`format_template` of the template file ``path``."""
-    from mtanno.templates.model import load_template
+    from mtanno.templates.store import load_template
 
     return format_template(load_template(path), path=path, delta=delta, top=top,
                            picture=picture, files=files)

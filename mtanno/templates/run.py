@@ -81,7 +81,7 @@ def learn_to_folder(training: Sequence[str | os.PathLike], outdir: str | os.Path
     (:attr:`LearnRun.skipped`). ``on_start(n)`` is called
     before the first of ``n`` classes, ``progress(done, error)`` after each (``error``: why
     it failed, None when it was written)."""
-    from mtanno.templates.model import class_file, save_template
+    from mtanno.templates.store import class_file, save_template
     from mtanno.templates.training import collect_sources, group_by_class, input_folders
     from mtanno.util.locks import folder_lock
     from mtanno.util.output import output_folder

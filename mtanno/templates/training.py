@@ -32,7 +32,7 @@ from mtanno.errors import MtannoError
 from mtanno.features.inputs import feature_files
 from mtanno.features.store import FeatureLayout, read_features
 from mtanno.labels.truth import read_truth
-from mtanno.util.tables import sha256_file
+from mtanno.util.provenance import sha256_file
 
 __all__ = [
     "MIN_EXAMPLES", "ExampleSource", "TrainingExample", "check_consistent", "collect_sources",
@@ -142,7 +142,7 @@ def sources_from_manifest(manifest: str | os.PathLike, *, features_dir: str | os
     The feature file of a row is ``features_dir / file`` with the suffix replaced by
     ``.parquet``. With ``split``, only rows whose ``split`` column equals it are used.
     """
-    from mtanno.util.tables import read_clip_manifest
+    from mtanno.util.clips import read_clip_manifest
 
     table, rows = read_clip_manifest(manifest)
     spath = table.path

@@ -17,7 +17,7 @@ PathLike = str | os.PathLike
 
 
 def _load(template: PathLike, output: PathLike) -> MotionTemplate:
-    from mtanno.templates.model import load_template
+    from mtanno.templates.store import load_template
     from mtanno.util.preflight import check_outputs
 
     check_outputs([output], [template])
@@ -25,7 +25,7 @@ def _load(template: PathLike, output: PathLike) -> MotionTemplate:
 
 
 def _save(output: PathLike, mt: MotionTemplate) -> MotionTemplate:
-    from mtanno.templates.model import save_template
+    from mtanno.templates.store import save_template
 
     save_template(output, mt)
     return mt

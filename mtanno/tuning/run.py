@@ -303,7 +303,7 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
     from dataclasses import replace
 
     from mtanno.keyframes import keyframe_files
-    from mtanno.templates.model import template_files
+    from mtanno.templates.store import template_files
     from mtanno.templates.training import collect_sources, input_folders
     from mtanno.util.output import make_folder
     from mtanno.util.preflight import check_outputs
@@ -454,7 +454,7 @@ def _tune_inputs(sources, mt_dir, keyframes_dir, *, poses: bool = False):
     that layout; every class must have some) and the keyframe queries of
     ``keyframes_dir`` (empty without)."""
     from mtanno.features.store import check_layout
-    from mtanno.templates.model import load_template_folder
+    from mtanno.templates.store import load_template_folder
     from mtanno.templates.training import group_by_class, load_examples
 
     templates = load_template_folder(mt_dir)
@@ -573,8 +573,8 @@ def _input_records(mt_dir, templates, keyframes_dir, examples) -> tuple[list[dic
     """The inputs of a tune run (template files, keyframe files, training feature files,
     each with SHA-256) for the provenance, and the SHA-256 of each class's template (the
     configuration's ``[tuned_with]``)."""
-    from mtanno.templates.model import template_files
-    from mtanno.util.tables import sha256_file
+    from mtanno.templates.store import template_files
+    from mtanno.util.provenance import sha256_file
 
     inputs = [{"path": str(p), "sha256": sha256_file(p)} for p in template_files(mt_dir)]
     shas = {i["path"]: i["sha256"] for i in inputs}

@@ -104,7 +104,7 @@ def _confidence_section(cfg: ClassConfig, result, path: Path, bpath: Path,
     from mtanno.confidence.model import ConfidenceModel
     from mtanno.confidence.verify import write_bank
     from mtanno.evaluation.calibration import auroc, expected_calibration_error
-    from mtanno.util.tables import sha256_file
+    from mtanno.util.provenance import sha256_file
 
     fit = result.confidence
     cfg.background = {r["path"]: r["sha256"] for r in result.background}
@@ -143,7 +143,7 @@ def _write_templates(folder: Path, extra: dict, *, whole: bool) -> dict[str, lis
     relative to the configuration's folder). With ``whole`` (a configuration folder's
     ``templates/``) the folder is replaced as one: written beside, then swapped in, so
     that no template of an earlier run is left behind."""
-    from mtanno.templates.model import save_template
+    from mtanno.templates.store import save_template
     from mtanno.util.output import make_folder
 
     target = folder.with_name(f".{folder.name}.new-{os.getpid()}") if whole else folder

@@ -4,7 +4,10 @@
 * :mod:`~mtanno.util.preflight` — outputs checked against inputs before any work;
 * :mod:`~mtanno.util.locks` — the writer lock of an output folder (cron safety);
 * :mod:`~mtanno.util.tables` — the one I/O convention of every table (CSV, Parquet, JSON
-  Lines by suffix; provenance with content hashes; ``-`` for standard input and output);
+  Lines by suffix; ``-`` for standard input and output);
+* :mod:`~mtanno.util.provenance` — what every output records about how it was made
+  (command line, inputs with content hashes, parameters);
+* :mod:`~mtanno.util.clips` — clip manifests and ``--frames`` ranges;
 * :mod:`~mtanno.util.workers` — worker processes, dask clusters and the signal policy;
 * :mod:`~mtanno.util.outcomes` — the record of a batch that goes on past failures;
 * :mod:`~mtanno.util.jitnote` — the one-line note while numba compiles;
@@ -23,8 +26,8 @@ loading one does not load the others.
 
 from mtanno.util.lazy import submodule_getattr
 
-__all__ = ["jitnote", "lazy", "locks", "outcomes", "output", "preflight", "pause", "stdout", "tables",
-           "units", "workers"]
+__all__ = ["clips", "jitnote", "lazy", "locks", "outcomes", "output", "pause", "preflight",
+           "provenance", "stdout", "tables", "units", "workers"]
 
 
 __getattr__ = submodule_getattr(__name__)  # the modules not imported above, on first use

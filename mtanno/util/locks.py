@@ -101,7 +101,7 @@ def folder_lock(folder: str | os.PathLike, *, wait: bool = False, what: str = "o
             pass
         fh.close()
     try:
-        from mtanno.util.tables import command_line
+        from mtanno.util.provenance import command_line
 
         fh.seek(0)
         fh.truncate()

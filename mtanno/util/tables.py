@@ -11,7 +11,7 @@ index tables (``index info``) are all written by :func:`write_table` and read by
 * CSV is UTF-8 with a header line, commas, ``\\n`` line ends, and quotes only where a
   value needs them (a comma, quote or line break inside); numbers are written in their
   shortest exact form; a missing value is an empty field (``null`` in JSON Lines);
-* every table file carries its provenance (:func:`provenance`: mtanno version, command
+* every table file carries its provenance (:func:`mtanno.util.provenance.provenance`: mtanno version, command
   line, inputs with SHA-256, templates, τ, δ, feature set …): in the Parquet schema
   metadata under the key ``mtanno``, and for CSV and JSON Lines in a JSON sidecar
   ``FILE.meta.json`` beside ``FILE`` (``hits.csv`` → ``hits.csv.meta.json``), so the table
@@ -23,8 +23,6 @@ Files are written atomically (:func:`mtanno.util.output.atomic_path`).
 from __future__ import annotations
 
 import csv
-import datetime as _dt
-import hashlib
 import io
 import json
 import math
@@ -41,43 +39,15 @@ import pyarrow as pa
 from mtanno.errors import JSONError, MtannoError, open_regular, parse_json, read_input, read_json
 from mtanno.util.output import SIDECAR_SUFFIX, atomic_path, write_stdout
 
-__all__ = ["FORMATS", "PROVENANCE_SCHEMA", "ManifestRow", "Table", "arrow_table",
-           "command_line", "dumps", "file_record", "json_compact", "json_list_lines",
-           "json_object_lines", "output_files", "parse_frame_range", "provenance",
-           "provenance_as_read", "read_clip_manifest", "read_provenance", "read_table",
-           "set_command_line", "sidecar_path", "string_array", "table_format",
-           "table_provenance", "text", "utc_now", "write_json", "write_table"]
+__all__ = ["FORMATS", "Table", "arrow_table", "dumps", "json_compact", "json_list_lines",
+           "json_object_lines", "output_files", "parse_float", "parse_int", "parse_text",
+           "provenance_as_read", "read_provenance", "read_table", "sidecar_path",
+           "string_array", "table_format", "table_provenance", "text", "write_json",
+           "write_table"]
 
 #: Table formats by file suffix.
 FORMATS = {".csv": "csv", ".parquet": "parquet", ".jsonl": "jsonl"}
-#: Schema name of the provenance object.
-PROVENANCE_SCHEMA = "mtanno.provenance/1"
 _META_KEY = b"mtanno"
-
-_COMMAND_LINE: list[str] | None = None
-
-
-def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open_regular(path) as fh:  # a regular file: a FIFO would block (OSError else)
-        while block := fh.read(chunk):
-            h.update(block)
-    return h.hexdigest()
-
-
-
-def set_command_line(argv: Sequence[str]) -> None:
-    """Record the command line that outputs will name in their provenance (the command
-    line layer calls this; API users may)."""
-    global _COMMAND_LINE
-    _COMMAND_LINE = [str(a) for a in argv]
-
-
-def command_line() -> list[str]:
-    """The recorded command line, else this process's ``sys.argv``."""
-    return list(_COMMAND_LINE) if _COMMAND_LINE is not None else list(sys.argv)
-
 
 def table_format(path: str | os.PathLike) -> str:
     """``"csv"``, ``"parquet"`` or ``"jsonl"`` for a table file name (``-``: CSV); any other
@@ -109,43 +79,6 @@ def output_files(path: str | os.PathLike | None) -> list[str]:
         return []
     side = sidecar_path(path)
     return [str(path)] + ([str(side)] if side is not None else [])
-
-
-def file_record(path: str | os.PathLike, *, sha256: str | None = None) -> dict:
-    """``{"path": ..., "sha256": ...}`` of an input file (hashed unless given)."""
-    if sha256 is None:
-        from mtanno.util.tables import sha256_file
-
-        try:
-            sha256 = sha256_file(path)
-        except OSError:
-            sha256 = None
-    return {"path": str(path), "sha256": sha256}
-
-
-def utc_now() -> str:
-    """The time of a provenance's ``created``: UTC, ISO 8601, to the second."""
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-
-
-def provenance(*, inputs: Iterable[dict | str | os.PathLike] = (),
-               templates: Iterable[dict] = (), **params: Any) -> dict:
-    """The provenance object of an output table: schema, mtanno version, command line, UTC
-    time, ``inputs`` (file records, see :func:`file_record`; paths are hashed),
-    ``templates`` (class, path, SHA-256) and the parameters that shaped the table (τ, δ,
-    feature set, …, given as keywords; None values are left out)."""
-    from mtanno._version import __version__
-
-    recs = [i if isinstance(i, dict) else file_record(i) for i in inputs]
-    out = {"schema": PROVENANCE_SCHEMA, "mtanno_version": __version__,
-           "command": command_line(),
-           "created": utc_now(),
-           "inputs": recs}
-    templates = list(templates)
-    if templates:
-        out["templates"] = templates
-    out.update({k: v for k, v in params.items() if v is not None})
-    return out
 
 
 # --------------------------------------------------------------------------- writing
@@ -539,56 +472,3 @@ def parse_text(table: Table, i: int, column: str) -> str:
     if value is None or (isinstance(value, str) and not value.strip()):
         raise table.error(i, f"empty {column}")
     return str(value).strip()
-
-
-# --------------------------------------------------------------------------- manifests
-
-
-@dataclass(frozen=True)
-class ManifestRow:
-    """One row of a clip manifest: ``file`` (relative path), ``class`` and the optional
-    ``actor`` and ``split`` columns, with the line it was read from."""
-
-    file: str
-    label: str
-    actor: str
-    split: str
-    line: int | None
-
-
-def read_clip_manifest(path: str | os.PathLike) -> tuple[Table, list[ManifestRow]]:
-    """Read a clip manifest (columns ``file,class[,actor,split,...]``, e.g. HDM05's
-    ``clips.csv``): the one manifest reader of ``learn-mt`` and ``compose``. Every row
-    needs a file (a relative path inside the data folder) and a class."""
-    table = read_table(path, what="manifest")
-    table.require(["file", "class"])
-    out = []
-    for i, row in enumerate(table.rows):
-        f = parse_text(table, i, "file")
-        label = parse_text(table, i, "class")
-        rel = Path(f)
-        if rel.is_absolute() or ".." in rel.parts:
-            raise table.error(i, f"file {f!r} must be a relative path inside the data folder")
-        out.append(ManifestRow(f, label, str(row.get("actor") or "").strip(),
-                               str(row.get("split") or "").strip(), table.lines[i]))
-    if not out:
-        raise MtannoError("manifest lists no files", path=table.path)
-    return table, out
-
-
-def parse_frame_range(text: str | None, n: int) -> tuple[int, int] | None:
-    """``'A:B'`` (1-based, inclusive, as every file gives frames; either side may be empty)
-    → 0-based (a, b) inside a document of ``n`` frames; None for None (``--frames``)."""
-    if text is None:
-        return None
-    a, sep, b = text.partition(":")
-    try:
-        lo = int(a) if a.strip() else 1
-        hi = int(b) if b.strip() else n
-    except ValueError:
-        raise MtannoError(f"{{frames}} must be A:B with 1-based frame numbers, got '{text}'",
-                          options=("frames",)) from None
-    if not sep or lo < 1 or hi < lo or hi > n:
-        raise MtannoError(f"{{frames}} {text} is not a range inside 1:{n}", options=("frames",))
-    return lo - 1, hi - 1
-

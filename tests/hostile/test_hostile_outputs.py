@@ -457,7 +457,7 @@ def test_a_template_learned_from_non_utf8_file_names(world, tmp_path):
     """learn-mt of examples whose file names are not UTF-8 writes the template (it was a
     UnicodeEncodeError): the training records' paths read back as the files' names, and the
     template annotates."""
-    from mtanno.templates.model import load_template
+    from mtanno.templates.store import load_template
 
     folder = tmp_path / "train" / "squat"
     folder.mkdir(parents=True)
