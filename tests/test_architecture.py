@@ -409,10 +409,6 @@ def test_command_api_call_rule_catches_a_second_call():
 #: Commands that still call more than one API function, each with the reason; an entry
 #: that no longer does fails the test below until it is removed.
 SEVERAL_CALLS = {
-    # its summary line names the folder of the extra templates (tuning.template_folder_of):
-    # tune_files' result is to carry it, when tuning/ is free (another branch changes
-    # tuning/run.py now)
-    "mtanno.commands.tune.tune_cmd",
     # --classes CONFIG: the configuration's [inputs] (annotate, a layer above features)
     # choose the options of extract_to
     "mtanno.commands.features.features_cmd",
@@ -445,13 +441,9 @@ MAX_OPTIONS = 10
 
 #: Public functions with more options for now, each with why.
 MANY_OPTIONS = {
-    # annotate/run.py, annotate/batch.py, tuning/, evaluation/report.py and
-    # features/extract.py are being changed on other branches: they get their options
-    # dataclasses once those are merged
-    "mtanno.annotate.run.annotate_to", "mtanno.annotate.batch.annotate_files",
-    "mtanno.tuning.run.tune", "mtanno.tuning.run.tune_files",  # tune_files: **options
+    # evaluation/report.py is being changed on another branch: it gets its options
+    # dataclass once that is merged
     "mtanno.evaluation.report.write_report", "mtanno.evaluation.report.report_files",
-    "mtanno.features.extract.extract_to",  # **options (run_batch's)
 }
 
 

@@ -3,7 +3,8 @@
 This is the Python API behind ``mtanno features``: :func:`extract_file` does one document,
 :func:`plan_batch` maps inputs (files, directories, lists) to output paths that mirror the
 input tree, and :func:`run_batch` runs a plan in one or more processes, continuing past
-files that fail.
+files that fail; :func:`extract_to` is the command's whole run, as :class:`ExtractOptions`
+say.
 """
 
 from __future__ import annotations
@@ -597,23 +598,58 @@ def run_batch(jobs: list[Job], *, n_jobs: int = 1, force: bool = False,
     return summary
 
 
-def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *,
+@dataclass(frozen=True)
+class ExtractOptions:
+    """How :func:`extract_to` extracts (``mtanno features``' options; the defaults are the
+    command's, those of :func:`run_batch`).
+
+    ``feature_set``: the features computed (``ak40``, ``mrc05``, ``mrc05-reference``;
+    :func:`mtanno.features.compute.get_feature_set`); ``poses``: every output also holds
+    the normalised poses of its frames (:func:`extract_file`); ``skeleton``: a skeleton map
+    (TOML file or name) instead of the detected one; ``markers``: the marker set of C3D
+    files; ``up``: the up axis of every motion file (``"y"`` or ``"z"``; None: each
+    format's rule). ``force``: rewrite outputs that are up to date (:func:`up_to_date`).
+    ``n_jobs`` worker processes, or ``scheduler``, a dask.distributed address
+    (``local:N``) — the same files either way."""
+
+    feature_set: str = FEATURE_SET
+    poses: bool = False
+    skeleton: str | None = None
+    markers: str | None = None
+    up: str | None = None
+    force: bool = False
+    n_jobs: int = 1
+    scheduler: str | None = None
+
+    def __post_init__(self):
+        get_feature_set(self.feature_set)
+        if self.up is not None:
+            to_y_up(np.zeros(3), self.up)  # an unknown axis, in the words of every reader
+        if not isinstance(self.n_jobs, int) or isinstance(self.n_jobs, bool) \
+                or self.n_jobs < 1:
+            raise MtannoError(f"{{n_jobs}} must be a positive integer, got {self.n_jobs!r}",
+                              options=("n_jobs",))
+
+
+def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike,
+               options: ExtractOptions | None = None, *,
                listed: Iterable[str | os.PathLike] = (), asf: str | os.PathLike | None = None,
                inside_input: bool = False, wait: bool = False,
                on_wait: Callable[[str], None] | None = None,
-               on_start: Callable[[int], None] | None = None, **options) -> Summary:
+               on_start: Callable[[int], None] | None = None,
+               progress: Callable[[Outcome], None] | None = None) -> Summary:
     """The whole ``mtanno features`` run: the jobs of :func:`plan_batch` (``inputs``,
     ``listed``, ``asf``, ``inside_input``), an error when they hold no motion file, the
-    output folder made
-    and locked (:func:`mtanno.util.locks.folder_lock`: busy is
+    output folder made and locked (:func:`mtanno.util.locks.folder_lock`: busy is
     :class:`~mtanno.util.locks.LockBusy`, or with ``wait`` waited for after one
-    ``on_wait(holder)`` call) and :func:`run_batch` (``options`` are its keyword options).
-    A run that writes nothing leaves no new folder behind
-    (:func:`mtanno.util.output.output_folder`). ``on_start(n)`` is called before the first
-    of ``n`` jobs."""
+    ``on_wait(holder)`` call) and :func:`run_batch` as ``options`` say
+    (:class:`ExtractOptions`; ``progress`` as there). A run that writes nothing leaves no
+    new folder behind (:func:`mtanno.util.output.output_folder`). ``on_start(n)`` is
+    called before the first of ``n`` jobs."""
     from mtanno.util.locks import folder_lock
     from mtanno.util.output import output_folder
 
+    o = options or ExtractOptions()
     if not str(outdir).strip():
         raise MtannoError("the output folder name ({outdir}) is empty; name a folder ('.' "
                           "for this one)", options=("outdir",))
@@ -628,4 +664,6 @@ def extract_to(inputs: Iterable[str | os.PathLike], outdir: str | os.PathLike, *
     if on_start:
         on_start(len(jobs))
     with output_folder(outdir), folder_lock(outdir, wait=wait, on_wait=on_wait):
-        return run_batch(jobs, **options)
+        return run_batch(jobs, n_jobs=o.n_jobs, force=o.force, skeleton=o.skeleton,
+                         progress=progress, feature_set=o.feature_set, up=o.up,
+                         scheduler=o.scheduler, poses=o.poses, markers=o.markers)
