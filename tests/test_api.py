@@ -154,9 +154,9 @@ def test_annotate_options_are_checked_and_shared(world, tmp_path):
 
 
 def test_extract_to_is_the_features_command(world, tmp_path):
-    """``mtanno.features.extract.extract_to`` writes the world's feature files, and a run
+    """``mtanno.features.batch.extract_to`` writes the world's feature files, and a run
     that writes nothing leaves no folder behind."""
-    from mtanno.features.extract import ExtractOptions, extract_to
+    from mtanno.features.batch import ExtractOptions, extract_to
 
     clip = world.clips / "squat" / "SYN_a_squat_001.amc"
     started = []

@@ -507,8 +507,6 @@ LONG_MODULES = {
     "mtanno.confidence.calibration": "calibrating the evidence of segments: logistic (Platt) "
                                      "and isotonic models, fitted out of fold, read and written",
     "mtanno.evaluation.report": "the HTML report of annotations and its tables and figures",
-    "mtanno.features.extract": "two jobs: one motion file's features, and the batch run of "
-                               "`mtanno features` (extract_to); another branch changes it now",
     "mtanno.features.store": "the feature file (Parquet): its one validating reader, writer, "
                              "layout and compatibility check",
     "mtanno.io.bvh": "reading BVH files (hierarchy and motion), bounded and checked",

@@ -99,7 +99,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     """
     from tqdm import tqdm
 
-    from mtanno.features.extract import ExtractOptions, extract_to
+    from mtanno.features.batch import ExtractOptions, extract_to
 
     if config_path is not None:  # what the configuration's [inputs] need
         from mtanno.annotate.config import feature_inputs
