@@ -98,12 +98,12 @@ def prepare(out: Path):
 
 def in_process(out: Path, doc: Path, config: Path) -> tuple[float, float]:
     """(median seconds of matching and labels, of the confidence) of the document."""
-    from mtanno.annotate import annotate_document, load_annotation_setup
+    from mtanno.annotate import AnnotateOptions, annotate_document, load_annotation_setup
     from mtanno.confidence.score import score_document
     from mtanno.features.store import read_features
 
     ff = read_features(doc, poses=True)
-    setup = load_annotation_setup(out / "mt", config_path=config)
+    setup = load_annotation_setup(out / "mt", AnnotateOptions(config_path=config))
     label, score = [], []
     for _ in range(7):
         t0 = time.perf_counter()

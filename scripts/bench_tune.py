@@ -146,7 +146,7 @@ def main() -> int:
     run(["tune", "--mt", str(out / "mt"), "--keyframes", str(kf_dir), *train, "-o",
          str(out / "tuned_kf.toml")])
 
-    from mtanno.annotate import annotate_document, load_annotation_setup
+    from mtanno.annotate import AnnotateOptions, annotate_document, load_annotation_setup
     from mtanno.features.store import read_features
     from mtanno.keyframes import KeyframeSet, class_spans, load_keyframe_folder
     from mtanno.templates.match import pack_document
@@ -158,7 +158,8 @@ def main() -> int:
     for name, cfg_path, kf in (("untuned", None, False), ("tuned", out / "tuned.toml", False),
                                ("untuned, keyframes", None, True),
                                ("tuned with keyframes, keyframes", out / "tuned_kf.toml", True)):
-        setup = load_annotation_setup(out / "mt", config_path=cfg_path)  # as annotate reads
+        # as annotate reads it
+        setup = load_annotation_setup(out / "mt", AnnotateOptions(config_path=cfg_path))
         models, cfg = setup.models, setup.config
         annotate_document("w", ff.X[:, :3000], models, config=cfg)  # kernels loaded
 

@@ -93,19 +93,21 @@ def instrument() -> None:
     import pyarrow.parquet as pq
 
     import mtanno.features as features
+    import mtanno.features.batch as batch
     import mtanno.features.extract as extract
     import mtanno.features.store as store
     import mtanno.io as io
     import mtanno.io.amc as amc
     import mtanno.util.output as output
 
-    _patch(extract, "plan_batch", "parent: plan (listing, check_outputs)")
-    _patch(extract, "up_to_date", "parent: up-to-date checks")
-    _patch(extract, "_run_one", "other (task wrapper, metadata dict)")
-    _patch(extract, "extract_file", "other (task wrapper, metadata dict)")
+    _patch(batch, "plan_batch", "parent: plan (listing, check_outputs)")
+    _patch(batch, "up_to_date", "parent: up-to-date checks")
+    _patch(batch, "_run_one", "other (task wrapper, metadata dict)")
+    _patch(batch, "extract_file", "other (task wrapper, metadata dict)")
     _patch(extract, "read_motion", "other (task wrapper, metadata dict)")
     _patch(io, "find_asf", "find ASF (listing, resolve)")
     _patch(extract, "find_asf", "find ASF (listing, resolve)")
+    _patch(batch, "find_asf", "find ASF (listing, resolve)")
     _patch(io, "_cached_asf", "ASF lookup (stat, resolve, cache)")
     _patch(amc, "read_amc", "parse AMC (read + numba kernel)")
     _patch(io, "read_channels", "parse AMC (read + numba kernel)")
@@ -117,7 +119,9 @@ def instrument() -> None:
     _patch(extract, "compute_features", "features")
     _patch(extract, "sha256_file", "SHA-256 of inputs")
     _patch(hashlib, "sha256", "SHA-256 of inputs")
-    _patch(extract, "_skeleton_digest", "SHA-256 of inputs")
+    _patch(extract, "skeleton_digest", "SHA-256 of inputs")
+    _patch(batch, "skeleton_digest", "SHA-256 of inputs")
+    _patch(batch, "sha256_file", "SHA-256 of inputs")
     _patch(extract, "write_features", "write: Arrow table build")
     _patch(store, "_check_meta", "write: metadata JSON")
     for mod in (json_mod,):
@@ -144,22 +148,22 @@ def worker_side(folder: Path, repeats: int, where: Path | None = None) -> None:
     """The batch in this process, one job, every stage timed; best total of ``repeats``.
     Each pass writes into a new folder (all removed at the end: see bench_features.py on
     files deleted just before)."""
-    from mtanno.features.extract import plan_batch, run_batch
+    from mtanno.features.batch import plan_batch, run_batch
 
     out = Path(tempfile.mkdtemp(prefix="mtanno-profile-", dir=where))
     try:
         jobs = plan_batch([folder], out / "warm")
         run_batch(jobs[:20], force=True)  # load kernels, caches of the ASF files
         instrument()
-        import mtanno.features.extract as extract
+        import mtanno.features.batch as batch
 
         runs = []
         for k in range(repeats):
             TOTALS.clear()
             CALLS.clear()
             t0 = time.process_time()
-            jobs = extract.plan_batch([folder], out / f"pass{k}")
-            s = extract.run_batch(jobs, force=True)
+            jobs = batch.plan_batch([folder], out / f"pass{k}")
+            s = batch.run_batch(jobs, force=True)
             total = time.process_time() - t0
             runs.append((total, dict(TOTALS), s))
         total, totals, s = min(runs, key=lambda r: r[0])
@@ -194,7 +198,7 @@ def pool_side(folder: Path, jobs: int, where: Path | None = None) -> None:
     fork); each worker reports its timers and its whole CPU time at exit, so the time
     outside the timed stages (task passing, result pickling, the pool's threads) shows."""
     import mtanno.util.workers as workers
-    from mtanno.features.extract import plan_batch, run_batch
+    from mtanno.features.batch import plan_batch, run_batch
 
     out = Path(tempfile.mkdtemp(prefix="mtanno-profile-", dir=where))
     reports = Path(tempfile.mkdtemp(prefix="mtanno-profile-reports-"))

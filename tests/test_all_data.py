@@ -6,7 +6,7 @@ import pytest
 from conftest import DATA, require_data
 from data_cache import unpack_archive
 
-from mtanno.features.extract import plan_batch, run_batch
+from mtanno.features.batch import plan_batch, run_batch
 from mtanno.features.store import read_features
 
 

@@ -122,10 +122,41 @@ def test_annotate_to_is_the_command_from_file_names_to_files(world, tmp_path):
         annotate_to([world.docfeats], world.mt, outputs=[tmp_path / "b.csv"], force=True)
 
 
+def test_annotate_options_are_checked_and_shared(world, tmp_path):
+    """:class:`AnnotateOptions` refuses bad values when it is made, naming the option;
+    ``load_annotation_setup`` and ``annotate_to`` read the same value, and
+    ``annotate_files``, which takes the setup loaded, refuses the options that load it."""
+    from mtanno.annotate import AnnotateOptions, annotate_files, load_annotation_setup
+
+    for bad, message in ((dict(tau=-1), "tau must be a number"),
+                         (dict(min_confidence=2), "min_confidence must be a number in"),
+                         (dict(dbar_variant="fast"), r"unknown dbar_variant= 'fast'"),
+                         (dict(match_variant="x"), r"unknown match_variant= 'x'"),
+                         (dict(n_jobs=0), r"n_jobs= must be a positive integer")):
+        with pytest.raises(mtanno.MtannoError, match=message):
+            AnnotateOptions(**bad)
+    o = AnnotateOptions(tau=0.2, single_label=True, min_confidence=0.25)
+    setup = load_annotation_setup(world.mt, o)
+    assert (setup.config.default_tau, setup.single_label, setup.min_confidence) == (0.2, True,
+                                                                                     0.25)
+    assert setup.options(n_jobs=2) == AnnotateOptions(single_label=True, min_confidence=0.25,
+                                                      n_jobs=2)
+    run = mtanno.annotate.annotate_to([world.docfeats], world.mt, o,
+                                      outputs=[tmp_path / "a.csv"])
+    batch = setup.annotate(sorted(world.doc_files))
+    assert run.exit_code == 0 and batch.rows  # the same annotation both ways
+    assert read_annotations(tmp_path / "a.csv") == batch.rows
+    assert batch.rows != read_annotations(world.annotation)  # the options made a difference
+    with pytest.raises(mtanno.MtannoError, match=r"^tau= and delta= go with "
+                                                 "load_annotation_setup"):
+        annotate_files(world.doc_files, setup.models, layout=setup.layout,
+                       options=AnnotateOptions(tau=0.2, delta=0.1))
+
+
 def test_extract_to_is_the_features_command(world, tmp_path):
-    """``mtanno.features.extract.extract_to`` writes the world's feature files, and a run
+    """``mtanno.features.batch.extract_to`` writes the world's feature files, and a run
     that writes nothing leaves no folder behind."""
-    from mtanno.features.extract import extract_to
+    from mtanno.features.batch import ExtractOptions, extract_to
 
     clip = world.clips / "squat" / "SYN_a_squat_001.amc"
     started = []
@@ -142,3 +173,16 @@ def test_extract_to_is_the_features_command(world, tmp_path):
     bad.write_text("not a motion\n")
     assert extract_to([bad], tmp_path / "new" / "out").failed
     assert not (tmp_path / "new").exists()
+    # the options: an up-to-date output skipped, rewritten with force; bad values refused
+    # when the options are made
+    seen = []
+    again = extract_to([clip], tmp_path / "f", ExtractOptions(force=False),
+                       progress=lambda o: seen.append(o.status))
+    assert again.line().startswith("0 written") and seen == ["skipped"]
+    forced = extract_to([clip], tmp_path / "f", options=ExtractOptions(force=True, n_jobs=2))
+    assert forced.line().startswith("1 written")
+    for bad_options, message in ((dict(feature_set="ak41"), "unknown feature set 'ak41'"),
+                                 (dict(up="x"), "up axis must be one of y, z"),
+                                 (dict(n_jobs=0), r"n_jobs= must be a positive integer")):
+        with pytest.raises(mtanno.MtannoError, match=message):
+            ExtractOptions(**bad_options)

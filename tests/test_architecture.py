@@ -409,10 +409,6 @@ def test_command_api_call_rule_catches_a_second_call():
 #: Commands that still call more than one API function, each with the reason; an entry
 #: that no longer does fails the test below until it is removed.
 SEVERAL_CALLS = {
-    # its summary line names the folder of the extra templates (tuning.template_folder_of):
-    # tune_files' result is to carry it, when tuning/ is free (another branch changes
-    # tuning/run.py now)
-    "mtanno.commands.tune.tune_cmd",
     # --classes CONFIG: the configuration's [inputs] (annotate, a layer above features)
     # choose the options of extract_to
     "mtanno.commands.features.features_cmd",
@@ -444,13 +440,7 @@ def test_one_api_call_per_command():
 MAX_OPTIONS = 10
 
 #: Public functions with more options for now, each with why.
-MANY_OPTIONS = {
-    # annotate/run.py, annotate/batch.py, tuning/ and features/extract.py are being
-    # changed on other branches: they get their options dataclasses once those are merged
-    "mtanno.annotate.run.annotate_to", "mtanno.annotate.batch.annotate_files",
-    "mtanno.tuning.run.tune", "mtanno.tuning.run.tune_files",  # tune_files: **options
-    "mtanno.features.extract.extract_to",  # **options (run_batch's)
-}
+MANY_OPTIONS: set[str] = set()  # none now: every run function has its options dataclass
 
 
 def keyword_options(source: str, module: str = "mtanno.x") -> dict[str, int]:
@@ -513,8 +503,6 @@ LONG_MODULES = {
     "mtanno.confidence.calibration": "calibrating the evidence of segments: logistic (Platt) "
                                      "and isotonic models, fitted out of fold, read and written",
     "mtanno.evaluation.report": "the HTML report of annotations and its tables and figures",
-    "mtanno.features.extract": "two jobs: one motion file's features, and the batch run of "
-                               "`mtanno features` (extract_to); another branch changes it now",
     "mtanno.features.store": "the feature file (Parquet): its one validating reader, writer, "
                              "layout and compatibility check",
     "mtanno.io.bvh": "reading BVH files (hierarchy and motion), bounded and checked",

@@ -144,7 +144,7 @@ def test_bandai_example_ranks_its_own_clip_first(tmp_path):
     from conftest import SHARED
     from data_cache import bandai_clips
 
-    from mtanno.features.extract import plan_batch, run_batch
+    from mtanno.features.batch import plan_batch, run_batch
     from mtanno.index import build_index
     from mtanno.index.core import read_feature_doc
 

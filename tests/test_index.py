@@ -354,7 +354,7 @@ def _reference_segments(name):
 
 def test_segments_match_reference_index(tmp_path):
     require_data()
-    from mtanno.features.extract import plan_batch, run_batch
+    from mtanno.features.batch import plan_batch, run_batch
 
     docs = list(csv.DictReader((REFERENCE / "retrieval" / "concat_doc.csv").open()))
     amcs = [HDM05 / d["class"] / f"{d['clip']}.amc" for d in docs]

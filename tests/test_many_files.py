@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mtanno.annotate import annotate_files, load_annotation_setup
+from mtanno.annotate import AnnotateOptions, annotate_files, load_annotation_setup
 from mtanno.annotate.batch import MAX_CHUNK, _annotate_chunk, _chunks
 from mtanno.errors import MtannoError
 
@@ -29,7 +29,8 @@ def test_a_pool_gets_the_setup_once_and_names_of_documents(world, monkeypatch):
 
     setup = load_annotation_setup(world.mt)
     paths = [world.doc_files[i % 2] for i in range(12)]
-    want = annotate_files(paths, setup.models, layout=setup.layout, n_jobs=1)
+    want = annotate_files(paths, setup.models, layout=setup.layout,
+                          options=AnnotateOptions(n_jobs=1))
     seen, shared = [], []
     map_ = workers.WorkerPool.map
     init = workers.WorkerPool.__init__
@@ -46,7 +47,8 @@ def test_a_pool_gets_the_setup_once_and_names_of_documents(world, monkeypatch):
     seen_shared = shared
     monkeypatch.setattr(workers.WorkerPool, "map", spy_map)
     monkeypatch.setattr(workers.WorkerPool, "__init__", spy_init)
-    got = annotate_files(paths, setup.models, layout=setup.layout, n_jobs=2)
+    got = annotate_files(paths, setup.models, layout=setup.layout,
+                         options=AnnotateOptions(n_jobs=2))
     assert got.rows == want.rows and got.files == want.files and got.failed == want.failed
     (fn, args), = seen
     assert fn is _annotate_chunk

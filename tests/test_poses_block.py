@@ -19,7 +19,8 @@ from world import assert_one_line, cli
 from mtanno import synthetic as synth
 from mtanno.errors import MtannoError
 from mtanno.features import FEATURE_NAMES
-from mtanno.features.extract import extract_file, plan_batch, run_batch, to_y_up, up_to_date
+from mtanno.features.batch import plan_batch, run_batch, up_to_date
+from mtanno.features.extract import extract_file, to_y_up
 from mtanno.features.poses import POSE_UNIT, normalize_poses, pose_metadata
 from mtanno.features.store import POSE_PREFIX, pose_columns, read_features, write_features
 from mtanno.io import canonical_positions, read_motion

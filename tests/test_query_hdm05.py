@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from conftest import HDM05, require_data
 
-from mtanno.features.extract import plan_batch, run_batch
+from mtanno.features.batch import plan_batch, run_batch
 from mtanno.index import build_index, example_query, search
 from mtanno.index.core import read_feature_doc
 

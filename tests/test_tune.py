@@ -19,7 +19,7 @@ from mtanno.errors import MtannoError
 from mtanno.evaluation.metrics import evaluate_annotations
 from mtanno.labels.segments import Segment
 from mtanno.templates.training import collect_sources
-from mtanno.tuning import METHODS, tune, write_tuned
+from mtanno.tuning import METHODS, TuneOptions, tune, tune_files, write_tuned
 from mtanno.tuning.cv import HeldOut, make_folds
 from mtanno.tuning.score import count
 from mtanno.tuning.search import Params, Tuner
@@ -36,8 +36,8 @@ def _config_body(path: Path) -> str:
 
 
 def test_tune_is_deterministic_for_a_seed(world, tmp_path):
-    a = tune(_sources(world), world.mt, seed=3, n_jobs=1)
-    b = tune(_sources(world), world.mt, seed=3, n_jobs=2)
+    a = tune(_sources(world), world.mt, TuneOptions(seed=3, n_jobs=1))
+    b = tune(_sources(world), world.mt, TuneOptions(seed=3, n_jobs=2))
     assert a.params == b.params and a.steps == b.steps
     for d, r in (("a", a), ("b", b)):
         (tmp_path / d).mkdir()
@@ -47,6 +47,23 @@ def test_tune_is_deterministic_for_a_seed(world, tmp_path):
         assert f.read_bytes() == (tmp_path / "b/t.templates" / f.name).read_bytes()
     assert (tmp_path / "a/t.verify.parquet").read_bytes() == \
         (tmp_path / "b/t.verify.parquet").read_bytes()
+
+
+def test_tune_options_are_checked_when_made():
+    """:class:`TuneOptions` refuses bad values when it is made, naming the option, and keeps
+    the methods in :data:`METHODS` order."""
+    assert TuneOptions(methods=list(reversed(METHODS))).methods == METHODS
+    assert TuneOptions(background=["a"], evidence=["cost"]).background == ("a",)
+    for bad, message in ((dict(methods=["magic"]), "unknown method"),
+                         (dict(documents="mixed"), r"unknown documents= 'mixed'"),
+                         (dict(unknown_weight=math.inf), "unknown weight must be a finite"),
+                         (dict(verify="eyes"), r"unknown verify= 'eyes'"),
+                         (dict(evidence=()), r"evidence= must name some of"),
+                         (dict(evidence=["luck"]), r"evidence= must name some of"),
+                         (dict(seed=-1), r"seed= must be an integer ≥ 0"),
+                         (dict(n_jobs=0), r"n_jobs= must be an integer ≥ 1")):
+        with pytest.raises(MtannoError, match=message):
+            TuneOptions(**bad)
 
 
 def test_tune_with_keyframes_matches_inside_their_windows(world, tmp_path):
@@ -80,7 +97,15 @@ def test_tuned_configuration_round_trips_through_annotate(world, tmp_path):
             world.feats, "--split", "train", "-o", cfg_path, "--seed", "1", "-q")
     assert r.exit_code == 0, r.output
     cfg = load_class_config(cfg_path)
-    result = tune(_sources(world), world.mt, seed=1)
+    # the API's run (tune_files) writes the command's configuration, and says where the
+    # extra templates went
+    api = tmp_path / "api" / "tuned.toml"
+    api.parent.mkdir()
+    result = tune_files([], world.mt, api, TuneOptions(seed=1), manifest=world.manifest,
+                        features_dir=world.feats, split="train")
+    assert _config_body(api) == _config_body(cfg_path)
+    assert result.extra_folder == (tmp_path / "api" / "tuned.templates" if result.extra_templates
+                                   else None)
     want = result.params.config()
     for key in ("default_tau", "tau", "resolve", "refine", "slack", "frame_weight",
                 "segment_cost", "delta", "reject", "default_reject"):
@@ -131,7 +156,7 @@ def test_annotate_warns_when_the_templates_are_not_those_tuned_with(world, tmp_p
 
 
 def test_methods_can_be_disabled_and_ablated(world, tmp_path):
-    r = tune(_sources(world), world.mt, seed=0, ablation=True)
+    r = tune(_sources(world), world.mt, TuneOptions(seed=0, ablation=True))
     assert set(r.ablation) == {f"without-{m}" for m in METHODS} | {"none"}
     none = r.ablation["none"].params
     assert not none.resolve and not none.refine and none.frame_weight == 0
@@ -146,9 +171,9 @@ def test_methods_can_be_disabled_and_ablated(world, tmp_path):
     assert not r.ablation["without-templates"].extra_templates
     assert len(set(r.ablation["without-tau"].params.tau.values())) == 1
     # the search with everything disabled is what tune finds with no methods at all
-    assert tune(_sources(world), world.mt, methods=[], seed=0).params == none
-    with pytest.raises(Exception, match="unknown method"):
-        tune(_sources(world), world.mt, methods=["magic"])
+    assert tune(_sources(world), world.mt, TuneOptions(methods=[], seed=0)).params == none
+    with pytest.raises(MtannoError, match="unknown method"):
+        TuneOptions(methods=["magic"])
     r2 = cli("tune", "--mt", world.mt, "--manifest", world.manifest, "--features-dir",
              world.feats, "--split", "train", "-o", tmp_path / "t.toml", "--disable", "resolve",
              "--disable", "templates", "-q")
@@ -522,9 +547,9 @@ def test_tune_writes_the_time_scaled_copies_of_the_class_templates(world, tmp_pa
         return p.copy(scales={self.classes[0]: (0.6, 1.6)}), ev, steps
 
     monkeypatch.setattr(Tuner, "search", search)
-    r = tune(_sources(world), world.mt, seed=0, methods=[m for m in METHODS
-                                                        if m != "templates"],
-             confidence=False)  # (the scales were not matched in the folds)
+    r = tune(_sources(world), world.mt,
+             TuneOptions(seed=0, methods=[m for m in METHODS if m != "templates"],
+                         confidence=False))  # (the scales were not matched in the folds)
     c = r.classes[0]
     mt = load_template_folder(world.mt)[c]
     assert [x.params["time_scale"] for x in r.extra_templates[c]] == [0.6, 1.6]
@@ -625,7 +650,7 @@ def test_the_search_matches_all_templates_only_at_the_delta_it_chose(world, monk
         return got
 
     monkeypatch.setattr(Tuner, "search", search)
-    result = tune(_sources(world), world.mt, seed=2, n_jobs=1, confidence=False)
+    result = tune(_sources(world), world.mt, TuneOptions(seed=2, n_jobs=1, confidence=False))
     monkeypatch.setattr(Tuner, "search", original)
     tuner = seen["tuner"]
     chosen = result.params.delta
@@ -737,12 +762,14 @@ def test_tune_learns_each_template_from_at_most_max_examples(world, monkeypatch,
         return original(cls, train, **kw)
 
     monkeypatch.setattr(run, "learn_fold_class", learn_fold_class)
-    r = tune(_sources(world), world.mt, seed=1, n_jobs=1, confidence=False, max_examples=1)
+    r = tune(_sources(world), world.mt,
+             TuneOptions(seed=1, n_jobs=1, confidence=False, max_examples=1))
     assert sizes and max(sizes) == 1 and r.max_examples == 1
     write_tuned(tmp_path / "t.toml", r)
     assert "templates learned from at most 1 examples each" in (tmp_path / "t.toml").read_text()
     sizes.clear()
-    r = tune(_sources(world), world.mt, seed=1, n_jobs=1, confidence=False, max_examples=0)
+    r = tune(_sources(world), world.mt,
+             TuneOptions(seed=1, n_jobs=1, confidence=False, max_examples=0))
     assert max(sizes) > 1 and r.max_examples is None
 
 
@@ -801,7 +828,7 @@ def test_a_configuration_folder_moves_and_is_renamed_as_one(world, tmp_path):
     assert r.exit_code == 0, r.output
     assert {p.name for p in (tmp_path / "cli").iterdir()} <= {"classes.toml", "templates",
                                                               "verify.parquet"}
-    result = tune(_sources(world), world.mt, seed=1, n_jobs=1)
+    result = tune(_sources(world), world.mt, TuneOptions(seed=1, n_jobs=1))
     mts = load_template_folder(world.mt)
     cls = sorted(mts)[0]
     result.extra_templates = {cls: [time_scaled(mts[cls], 0.6)]}  # a template to refer to

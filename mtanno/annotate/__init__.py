@@ -11,6 +11,8 @@ Modules, in the order the data flows through them:
   steps 3–4; :class:`ClassModel`, :func:`annotate_document`, :func:`label_document`);
 * :mod:`~mtanno.annotate.decode` — the segment decoder of tuned annotation (issue 10);
 * :mod:`~mtanno.annotate.tables` — annotation tables (0-based rows, 1-based files);
+* :mod:`~mtanno.annotate.options` — how documents are annotated (:class:`AnnotateOptions`,
+  the options of the run, the setup and the batch);
 * :mod:`~mtanno.annotate.setup` — what shapes an annotation, loaded once for a batch
   (:class:`AnnotationSetup`, :func:`load_annotation_setup`, class models);
 * :mod:`~mtanno.annotate.batch` — batches of feature files (:func:`annotate_files`);
@@ -28,8 +30,9 @@ The public names of these modules are importable from ``mtanno.annotate`` itself
 """
 
 __all__ = [
-    "ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "AnnotateRun", "DECODER_KEYS", "Annotation",
-    "AnnotationBatch", "AnnotationSetup", "ClassConfig", "ClassModel", "Windows",
+    "ANNOTATION_COLUMNS", "ANNOTATION_SUFFIXES", "AnnotateOptions", "AnnotateRun",
+    "DECODER_KEYS", "Annotation", "AnnotationBatch", "AnnotationSetup", "ClassConfig",
+    "ClassModel", "Windows",
     "annotate_document", "annotate_files", "annotate_to", "annotation_files",
     "annotation_setup", "annotation_table", "class_config_text", "class_deltas",
     "class_models", "evidence_covered", "label_document", "label_frames",
@@ -61,6 +64,7 @@ from mtanno.annotate.label import (
     segments_from_labels,
     single_label_segments,
 )
+from mtanno.annotate.options import AnnotateOptions
 from mtanno.annotate.run import AnnotateRun, annotate_to
 from mtanno.annotate.setup import (
     AnnotationSetup,

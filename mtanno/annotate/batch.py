@@ -14,6 +14,7 @@ import numpy as np
 
 from mtanno.annotate.config import ClassConfig
 from mtanno.annotate.label import ClassModel, annotate_document, valid_rows, valid_windows
+from mtanno.annotate.options import SETUP_OPTIONS, AnnotateOptions
 from mtanno.errors import MtannoError
 from mtanno.labels.segments import Annotation
 
@@ -216,33 +217,43 @@ def _iter_annotate(paths: Sequence[str | os.PathLike], models: Sequence[ClassMod
 
 
 def annotate_files(paths: Sequence[str | os.PathLike], models: Sequence[ClassModel], *,
-                   layout: FeatureLayout, config: ClassConfig | None = None,
-                   dbar_variant: str = "reference", match_variant: str = "reference",
-                   keyframes=None, n_jobs: int = 1,
-                   progress=None, single_label: bool = False,
-                   scheduler: str | None = None, confidence=None,
-                   min_confidence: float | None = None) -> AnnotationBatch:
-    """Annotate feature files (:func:`annotate_document`), in ``n_jobs`` processes
-    (:class:`mtanno.util.workers.WorkerPool`). ``keyframes`` maps class names to keyframe
-    queries (:mod:`mtanno.keyframes`), or is a :class:`mtanno.keyframes.KeyframeSet` of
-    them: those classes are matched only inside their
-    candidate windows in each document ([MBS09] §5), the others everywhere. A file that
-    cannot be read or does not have the templates' ``layout`` is recorded in ``failed``
-    and the batch goes on. ``progress`` is called once per file with its path and its
-    failure message (None on success). ``single_label`` resolves overlapping segments
-    (:func:`single_label_segments`). ``scheduler``: a dask.distributed cluster runs the
-    documents instead of local processes (:class:`mtanno.util.workers.DaskPool`, same results).
+                   layout: FeatureLayout, config: ClassConfig | None = None, keyframes=None,
+                   confidence=None, options: AnnotateOptions | None = None,
+                   progress=None) -> AnnotationBatch:
+    """Annotate feature files (:func:`annotate_document`) with the class ``models`` as
+    ``options`` say (:class:`~mtanno.annotate.options.AnnotateOptions`: the variants,
+    ``single_label``, ``min_confidence``, ``n_jobs`` processes of a
+    :class:`mtanno.util.workers.WorkerPool` or a dask.distributed ``scheduler``
+    (:class:`mtanno.util.workers.DaskPool`, same results); what
+    :func:`~mtanno.annotate.load_annotation_setup` reads — ``config_path``,
+    ``keyframes_dir``, ``tau``, ``delta`` — is given loaded here, and is an error in
+    ``options``). ``config``: the class configuration (None: the reference annotation).
+    ``keyframes`` maps class names to keyframe queries (:mod:`mtanno.keyframes`), or is a
+    :class:`mtanno.keyframes.KeyframeSet` of them: those classes are matched only inside
+    their candidate windows in each document ([MBS09] §5), the others everywhere.
     ``confidence``: the tuned :class:`mtanno.confidence.model.ConfidenceModel` (None: the
-    uncalibrated confidence); ``min_confidence`` drops rows below it (None: the tuned
-    minimum, 0 without one). Rows are sorted by document, start, end and label."""
+    uncalibrated confidence); ``options.min_confidence`` drops rows below it (None: the
+    tuned minimum, 0 without one). A file that cannot be read or does not have the
+    templates' ``layout`` is recorded in ``failed`` and the batch goes on. ``progress`` is
+    called once per file with its path and its failure message (None on success). Rows
+    are sorted by document, start, end and label."""
+    o = options or AnnotateOptions()
+    given = [name for name in SETUP_OPTIONS if getattr(o, name) is not None]
+    if given:
+        names = [f"{{{n}}}" for n in given]
+        what = (", ".join(names[:-1]) + " and " if len(names) > 1 else "") + names[-1]
+        raise MtannoError(f"{what} go{'' if len(given) > 1 else 'es'} with "
+                          "load_annotation_setup: annotate_files takes the templates, the "
+                          "configuration and the keyframe queries loaded",
+                          options=tuple(given))
     batch = AnnotationBatch()
     for path, result in _iter_annotate(paths, models, layout=layout,
                                        config=config or ClassConfig(),
-                                       dbar_variant=dbar_variant, match_variant=match_variant,
-                                       keyframes=keyframes, n_jobs=n_jobs,
-                                       single_label=single_label, scheduler=scheduler,
-                                       confidence=confidence,
-                                       min_confidence=min_confidence):
+                                       dbar_variant=o.dbar_variant,
+                                       match_variant=o.match_variant, keyframes=keyframes,
+                                       n_jobs=o.n_jobs, single_label=o.single_label,
+                                       scheduler=o.scheduler, confidence=confidence,
+                                       min_confidence=o.min_confidence):
         if isinstance(result, str):
             batch.failed.append(result)
             if progress:

@@ -1,6 +1,7 @@
 """The whole ``mtanno annotate`` run as one call, :func:`annotate_to`: the documents found,
 every output checked against the inputs before any work, the setup loaded
-(:func:`mtanno.annotate.load_annotation_setup`), and the documents annotated into the
+(:func:`mtanno.annotate.load_annotation_setup`) as the
+:class:`~mtanno.annotate.options.AnnotateOptions` say, and the documents annotated into the
 tables of all documents (``outputs``) and/or one table per document in a folder
 (``out_dir``: resumable, under the folder's lock; :mod:`mtanno.annotate.folder`).
 
@@ -15,6 +16,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mtanno.annotate.options import AnnotateOptions
 from mtanno.annotate.setup import AnnotationSetup, load_annotation_setup
 from mtanno.errors import MtannoError
 
@@ -89,22 +91,19 @@ def _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir, confi
     return written
 
 
-def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike, *,
+def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
+                options: AnnotateOptions | None = None, *,
                 outputs: Sequence[str | os.PathLike] = (),
                 out_dir: str | os.PathLike | None = None, fmt: str | None = None,
-                force: bool = False, wait: bool = False,
-                keyframes_dir: str | os.PathLike | None = None,
-                config_path: str | os.PathLike | None = None, tau: float | None = None,
-                delta: float | None = None, dbar_variant: str = "reference",
-                match_variant: str = "reference", single_label: bool = False,
-                min_confidence: float | None = None, n_jobs: int = 1,
-                scheduler: str | None = None, inside_input: bool = False,
+                force: bool = False, wait: bool = False, inside_input: bool = False,
                 on_start: Callable[[AnnotationSetup, list[str], int], None] | None = None,
                 progress: Callable[[str, str | None], None] | None = None,
                 on_wait: Callable[[str], None] | None = None) -> AnnotateRun:
     """Annotate the feature files named by ``features`` (files, folders searched
     recursively) with the templates of ``mt_dir`` as ``mtanno annotate`` does (module
-    docstring); the setup options are :func:`mtanno.annotate.load_annotation_setup`'s.
+    docstring), as ``options`` say (:class:`~mtanno.annotate.options.AnnotateOptions`:
+    the setup that :func:`mtanno.annotate.load_annotation_setup` reads, the variants, and
+    the worker processes or cluster).
 
     ``outputs``: tables of all documents (suffix picks the format, ``-`` is CSV on standard
     output; docs/formats.md). ``out_dir``: one table per document in format ``fmt``
@@ -117,6 +116,7 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
     date). ``out_dir`` may be, or lie inside, a folder of the feature files, templates or
     keyframe queries only with ``inside_input`` (and never when the next run would read
     its tables as feature files: Parquet inside a feature folder)."""
+    o = options or AnnotateOptions()
     _check_options(outputs, out_dir, fmt, force, wait)
     missing: list[str] = []  # inputs naming no feature file: reported, the batch goes on
     if out_dir is not None:
@@ -129,21 +129,18 @@ def annotate_to(features: Sequence[str | os.PathLike], mt_dir: str | os.PathLike
 
         folder_jobs, paths = [], document_files(features, failures=missing)
     written = _check_outputs(features, paths, folder_jobs, outputs, out_dir, mt_dir,
-                             config_path, keyframes_dir, inside_input)
-    setup = load_annotation_setup(mt_dir, config_path=config_path, keyframes_dir=keyframes_dir,
-                                  tau=tau, delta=delta, dbar_variant=dbar_variant,
-                                  match_variant=match_variant, single_label=single_label,
-                                  min_confidence=min_confidence)
+                             o.config_path, o.keyframes_dir, inside_input)
+    setup = load_annotation_setup(mt_dir, o)
     from mtanno.util.preflight import check_outputs
 
     check_outputs(written, setup.files(), writable=False)  # the configuration's templates
     if on_start:
         on_start(setup, missing, len(paths))
     if out_dir is None:
-        run = _to_tables(setup, paths, outputs, n_jobs, scheduler, progress)
+        run = _to_tables(setup, paths, outputs, o.n_jobs, o.scheduler, progress)
         run.failed += len(missing)
     else:
-        run = _to_folder(setup, folder_jobs, out_dir, outputs, force, n_jobs, scheduler,
+        run = _to_folder(setup, folder_jobs, out_dir, outputs, force, o.n_jobs, o.scheduler,
                          wait, on_wait, missing, progress)
     run.missing = missing
     return run

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from mtanno.annotate.batch import AnnotationBatch, _iter_annotate, annotate_files
 from mtanno.annotate.config import ClassConfig, config_file, load_class_config
 from mtanno.annotate.label import ClassModel
+from mtanno.annotate.options import AnnotateOptions
 from mtanno.errors import MtannoError
 from mtanno.templates.params import ANNOTATION_DELTA, check_tau
 
@@ -166,13 +167,22 @@ class AnnotationSetup:
 
     def annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1, progress=None,
                  scheduler: str | None = None) -> AnnotationBatch:
-        """:func:`annotate_files` of ``paths`` with this setup."""
+        """:func:`annotate_files` of ``paths`` with this setup (in ``n_jobs`` processes or
+        on ``scheduler``)."""
         return annotate_files(paths, self.models, layout=self.layout, config=self.config,
-                              dbar_variant=self.dbar_variant, match_variant=self.match_variant,
-                              keyframes=self.keyframes or None, n_jobs=n_jobs,
-                              progress=progress, single_label=self.single_label,
-                              scheduler=scheduler, confidence=self.confidence,
-                              min_confidence=self.min_confidence)
+                              keyframes=self.keyframes or None, confidence=self.confidence,
+                              options=self.options(n_jobs=n_jobs, scheduler=scheduler),
+                              progress=progress)
+
+    def options(self, *, n_jobs: int = 1, scheduler: str | None = None) -> AnnotateOptions:
+        """The :class:`AnnotateOptions` of each document's annotation with this setup (its
+        variants, single label and minimum confidence), run in ``n_jobs`` processes or
+        on ``scheduler``."""
+        return AnnotateOptions(dbar_variant=self.dbar_variant,
+                               match_variant=self.match_variant,
+                               single_label=self.single_label,
+                               min_confidence=self.min_confidence, n_jobs=n_jobs,
+                               scheduler=scheduler)
 
     def iter_annotate(self, paths: Sequence[str | os.PathLike], *, n_jobs: int = 1,
                       scheduler: str | None = None,
@@ -234,28 +244,28 @@ def _loaded(confidence):
     return confidence
 
 
-def load_annotation_setup(mt_dir: str | os.PathLike, *,
-                          config_path: str | os.PathLike | None = None,
-                          keyframes_dir: str | os.PathLike | None = None,
-                          tau: float | None = None, delta: float | None = None,
-                          dbar_variant: str = "reference", match_variant: str = "reference",
-                          single_label: bool = False,
-                          min_confidence: float | None = None) -> AnnotationSetup:
-    """Read what ``mtanno annotate`` annotates with: the templates of ``mt_dir``, the
-    class configuration (``config_path``; :func:`annotation_setup`), the keyframe queries
-    of ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default
-    τ; ``delta`` defaults to the configuration's ``[decoder] delta``, else
-    :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence."""
+def load_annotation_setup(mt_dir: str | os.PathLike,
+                          options: AnnotateOptions | None = None) -> AnnotationSetup:
+    """Read what ``mtanno annotate`` annotates with, as ``options`` say
+    (:class:`AnnotateOptions`): the templates of ``mt_dir``, the class configuration
+    (``config_path``; :func:`annotation_setup`), the keyframe queries of
+    ``keyframes_dir`` for those classes. ``tau`` replaces the configuration's default τ;
+    ``delta`` defaults to the configuration's ``[decoder] delta``, else
+    :data:`ANNOTATION_DELTA`; ``min_confidence`` replaces the tuned minimum confidence;
+    the variants and ``single_label`` are recorded in the setup (``n_jobs`` and
+    ``scheduler`` are :meth:`AnnotationSetup.annotate`'s)."""
     from mtanno.templates.store import load_template_folder
     from mtanno.util.provenance import sha256_file
 
+    o = options or AnnotateOptions()
+    config_path, keyframes_dir = o.config_path, o.keyframes_dir
     setup = annotation_setup(
         load_template_folder(mt_dir),
         config=load_class_config(config_path) if config_path else None,
-        config_sha256=sha256_file(config_file(config_path)) if config_path else None, tau=tau,
-        delta=delta, dbar_variant=dbar_variant, match_variant=match_variant,
-        single_label=single_label, where=f"the templates in {mt_dir}",
-        min_confidence=min_confidence)
+        config_sha256=sha256_file(config_file(config_path)) if config_path else None,
+        tau=o.tau, delta=o.delta, dbar_variant=o.dbar_variant,
+        match_variant=o.match_variant, single_label=o.single_label,
+        where=f"the templates in {mt_dir}", min_confidence=o.min_confidence)
     if keyframes_dir:
         from mtanno.keyframes import load_class_keyframes
 

@@ -105,6 +105,7 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
     """
     from tqdm import tqdm
 
+    from mtanno.annotate.options import AnnotateOptions
     from mtanno.annotate.run import annotate_to
 
     bar = None
@@ -128,10 +129,11 @@ def annotate_cmd(features, mt_dir, outputs, out_dir, fmt, force, kf_dir, config_
 
     try:
         run = annotate_to(
-            features, mt_dir, outputs=outputs, out_dir=out_dir, fmt=fmt, force=force,
-            wait=wait, keyframes_dir=kf_dir, config_path=config_path, tau=tau, delta=delta,
-            dbar_variant=variant, match_variant=match_variant, single_label=single_label,
-            min_confidence=min_confidence, n_jobs=jobs, scheduler=scheduler,
+            features, mt_dir, AnnotateOptions(
+                config_path=config_path, keyframes_dir=kf_dir, tau=tau, delta=delta,
+                dbar_variant=variant, match_variant=match_variant, single_label=single_label,
+                min_confidence=min_confidence, n_jobs=jobs, scheduler=scheduler),
+            outputs=outputs, out_dir=out_dir, fmt=fmt, force=force, wait=wait,
             inside_input=inside_input, on_start=start,
             progress=note_failure, on_wait=waiting_note(out_dir))
     finally:

@@ -99,7 +99,7 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
     """
     from tqdm import tqdm
 
-    from mtanno.features.extract import extract_to
+    from mtanno.features.batch import ExtractOptions, extract_to
 
     if config_path is not None:  # what the configuration's [inputs] need
         from mtanno.annotate.config import feature_inputs
@@ -131,12 +131,12 @@ def features_cmd(inputs, outdir, jobs, skeleton, markers, asf, force, feature_se
             bar.write(f"mtanno: {outcome.message}", file=sys.stderr)
 
     try:
-        summary = extract_to(items, outdir, listed=listed, asf=asf, wait=wait,
-                             inside_input=inside_input,
-                             on_wait=waiting_note(outdir), on_start=start, n_jobs=jobs,
-                             force=force, skeleton=skeleton, progress=progress,
-                             feature_set=feature_set, up=up, scheduler=scheduler, poses=poses,
-                             markers=markers)
+        summary = extract_to(items, outdir, ExtractOptions(
+                                 feature_set=feature_set, poses=poses, skeleton=skeleton,
+                                 markers=markers, up=up, force=force, n_jobs=jobs,
+                                 scheduler=scheduler),
+                             listed=listed, asf=asf, wait=wait, inside_input=inside_input,
+                             on_wait=waiting_note(outdir), on_start=start, progress=progress)
     finally:
         if bar is not None:
             bar.close()

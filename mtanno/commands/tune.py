@@ -123,20 +123,21 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
     Example: mtanno tune --mt mts/ --manifest ../shared/data/hdm05_cut/clips.csv
     --features-dir feats/ --split train -o tuned/ --jobs 2
     """
-    from mtanno.tuning import template_folder_of
-    from mtanno.tuning.run import tune_files
+    from mtanno.tuning.run import TuneOptions, tune_files
     from mtanno.util.provenance import command_line
 
     skipped: list[MtannoError] = []
     result = tune_files(
-        training, mt_dir, output, manifest=manifest, features_dir=features_dir, split=split,
-        truth=truth, keyframes_dir=kf_dir, ablation_dir=ablation_dir, inside_input=inside_input,
+        training, mt_dir, output, TuneOptions(
+            keyframes_dir=kf_dir, seed=seed, n_jobs=jobs,
+            methods=[m for m in METHODS if m not in disabled], documents=documents,
+            unknown_weight=unknown_weight, scheduler=scheduler, background=background,
+            verify=verify, confidence=confidence, invariance=invariance,
+            evidence=evidence or None, max_examples=max_examples),
+        manifest=manifest, features_dir=features_dir, split=split, truth=truth,
+        ablation_dir=ablation_dir, inside_input=inside_input,
         log=None if quiet else lambda line: click.echo(f"tune: {line}", err=True),
-        command=command_line(), seed=seed, n_jobs=jobs,
-        methods=[m for m in METHODS if m not in disabled], documents=documents,
-        unknown_weight=unknown_weight, scheduler=scheduler, background=background,
-        verify=verify, confidence=confidence, invariance=invariance,
-        evidence=evidence or None, max_examples=max_examples, failures=skipped)
+        command=command_line(), failures=skipped)
     for exc in skipped:
         click.echo(f"mtanno: {exc.for_command(ARGUMENT_NAMES)}", err=True)
     if result.not_validated:
@@ -145,8 +146,8 @@ def tune_cmd(training, mt_dir, kf_dir, output, manifest, features_dir, split, tr
                    "thresholds are learned only from the motions they must not label",
                    err=True)
     if not quiet:
-        extra = (f", extra templates in {template_folder_of(output)}"
-                 if result.extra_templates else "")
+        extra = (f", extra templates in {result.extra_folder}"
+                 if result.extra_folder is not None else "")
         p1, r1, f1 = result.evaluation.counts.frame()
         p2, r2, f2 = result.evaluation.counts.segment()
         click.echo(f"tune: {len(result.classes)} classes, {len(result.folds)} folds, "

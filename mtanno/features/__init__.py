@@ -11,8 +11,9 @@ Modules: :mod:`~mtanno.features.table` and :mod:`~mtanno.features.table31` (the 
 definitions as data: joints, measure, thresholds, window), :mod:`~mtanno.features.measures`
 (planes, angles, velocities, body units), :mod:`~mtanno.features.hysteresis` (two-threshold
 quantisation, 30 Hz reduction), :mod:`~mtanno.features.compute` (feature sets and
-:func:`compute_features`), :mod:`~mtanno.features.extract` (motion files → feature files,
-in batches: ``mtanno features``), :mod:`~mtanno.features.poses` (poses normalised for root,
+:func:`compute_features`), :mod:`~mtanno.features.extract` (a motion file → its feature
+file), :mod:`~mtanno.features.batch` (files and folders in batches: ``mtanno features``),
+:mod:`~mtanno.features.poses` (poses normalised for root,
 heading and leg length, which feature files may carry), ``_kernels`` (the numba kernels,
 private). The feature file — the format this stage writes and every later stage reads —
 is :mod:`~mtanno.features.store` (the one validating reader, the writer, layouts and

@@ -122,8 +122,11 @@ FEATURE_SETS: dict[str, FeatureSet] = {
 _SET_ALIASES = {"ak40": FEATURE_SET}
 
 
-def get_feature_set(name: str) -> FeatureSet:
-    """The feature set called ``name`` (``ak40`` is an alias of ``mr06-ak40``)."""
+def get_feature_set(name: str | FeatureSet) -> FeatureSet:
+    """The feature set called ``name`` (``ak40`` is an alias of ``mr06-ak40``); a
+    :class:`FeatureSet` is returned as it is."""
+    if isinstance(name, FeatureSet):
+        return name
     key = _SET_ALIASES.get(name, name)
     if key not in FEATURE_SETS:
         known = ", ".join(["ak40", *FEATURE_SETS])

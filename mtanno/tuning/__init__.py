@@ -10,8 +10,8 @@
 * :mod:`~mtanno.tuning.search` — the objective and the coordinate search.
 * :mod:`~mtanno.tuning.confidence` — the confidence of the segments (issue 26): evidence
   of the held-out segments, calibration, the minimum confidence of an output row.
-* :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run), :func:`tune_files` (the run as
-  the command does it, from file names to files).
+* :mod:`~mtanno.tuning.run` — :func:`tune` (the whole run, as :class:`TuneOptions` say),
+  :func:`tune_files` (the run as the command does it, from file names to files).
 * :mod:`~mtanno.tuning.write` — :func:`write_tuned`: the configuration, its extra templates
   and its verification bank, as a configuration folder (``tune -o DIR/``, issue 34) or a
   ``.toml`` file with its side files.
@@ -20,10 +20,10 @@ The methods it tunes are applied by :func:`mtanno.annotate.label_document` and
 :mod:`mtanno.annotate.decode`.
 """
 
-__all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneResult", "template_folder_of", "tune",
-           "tune_files", "write_tuned"]
+__all__ = ["METHODS", "UNKNOWN_WEIGHT", "Params", "TuneOptions", "TuneResult",
+           "template_folder_of", "tune", "tune_files", "write_tuned"]
 
-from mtanno.tuning.run import TuneResult, tune, tune_files
+from mtanno.tuning.run import TuneOptions, TuneResult, tune, tune_files
 from mtanno.tuning.search import METHODS, UNKNOWN_WEIGHT, Params
 from mtanno.tuning.write import template_folder_of, write_tuned
 from mtanno.util.lazy import submodule_getattr

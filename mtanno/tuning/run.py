@@ -43,9 +43,72 @@ from mtanno.tuning.write import (
     write_tuned,
 )
 
-__all__ = ["VERIFY_MODES", "TuneResult", "bank_path_of", "frame_bank_path_of",
+__all__ = ["VERIFY_MODES", "TuneOptions", "TuneResult", "bank_path_of", "frame_bank_path_of",
            "template_folder_of", "tune", "tune_files", "write_tuned"]  # the paths and
 # write_tuned from mtanno.tuning.write, for callers
+
+
+#: How ``tune`` verifies segments for their confidence (:attr:`TuneOptions.verify`).
+VERIFY_MODES = ("auto", "poses", "features", "none")
+
+
+@dataclass(frozen=True)
+class TuneOptions:
+    """What :func:`tune` (and :func:`tune_files`) learns and how (``mtanno tune``'s
+    options; the defaults are the command's).
+
+    ``keyframes_dir``: keyframe queries (``learn-keyframes``); the held-out documents are
+    then matched only inside their candidate windows, as ``annotate --keyframes`` does (the
+    queries were learned on all training examples, so the cross-validated scores are a
+    little optimistic). ``methods``: those of :data:`METHODS` to tune (the others stay as
+    in the reference annotation; kept in :data:`METHODS` order). ``documents``: how
+    held-out clips become documents (:data:`mtanno.tuning.cv.DOCUMENT_MODES`), composed in
+    an order seeded by ``seed``. ``unknown_weight``: w of the objective (a finite number ≥
+    0). ``ablation``: also search once with each method left out and once with none
+    (:attr:`TuneResult.ablation`). ``n_jobs`` local processes, or a dask.distributed
+    ``scheduler``, run the per fold and class tasks — with the same result.
+
+    Issue 26: ``background`` — feature files (or folders of them) of motions of none of
+    the classes, held out with the folds (every label on them counts as wrong).
+    ``confidence``: learn each segment's confidence and the minimum confidence of an
+    output row (:mod:`mtanno.tuning.confidence`), verifying segments against the examples
+    by ``verify`` (:data:`VERIFY_MODES`: ``"poses"``, ``"features"``, ``"none"`` — the
+    evidence of cost and length only — or ``"auto"``: poses when every training and
+    background file has them). ``invariance`` (issue 35): what the pose verification is
+    blind to (:data:`mtanno.confidence.verify.INVARIANCES`; needs verification by poses).
+    ``evidence``: the kinds of evidence the confidence may use (:data:`mtanno.confidence.
+    evidence.EVIDENCE`; None: all that the inputs allow). Issue 34: ``max_examples`` —
+    every template learned is learned from at most that many of the class's examples
+    (:func:`mtanno.tuning.cv.learning_subset`; None or 0: all), as learning costs the
+    square of the examples."""
+
+    keyframes_dir: str | os.PathLike | None = None
+    seed: int = 0
+    n_jobs: int = 1
+    methods: tuple[str, ...] = METHODS
+    documents: str = "composed"
+    unknown_weight: float = UNKNOWN_WEIGHT
+    ablation: bool = False
+    scheduler: str | None = None
+    background: tuple[str | os.PathLike, ...] = ()
+    verify: str = "auto"
+    confidence: bool = True
+    invariance: tuple[str, ...] = ()
+    evidence: tuple[str, ...] | None = None
+    max_examples: int | None = MAX_EXAMPLES
+
+    def __post_init__(self):
+        for name in ("methods", "background", "invariance",
+                     *(("evidence",) if self.evidence is not None else ())):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        methods = _check_options(self.methods, self.documents, self.unknown_weight,
+                                 self.verify, self.evidence)
+        object.__setattr__(self, "methods", tuple(methods))  # in METHODS order
+        for name, least in (("seed", 0), ("n_jobs", 1)):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < least:
+                raise MtannoError(f"{{{name}}} must be an integer ≥ {least}, got {v!r}",
+                                  options=(name,))
 
 
 @dataclass
@@ -85,6 +148,9 @@ class TuneResult:
     max_examples: int | None = None
     #: the templates' feature set (what the documents' feature files must hold)
     feature_set: str | None = None
+    #: where :func:`tune_files` wrote the extra templates (None: it wrote none, or
+    #: :func:`tune` alone)
+    extra_folder: Path | None = None
 
     @property
     def not_validated(self) -> list[str]:
@@ -133,55 +199,33 @@ def _final_groups(cls: str, examples: list[TrainingExample], k: int, learn: dict
                            **learn) for i in range(n)]
 
 
-def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
-         keyframes_dir: str | os.PathLike | None = None, seed: int = 0, n_jobs: int = 1,
-         methods: Sequence[str] = METHODS, documents: str = "composed",
-         unknown_weight: float = UNKNOWN_WEIGHT, ablation: bool = False,
-         log: Callable[[str], None] | None = None, scheduler: str | None = None,
-         background: Sequence[str | os.PathLike] = (), verify: str = "auto",
-         confidence: bool = True, invariance: Sequence[str] = (),
-         evidence: Sequence[str] | None = None,
-         max_examples: int | None = MAX_EXAMPLES) -> TuneResult:
+def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike,
+         options: TuneOptions | None = None, *,
+         log: Callable[[str], None] | None = None) -> TuneResult:
     """Learn the annotation parameters of the classes in ``mt_dir`` by cross-validation
     inside the training examples ``sources`` (:func:`mtanno.templates.training.
-    collect_sources`): see :mod:`mtanno.tuning.search` for the search and
-    :mod:`mtanno.tuning.cv` for the folds.
+    collect_sources`) as ``options`` say (:class:`TuneOptions`): see
+    :mod:`mtanno.tuning.search` for the search and :mod:`mtanno.tuning.cv` for the folds.
+    ``log`` receives one line per search step.
 
-    ``keyframes_dir``: keyframe queries (``learn-keyframes``); the held-out documents are
-    then matched only inside their candidate windows, as ``annotate --keyframes`` does (the
-    queries were learned on all training examples, so the cross-validated scores of this
-    stage are a little optimistic). ``methods``: those of :data:`METHODS` to use (the
-    others stay as in the reference annotation). ``documents``: how held-out clips become
-    documents (:data:`mtanno.tuning.cv.DOCUMENT_MODES`). ``unknown_weight``: w of the
-    objective. ``log`` receives one line per search step. With ``ablation``, the search is
-    also run once with each method of ``methods`` left out and once with none of them
-    (one τ for all classes), on the same folds: ``TuneResult.ablation`` maps
-    ``"without-METHOD"`` and ``"none"`` to those results. ``scheduler``: run the per fold
-    and class tasks on a dask.distributed cluster (:func:`mtanno.util.workers.make_pool`; the
-    examples and held-out documents are sent once, the tasks carry indices) instead of
-    ``n_jobs`` local processes — with the same result.
-
-    Issue 26: ``background`` — feature files (or folders of them) of motions of none of
-    the classes; they join the held-out documents of the folds (:func:`mtanno.tuning.cv.
-    make_folds`), so every label on them counts as wrong. ``confidence``: learn each
-    segment's confidence and the minimum confidence of an output row
-    (:mod:`mtanno.tuning.confidence`), verifying segments against the examples by
-    ``verify``: ``"poses"``, ``"features"``, ``"none"`` (no verification: the evidence of
-    cost and length only) or ``"auto"`` (poses when every training and background file has
-    them, else features). ``invariance`` (issue 35): what the pose verification is blind
-    to (:data:`mtanno.confidence.verify.INVARIANCES`; needs verification by poses);
-    ``evidence``: the kinds of evidence the confidence may use (:data:`mtanno.confidence.
-    evidence.EVIDENCE`; None: all that the inputs allow). Issue 34: ``max_examples`` —
-    every template learned here is learned from at most that many of the class's examples
-    (:func:`mtanno.tuning.cv.learning_subset`; None or 0: all), as learning costs the
-    square of the examples; the search keeps template (1, 0)'s distance functions at
-    every δ and the others' only at the δ it chose (memory linear in training frames).
+    With ``options.ablation``, ``TuneResult.ablation`` maps ``"without-METHOD"`` and
+    ``"none"`` to the searches with each method of ``methods`` left out and with none of
+    them (one τ for all classes), on the same folds. With a ``scheduler`` the examples and
+    held-out documents are sent to the cluster once, the tasks carry indices
+    (:func:`mtanno.util.workers.make_pool`). Issue 34: the search keeps template (1, 0)'s
+    distance functions at every δ and the others' only at the δ it chose (memory linear
+    in training frames).
     """
+    o = options or TuneOptions()
+    keyframes_dir, seed, n_jobs, documents = o.keyframes_dir, o.seed, o.n_jobs, o.documents
+    unknown_weight, scheduler, verify, confidence = (o.unknown_weight, o.scheduler, o.verify,
+                                                     o.confidence)
+    evidence, max_examples = o.evidence, o.max_examples
     t0 = time.perf_counter()
-    methods = _check_options(methods, documents, unknown_weight, verify, evidence)
+    methods = list(o.methods)
     templates, layout, examples, queries = _tune_inputs(sources, mt_dir, keyframes_dir,
                                                         poses=verify in ("auto", "poses"))
-    bg_docs, bg_records = _background_inputs(background, layout, examples,
+    bg_docs, bg_records = _background_inputs(o.background, layout, examples,
                                              poses=verify in ("auto", "poses"))
     representation = _representation(verify, examples, bg_docs) if confidence else None
     classes = list(templates)
@@ -194,7 +238,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
             raise MtannoError("{verify} poses needs poses in every held-out document (run "
                               "mtanno features --poses)", options=("verify",))
         representation = "features"  # auto: a document without poses
-    invariance = _invariance(invariance, representation) if confidence else ()
+    invariance = _invariance(o.invariance, representation) if confidence else ()
     learn = {c: _learn_params(templates[c]) for c in classes}
     shared = {"examples": examples,
               "held": {f.name: (f.held_out.X, f.held_out.offsets) for f in folds}}
@@ -205,7 +249,7 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
     params, evaluation, steps = tuner.search(delta=delta0)
     reference = tuner.evaluate(tuner.with_tau(Params(delta=delta0), ANNOTATION_TAU), per_class=True)
     variants = {}
-    if ablation:
+    if o.ablation:
         for name, subset in [*((f"without-{m}", [x for x in methods if x != m])
                                for m in methods), ("none", [])]:
             if log:
@@ -236,42 +280,48 @@ def tune(sources: Sequence[ExampleSource], mt_dir: str | os.PathLike, *,
 
 
 def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
-               output: str | os.PathLike, *, manifest: str | os.PathLike | None = None,
+               output: str | os.PathLike, options: TuneOptions | None = None, *,
+               manifest: str | os.PathLike | None = None,
                features_dir: str | os.PathLike | None = None, split: str | None = None,
                truth: str | os.PathLike | None = None,
-               keyframes_dir: str | os.PathLike | None = None,
                ablation_dir: str | os.PathLike | None = None, inside_input: bool = False,
                log: Callable[[str], None] | None = None, command: Sequence[str] = (),
-               failures: list[MtannoError] | None = None, **options) -> TuneResult:
+               failures: list[MtannoError] | None = None) -> TuneResult:
     """The whole ``mtanno tune`` run: the training examples named as
     :func:`mtanno.templates.training.collect_sources` takes them, every output checked
     against the inputs before any work (:func:`mtanno.util.preflight.check_outputs`),
-    :func:`tune` (``options`` are its keyword options), and the configuration written to
-    ``output`` by :func:`mtanno.tuning.write.write_tuned` (a configuration folder, or a
-    ``.toml`` file with its bank and extra templates beside it); with
-    ``ablation_dir`` also ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
+    :func:`tune` as ``options`` say (:class:`TuneOptions`), and the configuration written
+    to ``output`` by :func:`mtanno.tuning.write.write_tuned` (a configuration folder, or a
+    ``.toml`` file with its bank and extra templates beside it; the result's
+    :attr:`~TuneResult.extra_folder` names where the extra templates went); with
+    ``ablation_dir`` the ablation is run (whatever ``options.ablation`` says) and written
+    as ``without-METHOD.toml`` and ``none.toml`` there (a folder that is,
     or lies inside, a folder of the inputs only with ``inside_input``). ``log`` receives
     the notes on the inputs and the search log, a line each; ``failures`` receives the
     training folders that give no example (the others are used; without it such a folder is
     an error)."""
+    from dataclasses import replace
+
     from mtanno.keyframes import keyframe_files
     from mtanno.templates.store import template_files
     from mtanno.templates.training import collect_sources, input_folders
     from mtanno.util.output import make_folder
     from mtanno.util.preflight import check_outputs
 
+    o = options or TuneOptions()
+    keyframes_dir = o.keyframes_dir
     sources = collect_sources(training, manifest=manifest, features_dir=features_dir,
                               split=split, truth=truth, note=log, failures=failures)
     ablations = [*(f"without-{m}" for m in METHODS), "none"] if ablation_dir else []
     check_tuned_output(output)
     planned = [tuned_paths(output)[0],
-               *([bank_path_of(output)] if options.get("confidence", True) else []),
-               *([frame_bank_path_of(output)] if options.get("confidence", True)
-                 and "classifier" in (options.get("evidence") or ()) else []),
+               *([bank_path_of(output)] if o.confidence else []),
+               *([frame_bank_path_of(output)] if o.confidence
+                 and "classifier" in (o.evidence or ()) else []),
                *(Path(ablation_dir) / f"{n}.toml" for n in ablations)]
     scanned = input_folders(training, features_dir, also=[mt_dir, keyframes_dir])
     check_outputs(planned, [mt_dir, *template_files(mt_dir), manifest, truth,
-                            *(s.path for s in sources), *options.get("background", ()),
+                            *(s.path for s in sources), *o.background,
                             *(keyframe_files(keyframes_dir) if keyframes_dir else [])],
                   folders={ablation_dir: []} if ablation_dir else None, scanned=scanned,
                   inside_input=inside_input)
@@ -280,18 +330,17 @@ def tune_files(training: Sequence[str | os.PathLike], mt_dir: str | os.PathLike,
         log(f"training inputs: {len(sources)} examples in {len(files)} feature files"
             + (f" (manifest {manifest}, split {split or 'all'})" if manifest
                else f" (truth {truth})" if truth else ""))
-    result = tune(sources, mt_dir, keyframes_dir=keyframes_dir, log=log,
-                  ablation=ablation_dir is not None, **options)
+    if ablation_dir is not None and not o.ablation:
+        o = replace(o, ablation=True)
+    result = tune(sources, mt_dir, o, log=log)
     write_tuned(output, result, command=command)
+    if result.extra_templates:
+        result.extra_folder = template_folder_of(output)
     if ablation_dir is not None:
         make_folder(ablation_dir)
         for name, variant in result.ablation.items():
             write_tuned(Path(ablation_dir) / f"{name}.toml", variant, command=command)
     return result
-
-
-#: How ``tune`` verifies segments for their confidence (:func:`tune`'s ``verify``).
-VERIFY_MODES = ("auto", "poses", "features", "none")
 
 
 def _invariance(invariance, representation) -> tuple[str, ...]:

@@ -394,7 +394,7 @@ def test_a_worker_stopped_during_a_late_import_exits_silently():
 def test_a_wrapped_interruption_is_not_a_failed_file(tmp_path, monkeypatch):
     """A batch's per-file report of unexpected errors ("internal error", the batch goes on)
     raises an interruption Python wrapped instead of reporting it as the file's failure."""
-    from mtanno.features import extract
+    from mtanno.features import batch
     from mtanno.util.workers import Interrupted, interruption_in
 
     def wrapped(*args, **kwargs):
@@ -403,9 +403,9 @@ def test_a_wrapped_interruption_is_not_a_failed_file(tmp_path, monkeypatch):
         except Interrupted as exc:
             raise RuntimeError("Error calling __set_name__") from exc
 
-    monkeypatch.setattr(extract, "extract_file", wrapped)
+    monkeypatch.setattr(batch, "extract_file", wrapped)
     with pytest.raises(Interrupted):
-        extract._extract_one(tmp_path / "a.amc", tmp_path / "a.parquet", None, None, "ak40",
+        batch._extract_one(tmp_path / "a.amc", tmp_path / "a.parquet", None, None, "ak40",
                              "y")
     assert interruption_in(ValueError("x")) is None
 
@@ -422,7 +422,7 @@ def test_sighup_stops_a_command_like_sigint_with_exit_129(world, tmp_path):
         os.symlink("base.amc", d / f"m{i:03d}.amc")
     gate = tmp_path / "gate"  # each worker held after one file: the run cannot finish first
     proc = start_held(["features", d, "-o", out, "--jobs", "2"], gate=gate, after=1,
-                      hold="mtanno.features.extract:_extract_one", start_new_session=False)
+                      hold="mtanno.features.batch:_extract_one", start_new_session=False)
     wait_for(lambda: len(list(out.glob("*.parquet"))) >= 2, proc, "the first outputs")
     rc, err = _signalled(proc, signal.SIGHUP)
     assert rc == 129 and err.splitlines()[-1] == LINE.format("SIGHUP"), err

@@ -113,7 +113,7 @@ def test_features_jobs_2(motion_batch, tmp_path, name, group):
     written = lambda: len(list(out.glob("*.parquet")))  # noqa: E731
     code, err, after = _interrupt(
         ["features", motion_batch, "-o", out, "--jobs", "2"], sig,
-        lambda: written() >= 3, hold=("mtanno.features.extract:_extract_one", 2),
+        lambda: written() >= 3, hold=("mtanno.features.batch:_extract_one", 2),
         gate=tmp_path / "gate", group=group, work=written)
     # at most the file each worker was renaming into place when its parent ended
     assert after <= 2, f"the workers wrote {after} files after their parent ended"
