@@ -202,15 +202,20 @@ def reliability_figure(table: ReliabilityTable, *, title: str | None = None) -> 
 
 def save_figure(ax_or_figure, path: str | os.PathLike, *, dpi: int = 110) -> None:
     """Write the figure of ``ax_or_figure`` atomically; the format follows the suffix
-    (``.png``, ``.svg``, ``.pdf``)."""
+    (``.png``, ``.svg``, ``.pdf``). The same figure gives the same bytes: no date in the
+    file, and SVG element ids from a fixed salt (matplotlib's default is random), so a
+    report written twice is the same."""
+    import matplotlib
+
     from mtanno.util.output import atomic_path
 
     figure = getattr(ax_or_figure, "figure", ax_or_figure)
     fmt = os.fspath(path).rsplit(".", 1)[-1].lower() if "." in os.fspath(path) else ""
     if fmt not in ("png", "svg", "pdf"):
         raise MtannoError("a plot file must end in .png, .svg or .pdf", path=str(path))
-    with atomic_path(path) as tmp:
-        figure.savefig(tmp, format=fmt, dpi=dpi)
+    metadata = {"png": None, "svg": {"Date": None}, "pdf": {"CreationDate": None}}[fmt]
+    with atomic_path(path) as tmp, matplotlib.rc_context({"svg.hashsalt": "mtanno"}):
+        figure.savefig(tmp, format=fmt, dpi=dpi, metadata=metadata)
 
 
 # --------------------------------------------------------------- the commands that draw a file

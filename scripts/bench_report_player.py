@@ -188,10 +188,10 @@ def report(args_motions, ann, truth, out: Path, *, chunk_bytes=None, jobs=1
         return run(MTANNO, "report", ann, "--truth", truth,
                    *(a for m in args_motions for a in ("--motions", m)), "-o", out, "-q",
                    "--jobs", jobs)
-    code = ("import sys; from mtanno.evaluation.report import report_files; "
+    code = ("from mtanno.evaluation.report import ReportOptions, report_files; "
             f"report_files([{str(ann)!r}], {str(out)!r}, truth_path={str(truth)!r}, "
-            f"motions={[str(m) for m in args_motions]!r}, chunk_bytes={chunk_bytes}, "
-            f"failures=[], jobs={jobs})")
+            f"motions={[str(m) for m in args_motions]!r}, "
+            f"options=ReportOptions(chunk_bytes={chunk_bytes}), failures=[], jobs={jobs})")
     return run(PYTHON, "-c", code)
 
 

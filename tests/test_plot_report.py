@@ -217,6 +217,30 @@ def test_report_files_and_tables(world, tmp_path):
     assert ev.exit_code == 0
 
 
+def test_report_counts_documents_as_its_page_does(world, tmp_path):
+    """Issue 31 (3): the command said "6 documents, 10 rows" (documents with rows) while
+    its page said "10 document(s)" (documents annotated). Both now say the documents
+    annotated and how many of them have rows, with and without truth."""
+    import html
+    import re
+
+    docs = sorted(p.stem for p in world.doc_files)
+    ann = tmp_path / "a.csv"  # the rows of one document only; the provenance records both
+    lines = world.annotation.read_text().splitlines(keepends=True)
+    kept = [ln for ln in lines[1:] if ln.startswith(docs[0] + ",")]
+    ann.write_text(lines[0] + "".join(kept))
+    shutil.copyfile(f"{world.annotation}.meta.json", f"{ann}.meta.json")
+    for truth in ((), ("--truth", world.truth)):
+        out = tmp_path / f"rep{len(truth)}"
+        r = run("report", ann, *truth, "-o", out)
+        assert r.exit_code == 0, r.output
+        said = re.search(r"report: (.*); \d+ files -> ", r.output).group(1)
+        assert said.startswith(f"{len(docs)} documents (1 with rows), {len(kept)} rows, ")
+        page = html.unescape((out / "index.html").read_text())
+        assert said + "; frames at 30 Hz" in page
+        assert ("frame F1" in said) == bool(truth)
+
+
 def test_report_takes_the_annotations_delta_and_taus(world, tmp_path):
     """A tuned annotation (δ 0.25, a τ of its own for one class, a further template for
     another): the report's Δ curves take the annotation's δ and τ (the page's data), and

@@ -163,12 +163,44 @@ def test_poses_go_to_data_files_beside_a_small_page(world, tmp_path):
     assert len(page.encode()) < 60_000  # the poses are not in the page
     # one file per document on request (the benchmark's other way)
     from mtanno.annotate import read_annotation_table
-    from mtanno.evaluation.report import write_report
+    from mtanno.evaluation.report import ReportOptions, write_report
 
     rows, prov = read_annotation_table(world.annotation)
     res = write_report(tmp_path / "per_doc", None, rows, frames=prov["documents"],
-                       poses=own, chunk_bytes=0)
+                       poses=own, options=ReportOptions(chunk_bytes=0))
     assert len(list((res.folder / "data").glob("*.js"))) == len(docs)
+
+
+def test_a_report_written_twice_is_the_same_bytes(world, tmp_path):
+    """Two runs of `mtanno report` on the same inputs (truth, templates, feature files,
+    motions), each in its own process with its own hash seed (an earlier page took its
+    colour order from a set), write the same files with the same bytes: the page, its data
+    files, every table and figure (SVG without a date, its ids from a fixed salt), all but
+    the time the provenance records."""
+    import os
+    import subprocess
+    import sys
+
+    stamp = re.compile(rb"created\W+\d{4}-\d\d-\d\dT[\d:.+-]+")
+    written = []
+    for seed in ("1", "2"):
+        cwd = tmp_path / f"run{seed}"  # the same command line: -o rep, inputs absolute
+        cwd.mkdir()
+        r = subprocess.run([sys.executable, "-m", "mtanno", "report", world.annotation,
+                            "--truth", world.truth, "--mt", world.mt, "--features",
+                            world.docfeats, "--motions", world.docs, "-o", "rep", "-q"],
+                           cwd=cwd, env={**os.environ, "PYTHONHASHSEED": seed},
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        rep = cwd / "rep"
+        written.append({str(f.relative_to(rep)): stamp.sub(b"created", f.read_bytes())
+                        for f in sorted(rep.rglob("*")) if f.is_file()})
+    first, second = written
+    assert sorted(first) == sorted(second)
+    assert {"index.html", "confusion.svg", "figures.json", "review.csv"} <= set(first)
+    assert any(n.startswith("data/") for n in first)
+    differ = [n for n in first if first[n] != second[n]]
+    assert not differ, differ
 
 
 def test_rerun_draws_no_figure_and_writes_no_data_file_again(world, tmp_path):
@@ -358,6 +390,12 @@ def test_ten_thousand_documents_stay_virtual(tmp_path, browser):
                      " l.scrollTop = l.scrollHeight; mtanno.render(); })()")
     last = browser.evaluate("mtanno.data.docs.name[mtanno.shown[mtanno.shown.length - 1]]")
     assert last in _rendered(browser) and len(_rendered(browser)) < 100
+    # a deep link to a document far down the list: selected, scrolled to, at its frame
+    far = sorted({r[0] for r in rows})[-3]
+    browser.open(f"{(out / 'index.html').as_uri()}#doc={far}&frame=5")
+    _shown(browser, far)
+    assert browser.evaluate(f"{P}.dataset.frame") == "5"
+    assert browser.evaluate("document.querySelector('.doc.current').dataset.mtannoDoc") == far
 
 
 @needs_chromium

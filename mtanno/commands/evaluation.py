@@ -199,9 +199,10 @@ def truth_mocap6(labels, output):
 @click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(min=1),
               help="Processes reading the motion files.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+@inside_input_option
 @user_errors(2)
 def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf, tau, delta,
-               title, jobs, quiet):
+               title, jobs, quiet, inside_input):
     """Write a report of annotation tables into a folder, against ground truth ([MBS09] §7)
     when --truth is given: a page to review thousands of documents, and tables for papers.
 
@@ -229,26 +230,26 @@ def report_cmd(annotations, truth_path, out_dir, mt_dir, features, motions, asf,
 
     ANNOTATIONS are annotation tables or folders of them (every .csv, .parquet and .jsonl
     table below a folder, such as the per-document tables of `mtanno annotate
-    --output-dir`).
+    --output-dir`). The report folder may not be, or lie inside, a folder of the inputs
+    (annotation tables, --features, --motions, --mt) unless --inside-input says so.
 
     Needs matplotlib (pip install 'mtanno[plot]'). For an exact confusion matrix annotate
     with --single-label; overlapping rows are resolved by segment cost (the page says so).
     """
-    from mtanno.evaluation.report import report_files
+    from mtanno.evaluation.report import ReportOptions, report_files
 
     failures: list[str] = []  # inputs that could not be used: reported, the report goes on
     with ProgressBar("report", "step", quiet=quiet) as bar:
-        result, rows = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
-                                    features=features, motions=motions, asf=asf, tau=tau,
-                                    delta=delta, title=title, progress=bar, failures=failures,
-                                    jobs=jobs)
+        result, _ = report_files(annotations, out_dir, truth_path=truth_path, mt_dir=mt_dir,
+                                 features=features, motions=motions, asf=asf,
+                                 options=ReportOptions(tau=tau, delta=delta, title=title),
+                                 inside_input=inside_input, jobs=jobs, progress=bar,
+                                 failures=failures)
     for message in failures:
         click.echo(f"mtanno: {message}", err=True)
-    if not quiet:
-        what = (f"{len(result.evaluation.documents)} documents, F1 "
-                f"{result.evaluation.frame.F:.3f}" if result.evaluation is not None else
-                f"{len({r.doc for r in rows})} documents, {len(rows)} rows, no truth")
-        click.echo(f"report: {what}, {len(result.files)} files -> {result.page}", err=True)
+    if not quiet:  # the page's summary: documents annotated, those with rows, rows, F1
+        click.echo(f"report: {result.summary}; {len(result.files)} files -> {result.page}",
+                   err=True)
     sys.exit(1 if failures else 0)
 
 

@@ -15,7 +15,9 @@ every stage that reads it). Modules:
   table (issue 26);
 * :mod:`~mtanno.evaluation.compose` — long evaluation documents composed from labelled
   clips (``mtanno compose``, :func:`compose_to`);
-* :mod:`~mtanno.evaluation.report` — the report and its tables (``mtanno report``);
+* :mod:`~mtanno.evaluation.report` — the report and its tables (``mtanno report``,
+  :func:`report_files`, :class:`ReportOptions`);
+* :mod:`~mtanno.evaluation.report_tables` — the report's tables as Markdown, LaTeX and HTML;
 * :mod:`~mtanno.evaluation.page` — the report page: an archive view of every document, one
   player, review to truth (its scripts ``archive.js``, ``player.js``, ``review.js`` and
   style ``page.css`` are package data), its data files and figures;
@@ -23,8 +25,8 @@ every stage that reads it). Modules:
   blocks, checked against the annotation, encoded for the page.
 
 Every module's public names are importable from the package, attached on first use
-(PEP 562), except those of ``compose``, ``page`` and ``player`` (import them): reading a
-truth table loads neither the report nor the feature extractor.
+(PEP 562), except those of ``compose``, ``page``, ``player`` and ``report_tables`` (import
+them): reading a truth table loads neither the report nor the feature extractor.
 """
 
 from mtanno.util.lazy import lazy_exports
@@ -36,7 +38,7 @@ __getattr__, __all__ = lazy_exports(__name__, {
                     "reliability_table", "rows_right", "segment_right"),
     "metrics": ("EVALUATION_SCHEMA", "PRF", "Report", "evaluate_annotations", "evaluate_files",
                 "evaluate_to", "frame_level", "segment_level"),
-    "report": ("ReportResult", "confusion_matrix", "write_report"),
+    "report": ("ReportOptions", "ReportResult", "confusion_matrix", "write_report"),
     "retrieval": ("ClassRetrieval", "RetrievalRow", "RetrievalRun", "TAU_GRID",
                   "evaluate_retrieval_files", "evaluate_retrieval_to", "retrieval_evaluation",
                   "retrieval_report", "retrieval_rows", "retrieval_table", "separation_quotient",

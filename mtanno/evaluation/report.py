@@ -35,16 +35,22 @@ import html
 import math
 import os
 from collections import defaultdict
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mtanno.errors import MtannoError
-from mtanno.evaluation.metrics import SEGMENTATION_COLUMNS, Report, evaluate_annotations
+from mtanno.evaluation.metrics import Report, evaluate_annotations
 from mtanno.evaluation.page import FORMATS
+from mtanno.evaluation.report_tables import (
+    html_table,
+    latex_table,
+    markdown_table,
+    plain_markdown,
+)
 from mtanno.labels.segments import Segment
 
 if TYPE_CHECKING:
@@ -55,8 +61,8 @@ NONE = "none"
 #: Title of a report page.
 REPORT_TITLE = "mtanno annotation report"
 #: Every name :func:`write_report` may write in its folder (glob patterns for those named
-#: after classes), for :func:`mtanno.util.preflight.check_outputs`; the folder ``data/`` is
-#: the report's alone.
+#: after classes), for :func:`mtanno.util.preflight.check_outputs`; in the folder ``data/``
+#: it writes (and removes) only its data files (``HASH.js``).
 REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_class.md",
                 "per_class.tex", "confusion.csv", "confusion.csv.meta.json", "summary.csv",
                 "summary.csv.meta.json", "summary.md", "review.csv", "review.csv.meta.json",
@@ -64,11 +70,39 @@ REPORT_FILES = ("index.html", "per_class.csv", "per_class.csv.meta.json", "per_c
                                                               "template_*") for fmt in FORMATS))
 
 
+@dataclass(frozen=True)
+class ReportOptions:
+    """How :func:`write_report` draws the report (the defaults are the command's): the Δ
+    curves of templates quantized with ``delta`` (None: 0.05) as the annotation did, with
+    the threshold ``tau`` (None: the annotation default) and each class's τ of
+    ``tau_per_class`` drawn; ``extra_templates`` names the classes the annotation also
+    matched further templates for (a tuned configuration's ``[templates]``): their curves,
+    of the class's own template only, are not the annotation's Δ, and the page says so.
+    ``title``: the page's; ``chunk_bytes``: the size of the data files the poses and
+    curves go into (None: :data:`~mtanno.evaluation.page.CHUNK_BYTES`; 0: one file per
+    document). :func:`report_files` fills ``tau``, ``tau_per_class``, ``delta`` and
+    ``extra_templates`` from what the annotation recorded where they are None (``tau``
+    given: its ``tau_per_class`` only)."""
+
+    tau: float | None = None
+    tau_per_class: Mapping[str, float] | None = None
+    delta: float | None = None
+    extra_templates: tuple[str, ...] | None = None
+    title: str = REPORT_TITLE
+    chunk_bytes: int | None = None
+
+    def __post_init__(self):
+        if self.extra_templates is not None:
+            object.__setattr__(self, "extra_templates", tuple(self.extra_templates))
+
+
 @dataclass
 class ReportResult:
     """What :func:`write_report` wrote: the folder, the HTML page, every file, the
-    evaluation, the confusion matrix with its labels, notes shown on the page, and per
-    document why its motion is not shown (a motion that is not the annotated one)."""
+    evaluation, the confusion matrix with its labels, notes shown on the page, per
+    document why its motion is not shown (a motion that is not the annotated one), the
+    number of figures drawn (not reused), and the page's summary line (documents, those
+    with rows, rows, classes, frame F1: the command prints it)."""
 
     folder: Path
     page: Path
@@ -79,6 +113,7 @@ class ReportResult:
     notes: list[str] = field(default_factory=list)
     motion_notes: dict[str, str] = field(default_factory=dict)
     figures_drawn: int = 0
+    summary: str = ""
 
 
 def _by_doc(items, key=lambda x: x.doc) -> dict[str, list]:
@@ -128,76 +163,6 @@ def confusion_matrix(truth: Sequence[Segment], annotation: Sequence[Annotation],
     return M, labels, overlapped
 
 
-def _number(x: float | None) -> str:
-    return "–" if x is None or not math.isfinite(x) else f"{x:.3f}"
-
-
-def _cells(r: dict) -> list[str]:
-    """The cells of a :meth:`Report.rows` row after its class, "–" where undefined."""
-    return [_number(r["P1"]), _number(r["R1"]), _number(r["F1"]), str(r["frames"]),
-            _number(r["P2"]), _number(r["R2"]), _number(r["F2"]), str(r["segments"]),
-            *(_number(r.get(c)) for c in SEGMENTATION_COLUMNS)]
-
-
-def markdown_table(rows: Sequence[dict]) -> str:
-    """Per-class rows of :meth:`Report.rows` as a Markdown (GitHub) table."""
-    head = ("| class | P1 | R1 | F1 | frames | P2 | R2 | F2 | segments | "
-            + " | ".join(SEGMENTATION_COLUMNS) + " |")
-    lines = [head, "|---|" + "---:|" * (8 + len(SEGMENTATION_COLUMNS))]
-    for r in rows:
-        lines.append(f"| {r['class']} | " + " | ".join(_cells(r)) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def _plain_markdown(rows: Sequence[dict]) -> str:
-    """Rows of any columns (the first row's) as a Markdown table; numbers as they are,
-    missing values "–"."""
-    cols = list(rows[0]) if rows else []
-    lines = ["| " + " | ".join(cols) + " |", "|---|" + "---:|" * (len(cols) - 1)]
-    for r in rows:
-        lines.append("| " + " | ".join("–" if r[c] is None else str(r[c]) for c in cols) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def _tex(text: str) -> str:
-    """Text with LaTeX's special characters escaped."""
-    text = text.replace("\\", "\0")
-    for a, b in (("_", r"\_"), ("&", r"\&"), ("%", r"\%"), ("#", r"\#"), ("$", r"\$"),
-                 ("{", r"\{"), ("}", r"\}")):
-        text = text.replace(a, b)
-    return text.replace("\0", r"\textbackslash{}")
-
-
-def latex_table(rows: Sequence[dict]) -> str:
-    """Per-class rows as a LaTeX ``tabular`` (booktabs rules), the overall row last."""
-    lines = [r"\begin{tabular}{l" + "r" * (8 + len(SEGMENTATION_COLUMNS)) + "}", r"\toprule",
-             r"class & $P_1$ & $R_1$ & $F_1$ & frames & $P_2$ & $R_2$ & $F_2$ & segments & "
-             r"Acc & Edit & F1@10 & F1@25 & F1@50 \\",
-             r"\midrule"]
-    for r in rows:
-        if r["class"] == "overall":
-            lines.append(r"\midrule")
-        lines.append(" & ".join([_tex(str(r["class"])), *_cells(r)]) + r" \\")
-    lines += [r"\bottomrule", r"\end{tabular}"]
-    return "\n".join(lines) + "\n"
-
-
-
-
-def _html_table(rows: Sequence[dict]) -> str:
-    cols = list(rows[0]) if rows else []
-    out = ["<table class='scores'><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c in cols)
-           + "</tr>"]
-    for r in rows:
-        cells = []
-        for c in cols:
-            v = r[c]
-            text = _number(v) if v is None or isinstance(v, float) else html.escape(str(v))
-            cells.append(f"<td>{text}</td>")
-        out.append("<tr>" + "".join(cells) + "</tr>")
-    return "\n".join(out) + "</table>"
-
-
 def annotation_parameters(provenances: Sequence[dict]) -> dict:
     """What annotation tables' provenance records (``mtanno.annotate.read_annotation_tables``)
     say the annotation used, for :func:`write_report`: ``tau`` (default τ), ``tau_per_class``,
@@ -217,28 +182,21 @@ def annotation_parameters(provenances: Sequence[dict]) -> dict:
             "extra_templates": sorted(extra) if isinstance(extra, dict) else []}
 
 
-
 def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                  annotation: Sequence[Annotation], *, frames: dict[str, int] | None = None,
                  templates: dict | None = None, features: dict[str, np.ndarray] | None = None,
-                 tau: float | None = None, tau_per_class: dict[str, float] | None = None,
-                 delta: float | None = None, extra_templates: Sequence[str] = (),
-                 title: str = REPORT_TITLE, provenance: dict | None = None,
-                 progress: Callable[[int, int], None] | None = None,
                  poses: dict | None = None, pose_sources: dict[str, str] | None = None,
-                 motion_notes: dict[str, str] | None = None,
-                 chunk_bytes: int | None = None) -> ReportResult:
+                 motion_notes: dict[str, str] | None = None, provenance: dict | None = None,
+                 options: ReportOptions | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> ReportResult:
     """Write the report of ``annotation`` (rows of one or more annotation tables, 0-based
     frames) against ``truth`` into ``out_dir`` (module docstring). ``frames`` gives each
     document's length as the annotation recorded it (default: the last labelled frame of
     truth or annotation); documents are those annotated. ``templates`` (class →
     :class:`~mtanno.templates.model.MotionTemplate`) adds heat maps and, with ``features``
-    (document → features × frames matrix), the Δ curves of every class in the player:
-    templates quantized with ``delta`` (default 0.05) as the annotation did, ``tau`` and
-    each class's τ of ``tau_per_class`` drawn. ``extra_templates`` names the classes the
-    annotation also matched further templates for (a tuned configuration's
-    ``[templates]``): their curves, of the class's own template only, are not the
-    annotation's Δ, and the page says so. ``progress(done, total)`` is called after each
+    (document → features × frames matrix), the Δ curves of every class in the player, as
+    ``options`` say (:class:`ReportOptions`: τ, δ, the classes with further templates,
+    the title, the size of the data files). ``progress(done, total)`` is called after each
     document and figure.
 
     Without ``truth`` (None; an archive nobody has labelled) the page has, instead of the
@@ -252,8 +210,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     count is not the annotation's is not shown, and ``ReportResult.motion_notes`` and the
     page say why (:func:`~mtanno.evaluation.player.motion_mismatch`; ``motion_notes``:
     those the caller found so already, document → why). They go into data
-    files of about ``chunk_bytes`` (default :data:`~mtanno.evaluation.page.CHUNK_BYTES`; 0:
-    one file per document)."""
+    files of about ``options.chunk_bytes`` bytes."""
     from mtanno.evaluation.page import (
         CHUNK_BYTES,
         Figures,
@@ -268,6 +225,7 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
     require_matplotlib()
     if not annotation:
         raise MtannoError("the annotation has no rows to report on")
+    o = options or ReportOptions()
     folder = make_folder(out_dir)
     result = ReportResult(folder, folder / "index.html")
     result.motion_notes.update(motion_notes or {})
@@ -294,24 +252,24 @@ def write_report(out_dir: str | os.PathLike, truth: Sequence[Segment] | None,
                                            pose_sources or {}, result, step)
     curves = None
     if templates and features:
-        curves = curve_entries(entries, templates, features, docs, tau, tau_per_class or {},
-                               delta)
-    if curves and extra_templates:
+        curves = curve_entries(entries, templates, features, docs, o.tau,
+                               dict(o.tau_per_class or {}), o.delta)
+    if curves and o.extra_templates:
         result.notes.append(
             "the annotation also matched further templates of "
-            f"{', '.join(sorted(extra_templates))} (its class configuration's [templates]); "
+            f"{', '.join(sorted(o.extra_templates))} (its class configuration's [templates]); "
             "their Δ curves here are those of the class's own template only")
     chunks, where = write_chunks(folder, entries, docs, chunk_bytes=CHUNK_BYTES
-                                 if chunk_bytes is None else chunk_bytes)
+                                 if o.chunk_bytes is None else o.chunk_bytes)
     result.files += [folder / "data" / f"{c}.js" for c in chunks]
     _motion_notes(result, docs, poses, entries)
     data = page_data(docs, frames, annotation, truth=truth if scored else None,
                      colours=colours, notes=result.motion_notes, chunks=chunks, where=where,
-                     rigs=rigs, rig_list=rig_list, curves=curves, title=title)
+                     rigs=rigs, rig_list=rig_list, curves=curves, title=o.title)
     data["motions"] = poses is not None
     sections += _closing_sections(result, prov, scored)
     figs.close()
-    _write_page(result, title, data, sections, n_with_rows, annotation)
+    _write_page(result, o.title, data, sections, n_with_rows, annotation)
     return result
 
 
@@ -346,10 +304,12 @@ def _write_page(result: ReportResult, title: str, data: dict, sections, n_with_r
     from mtanno.evaluation.page import page_html
     from mtanno.util.output import write_text
 
-    summary = (f"{len(data['docs']['name'])} documents ({n_with_rows} with rows), "
-               f"{len(annotation)} rows, {len({a.label for a in annotation})} classes; frames "
-               "at 30 Hz" + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation
-                             else "; no truth given: no scores"))
+    result.summary = (
+        f"{len(data['docs']['name'])} documents ({n_with_rows} with rows), {len(annotation)} "
+        f"rows, {len({a.label for a in annotation})} classes"
+        + (f"; frame F1 {result.evaluation.frame.F:.3f}" if result.evaluation
+           else "; no truth given: no scores"))
+    summary = result.summary + "; frames at 30 Hz"
     write_text(result.page, page_html(title=title, summary=html.escape(summary),
                                       notes=result.notes, sections=sections, data=data))
     result.files.append(result.page)
@@ -373,9 +333,9 @@ def _summary(figs: Figures, annotation, frames, prov, sections) -> None:
     rows = summary_rows(annotation, frames)
     folder, result = figs.folder, figs.result
     write_table(folder / "summary.csv", pa.Table.from_pylist(rows), provenance=prov)
-    _text(result, folder / "summary.md", _plain_markdown(rows))
+    _text(result, folder / "summary.md", plain_markdown(rows))
     result.files += [folder / "summary.csv", folder / "summary.csv.meta.json"]
-    sections.append(("summary", "Classes in the annotation", _html_table(rows)))
+    sections.append(("summary", "Classes in the annotation", html_table(rows)))
 
 
 def _text(result: ReportResult, path: Path, text: str) -> None:
@@ -453,7 +413,7 @@ def _scores(figs: Figures, truth, annotation, docs, frames, prov, sections) -> N
     result.files += [folder / "per_class.csv", folder / "per_class.csv.meta.json"]
     _text(result, folder / "per_class.md", markdown_table(rows))
     _text(result, folder / "per_class.tex", latex_table(rows))
-    sections.append(("scores", "Precision, recall, F per class", _html_table(rows)))
+    sections.append(("scores", "Precision, recall, F per class", html_table(rows)))
     M, labels, overlapped = confusion_matrix(truth, annotation, frames)
     result.confusion, result.labels = M, labels
     if overlapped:
@@ -518,7 +478,6 @@ def review_rows(annotation: Sequence[Annotation]) -> list[dict]:
             for a in sorted(annotation, key=key)]
 
 
-
 def _reliability(figs: Figures, truth, annotation, prov: dict) -> None:
     """The reliability diagram of the rows' confidence against the truth (issue 26), and
     its AUROC and ECE as a note; nothing when no row has a confidence or there is no
@@ -548,22 +507,22 @@ def _reliability(figs: Figures, truth, annotation, prov: dict) -> None:
         f"{auroc(prob, right):.3f}, ECE {expected_calibration_error(prob, right):.3f}")
 
 
-
-
 def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.PathLike, *,
                  truth_path: str | os.PathLike | None = None,
                  mt_dir: str | os.PathLike | None = None,
                  features: Sequence[str | os.PathLike] = (),
                  motions: Sequence[str | os.PathLike] = (),
-                 asf: str | os.PathLike | None = None, tau: float | None = None,
-                 delta: float | None = None, title: str = REPORT_TITLE,
+                 asf: str | os.PathLike | None = None, options: ReportOptions | None = None,
+                 inside_input: bool = False, jobs: int = 1,
                  progress: Callable[[int, int], None] | None = None,
-                 failures: list[str] | None = None, chunk_bytes: int | None = None,
-                 jobs: int = 1) -> tuple[ReportResult, list]:
+                 failures: list[str] | None = None) -> tuple[ReportResult, list]:
     """The whole ``mtanno report`` run: the annotation tables (files or folders of them),
     the truth, templates, feature files and motion files read and checked against the
-    output folder (never an input there), and :func:`write_report` with the thresholds and
-    δ the annotation recorded (``tau``, ``delta`` override them). Poses for the player come
+    output folder (never an input there; an ``out_dir`` that is, or lies inside, a folder
+    of annotation tables, feature files, motions or templates only with ``inside_input``),
+    and :func:`write_report` as ``options`` say (:class:`ReportOptions`), with the
+    thresholds, δ and further templates the annotation recorded where ``options`` leave
+    them None. Poses for the player come
     from ``motions`` (:func:`mtanno.evaluation.player.motion_files`; the rig's own bones),
     else from the pose blocks of ``features`` (``asf``: the ASF of AMC motions, else found
     beside them); Δ curves need ``mt_dir`` and ``features``. A feature or motion file that
@@ -571,9 +530,9 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
     it). A motion that is not the annotated one (another frame count, or another SHA-256
     than the document's feature file records) is not played: ``ReportResult.motion_notes``
     and the page say why, and the message goes to ``failures``. Motion files are read in
-    ``jobs`` processes. ``chunk_bytes``: the size of the data files (:func:`write_report`).
-    ``progress(done, total)`` counts motion files read, then the documents and figures of
-    :func:`write_report`. Returns the result and the annotation's rows."""
+    ``jobs`` processes. ``progress(done, total)`` counts motion files read, then the
+    documents and figures of :func:`write_report`. Returns the result and the annotation's
+    rows."""
     from mtanno.annotate import (
         ANNOTATION_SUFFIXES,
         annotation_files,
@@ -595,14 +554,19 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
         raise MtannoError("a motion file among the annotation tables: give {motions} before "
                           "each motion file, or their folder", options=("motions",))
     paths = document_files(features, failures=failures) if features else []
-    # folders read whole: an output there would be read by the next run
-    scanned = {**{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
+    # the input folders, each with what the next run reads there (an output folder among
+    # them only with inside_input; an output the next run reads, never); the templates'
+    # folder is read without its subfolders
+    scanned = {**{m: MOCAP_SUFFIXES for m in motions if Path(m).is_dir()},
+               **({mt_dir: (".json",) if _same_folder(mt_dir, out_dir) else ()}
+                  if mt_dir is not None and Path(mt_dir).is_dir() else {}),
+               **{a: ANNOTATION_SUFFIXES for a in annotations if Path(a).is_dir()},
                **{f: (".parquet",) for f in features if Path(f).is_dir()}}
     annotations = annotation_files(annotations)
     inputs = [*annotations, *([truth_path] if truth_path else [])]
-    outputs = {out_dir: REPORT_FILES, Path(out_dir) / DATA_FOLDER: None}
+    outputs = {out_dir: REPORT_FILES, Path(out_dir) / DATA_FOLDER: ("*.js",)}
     check_outputs([], [*inputs, *paths, *(template_files(mt_dir) if mt_dir else [])],
-                  folders=outputs, scanned=scanned)
+                  folders=outputs, scanned=scanned, inside_input=inside_input)
     rows, frames, provs = read_annotation_tables(annotations)
     docs = sorted({r.doc for r in rows} | set(frames))
     motion_paths = motion_files(motions, docs)
@@ -621,23 +585,31 @@ def report_files(annotations: Sequence[str | os.PathLike], out_dir: str | os.Pat
 
     feats, poses, sources, other = _player_inputs(paths, motions, motion_paths, docs, asf=asf,
                                                   jobs=jobs, failures=failures, step=step)
-    per_class = recorded["tau_per_class"] if tau is None else {}
-    if tau is None:  # the annotation's thresholds
-        tau = ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"]
+    o = options or ReportOptions()
+    if o.tau is None:  # the annotation's thresholds
+        o = replace(o, tau=ANNOTATION_TAU if recorded["tau"] is None else recorded["tau"],
+                    tau_per_class=recorded["tau_per_class"] if o.tau_per_class is None
+                    else o.tau_per_class)
+    o = replace(o, delta=recorded["delta"] if o.delta is None else o.delta,
+                extra_templates=recorded["extra_templates"] if o.extra_templates is None
+                else o.extra_templates)
     result = write_report(
         out_dir, truth, rows, frames=frames,
         templates=load_template_folder(mt_dir) if mt_dir else None,
-        features=(feats or None) if mt_dir else None, tau=tau, tau_per_class=per_class,
+        features=(feats or None) if mt_dir else None,
         poses=poses if motions or poses else None, pose_sources=sources, motion_notes=other,
-        delta=delta if delta is not None else recorded["delta"],
-        extra_templates=recorded["extra_templates"], title=title, chunk_bytes=chunk_bytes,
-        progress=None if progress is None else
+        options=o, progress=None if progress is None else
         (lambda done, total: progress(read[0] + done, read[0] + total)),
         provenance=provenance(inputs=[*inputs, *motion_paths.values()],
                               truth=str(truth_path) if truth_path else None))
     if failures is not None:
         failures.extend(result.motion_notes.values())
     return result, rows
+
+
+def _same_folder(a, b) -> bool:
+    """Whether the folders ``a`` and ``b`` are one (resolved)."""
+    return os.path.realpath(a) == os.path.realpath(b)
 
 
 def _player_inputs(paths, motions, motion_paths, docs, *, asf, jobs, failures, step):

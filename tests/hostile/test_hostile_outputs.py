@@ -198,7 +198,8 @@ def test_outputs_beside_what_a_scan_reads_are_fine(world, tmp_path):
 INSIDE = ["features DATA -o DATA", "features DATA -o DATA/feats", "annotate --output-dir FEATS",
           "annotate --output-dir FEATS/ann", "annotate --output-dir MT",
           "learn-mt -o FEATS/mt", "learn-mt -o TRAINING", "learn-keyframes -o MT/kf",
-          "tune --ablation FEATS/abl", "compose -o CLIPS/docs"]
+          "tune --ablation FEATS/abl", "compose -o CLIPS/docs", "report -o FEATS/rep",
+          "report -o MOTIONS/rep", "report -o MOTIONS", "report -o MT/rep"]
 
 
 def _inside_case(world, tmp_path, case):
@@ -206,7 +207,10 @@ def _inside_case(world, tmp_path, case):
     data, feats = tmp_path / "data", tmp_path / "feats"
     if case.startswith(("features", "compose")):
         world.copy(world.clips, data)
-    if not case.startswith(("features", "compose")):
+    if case.startswith("report"):  # the documents' feature files and motions
+        world.copy(world.docfeats, feats)
+        world.copy(world.docs, data)
+    elif not case.startswith(("features", "compose")):
         world.copy(world.feats, feats)
     mt = world.copy(world.mt, tmp_path / "mt")
     out = {"features DATA -o DATA": data, "features DATA -o DATA/feats": data / "feats",
@@ -214,7 +218,9 @@ def _inside_case(world, tmp_path, case):
            "annotate --output-dir MT": mt, "learn-mt -o FEATS/mt": feats / "mt",
            "learn-mt -o TRAINING": feats, "learn-keyframes -o MT/kf": mt / "kf",
            "tune --ablation FEATS/abl": feats / "abl",
-           "compose -o CLIPS/docs": data / "squat" / "docs"}[case]
+           "compose -o CLIPS/docs": data / "squat" / "docs", "report -o FEATS/rep": feats / "rep",
+           "report -o MOTIONS/rep": data / "rep", "report -o MOTIONS": data,
+           "report -o MT/rep": mt / "rep"}[case]
     train = ["--manifest", world.manifest, "--features-dir", feats, "--split", "train"]
     args = {"features": ["features", data, "-o", out, "-q"],
             "annotate": ["annotate", "--mt", mt, feats, "--output-dir", out, "-q"],
@@ -225,7 +231,10 @@ def _inside_case(world, tmp_path, case):
             "tune": ["tune", "--mt", mt, *train, "-o", tmp_path / "t.toml", "--ablation", out,
                      "-q"],
             "compose": ["compose", data / "clips.csv", "--actor", "c", "--docs", "1", "-o",
-                        out]}[case.split()[0]]
+                        out],
+            "report": ["report", world.annotation, "--truth", world.truth, "--mt", mt,
+                       "--features", feats, "--motions", data, "-o", out, "-q"],
+            }[case.split()[0]]
     return args, out
 
 
@@ -244,7 +253,8 @@ def test_an_output_folder_inside_an_input_folder_is_refused(world, tmp_path, cas
 
 
 @pytest.mark.parametrize("case", ["features DATA -o DATA/feats", "annotate --output-dir FEATS",
-                                  "learn-mt -o FEATS/mt", "compose -o CLIPS/docs"])
+                                  "learn-mt -o FEATS/mt", "compose -o CLIPS/docs",
+                                  "report -o FEATS/rep", "report -o MOTIONS", "report -o MT/rep"])
 def test_inside_input_says_an_output_folder_among_the_inputs_is_meant(world, tmp_path, case):
     """With --inside-input the same runs write, and the next run over the input folder
     reads what it read before (the outputs are not among what it reads)."""
@@ -252,6 +262,8 @@ def test_inside_input_says_an_output_folder_among_the_inputs_is_meant(world, tmp
     r = cli(*args, "--inside-input")
     assert r.exit_code == 0, r.output
     assert any(out.iterdir())
+    if case.startswith("report"):
+        assert (out / "index.html").is_file()
     r = cli(*args, "--inside-input")
     assert r.exit_code == 0, r.output
 
@@ -269,6 +281,12 @@ def test_inside_input_never_lets_the_next_run_read_an_output(world, tmp_path):
     assert "the next run over that folder would read this output" in line, line
     r = cli("index", fd, "-o", fd / "idx")  # an index inside its features: never
     s.refused(r, fd / "idx")
+    # a report in the templates' folder: its figures.json would be read as a template
+    mt = world.copy(world.mt, tmp_path / "mt")
+    s.snapshot()
+    r = cli("report", world.annotation, "--mt", mt, "-o", mt, "--inside-input")
+    line = s.refused(r, mt)
+    assert "the next run over that folder would read this output" in line, line
 
 
 def test_check_outputs_inside_input(tmp_path):
