@@ -68,3 +68,19 @@ def test_bad_scheduler_is_one_line(world, tmp_path):
         r = cli("features", world.clips, "-o", tmp_path / "g", "--scheduler",
                 "tcp://127.0.0.1:9")
     assert r.exit_code == 2 and "cannot reach the dask scheduler" in r.output
+
+
+def test_each_pool_scatters_under_its_own_key(cluster):
+    """Two pools in a row that share the same data scatter it under different keys: with
+    content-hashed keys the first pool's release, which the scheduler may handle after the
+    second pool scattered, would cancel the second pool's tasks (FutureCancelledError,
+    seen in learn-keyframes --scheduler on a loaded machine)."""
+    from mtanno.util.workers import DaskPool
+
+    data = {"examples": list(range(100))}
+    keys = []
+    for _ in range(2):
+        with DaskPool(cluster, shared=data) as pool:
+            keys.append(pool._shared.key)
+            assert list(pool.map(len, [([1, 2],), ([3],)])) == [2, 1]
+    assert keys[0] != keys[1]

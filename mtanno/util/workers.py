@@ -443,7 +443,11 @@ class DaskPool:
 
                 raise MtannoError(f"cannot reach the dask scheduler {scheduler}: {exc}") \
                     from None
-        self._shared = (self._client.scatter(shared, broadcast=True)
+        # One object under a key of this pool's own: scattered as it is, a dict's keys
+        # ("examples", …) or a content hash would be the same keys for the next pool that
+        # shares such data, and the scheduler's late release of the closing pool's keys
+        # would cancel the next pool's tasks (FutureCancelledError).
+        self._shared = (self._client.scatter([shared], broadcast=True, hash=False)[0]
                         if shared is not None else None)
 
     def map(self, fn: Callable[..., Any], args: Iterable[Sequence[Any]], *,
