@@ -55,8 +55,8 @@ REPEATS = 2
 FALLBACK_FOLDS = 3
 #: Examples a template of ``tune`` is learned from at most (per class and fold; ``tune
 #: --max-examples``): the learning's cost grows with their square (module docstring).
-#: Measured on the Bandai leave-one-style-out folds (docs/benchmarks.md, "tune at the size
-#: of a lab's training set"): 24 annotates the held-out styles as well as 48 (mean frame F1
+#: Measured on the Bandai leave-one-style-out folds (docs/benchmarks.md, "Training sets
+#: and archives of lab size"): 24 annotates the held-out styles as well as 48 (mean frame F1
 #: 0.641 against 0.628, the folds scattering ±0.2 either way) and tunes 600 clips in 75 s
 #: instead of 277 s.
 MAX_EXAMPLES = 24
