@@ -15,6 +15,8 @@ import subprocess
 import time
 from pathlib import Path
 
+import pytest
+
 TIMEOUT = 120.0  # seconds: long, for a loaded machine; a wait ends as soon as its event comes
 
 
@@ -24,6 +26,11 @@ def chromium() -> str | None:
         if shutil.which(name):
             return shutil.which(name)
     return None
+
+
+needs_chromium = pytest.mark.skipif(
+    chromium() is None, reason="headless Chromium not found (Debian: apt-get install "
+    "chromium); the page is checked in a browser only where it is installed")
 
 
 def _high(*fds: int) -> list[int]:

@@ -27,3 +27,14 @@ def require_data() -> Path:
 @pytest.fixture
 def data_dir() -> Path:
     return require_data()
+
+
+@pytest.fixture
+def browser(tmp_path):
+    """A headless Chromium (``tests/browser.py``) with its own profile and downloads
+    folder, closed after the test; mark the test ``browser.needs_chromium``."""
+    from browser import Browser, chromium
+
+    b = Browser(chromium(), tmp_path / "profile", downloads=tmp_path / "downloads")
+    yield b
+    b.close()

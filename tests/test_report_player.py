@@ -14,7 +14,7 @@ import re
 
 import numpy as np
 import pytest
-from browser import Browser, chromium, wait_for_file
+from browser import needs_chromium, wait_for_file
 from world import cli
 
 from mtanno.evaluation.player import (
@@ -271,16 +271,6 @@ def test_delta_curves_in_the_data_files_are_the_annotations(world, tmp_path):
 
 # --- the page in a browser ------------------------------------------------------------------
 
-needs_chromium = pytest.mark.skipif(
-    chromium() is None, reason="headless Chromium not found (Debian: apt-get install "
-    "chromium); the page is checked in a browser only where it is installed")
-
-
-@pytest.fixture
-def browser(tmp_path):
-    b = Browser(chromium(), tmp_path / "profile", downloads=tmp_path / "downloads")
-    yield b
-    b.close()
 
 
 def _shown(browser, doc: str) -> None:

@@ -22,8 +22,7 @@ import json
 import re
 
 import numpy as np
-import pytest
-from browser import Browser, chromium, wait_for_file
+from browser import needs_chromium, wait_for_file
 from test_hostile_motion import bvh_text
 from world import cli
 
@@ -32,16 +31,6 @@ from mtanno.labels.truth import read_truth
 HOSTILE = "x<!--<script>"
 P = "document.querySelector('[data-mtanno-player]')"
 
-needs_chromium = pytest.mark.skipif(
-    chromium() is None, reason="headless Chromium not found (Debian: apt-get install "
-    "chromium); the page is checked in a browser only where it is installed")
-
-
-@pytest.fixture
-def browser(tmp_path):
-    b = Browser(chromium(), tmp_path / "profile", downloads=tmp_path / "downloads")
-    yield b
-    b.close()
 
 
 def _annotation(tmp_path, rows, name="a.csv"):
